@@ -1,0 +1,47 @@
+"""hpdob: discrete-time disturbance observers for motion control.
+
+Conventional DOb (order 0), the High-Performance DOb (order 1) and observers of any
+truncation order from one synthesis, after E. Sariyildiz, "A High Performance Disturbance
+Observer: A Unified Synthesis Approach".
+
+Public namespace
+----------------
+ServoModel, DiscreteServoModel
+    Servo model (eq. 1) and its exact zero-order-hold discretisation (eqs. 4-8).
+design_observer, ObserverDesign
+    Pure synthesis of an observer of any order by eigenvalue placement or bandwidth.
+DisturbanceObserver
+    Stateful runtime object for the sample loop (``estimate`` then ``update``).
+initial_state, estimate, update
+    The pure functional core of the sample loop.
+"""
+
+from ._core import estimate, initial_state, update
+from ._model import DiscreteServoModel, ServoModel
+from ._observer import DisturbanceObserver
+from ._synthesis import (
+    ObserverDesign,
+    characteristic_polynomial,
+    design_observer,
+    error_matrix,
+    extrapolation_weights,
+)
+from ._validation import ParameterTypeError, ParameterValueError
+from ._version import __version__
+
+__all__ = [
+    "DiscreteServoModel",
+    "DisturbanceObserver",
+    "ObserverDesign",
+    "ParameterTypeError",
+    "ParameterValueError",
+    "ServoModel",
+    "__version__",
+    "characteristic_polynomial",
+    "design_observer",
+    "error_matrix",
+    "estimate",
+    "extrapolation_weights",
+    "initial_state",
+    "update",
+]

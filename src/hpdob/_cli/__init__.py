@@ -1,0 +1,60 @@
+"""Command-line interface: ``hpdob <command> [options]``.
+
+Each command lives in its own module that exposes ``register(subparsers)``; the module's
+handler returns the process exit code. Bad arguments print one line naming the argument
+and exit with code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+
+from .._validation import ParameterTypeError, ParameterValueError
+from .._version import __version__
+from . import _design
+
+__all__ = ["main"]
+
+_COMMANDS = (_design,)
+
+
+class CLIError(Exception):
+    """A user error to report on one line with exit code 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser whose errors are a single line and exit code 2."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(
+        prog="hpdob",
+        description="Discrete-time disturbance observers "
+        "(DOb, HPDOb, any truncation order) for motion control.",
+    )
+    parser.add_argument("--version", action="version", version=f"hpdob {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub.required = True
+    for module in _COMMANDS:
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``hpdob`` console script; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.handler(args) or 0)
+    except (CLIError, ParameterTypeError, ParameterValueError) as err:
+        print(f"hpdob {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # e.g. `hpdob design --json | head`: stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 1

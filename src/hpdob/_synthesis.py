@@ -1,0 +1,347 @@
+r"""Unified synthesis of discrete disturbance observers of any truncation order.
+
+Order ``m = 0`` is the conventional DOb (eqs. 9-13), ``m = 1`` the HPDOb (eqs. 14-24) and
+``m >= 2`` the generalisation announced in the paper. With auxiliary variables
+:math:`z_{i,k} = \tau_{k-(m+1-i)} + L_i^T x_k`, ``i = 1..m+1``, and the disturbance model
+:math:`\Delta^{m+1}\tau = 0`, the observer is
+
+.. math::
+
+    \hat z_{k+1} = M \hat z_k + (G A - M G) x_k + G B u_k, \qquad
+    \hat\tau_k = \hat z_{m+1,k} - L_{m+1}^T x_k,
+
+where ``G`` stacks the gains :math:`L_i^T` as rows, :math:`M = C - k\,e_{m+1}^T`, ``C`` is the
+companion matrix of :math:`(z-1)^{m+1}` (ones on the super-diagonal, last row the
+extrapolation weights :math:`p_i = (-1)^{m+1-i}\binom{m+1}{i-1}`) and
+:math:`k_i = L_i^T D_{Dn}`. The derivation is in ``docs/theory.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._model import DiscreteServoModel, ServoModel
+from ._validation import ParameterTypeError, ParameterValueError, as_int, as_real_vector, positive
+
+__all__ = [
+    "ObserverDesign",
+    "characteristic_polynomial",
+    "design_observer",
+    "error_matrix",
+    "extrapolation_weights",
+]
+
+#: Relative tolerance for matching complex-conjugate partners.
+_PAIR_RTOL = 1e-9
+#: gain directions with |d^T D| <= _DEGENERATE * |d| |D| are rejected.
+_DEGENERATE = 1e-8
+
+
+def extrapolation_weights(order: int) -> np.ndarray:
+    r"""Weights :math:`p_i` with :math:`\tau_{k+1} = \sum_i p_i \tau_{k-(m+1-i)}` when
+    :math:`\Delta^{m+1}\tau_{k+1} = 0`.
+
+    :math:`p_i = (-1)^{m+1-i}\binom{m+1}{i-1}` for ``i = 1..m+1`` (``order = m``): the
+    degree-``m`` polynomial extrapolation of the last ``m+1`` samples. ``[1]`` for the DOb,
+    ``[-1, 2]`` for the HPDOb (eqs. 17-19).
+    """
+    m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
+    return np.array([(-1.0) ** (m + 1 - i) * math.comb(m + 1, i - 1) for i in range(1, m + 2)])
+
+
+def _companion(order: int) -> np.ndarray:
+    n = order + 1
+    C = np.zeros((n, n))
+    C[np.arange(n - 1), np.arange(1, n)] = 1.0
+    C[-1, :] += extrapolation_weights(order)
+    return C
+
+
+def error_matrix(k) -> np.ndarray:
+    r"""Estimation-error matrix :math:`M = C - k\,e_{m+1}^T` for ``k_i = L_i^T D_Dn``.
+
+    ``k`` has ``m + 1`` entries. For one entry this is ``[[1 - k1]]`` (eq. 12); for two it is
+    ``[[0, 1 - k1], [-1, 2 - k2]]`` (eq. 22).
+    """
+    k = as_real_vector(k, "k", "a sequence of scalar gains k_i = L_i^T D_Dn")
+    if k.size == 0:
+        raise ParameterValueError("k must have at least one entry, got an empty sequence")
+    M = _companion(k.size - 1)
+    M[:, -1] -= k
+    return M
+
+
+def _characteristic_basis(order: int) -> np.ndarray:
+    r"""Matrix ``Q`` with ``charpoly(M) = (z-1)^{m+1} + Q @ k`` (ascending powers of z).
+
+    Column ``j`` (1-based) holds the coefficients of
+    :math:`q_j(z) = z^{m-j}\sum_{i\le j} p_i z^{i-1}` for ``j <= m`` and :math:`q_{m+1} = z^m`;
+    derived in ``docs/theory.md``.
+    """
+    m = order
+    p = extrapolation_weights(m)
+    Q = np.zeros((m + 1, m + 1))
+    for j in range(1, m + 1):
+        for i in range(1, j + 1):
+            Q[m - j + i - 1, j - 1] += p[i - 1]
+    Q[m, m] = 1.0
+    return Q
+
+
+def characteristic_polynomial(k) -> np.ndarray:
+    r"""Coefficients (highest power first) of :math:`\det(zI - M)` for gains ``k``.
+
+    Computed from the affine formula :math:`(z-1)^{m+1} + \sum_j k_j q_j(z)`, not from
+    eigenvalues, so it is exact to rounding for repeated roots too.
+    """
+    k = as_real_vector(k, "k", "a sequence of scalar gains k_i = L_i^T D_Dn")
+    if k.size == 0:
+        raise ParameterValueError("k must have at least one entry, got an empty sequence")
+    m = k.size - 1
+    ascending = np.zeros(m + 2)
+    ascending[: m + 1] = _characteristic_basis(m) @ k
+    ascending += np.array([math.comb(m + 1, j) * (-1.0) ** (m + 1 - j) for j in range(m + 2)])
+    return ascending[::-1]
+
+
+def _validate_poles(poles, order: int) -> np.ndarray:
+    try:
+        values = np.array(poles, dtype=complex)
+    except (TypeError, ValueError):
+        raise ParameterTypeError(
+            f"poles must be a sequence of {order + 1} numbers, got {poles!r}"
+        ) from None
+    if values.ndim == 0:
+        values = values.reshape(1)
+    if values.ndim != 1 or values.size != order + 1:
+        raise ParameterValueError(
+            f"poles must have order + 1 = {order + 1} entries for order {order}, "
+            f"got {values.size} ({poles!r})"
+        )
+    if not np.all(np.isfinite(values)):
+        raise ParameterValueError(f"poles must be finite, got {poles!r}")
+    outside = values[np.abs(values) >= 1.0]
+    if outside.size:
+        raise ParameterValueError(
+            f"poles must lie strictly inside the unit circle (|p| < 1), got "
+            f"{_fmt_pole(outside[0])} with |p| = {abs(outside[0]):.6g}"
+        )
+    # Complex poles must come in conjugate pairs (with equal multiplicity).
+    unmatched = [p for p in values if p.imag != 0.0]
+    while unmatched:
+        p = unmatched.pop(0)
+        scale = max(abs(p), 1e-300)
+        partner = next((q for q in unmatched if abs(q - p.conjugate()) <= _PAIR_RTOL * scale), None)
+        if partner is None:
+            raise ParameterValueError(
+                f"poles must come in complex-conjugate pairs so the gains are real: "
+                f"{_fmt_pole(p)} has no partner {_fmt_pole(p.conjugate())} in "
+                f"{poles!r}"
+            )
+        unmatched.remove(partner)
+    if np.all(values.imag == 0.0):
+        return values.real.copy()
+    return values
+
+
+def _fmt_pole(p: complex) -> str:
+    p = complex(p)
+    return f"{p.real:.6g}" if p.imag == 0.0 else f"({p.real:.6g}{p.imag:+.6g}j)"
+
+
+def _readonly(array: np.ndarray) -> np.ndarray:
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True, eq=False)
+class ObserverDesign:
+    r"""A synthesised disturbance observer of truncation order ``order`` (immutable).
+
+    Built by :func:`design_observer`; every array attribute is read-only.
+
+    Attributes
+    ----------
+    model : DiscreteServoModel
+        The nominal discrete model (:math:`A_{Dn}, B_{Dn}, D_{Dn}`).
+    order : int
+        Truncation order ``m``: 0 conventional DOb, 1 HPDOb, ``m >= 2`` generalised.
+    poles : ndarray, shape (order + 1,)
+        Requested eigenvalues of the error matrix (float if all real, else complex).
+    bandwidth : float or None
+        Bandwidth ``g`` [rad/s] if the poles came from it (all at ``exp(-g Ts)``).
+    gain_direction : ndarray, shape (2,)
+        Direction ``d`` of every gain vector, ``L_i = k_i d / (d^T D_Dn)``.
+    k : ndarray, shape (order + 1,)
+        Scalar gains :math:`k_i = L_i^T D_{Dn}` (the paper's :math:`k_1, k_2` of eq. 25).
+    gains : ndarray, shape (order + 1, 2)
+        Row ``i`` is :math:`L_{i+1}^T`.
+    error_matrix : ndarray, shape (order + 1, order + 1)
+        :math:`M` of :math:`e_{k+1} = M e_k + [0,\dots,0,\Delta^{m+1}\tau_{k+1}]^T`
+        (eqs. 12, 22).
+    state_matrix, state_input, control_input : ndarray
+        The observer recursion :math:`\hat z_{k+1} = M\hat z_k + K_x x_k + K_u u_k` with
+        ``state_matrix = M``, ``state_input = K_x = G A - M G`` (shape (order+1, 2)) and
+        ``control_input = K_u = G B`` (shape (order+1,)).
+    """
+
+    model: DiscreteServoModel
+    order: int
+    poles: np.ndarray
+    bandwidth: float | None
+    gain_direction: np.ndarray
+    k: np.ndarray
+    gains: np.ndarray
+    error_matrix: np.ndarray
+    state_input: np.ndarray
+    control_input: np.ndarray
+    # Python-float copies for the allocation-free sample loop in ``_core``.
+    _k: tuple = field(repr=False)
+    _p: tuple = field(repr=False)
+    _rows: tuple = field(repr=False)
+    _last_gain: tuple = field(repr=False)
+
+    @property
+    def state_matrix(self) -> np.ndarray:
+        """Alias of :attr:`error_matrix`: the observer's own state matrix is ``M``."""
+        return self.error_matrix
+
+    @property
+    def Ts(self) -> float:
+        """Sampling period [s]."""
+        return self.model.Ts
+
+    def __repr__(self) -> str:
+        poles = ", ".join(_fmt_pole(p) for p in np.atleast_1d(self.poles))
+        return (
+            f"ObserverDesign(order={self.order}, poles=[{poles}], "
+            f"Ts={self.model.Ts:g}, J_n={self.model.J:g}, b_n={self.model.b:g})"
+        )
+
+
+def design_observer(
+    model: DiscreteServoModel,
+    *,
+    order: int,
+    poles=None,
+    bandwidth: float | None = None,
+    gain_direction=(1.0, 1.0),
+) -> ObserverDesign:
+    r"""Synthesise an observer of truncation order ``order`` by eigenvalue placement.
+
+    Parameters
+    ----------
+    model : DiscreteServoModel
+        Nominal discrete model, e.g. ``ServoModel(J_n, b_n).discretize(Ts)``.
+    order : int
+        Truncation order ``m >= 0``: 0 is the conventional DOb (eqs. 9-13), 1 the HPDOb
+        (eqs. 14-24), higher orders cancel disturbances whose samples are polynomials of
+        degree ``m`` exactly.
+    poles : sequence of complex, optional
+        ``order + 1`` desired eigenvalues of the error matrix, strictly inside the unit circle;
+        complex ones in conjugate pairs; repeated poles are allowed.
+    bandwidth : float, optional
+        Observer bandwidth ``g > 0`` [rad/s]; places every pole at ``exp(-g Ts)``.
+        Exactly one of ``poles`` and ``bandwidth`` must be given.
+    gain_direction : sequence of 2 floats, optional
+        Direction ``d`` of the gain vectors, ``L_i = k_i d / (d^T D_Dn)``. The default
+        ``(1, 1)`` is the paper's eq. (25). ``(0, 1)`` makes the estimate independent of the
+        absolute position.
+
+    Returns
+    -------
+    ObserverDesign
+
+    Raises
+    ------
+    TypeError
+        If ``model`` is not a :class:`DiscreteServoModel` or an argument has the wrong type.
+    ValueError
+        If ``order < 0``, both or neither of ``poles``/``bandwidth`` are given, a pole is not
+        strictly inside the unit circle or lacks its conjugate, the number of poles is not
+        ``order + 1``, ``bandwidth <= 0``, or ``gain_direction`` is (nearly) orthogonal to
+        ``D_Dn``.
+
+    Notes
+    -----
+    The characteristic polynomial of the error matrix is affine in ``k``:
+    :math:`\det(zI - M) = (z-1)^{m+1} + \sum_j k_j q_j(z)` (``docs/theory.md``), so ``k``
+    follows from one triangular linear solve, which generalises eq. (24). Repeated poles
+    are placed exactly; no pole-placement routine is involved.
+
+    References
+    ----------
+    E. Sariyildiz, "A High Performance Disturbance Observer: A Unified Synthesis Approach",
+    eqs. (9)-(13), (14)-(25).
+
+    Examples
+    --------
+    >>> from hpdob import ServoModel, design_observer
+    >>> model = ServoModel(J=2.8e-4).discretize(1e-3)
+    >>> design = design_observer(model, order=1, poles=[0.9, 0.8])
+    >>> design.k     # eq. (24): [1 - 0.9*0.8, 2 - 0.9 - 0.8]
+    array([0.28, 0.3 ])
+    """
+    if isinstance(model, ServoModel):
+        raise ParameterTypeError(
+            "model must be a DiscreteServoModel; discretise the continuous model "
+            "first, e.g. ServoModel(J, b).discretize(Ts)"
+        )
+    if not isinstance(model, DiscreteServoModel):
+        raise ParameterTypeError(f"model must be a DiscreteServoModel, got {type(model).__name__}")
+    m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
+    if (poles is None) == (bandwidth is None):
+        given = "both" if poles is not None else "neither"
+        raise ParameterValueError(
+            f"give exactly one of poles (order + 1 = {m + 1} eigenvalues) or "
+            f"bandwidth (rad/s); got {given}"
+        )
+    if bandwidth is not None:
+        g = positive(bandwidth, "bandwidth", "a positive finite observer bandwidth [rad/s]")
+        placed = np.full(m + 1, math.exp(-g * model.Ts))
+        g_out: float | None = g
+    else:
+        placed = _validate_poles(poles, m)
+        g_out = None
+    d = as_real_vector(
+        gain_direction, "gain_direction", "a direction vector (d_theta, d_omega)", length=2
+    )
+    D = np.asarray(model.D)
+    dD = float(d @ D)
+    if abs(dD) <= _DEGENERATE * np.linalg.norm(d) * np.linalg.norm(D):
+        raise ParameterValueError(
+            f"gain_direction must not be orthogonal to D_Dn = {D.tolist()}: "
+            f"d^T D_Dn = {dD:.3g} for gain_direction={d.tolist()}"
+        )
+
+    desired = np.real(np.poly(placed)) if placed.size else np.array([1.0])
+    # desired (highest power first, monic, degree m+1) minus (z-1)^{m+1}, ascending powers.
+    binomial = np.array([math.comb(m + 1, j) * (-1.0) ** (m + 1 - j) for j in range(m + 2)])
+    rhs = desired[::-1][: m + 1] - binomial[: m + 1]
+    k = np.linalg.solve(_characteristic_basis(m), rhs)
+
+    G = np.outer(k, d / dD)
+    M = error_matrix(k)
+    A, B = np.asarray(model.A), np.asarray(model.B)
+    Kx = G @ A - M @ G
+    Ku = G @ B
+    rows = tuple((float(Kx[i, 0]), float(Kx[i, 1]), float(Ku[i])) for i in range(m + 1))
+    return ObserverDesign(
+        model=model,
+        order=m,
+        poles=_readonly(placed),
+        bandwidth=g_out,
+        gain_direction=_readonly(d),
+        k=_readonly(k),
+        gains=_readonly(G),
+        error_matrix=_readonly(M),
+        state_input=_readonly(Kx),
+        control_input=_readonly(Ku),
+        _k=tuple(float(v) for v in k),
+        _p=tuple(float(v) for v in extrapolation_weights(m)),
+        _rows=rows,
+        _last_gain=(float(G[-1, 0]), float(G[-1, 1])),
+    )

@@ -1,0 +1,139 @@
+"""Argument validation shared by every public entry point.
+
+Every check raises :class:`TypeError` (wrong kind of object) or :class:`ValueError`
+(right kind, wrong value) with a message that names the parameter, shows the value that
+was given and says what was expected, e.g.
+``J must be a positive finite inertia [kg m^2], got -1.0``.
+Checks never modify their input; callers validate everything before changing state.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import operator
+from collections.abc import Iterable
+
+import numpy as np
+
+__all__ = [
+    "ParameterTypeError",
+    "ParameterValueError",
+    "as_int",
+    "as_real",
+    "as_real_vector",
+    "check_choice",
+    "nonnegative",
+    "positive",
+]
+
+
+class ParameterValueError(ValueError):
+    """A parameter has an acceptable type but an invalid value (message says which)."""
+
+
+class ParameterTypeError(TypeError):
+    """A parameter has the wrong type (message says which and what was expected)."""
+
+
+def _show(value: object) -> str:
+    """Short repr of ``value`` for error messages (arrays are abbreviated)."""
+    if isinstance(value, np.ndarray):
+        return np.array2string(value, threshold=8, precision=6)
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def as_real(value: object, name: str, what: str = "a real number") -> float:
+    """Return ``value`` as a finite Python float.
+
+    Raises
+    ------
+    TypeError
+        If ``value`` is not a real number (``bool`` and strings are rejected).
+    ValueError
+        If ``value`` is NaN or infinite.
+    """
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
+            value = value.item()
+        else:
+            raise ParameterTypeError(
+                f"{name} must be {what}, got {_show(value)} of type {type(value).__name__}"
+            )
+    result = float(value)
+    if not math.isfinite(result):
+        raise ParameterValueError(f"{name} must be {what}, got {_show(value)}")
+    return result
+
+
+def positive(value: object, name: str, what: str) -> float:
+    """Return ``value`` as a float after checking that it is finite and > 0."""
+    result = as_real(value, name, what)
+    if result <= 0.0:
+        raise ParameterValueError(f"{name} must be {what}, got {_show(value)}")
+    return result
+
+
+def nonnegative(value: object, name: str, what: str) -> float:
+    """Return ``value`` as a float after checking that it is finite and >= 0."""
+    result = as_real(value, name, what)
+    if result < 0.0:
+        raise ParameterValueError(f"{name} must be {what}, got {_show(value)}")
+    return result
+
+
+def as_int(value: object, name: str, what: str, *, minimum: int | None = None) -> int:
+    """Return ``value`` as a Python int (``bool`` and floats are rejected)."""
+    if isinstance(value, (bool, np.bool_)):
+        raise ParameterTypeError(f"{name} must be {what}, got {_show(value)} of type bool")
+    try:
+        result = operator.index(value)
+    except TypeError:
+        raise ParameterTypeError(
+            f"{name} must be {what}, got {_show(value)} of type {type(value).__name__}"
+        ) from None
+    if minimum is not None and result < minimum:
+        raise ParameterValueError(f"{name} must be {what}, got {result}")
+    return result
+
+
+def as_real_vector(
+    value: object,
+    name: str,
+    what: str,
+    *,
+    length: int | None = None,
+) -> np.ndarray:
+    """Return ``value`` as a new 1-D float array with finite entries.
+
+    Raises
+    ------
+    TypeError
+        If ``value`` cannot be read as an array of real numbers.
+    ValueError
+        If it has the wrong shape or a non-finite entry.
+    """
+    if isinstance(value, (str, bytes)):
+        raise ParameterTypeError(f"{name} must be {what}, got {_show(value)} of type str")
+    try:
+        array = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterTypeError(f"{name} must be {what}, got {_show(value)}") from None
+    if array.ndim != 1 or (length is not None and array.shape[0] != length):
+        expected = f"shape ({length},)" if length is not None else "a 1-D sequence"
+        raise ParameterValueError(
+            f"{name} must be {what}: expected {expected}, got shape {array.shape} ({_show(value)})"
+        )
+    if not np.all(np.isfinite(array)):
+        raise ParameterValueError(f"{name} must be {what} with finite entries, got {_show(value)}")
+    return array
+
+
+def check_choice(value: object, name: str, choices: Iterable[str]) -> str:
+    """Return ``value`` if it is one of ``choices``; otherwise list the valid ones."""
+    options = list(choices)
+    if not isinstance(value, str) or value not in options:
+        listed = ", ".join(repr(c) for c in options)
+        raise ParameterValueError(f"{name} must be one of {listed}; got {_show(value)}")
+    return value

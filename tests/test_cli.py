@@ -1,0 +1,136 @@
+"""Tests of the ``hpdob`` command line."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hpdob import ServoModel, design_observer
+from hpdob._cli import main
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_design_table(capsys):
+    code, out, err = run(
+        capsys,
+        "design",
+        "--J",
+        "3.06e-4",
+        "--b",
+        "5e-5",
+        "--Ts",
+        "1e-3",
+        "--order",
+        "1",
+        "--bandwidth",
+        "100",
+    )
+    assert code == 0 and err == ""
+    design = design_observer(ServoModel(3.06e-4, 5e-5).discretize(1e-3), order=1, bandwidth=100)
+    for name in ("A_D", "B_D", "D_D", "L_1", "L_2", "eigenvalues", "M"):
+        assert name in out
+    assert f"{design.gains[0, 0]:.6e}" in out and f"{design.gains[1, 1]:.6e}" in out
+    assert "0.904837, 0.904837" in out  # exp(-100 * 1e-3), printed to 6 digits
+
+
+def test_design_json_matches_library(capsys):
+    code, out, _ = run(
+        capsys,
+        "design",
+        "--J",
+        "2.8e-4",
+        "--b",
+        "0",
+        "--order",
+        "2",
+        "--poles",
+        "0.9,0.8+0.1j,0.8-0.1j",
+        "--gain-direction",
+        "0,1",
+        "--json",
+    )
+    assert code == 0
+    data = json.loads(out)
+    design = design_observer(
+        ServoModel(2.8e-4).discretize(1e-3),
+        order=2,
+        poles=[0.9, 0.8 + 0.1j, 0.8 - 0.1j],
+        gain_direction=(0, 1),
+    )
+    np.testing.assert_array_equal(data["gains"], design.gains)
+    np.testing.assert_array_equal(data["error_matrix"], design.error_matrix)
+    np.testing.assert_array_equal(data["A_D"], design.model.A)
+    assert data["poles"][1] == {"real": 0.8, "imag": 0.1}
+    eig = [complex(v["real"], v["imag"]) for v in data["eigenvalues"]]
+    np.testing.assert_allclose(
+        sorted(eig, key=lambda c: (c.real, c.imag)),
+        sorted([0.8 - 0.1j, 0.8 + 0.1j, 0.9], key=lambda c: (c.real, c.imag)),
+        atol=1e-12,
+    )
+
+
+def test_defaults_are_the_paper_motor(capsys):
+    code, out, _ = run(capsys, "design", "--json")
+    data = json.loads(out)
+    assert code == 0 and data["model"] == {"J": 3.06e-4, "b": 5e-5, "Ts": 1e-3}
+    assert data["order"] == 1 and data["bandwidth"] == 100.0
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--J", "-1"], "J must be a positive finite inertia [kg m^2], got -1.0"),
+        (["--J", "abc"], "argument --J: expected a number, got 'abc'"),
+        (["--Ts", "0"], "Ts must be a positive finite sampling period"),
+        (["--b", "-1"], "b must be a non-negative"),
+        (["--order", "-1"], "order must be a non-negative integer"),
+        (["--order", "1.5"], "argument --order: expected an integer"),
+        (["--poles", "0.9"], "poles must have order + 1 = 2 entries"),
+        (["--poles", "0.9,1.5"], "strictly inside the unit circle"),
+        (["--poles", "0.9,x"], "argument --poles"),
+        (["--bandwidth", "-3"], "bandwidth must be a positive"),
+        (["--bandwidth", "3", "--poles", "0.9,0.9"], "not allowed with argument"),
+        (["--gain-direction", "1"], "gain_direction must be"),
+        (["--gain-direction", "0,0"], "gain_direction must not be orthogonal"),
+        (["--frobnicate"], "unrecognized arguments: --frobnicate"),
+    ],
+)
+def test_bad_arguments_one_line_exit_2(capsys, argv, needle):
+    try:
+        code = main(["design", *argv])
+    except SystemExit as exit_:  # argparse's own errors exit; ours return the code
+        code = exit_.code
+    assert code == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    assert err.count("\n") == 1 and needle in err
+    assert "Traceback" not in err
+
+
+def test_console_script_and_module():
+    script = shutil.which("hpdob", path=str(Path(sys.executable).parent))
+    assert script is not None, "the hpdob console script is not installed next to python"
+    for cmd in ([script, "--version"], [sys.executable, "-m", "hpdob", "--version"]):
+        done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        assert done.returncode == 0 and done.stdout.startswith("hpdob ")
+    done = subprocess.run(
+        [script, "design", "--J", "0"], capture_output=True, text=True, check=False
+    )
+    assert done.returncode == 2 and done.stderr.count("\n") == 1
+
+
+def test_no_command_is_an_error(capsys):
+    with pytest.raises(SystemExit) as info:
+        main([])
+    assert info.value.code == 2

@@ -1,0 +1,79 @@
+"""The documentation runs: README and docs code blocks, doctests, the CI contract, ruff."""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+import pkgutil
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import hpdob
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def code_blocks(path: Path, language: str) -> list[str]:
+    return re.findall(rf"```{language}\n(.*?)```", path.read_text(), flags=re.S)
+
+
+@pytest.mark.parametrize("path", [ROOT / "README.md", ROOT / "docs" / "usage.md"], ids=str)
+def test_python_blocks_run(path):
+    namespace: dict = {}
+    for block in code_blocks(path, "python"):
+        exec(compile(block, str(path), "exec"), namespace)
+
+
+def test_readme_quick_start_is_short():
+    blocks = code_blocks(ROOT / "README.md", "python")
+    assert len(blocks) == 1
+    assert len(blocks[0].strip().splitlines()) <= 20
+
+
+def test_ci_runs_the_readme_test_command_verbatim():
+    commands = [b.strip() for b in code_blocks(ROOT / "README.md", "bash")]
+    assert len(commands) == 2, "the README has exactly two commands: main job and tests"
+    test_command = next(c for c in commands if "pytest" in c)
+    ci_lines = (ROOT / ".ci" / "run").read_text().splitlines()
+    assert test_command in ci_lines
+
+
+MODULES = sorted(
+    name
+    for _, name, _ in pkgutil.walk_packages(hpdob.__path__, "hpdob.")
+    if name != "hpdob.__main__"
+)
+
+
+@pytest.mark.parametrize("name", MODULES)
+def test_doctests(name):
+    module = importlib.import_module(name)
+    result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    assert result.failed == 0
+
+
+def test_public_namespace_is_curated():
+    for name in hpdob.__all__:
+        assert hasattr(hpdob, name), name
+    for name in hpdob.__all__:
+        obj = getattr(hpdob, name)
+        if callable(obj):
+            assert obj.__doc__, f"{name} has no docstring"
+
+
+def test_ruff_clean():
+    ruff = shutil.which("ruff", path=str(Path(sys.executable).parent)) or shutil.which("ruff")
+    if ruff is None:
+        pytest.skip("ruff is not installed (it is in the [test] extra)")
+    done = subprocess.run([ruff, "check", str(ROOT)], capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_modules_stay_small():
+    for path in (ROOT / "src" / "hpdob").rglob("*.py"):
+        assert len(path.read_text().splitlines()) <= 500, f"{path} is over 500 lines"
