@@ -14,11 +14,20 @@ DisturbanceObserver
     Stateful runtime object for the sample loop (``estimate`` then ``update``).
 initial_state, estimate, update
     The pure functional core of the sample loop.
+PD, Encoder, Actuator, simulate, SimulationResult
+    Sampled-data closed-loop simulation (continuous plant, sampled PD, DOb inner loop).
+signals
+    Built-in reference and disturbance signals (steps, quintic steps, sines, ramps, ...).
 """
 
+from . import signals
+from ._controller import PD
 from ._core import estimate, initial_state, update
+from ._devices import Actuator, Encoder
 from ._model import DiscreteServoModel, ServoModel
 from ._observer import DisturbanceObserver
+from ._result import SimulationResult
+from ._simulate import SimulationDivergedWarning, simulate
 from ._synthesis import (
     ObserverDesign,
     characteristic_polynomial,
@@ -30,12 +39,17 @@ from ._validation import ParameterTypeError, ParameterValueError
 from ._version import __version__
 
 __all__ = [
+    "PD",
+    "Actuator",
     "DiscreteServoModel",
     "DisturbanceObserver",
+    "Encoder",
     "ObserverDesign",
     "ParameterTypeError",
     "ParameterValueError",
     "ServoModel",
+    "SimulationDivergedWarning",
+    "SimulationResult",
     "__version__",
     "characteristic_polynomial",
     "design_observer",
@@ -43,5 +57,7 @@ __all__ = [
     "estimate",
     "extrapolation_weights",
     "initial_state",
+    "signals",
+    "simulate",
     "update",
 ]

@@ -1,0 +1,201 @@
+"""Scenarios described in TOML: parsed into the keyword arguments of :func:`hpdob.simulate`.
+
+Every error names the key (``plant.J``, ``disturbance[2].type``, ...) and the offending value.
+The format is documented in ``docs/simulation.md``; ``examples/*.toml`` are runnable examples.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+from ._controller import PD
+from ._devices import Actuator, Encoder
+from ._model import ServoModel
+from ._observer import DisturbanceObserver
+from ._signals import Chirp, Constant, Noise, Ramp, Sine, SmoothStep, Step
+from ._validation import ParameterTypeError, ParameterValueError, check_choice, positive
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = ["SIGNAL_TYPES", "load_scenario", "scenario_from_dict"]
+
+SIGNAL_TYPES = {
+    "constant": Constant,
+    "step": Step,
+    "ramp": Ramp,
+    "smooth_step": SmoothStep,
+    "sine": Sine,
+    "chirp": Chirp,
+    "noise": Noise,
+}
+TOP_LEVEL = (
+    "label",
+    "Ts",
+    "duration",
+    "substeps",
+    "x0",
+    "plant",
+    "nominal",
+    "controller",
+    "observer",
+    "sensor",
+    "actuator",
+    "reference",
+    "disturbance",
+)
+REQUIRED = ("Ts", "duration", "plant", "nominal", "controller", "reference")
+
+
+def _prefixed(key: str, err: Exception) -> Exception:
+    """Re-raise a validation error with its parameter name qualified by ``key``."""
+    cls = ParameterTypeError if isinstance(err, TypeError) else ParameterValueError
+    return cls(f"{key}.{err}")
+
+
+def _table(data: dict, key: str) -> dict:
+    value = data[key]
+    if not isinstance(value, dict):
+        raise ParameterTypeError(f"{key} must be a table, got {value!r}")
+    return value
+
+
+def _build(cls, fields: dict, key: str, allowed=None, required=None):
+    """``cls(**fields)`` with unknown and missing keys and bad values reported as ``key.name``."""
+    if allowed is None:  # a dataclass: its public init fields
+        params = [f for f in dataclasses.fields(cls) if f.init and not f.name.startswith("_")]
+        allowed = [f.name for f in params]
+        required = [f.name for f in params if f.default is dataclasses.MISSING]
+    unknown = sorted(set(fields) - set(allowed))
+    if unknown:
+        raise ParameterValueError(
+            f"unknown key {key}.{unknown[0]} = {fields[unknown[0]]!r}; "
+            f"valid keys of {key}: {', '.join(allowed)}"
+        )
+    missing = [name for name in required or () if name not in fields]
+    if missing:
+        raise ParameterValueError(f"missing required key {key}.{missing[0]}")
+    try:
+        return cls(**fields)
+    except (ParameterTypeError, ParameterValueError) as err:
+        raise _prefixed(key, err) from None
+
+
+def _signal(spec, key: str):
+    if not isinstance(spec, dict):
+        raise ParameterTypeError(f"{key} must be a table with a 'type' key, got {spec!r}")
+    fields = dict(spec)
+    kind = fields.pop("type", None)
+    try:
+        check_choice(kind, f"{key}.type", SIGNAL_TYPES)
+    except ParameterValueError:
+        raise ParameterValueError(
+            f"{key}.type must be one of {', '.join(repr(k) for k in SIGNAL_TYPES)}; got {kind!r}"
+        ) from None
+    cls = SIGNAL_TYPES[kind]
+    return _build(cls, fields, key)
+
+
+def _signal_sum(specs, key: str):
+    if isinstance(specs, dict):
+        specs = [specs]
+    if not isinstance(specs, list) or not specs:
+        raise ParameterValueError(
+            f"{key} must be one table or a non-empty array of tables ([[{key}]]), got {specs!r}"
+        )
+    total = None
+    for i, spec in enumerate(specs):
+        signal = _signal(spec, f"{key}[{i}]")
+        total = signal if total is None else total + signal
+    return total
+
+
+def _poles(values, key: str):
+    if not isinstance(values, list):
+        raise ParameterTypeError(
+            f"{key} must be an array of numbers or strings like '0.9+0.1j', got {values!r}"
+        )
+    poles = []
+    for i, value in enumerate(values):
+        if isinstance(value, str):
+            try:
+                value = complex(value.replace(" ", ""))
+            except ValueError:
+                raise ParameterValueError(
+                    f"{key}[{i}] must be a number or a complex number "
+                    f"like '0.9+0.1j', got {value!r}"
+                ) from None
+        poles.append(value)
+    return poles
+
+
+def scenario_from_dict(data: dict) -> dict:
+    """Keyword arguments of :func:`hpdob.simulate` from a parsed TOML document."""
+    if not isinstance(data, dict):
+        raise ParameterTypeError(f"a scenario must be a table, got {type(data).__name__}")
+    unknown = sorted(set(data) - set(TOP_LEVEL))
+    if unknown:
+        raise ParameterValueError(
+            f"unknown key {unknown[0]} = {data[unknown[0]]!r}; valid "
+            f"top-level keys: {', '.join(TOP_LEVEL)}"
+        )
+    missing = [k for k in REQUIRED if k not in data]
+    if missing:
+        raise ParameterValueError(
+            f"missing required key {missing[0]}; a scenario needs {', '.join(REQUIRED)}"
+        )
+    kwargs = {key: data[key] for key in ("duration", "substeps", "x0", "label") if key in data}
+    kwargs["Ts"] = positive(data["Ts"], "Ts", "a positive finite sampling period [s]")
+    kwargs["plant"] = _build(ServoModel, _table(data, "plant"), "plant")
+    kwargs["nominal"] = _build(ServoModel, _table(data, "nominal"), "nominal")
+    kwargs["controller"] = _build(PD, _table(data, "controller"), "controller")
+    kwargs["reference"] = _signal_sum(data["reference"], "reference")
+    if "disturbance" in data:
+        kwargs["disturbance"] = _signal_sum(data["disturbance"], "disturbance")
+    if "sensor" in data:
+        sensor = dict(_table(data, "sensor"))
+        kind = sensor.pop("type", "encoder")
+        if kind == "encoder":
+            kwargs["sensor"] = _build(Encoder, sensor, "sensor")
+        elif kind != "ideal" or sensor:
+            raise ParameterValueError(
+                f"sensor.type must be 'encoder' or 'ideal' (the latter "
+                f"without other keys), got {kind!r}"
+            )
+    if "actuator" in data:
+        kwargs["actuator"] = _build(Actuator, _table(data, "actuator"), "actuator")
+    if "observer" in data:
+        spec = dict(_table(data, "observer"))
+        if "poles" in spec:
+            spec["poles"] = _poles(spec["poles"], "observer.poles")
+        model = kwargs["nominal"].discretize(kwargs["Ts"])
+        kwargs["observer"] = _build(
+            lambda **kw: DisturbanceObserver(model, **kw),
+            spec,
+            "observer",
+            allowed=("order", "poles", "bandwidth", "gain_direction"),
+            required=("order",),
+        )
+    return kwargs
+
+
+def load_scenario(path) -> dict:
+    """Read a TOML scenario file; return the keyword arguments of :func:`hpdob.simulate`."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as err:
+        raise ParameterValueError(
+            f"cannot read scenario file {str(path)!r}: {err.strerror}"
+        ) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise ParameterValueError(f"{path} is not valid TOML: {err}") from None
+    kwargs = scenario_from_dict(data)
+    kwargs.setdefault("label", path.stem)
+    return kwargs
