@@ -22,7 +22,11 @@ def code_blocks(path: Path, language: str) -> list[str]:
     return re.findall(rf"```{language}\n(.*?)```", path.read_text(), flags=re.S)
 
 
-@pytest.mark.parametrize("path", [ROOT / "README.md", ROOT / "docs" / "usage.md"], ids=str)
+@pytest.mark.parametrize(
+    "path",
+    [ROOT / "README.md", ROOT / "docs" / "usage.md", ROOT / "docs" / "simulation.md"],
+    ids=str,
+)
 def test_python_blocks_run(path):
     namespace: dict = {}
     for block in code_blocks(path, "python"):

@@ -1,0 +1,106 @@
+"""Tests of SimulationResult: metrics, CSV, pandas, plots."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import matplotlib
+import numpy as np
+import pytest
+
+from hpdob import SimulationResult
+from hpdob._canonical import canonical_run
+from hpdob._result import COLUMNS, metrics_json
+
+matplotlib.use("Agg")
+
+
+@pytest.fixture(scope="module")
+def result():
+    return canonical_run("HPDOb-100", duration=5.0)
+
+
+def synthetic(n=10, Ts=0.5):
+    t = np.arange(n) * Ts
+    arrays = {name: np.zeros(n) for name in COLUMNS}
+    arrays["t"] = t
+    return arrays, Ts
+
+
+def test_metrics_by_hand():
+    arrays, Ts = synthetic()
+    arrays["theta"] = np.arange(10.0)  # r = 0: position error = theta
+    arrays["tau_hat"] = np.full(10, 2.0)
+    arrays["tau_dn"] = np.full(10, 1.0)
+    res = SimulationResult(**arrays, Ts=Ts)
+    m = res.metrics(regulation=(1.0, 2.0), tracking=(2.0, math.inf))  # t = 1.0, 1.5 | 2.0..4.5
+    assert m["rms_estimation_error"] == 1.0
+    assert m["rms_position_error_regulation"] == pytest.approx(math.sqrt((4 + 9) / 2))
+    assert m["rms_position_error_tracking"] == pytest.approx(
+        math.sqrt(np.mean(np.arange(4, 10) ** 2))
+    )
+    assert math.isnan(res.metrics(regulation=(100, 200))["rms_position_error_regulation"])
+    assert res.max_abs_position_error() == 9.0
+
+
+def test_metric_window_validation():
+    arrays, Ts = synthetic()
+    res = SimulationResult(**arrays, Ts=Ts)
+    with pytest.raises(ValueError, match=r"^regulation must have start < stop"):
+        res.metrics(regulation=(2.0, 1.0))
+    with pytest.raises(ValueError, match=r"^tracking must be a \(start, stop\) pair"):
+        res.metrics(tracking=3.0)
+
+
+def test_arrays_are_readonly_and_checked(result):
+    with pytest.raises(ValueError, match="read-only"):
+        result.theta[0] = 1.0
+    arrays, Ts = synthetic()
+    arrays["u"] = np.zeros(3)
+    with pytest.raises(ValueError, match=r"^u must have shape \(10,\) like t"):
+        SimulationResult(**arrays, Ts=Ts)
+
+
+def test_csv_round_trip(result, tmp_path):
+    path = result.to_csv(tmp_path / "run.csv")
+    back = SimulationResult.from_csv(path, label="back")
+    for name in COLUMNS:
+        np.testing.assert_array_equal(getattr(back, name), getattr(result, name), err_msg=name)
+    assert back.Ts == pytest.approx(result.Ts, rel=1e-12)
+    header = path.read_text().splitlines()[0]
+    assert header == ",".join(COLUMNS)
+
+
+def test_from_csv_rejects_other_files(tmp_path):
+    path = tmp_path / "other.csv"
+    path.write_text("a,b\n1,2\n")
+    with pytest.raises(ValueError, match="does not look like an hpdob trace file"):
+        SimulationResult.from_csv(path)
+
+
+def test_to_pandas(result):
+    pytest.importorskip("pandas")
+    frame = result.to_pandas()
+    assert list(frame.columns) == list(COLUMNS)
+    assert len(frame) == len(result)
+    np.testing.assert_array_equal(frame["tau_hat"].to_numpy(), result.tau_hat)
+
+
+def test_plot(result):
+    import matplotlib.pyplot as plt
+
+    fig = result.plot()
+    try:
+        axes = fig.get_axes()
+        assert len(axes) == 3
+        assert all(ax.get_ylabel() for ax in axes)
+        assert "[rad]" in axes[0].get_ylabel()
+        assert axes[-1].get_xlabel() == "time [s]"
+    finally:
+        plt.close(fig)
+
+
+def test_metrics_json_is_strict():
+    text = metrics_json({"run": {"a": 1.0, "b": math.nan}})
+    assert json.loads(text) == {"run": {"a": 1.0, "b": None}}

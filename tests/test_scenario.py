@@ -1,0 +1,146 @@
+"""Tests of TOML scenario files and ``hpdob simulate``."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hpdob import simulate
+from hpdob._canonical import canonical_run
+from hpdob._cli import main
+from hpdob._scenario import load_scenario, scenario_from_dict, tomllib
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = sorted((ROOT / "examples").glob("*.toml"))
+CANONICAL_TOML = ROOT / "examples" / "canonical_hpdob.toml"
+
+
+def base():
+    return tomllib.loads(CANONICAL_TOML.read_text())
+
+
+def test_canonical_example_is_the_canonical_run():
+    kwargs = load_scenario(CANONICAL_TOML)
+    from_file = simulate(**kwargs)
+    built_in = canonical_run("HPDOb-100")
+    np.testing.assert_array_equal(from_file.theta, built_in.theta)
+    np.testing.assert_array_equal(from_file.tau_hat, built_in.tau_hat)
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
+def test_examples_run_from_the_command_line(path, tmp_path, capsys):
+    code = main(["simulate", str(path), "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "rms_estimation_error" in out
+    label = load_scenario(path)["label"]
+    assert (tmp_path / f"{label}.csv").exists()
+    assert (tmp_path / f"{label}.png").stat().st_size > 10_000
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert set(metrics[label]) == {
+        "rms_estimation_error",
+        "rms_position_error_regulation",
+        "rms_position_error_tracking",
+    }
+
+
+def edit(change):
+    data = base()
+    change(data)
+    return data
+
+
+@pytest.mark.parametrize(
+    ("change", "pattern"),
+    [
+        (
+            lambda d: d["plant"].update(J=-1.0),
+            r"^plant\.J must be a positive finite inertia .*got -1.0",
+        ),
+        (
+            lambda d: d["plant"].update(inertia=1.0),
+            r"^unknown key plant\.inertia = 1.0; valid keys of plant: J, b",
+        ),
+        (lambda d: d["nominal"].pop("J"), r"^missing required key nominal\.J"),
+        (lambda d: d["controller"].update(kd="fast"), r"^controller\.kd must be .*got 'fast'"),
+        (
+            lambda d: d["observer"].update(bandwidth=-5.0),
+            r"^observer\.bandwidth must be a positive .*got -5.0",
+        ),
+        (
+            lambda d: d["observer"].update(poles=[0.9, 0.9]),
+            r"^observer\.give exactly one|^observer\..*exactly one",
+        ),
+        (lambda d: d["observer"].pop("order"), r"^missing required key observer\.order"),
+        (
+            lambda d: d["observer"].update(order=-2),
+            r"^observer\.order must be a non-negative integer.*got -2",
+        ),
+        (
+            lambda d: d.update(Ts=0.0),
+            r"^Ts must be a positive finite sampling period \[s\], got 0.0",
+        ),
+        (lambda d: d.pop("reference"), r"^missing required key reference"),
+        (lambda d: d.update(colour="red"), r"^unknown key colour = 'red'"),
+        (
+            lambda d: d["reference"][0].update(type="sinus"),
+            r"^reference\[0\]\.type must be one of .*got 'sinus'",
+        ),
+        (
+            lambda d: d["disturbance"][1].update(frequency=0.0),
+            r"^disturbance\[1\]\.frequency must be a positive .*got 0.0",
+        ),
+        (
+            lambda d: d["disturbance"][0].update(when=1.0),
+            r"^unknown key disturbance\[0\]\.when = 1.0",
+        ),
+        (
+            lambda d: d.update(sensor={"type": "laser"}),
+            r"^sensor\.type must be 'encoder' or 'ideal'.*got 'laser'",
+        ),
+        (
+            lambda d: d.update(sensor={"counts_per_rev": 0}),
+            r"^sensor\.counts_per_rev must be a positive integer.*got 0",
+        ),
+        (
+            lambda d: d.update(actuator={"delay_samples": -1}),
+            r"^actuator\.delay_samples must be .*got -1",
+        ),
+        (
+            lambda d: d["observer"].update(poles=["0.9+x"]),
+            r"^observer\.poles\[0\] must be a number .*got '0.9\+x'",
+        ),
+        (lambda d: d.update(plant=3.0), r"^plant must be a table, got 3.0"),
+    ],
+)
+def test_errors_name_the_key_and_value(change, pattern):
+    with pytest.raises((TypeError, ValueError), match=pattern):
+        scenario_from_dict(edit(change))
+
+
+def test_complex_poles_as_strings():
+    data = base()
+    data["observer"] = {"order": 1, "poles": ["0.9+0.05j", "0.9-0.05j"]}
+    obs = scenario_from_dict(data)["observer"]
+    np.testing.assert_allclose(obs.poles, [0.9 + 0.05j, 0.9 - 0.05j])
+
+
+def test_bad_files(tmp_path):
+    with pytest.raises(ValueError, match="cannot read scenario file"):
+        load_scenario(tmp_path / "missing.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("Ts = = 1\n")
+    with pytest.raises(ValueError, match="is not valid TOML"):
+        load_scenario(bad)
+
+
+def test_cli_error_is_one_line(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(CANONICAL_TOML.read_text().replace("J = 3.06e-4", "J = -3.06e-4"))
+    assert main(["simulate", str(bad), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "plant.J must be a positive finite inertia [kg m^2], got -0.000306" in err

@@ -1,0 +1,131 @@
+"""Tests of the built-in reference and disturbance signals."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hpdob.signals import (
+    Chirp,
+    Constant,
+    Noise,
+    Ramp,
+    Sine,
+    SmoothStep,
+    Step,
+    Sum,
+    trajectory,
+)
+
+SMOOTH = [
+    SmoothStep(0.2, 1.2, 1.0),
+    Sine(0.3, 1.5, start=-1.0, phase=0.4, offset=0.1),
+    Chirp(0.5, 0.5, 3.0, start=-1.0, stop=5.0),
+    Ramp(-1.0, 0.7),
+    Constant(2.0),
+    SmoothStep(0.0, 2.0, -1.0) + 3.0 * Sine(0.1, 2.0, start=-1.0),
+]
+
+
+@pytest.mark.parametrize("signal", SMOOTH, ids=repr)
+def test_derivatives_match_finite_differences(signal):
+    t = np.linspace(0.05, 1.95, 97)
+    h = 1e-5
+    for n in (1, 2):
+        numeric = (signal.derivative(t + h, n - 1) - signal.derivative(t - h, n - 1)) / (2 * h)
+        scale = max(1.0, np.max(np.abs(numeric)))
+        np.testing.assert_allclose(signal.derivative(t, n), numeric, atol=1e-6 * scale)
+
+
+def test_smooth_step_is_the_quintic():
+    s = SmoothStep(0.2, 1.2, 2.0)
+    t = np.array([0.0, 0.2, 0.45, 0.7, 1.2, 3.0])
+    x = np.clip((t - 0.2) / 1.0, 0, 1)
+    np.testing.assert_allclose(s(t), 2.0 * (10 * x**3 - 15 * x**4 + 6 * x**5), atol=1e-15)
+    np.testing.assert_allclose(s.derivative(np.array([0.2, 1.2]), 1), 0.0, atol=1e-15)
+    np.testing.assert_allclose(s.derivative(np.array([0.2, 1.2]), 2), 0.0, atol=1e-15)
+    assert s.derivative(np.array([0.7]), 1)[0] == pytest.approx(2.0 * 30 / 16)  # peak speed
+
+
+def test_canonical_reference_formula():
+    """1 + 0.5 (1 - cos(pi (t - 4))) for t >= 4 from the built-ins."""
+    ref = SmoothStep(0.2, 1.2, 1.0) + Sine(-0.5, 0.5, start=4.0, phase=math.pi / 2, offset=0.5)
+    t = np.linspace(4.0, 10.0, 61)
+    np.testing.assert_allclose(ref(t), 1 + 0.5 * (1 - np.cos(np.pi * (t - 4))), atol=1e-14)
+    assert ref(np.array([3.9]))[0] == 1.0
+
+
+def test_step_and_sine_disturbance():
+    d = Step(1.5005, 0.05) + Sine(0.02, 2.0, start=2.5005)
+    np.testing.assert_allclose(d(np.array([1.5, 1.501, 2.5])), [0.0, 0.05, 0.05])
+    t = np.array([3.0, 7.3])
+    np.testing.assert_allclose(d(t), 0.05 + 0.02 * np.sin(4 * np.pi * (t - 2.5005)))
+
+
+def test_chirp_frequency_sweep():
+    c = Chirp(1.0, 1.0, 5.0, start=0.0, stop=2.0)
+    t = np.array([0.25, 1.0])  # instantaneous frequency f0 + (f1 - f0) t / T
+    phase = 2 * np.pi * (1.0 * t + 0.5 * 2.0 * t**2)
+    np.testing.assert_allclose(c(t), np.sin(phase))
+    assert c(np.array([2.0]))[0] == 0.0
+    with pytest.raises(ValueError, match="derivatives up to n=2"):
+        c.derivative(t, 3)
+
+
+def test_noise_is_seeded_and_grid_independent():
+    a = Noise(0.1, hold=0.01, stop=1.0, seed=4)
+    b = Noise(0.1, hold=0.01, stop=1.0, seed=4)
+    fine = np.linspace(0, 0.999, 10_000)
+    np.testing.assert_array_equal(a(fine), b(fine))
+    coarse = fine[::7]
+    np.testing.assert_array_equal(a(coarse), a(fine)[::7])  # value depends on t only
+    assert not np.array_equal(a(fine), Noise(0.1, hold=0.01, stop=1.0, seed=5)(fine))
+    assert np.std(a(fine)) == pytest.approx(0.1, rel=0.25)
+    assert a(np.array([-0.1, 1.0, 2.0])).tolist() == [0.0, 0.0, 0.0]
+    with pytest.raises(ValueError, match="Noise has no derivative"):
+        a.derivative(fine, 1)
+
+
+def test_arithmetic():
+    s = 2.0 * Step(0.0, 1.0) - Constant(0.5) + Ramp(0.0, 1.0) * 3
+    assert isinstance(s, Sum)
+    np.testing.assert_allclose(s(np.array([1.0])), [2.0 - 0.5 + 3.0])
+    np.testing.assert_allclose((-Constant(1.0))(np.array([0.0])), [-1.0])
+    assert s == 2.0 * Step(0.0, 1.0) - Constant(0.5) + Ramp(0.0, 1.0) * 3
+
+
+def test_trajectory():
+    r, rd, rdd = trajectory(Sine(1.0, 1.0))(np.array([0.0]))
+    assert (r[0], rd[0], rdd[0]) == pytest.approx((0.0, 2 * np.pi, 0.0), abs=1e-12)
+    with pytest.raises(TypeError, match="signal must be an hpdob Signal"):
+        trajectory(lambda t: t)
+
+
+@pytest.mark.parametrize(
+    ("factory", "pattern"),
+    [
+        (lambda: SmoothStep(1.0, 1.0, 1.0), r"^end must be after start=1.0, got 1.0"),
+        (lambda: Sine(1.0, 0.0), r"^frequency must be a positive finite frequency \[Hz\]"),
+        (lambda: Sine(1.0, 1.0, start=math.nan), r"^start must be a finite time"),
+        (lambda: Chirp(1.0, -1.0, 2.0, 0.0, 1.0), r"^f0 must be a non-negative"),
+        (lambda: Chirp(1.0, 1.0, 2.0, 1.0, 0.5), r"^stop must be after start"),
+        (lambda: Noise(-0.1, hold=0.1, stop=1.0), r"^std must be a non-negative"),
+        (lambda: Noise(0.1, hold=0.0, stop=1.0), r"^hold must be a positive"),
+        (lambda: Noise(0.1, hold=1e-12, stop=1.0), r"needs 1000000000000 samples"),
+        (lambda: Step(math.inf, 1.0), r"^time must be a finite time"),
+    ],
+)
+def test_bad_parameters(factory, pattern):
+    with pytest.raises(ValueError, match=pattern):
+        factory()
+
+
+def test_bad_types():
+    with pytest.raises(TypeError, match=r"^amplitude must be"):
+        Step(0.0, "big")
+    with pytest.raises(TypeError, match=r"^seed must be"):
+        Noise(0.1, hold=0.1, stop=1.0, seed=1.5)
+    with pytest.raises(ValueError, match=r"^n must be a non-negative integer"):
+        Constant(1.0).derivative(np.zeros(2), -1)
