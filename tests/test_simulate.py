@@ -50,7 +50,7 @@ def test_agrees_with_reference_loop(canonical_results, name):
     expected = reference_loop(
         **kwargs, observer=canonical_observer(name), substeps=DEFAULT_SUBSTEPS
     )
-    assert_traces_close(canonical_results[name], expected, rtol=1e-9)
+    assert_traces_close(canonical_results[name], expected, rtol=1e-12)
 
 
 def test_agrees_with_reference_loop_noise_delay_saturation():
@@ -64,7 +64,7 @@ def test_agrees_with_reference_loop_noise_delay_saturation():
     result = simulate(**kwargs, observer=obs, substeps=4)
     assert np.max(np.abs(result.u)) == pytest.approx(0.055)  # the limit is active
     expected = reference_loop(**kwargs, observer=obs, substeps=4)
-    assert_traces_close(result, expected, rtol=1e-9)
+    assert_traces_close(result, expected, rtol=1e-12)
 
 
 def test_substep_convergence(canonical_results):

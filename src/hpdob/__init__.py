@@ -16,6 +16,8 @@ initial_state, estimate, update
     The pure functional core of the sample loop.
 PD, Encoder, Actuator, simulate, SimulationResult
     Sampled-data closed-loop simulation (continuous plant, sampled PD, DOb inner loop).
+sweep
+    Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
 signals
     Built-in reference and disturbance signals (steps, quintic steps, sines, ramps, ...).
 """
@@ -28,6 +30,7 @@ from ._model import DiscreteServoModel, ServoModel
 from ._observer import DisturbanceObserver
 from ._result import SimulationResult
 from ._simulate import SimulationDivergedWarning, simulate
+from ._sweep import sweep
 from ._synthesis import (
     ObserverDesign,
     characteristic_polynomial,
@@ -59,5 +62,6 @@ __all__ = [
     "initial_state",
     "signals",
     "simulate",
+    "sweep",
     "update",
 ]

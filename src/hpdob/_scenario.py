@@ -22,7 +22,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-__all__ = ["SIGNAL_TYPES", "load_scenario", "scenario_from_dict"]
+__all__ = ["SIGNAL_TYPES", "load_scenario", "load_sweep", "scenario_from_dict"]
 
 SIGNAL_TYPES = {
     "constant": Constant,
@@ -49,6 +49,7 @@ TOP_LEVEL = (
     "disturbance",
 )
 REQUIRED = ("Ts", "duration", "plant", "nominal", "controller", "reference")
+SWEEP_KEYS = ("grid", "vary", "n", "seed")
 
 
 def _prefixed(key: str, err: Exception) -> Exception:
@@ -133,8 +134,12 @@ def _poles(values, key: str):
     return poles
 
 
-def scenario_from_dict(data: dict) -> dict:
-    """Keyword arguments of :func:`hpdob.simulate` from a parsed TOML document."""
+def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
+    """Keyword arguments of :func:`hpdob.simulate` from a parsed TOML document.
+
+    With ``build_observer=False`` the ``observer`` entry stays a dict of
+    :class:`DisturbanceObserver` arguments (what :func:`hpdob.sweep` takes).
+    """
     if not isinstance(data, dict):
         raise ParameterTypeError(f"a scenario must be a table, got {type(data).__name__}")
     unknown = sorted(set(data) - set(TOP_LEVEL))
@@ -172,6 +177,17 @@ def scenario_from_dict(data: dict) -> dict:
         spec = dict(_table(data, "observer"))
         if "poles" in spec:
             spec["poles"] = _poles(spec["poles"], "observer.poles")
+        if not build_observer:
+            # validate now, with the file's key names, but hand on the arguments
+            _build(
+                lambda **kw: DisturbanceObserver(kwargs["nominal"].discretize(kwargs["Ts"]), **kw),
+                spec,
+                "observer",
+                allowed=("order", "poles", "bandwidth", "gain_direction"),
+                required=("order",),
+            )
+            kwargs["observer"] = spec
+            return kwargs
         model = kwargs["nominal"].discretize(kwargs["Ts"])
         kwargs["observer"] = _build(
             lambda **kw: DisturbanceObserver(model, **kw),
@@ -183,9 +199,7 @@ def scenario_from_dict(data: dict) -> dict:
     return kwargs
 
 
-def load_scenario(path) -> dict:
-    """Read a TOML scenario file; return the keyword arguments of :func:`hpdob.simulate`."""
-    path = Path(path)
+def _read_toml(path: Path) -> dict:
     try:
         text = path.read_text()
     except OSError as err:
@@ -193,9 +207,34 @@ def load_scenario(path) -> dict:
             f"cannot read scenario file {str(path)!r}: {err.strerror}"
         ) from None
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise ParameterValueError(f"{path} is not valid TOML: {err}") from None
-    kwargs = scenario_from_dict(data)
+
+
+def load_sweep(path) -> tuple[dict, dict]:
+    """Read a sweep spec: a scenario plus a ``[sweep]`` table (``grid``, ``vary``, ``n``,
+    ``seed``). Returns ``(base, options)`` for ``hpdob.sweep(base, **options)``."""
+    data = dict(_read_toml(Path(path)))
+    options = data.pop("sweep", None)
+    if not isinstance(options, dict):
+        raise ParameterValueError(
+            f"a sweep spec needs a [sweep] table with {', '.join(SWEEP_KEYS)}; got {options!r}"
+        )
+    unknown = sorted(set(options) - set(SWEEP_KEYS))
+    if unknown:
+        raise ParameterValueError(
+            f"unknown key sweep.{unknown[0]} = {options[unknown[0]]!r}; "
+            f"valid keys of sweep: {', '.join(SWEEP_KEYS)}"
+        )
+    base = scenario_from_dict(data, build_observer=False)
+    base.pop("label", None)
+    return base, dict(options)
+
+
+def load_scenario(path) -> dict:
+    """Read a TOML scenario file; return the keyword arguments of :func:`hpdob.simulate`."""
+    path = Path(path)
+    kwargs = scenario_from_dict(_read_toml(path))
     kwargs.setdefault("label", path.stem)
     return kwargs

@@ -4,18 +4,15 @@ from __future__ import annotations
 
 import math
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 
 from . import _core
+from ._compiled import closed_loop_kernel
 from ._controller import PD
 from ._devices import Actuator, Encoder
-from ._kernel import (
-    SENSOR_ENCODER_DIFFERENCE,
-    SENSOR_ENCODER_EXACT,
-    SENSOR_IDEAL,
-    run_closed_loop,
-)
+from ._kernel import SENSOR_ENCODER_DIFFERENCE, SENSOR_ENCODER_EXACT, SENSOR_IDEAL
 from ._model import ServoModel
 from ._observer import DisturbanceObserver
 from ._result import SimulationResult
@@ -245,21 +242,82 @@ def simulate(
     if not isinstance(label, str):
         raise ParameterTypeError(f"label must be a str, got {type(label).__name__}")
     design, z0 = _observer_arrays(observer, nominal, Ts, x0)
+    signals = sample_signals(reference, disturbance, Ts=Ts, n=n, substeps=S)
+    result = run_prepared(
+        plant=plant,
+        nominal=nominal,
+        controller=controller,
+        design=design,
+        z0=z0,
+        sensor=sensor,
+        actuator=actuator,
+        x0=x0,
+        signals=signals,
+        label=label,
+    )
+    if result.diverged:
+        warnings.warn(result.message, SimulationDivergedWarning, stacklevel=2)
+    return result
 
+
+class SampledSignals(NamedTuple):
+    """Reference and disturbance evaluated on a run's time grids (see :func:`simulate`)."""
+
+    Ts: float
+    substeps: int
+    t: np.ndarray
+    r: np.ndarray
+    r_dot: np.ndarray
+    r_ddot: np.ndarray
+    tau_sample: np.ndarray
+    tau_mid: np.ndarray
+
+    def scaled(self, factor: float) -> SampledSignals:
+        """The same signals with the disturbance multiplied by ``factor``."""
+        if factor == 1.0:
+            return self
+        return self._replace(tau_sample=factor * self.tau_sample, tau_mid=factor * self.tau_mid)
+
+
+def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) -> SampledSignals:
+    """Evaluate ``reference`` at ``k Ts`` and ``disturbance`` at ``k Ts`` and the sub-step
+    midpoints ``k Ts + (j + 1/2) Ts / substeps``, ``0 <= k < n``, with validation."""
     t = np.arange(n) * Ts
     r, r_dot, r_ddot = _reference(reference, t)
     if disturbance is None:
-        tau_sample, tau_mid = np.zeros(n), np.zeros(n * S)
+        tau_sample, tau_mid = np.zeros(n), np.zeros(n * substeps)
     elif callable(disturbance):
         tau_sample = _disturbance(disturbance, t)
-        t_mid = (t[:, None] + (np.arange(S) + 0.5) * (Ts / S)).ravel()
+        t_mid = (t[:, None] + (np.arange(substeps) + 0.5) * (Ts / substeps)).ravel()
         tau_mid = _disturbance(disturbance, t_mid)
     else:
         raise ParameterTypeError(
             "disturbance must be a callable of time (e.g. an hpdob Signal) "
             f"or None, got {type(disturbance).__name__}"
         )
+    return SampledSignals(Ts, substeps, t, r, r_dot, r_ddot, tau_sample, tau_mid)
 
+
+def run_prepared(
+    *,
+    plant: ServoModel,
+    nominal: ServoModel,
+    controller: PD,
+    design,
+    z0,
+    sensor: Encoder | None,
+    actuator: Actuator,
+    x0: np.ndarray,
+    signals: SampledSignals,
+    label: str = "",
+) -> SimulationResult:
+    """Run the compiled kernel on validated inputs and pre-sampled signals (no warning).
+
+    The shared engine of :func:`simulate` and :func:`hpdob.sweep`; ``design`` is an
+    :class:`ObserverDesign` or None and ``z0`` its initial state.
+    """
+    Ts, S, t = signals.Ts, signals.substeps, signals.t
+    n = t.size
     sensor_mode, resolution, noise = SENSOR_IDEAL, 1.0, np.zeros(n)
     if sensor is not None:
         resolution = sensor.resolution
@@ -284,51 +342,20 @@ def simulate(
         for name in ("theta", "omega", "theta_m", "omega_m", "u", "tau_hat", "tau_dn")
     }
     limit = math.inf if actuator.torque_limit is None else actuator.torque_limit
-    done = _kernel()(
-        n,
-        S,
-        Ts,
-        x0,
-        sub.A,
-        sub.B,
-        half.A,
-        half.B,
-        plant.J,
-        plant.b,
-        plant.coulomb,
-        plant.coulomb_velocity,
-        nominal.J,
-        nominal.b,
-        controller.kp,
-        controller.kd,
-        controller.feedforward,
-        r,
-        r_dot,
-        r_ddot,
-        tau_mid,
-        tau_sample,
-        sensor_mode,
-        resolution,
-        noise,
-        limit,
-        actuator.delay_samples,
-        design is not None,
-        k_gain,
-        p_weight,
-        np.ascontiguousarray(Kx),
-        np.ascontiguousarray(Ku),
-        last,
-        np.ascontiguousarray(z0, dtype=float),
+    # fmt: off
+    done = closed_loop_kernel()(
+        n, S, Ts, x0, sub.A, sub.B, half.A, half.B,
+        plant.J, plant.b, plant.coulomb, plant.coulomb_velocity,
+        nominal.J, nominal.b, controller.kp, controller.kd, controller.feedforward,
+        signals.r, signals.r_dot, signals.r_ddot, signals.tau_mid, signals.tau_sample,
+        sensor_mode, resolution, noise, limit, actuator.delay_samples,
+        design is not None, k_gain, p_weight, np.ascontiguousarray(Kx),
+        np.ascontiguousarray(Ku), last, np.ascontiguousarray(z0, dtype=float),
         DIVERGENCE_LIMIT,
-        out["theta"],
-        out["omega"],
-        out["theta_m"],
-        out["omega_m"],
-        out["u"],
-        out["tau_hat"],
-        out["tau_dn"],
+        out["theta"], out["omega"], out["theta_m"], out["omega_m"], out["u"],
+        out["tau_hat"], out["tau_dn"],
     )
-
+    # fmt: on
     diverged = done < n
     message = "ok"
     if diverged:
@@ -337,7 +364,6 @@ def simulate(
             f"{DIVERGENCE_LIMIT:g} (or became non-finite) by t = {done * Ts:.6g} s; "
             f"the result holds the {done} samples before that"
         )
-        warnings.warn(message, SimulationDivergedWarning, stacklevel=2)
     keep = slice(0, done)
     return SimulationResult(
         t=t[keep],
@@ -345,20 +371,15 @@ def simulate(
         omega=out["omega"][keep],
         theta_measured=out["theta_m"][keep],
         omega_measured=out["omega_m"][keep],
-        r=r[keep],
-        r_dot=r_dot[keep],
-        r_ddot=r_ddot[keep],
+        r=signals.r[keep],
+        r_dot=signals.r_dot[keep],
+        r_ddot=signals.r_ddot[keep],
         u=out["u"][keep],
         tau_hat=out["tau_hat"][keep],
         tau_dn=out["tau_dn"][keep],
-        tau_ext=tau_sample[keep],
+        tau_ext=signals.tau_sample[keep],
         Ts=Ts,
         label=label,
         diverged=diverged,
         message=message,
     )
-
-
-def _kernel():
-    """The closed-loop kernel to run (plain Python here; compiled in :mod:`hpdob._compiled`)."""
-    return run_closed_loop

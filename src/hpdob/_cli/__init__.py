@@ -13,15 +13,17 @@ import sys
 
 from .._validation import ParameterTypeError, ParameterValueError
 from .._version import __version__
-from . import _design, _reproduce, _simulate
 
 __all__ = ["main"]
-
-_COMMANDS = (_reproduce, _simulate, _design)
 
 
 class CLIError(Exception):
     """A user error to report on one line with exit code 2."""
+
+
+from . import _design, _reproduce, _simulate, _sweep  # noqa: E402 (they import CLIError)
+
+_COMMANDS = (_reproduce, _simulate, _sweep, _design)
 
 
 class _Parser(argparse.ArgumentParser):

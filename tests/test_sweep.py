@@ -1,0 +1,235 @@
+"""Tests of hpdob.sweep: rows equal single simulations, seeds, flags, local vs dask."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hpdob import DisturbanceObserver, ServoModel, SimulationDivergedWarning, simulate, sweep
+from hpdob._canonical import canonical_scenario
+
+METRICS = [
+    "rms_estimation_error",
+    "rms_position_error_regulation",
+    "rms_position_error_tracking",
+    "max_abs_position_error",
+]
+
+
+def base(duration=2.0):
+    return {
+        **canonical_scenario(),
+        "duration": duration,
+        "observer": {"order": 1, "bandwidth": 100.0},
+    }
+
+
+def test_rows_equal_single_simulations():
+    grid = {"observer.order": [0, 1], "plant.J": [2.5e-4, 3.5e-4], "disturbance_scale": [0.5, 1]}
+    rows = sweep(base(5.0), grid=grid, progress=False)
+    assert len(rows) == 8
+    assert list(rows["scenario"]) == list(range(8))
+    for _, row in rows.iloc[[0, 5, 7]].iterrows():
+        kwargs = base(5.0)
+        kwargs["plant"] = kwargs["plant"].replace(J=row["plant.J"])
+        kwargs["disturbance"] = row["disturbance_scale"] * kwargs["disturbance"]
+        obs = DisturbanceObserver(
+            kwargs["nominal"].discretize(1e-3), order=int(row["observer.order"]), bandwidth=100.0
+        )
+        kwargs["observer"] = obs
+        result = simulate(**kwargs)
+        for name, value in result.metrics().items():
+            assert row[name] == value, name  # the same engine: bit for bit
+        assert row["max_abs_position_error"] == result.max_abs_position_error()
+        assert row["stable"]
+        assert row["error"] == ""
+
+
+def test_monte_carlo_is_reproducible_and_seeded():
+    vary = {"plant.J": ("uniform", 2.5e-4, 3.5e-4), "controller.kp": ("normal", 50, 5)}
+    a = sweep(base(1.0), vary=vary, n=6, seed=11, progress=False)
+    b = sweep(base(1.0), vary=vary, n=6, seed=11, scheduler=1, progress=False)
+    c = sweep(base(1.0), vary=vary, n=6, seed=12, progress=False)
+    pd.testing.assert_frame_equal(a, b)
+    assert not a["plant.J"].equals(c["plant.J"])
+    assert list(a.columns[:3]) == ["scenario", "controller.kp", "plant.J"]
+
+
+def test_diverging_and_invalid_scenarios_are_flagged_not_raised():
+    grid = {"nominal.J": [3e-4, 3e-3], "observer.bandwidth": [900.0, -1.0]}
+    b = {**base(3.0), "plant": ServoModel(3e-5)}  # 1/10 or 1/100 of nominal: unstable
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SimulationDivergedWarning)  # sweep must not warn
+        rows = sweep(b, grid=grid, progress=False)
+    assert not rows["stable"].any()
+    diverged = rows[rows["observer.bandwidth"] == 900.0]
+    assert diverged["error"].str.contains("diverged").all()
+    assert np.isfinite(diverged["rms_estimation_error"]).all()
+    invalid = rows[rows["observer.bandwidth"] == -1.0]
+    assert invalid["error"].str.startswith("bandwidth must be a positive").all()
+    assert invalid["rms_estimation_error"].isna().all()
+
+
+def test_sampling_period_and_observer_poles_base():
+    b = base(1.0)
+    b["observer"] = {"order": 1, "poles": [0.9, 0.85]}
+    rows = sweep(b, grid={"Ts": [1e-3, 5e-4]}, progress=False)
+    assert rows["stable"].all()
+    assert rows.loc[0, "rms_estimation_error"] != rows.loc[1, "rms_estimation_error"]
+
+
+def test_observer_object_in_base_and_progress_callback():
+    b = base(1.0)
+    b["observer"] = DisturbanceObserver(b["nominal"].discretize(1e-3), order=0, bandwidth=80.0)
+    seen = []
+    rows = sweep(
+        b,
+        grid={"controller.kd": [4.0, 5.0, 6.0]},
+        progress=lambda done, total: seen.append((done, total)),
+    )
+    assert len(rows) == 3
+    assert seen[-1] == (3, 3)
+
+
+def test_memory_is_per_scenario():
+    """Rows only: the DataFrame holds a handful of numbers per scenario, never traces."""
+    rows = sweep(base(1.0), grid={"controller.kp": [40.0, 50.0]}, progress=False)
+    assert rows.memory_usage(deep=False).sum() < 2_000
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "exc", "pattern"),
+    [
+        ({"grid": {"plant.mass": [1]}}, ValueError, r"valid paths: plant.J"),
+        ({"scheduler": "localhost"}, ValueError, r"^scheduler must be 'threads'"),
+        ({"scheduler": 0}, ValueError, r"^scheduler must be a positive number"),
+        ({"scheduler": 2.5}, TypeError, r"^scheduler must be None"),
+    ],
+)
+def test_bad_arguments(kwargs, exc, pattern):
+    with pytest.raises(exc, match=pattern):
+        sweep(base(1.0), progress=False, **kwargs)
+
+
+@pytest.mark.parametrize(
+    ("change", "exc", "pattern"),
+    [
+        ({"colour": 1}, ValueError, r"^base has unknown key 'colour'; valid keys: plant"),
+        ({"observer": {"order": 1, "speed": 3}}, ValueError, r"unknown key 'speed'"),
+        ({"observer": "hpdob"}, TypeError, r"^base\['observer'\] must be a dict"),
+        ({"controller": None}, TypeError, r"^controller must be a PD"),
+        ({"reference": 3.0}, TypeError, r"^reference must be a Signal"),
+    ],
+)
+def test_bad_base(change, exc, pattern):
+    with pytest.raises(exc, match=pattern):
+        sweep({**base(1.0), **change}, progress=False)
+
+
+def test_missing_base_key():
+    b = base(1.0)
+    del b["plant"]
+    with pytest.raises(ValueError, match=r"^base is missing the required key 'plant'"):
+        sweep(b, progress=False)
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    distributed = pytest.importorskip("dask.distributed")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cluster = distributed.LocalCluster(
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            host="127.0.0.1",
+            dashboard_address=None,
+        )
+        client = distributed.Client(cluster)
+    yield cluster, client
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        client.close()
+        cluster.close()
+
+
+@pytest.mark.timeout(120)
+def test_dask_gives_the_same_rows_bit_for_bit(cluster):
+    _, client = cluster
+    grid = {"observer.order": [0, 1], "observer.bandwidth": [60.0, 120.0]}
+    vary = {"plant.J": ("loguniform", 2e-4, 5e-4)}
+    local = sweep(base(1.0), grid=grid, vary=vary, n=3, seed=5, progress=False)
+    remote = sweep(base(1.0), grid=grid, vary=vary, n=3, seed=5, scheduler=client, progress=False)
+    by_address = sweep(
+        base(1.0),
+        grid=grid,
+        vary=vary,
+        n=3,
+        seed=5,
+        scheduler=client.scheduler.address,
+        progress=False,
+    )
+    pd.testing.assert_frame_equal(local, remote)
+    pd.testing.assert_frame_equal(local, by_address)
+
+
+@pytest.mark.timeout(120)
+def test_a_killed_worker_does_not_lose_rows(cluster):
+    _, client = cluster
+    grid = {"observer.bandwidth": list(np.linspace(40.0, 200.0, 40)), "observer.order": [0, 1]}
+    expected = sweep(base(1.0), grid=grid, progress=False)
+    pids = list(client.run(os.getpid).values())
+    killed = threading.Event()
+
+    def kill_one(done, total):
+        if done >= 8 and not killed.is_set():
+            killed.set()
+            os.kill(pids[0], signal.SIGKILL)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # dask may warn about the lost worker
+        rows = sweep(base(1.0), grid=grid, scheduler=client, progress=kill_one)
+    assert killed.is_set()
+    assert len(rows) == 80
+    pd.testing.assert_frame_equal(rows, expected)
+
+
+def test_cli_sweep_example(tmp_path, capsys):
+    from hpdob._cli import main
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "sweep_bandwidth.toml"
+    out = tmp_path / "rows.parquet"
+    assert main(["sweep", str(example), "--out", str(out), "--workers", "2"]) == 0
+    assert "240 scenarios (240 stable" in capsys.readouterr().out
+    rows = pd.read_parquet(out)
+    assert len(rows) == 3 * 4 * 20
+    assert set(rows["observer.order"]) == {0, 1, 2}
+    csv = tmp_path / "rows.csv"
+    assert main(["sweep", str(example), "--out", str(csv)]) == 0
+    pd.testing.assert_frame_equal(pd.read_csv(csv, keep_default_na=False), rows, check_dtype=False)
+
+
+def test_cli_sweep_errors(tmp_path, capsys):
+    from hpdob._cli import main
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "sweep_bandwidth.toml"
+    assert main(["sweep", str(example), "--out", str(tmp_path / "rows.xlsx")]) == 2
+    assert "--out must end in .parquet or .csv" in capsys.readouterr().err
+    spec = tmp_path / "spec.toml"
+    spec.write_text(
+        example.read_text().replace('"plant.J" = ["loguniform"', '"plant.K" = ["loguniform"')
+    )
+    assert main(["sweep", str(spec), "--out", str(tmp_path / "r.csv")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "vary path 'plant.K' is not a sweep parameter; valid paths:" in err
+    spec.write_text(example.read_text().replace("[sweep]\nn = 20", "[sweep]\nruns = 20"))
+    assert main(["sweep", str(spec), "--out", str(tmp_path / "r.csv")]) == 2
+    assert "unknown key sweep.runs = 20" in capsys.readouterr().err
