@@ -233,3 +233,15 @@ def test_cli_sweep_errors(tmp_path, capsys):
     spec.write_text(example.read_text().replace("[sweep]\nn = 20", "[sweep]\nruns = 20"))
     assert main(["sweep", str(spec), "--out", str(tmp_path / "r.csv")]) == 2
     assert "unknown key sweep.runs = 20" in capsys.readouterr().err
+
+
+def test_progress_is_silent_off_a_terminal(capsys):
+    sweep(base(0.5), grid={"controller.kp": [40.0, 50.0]})  # progress=None, stderr captured
+    assert capsys.readouterr().err == ""
+
+
+def test_progress_bar_when_forced(capsys):
+    sweep(base(0.5), grid={"controller.kp": [40.0, 50.0]}, progress=True)
+    err = capsys.readouterr().err
+    assert "hpdob sweep" in err
+    assert "2/2" in err

@@ -229,12 +229,11 @@ def _run_dask(base, chunks, scheduler, update) -> list:
     own = isinstance(scheduler, str)
     client = Client(scheduler) if own else scheduler
     try:
-        shared = client.scatter(base, broadcast=True)
-        # pure=False: never reuse results across sweeps; retries: a task whose worker died is
-        # rescheduled by the scheduler anyway, retries also covers transient failures.
-        futures = [
-            client.submit(run_chunk, shared, chunk, pure=False, retries=3) for chunk in chunks
-        ]
+        # Each task carries the (small) base itself rather than a scattered copy: tasks then
+        # have no data dependencies, so a task whose worker dies is simply run again elsewhere
+        # (scattered data lost with a worker cancels its dependants: "lost dependencies").
+        # pure=False: never reuse results across sweeps; retries also covers transient failures.
+        futures = [client.submit(run_chunk, base, chunk, pure=False, retries=3) for chunk in chunks]
         rows = []
         for future in dask_completed(futures):
             chunk_rows = future.result()
