@@ -29,6 +29,7 @@ def code_blocks(path: Path, language: str) -> list[str]:
         ROOT / "docs" / "usage.md",
         ROOT / "docs" / "simulation.md",
         ROOT / "docs" / "sweep.md",
+        ROOT / "docs" / "deployment.md",
     ],
     ids=str,
 )

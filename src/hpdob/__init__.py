@@ -14,6 +14,8 @@ DisturbanceObserver
     Stateful runtime object for the sample loop (``estimate`` then ``update``).
 initial_state, estimate, update
     The pure functional core of the sample loop.
+export_c
+    Export a design as dependency-free C99 for a microcontroller.
 PD, Encoder, Actuator, simulate, SimulationResult
     Sampled-data closed-loop simulation (continuous plant, sampled PD, DOb inner loop).
 sweep
@@ -26,6 +28,7 @@ from . import signals
 from ._controller import PD
 from ._core import estimate, initial_state, update
 from ._devices import Actuator, Encoder
+from ._export_c import export_c
 from ._model import DiscreteServoModel, ServoModel
 from ._observer import DisturbanceObserver
 from ._result import SimulationResult
@@ -58,6 +61,7 @@ __all__ = [
     "design_observer",
     "error_matrix",
     "estimate",
+    "export_c",
     "extrapolation_weights",
     "initial_state",
     "signals",

@@ -13,17 +13,12 @@ import sys
 
 from .._validation import ParameterTypeError, ParameterValueError
 from .._version import __version__
+from . import _design, _export_c, _reproduce, _simulate, _sweep
+from ._errors import CLIError
 
-__all__ = ["main"]
+__all__ = ["CLIError", "main"]
 
-
-class CLIError(Exception):
-    """A user error to report on one line with exit code 2."""
-
-
-from . import _design, _reproduce, _simulate, _sweep  # noqa: E402 (they import CLIError)
-
-_COMMANDS = (_reproduce, _simulate, _sweep, _design)
+_COMMANDS = (_reproduce, _simulate, _sweep, _design, _export_c)
 
 
 class _Parser(argparse.ArgumentParser):

@@ -6,7 +6,7 @@ import argparse
 import time
 from pathlib import Path
 
-from . import CLIError
+from ._errors import CLIError
 
 __all__ = ["register"]
 

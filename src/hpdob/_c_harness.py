@@ -1,0 +1,341 @@
+"""Compile exported C observers on the host and drive them from Python.
+
+Used by the tests and benchmarks of :func:`hpdob.export_c`, and by anyone who wants to check
+an export on their own machine. It needs a C compiler (``gcc`` or ``$CC``); nothing here is
+imported by ``import hpdob``.
+
+Two ways to drive a build:
+
+* :class:`CObserver` calls the exported ``_init``/``_estimate``/``_update`` through ctypes, one
+  call per sample, exactly as firmware would (use it when Python closes the loop);
+* :meth:`CObserver.drive` runs a whole input trace in a C loop (``<prefix>_drive`` from
+  :func:`drive_source`) and returns the estimates and the states.
+
+:func:`sanitized_run` builds the same drive loop with a ``main`` that reads the trace from a
+file, under ``-fsanitize=address,undefined``, and runs it as a subprocess.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import shutil
+import subprocess
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+__all__ = [
+    "STRICT_FLAGS",
+    "CBuildError",
+    "CObserver",
+    "compile_c",
+    "drive_source",
+    "find_compiler",
+    "sanitized_run",
+    "sanitizer_available",
+]
+
+#: The warning set of the issue, plus the checks that matter on a microcontroller.
+STRICT_FLAGS = (
+    "-std=c99",
+    "-Wall",
+    "-Wextra",
+    "-Wpedantic",
+    "-Wconversion",
+    "-Wdouble-promotion",
+    "-Wshadow",
+    "-Werror",
+)
+#: No fused multiply-add contraction: the double build then reproduces hpdob.update exactly.
+#: (GCC's default under -std=c99 already; spelt out for other compilers and modes.)
+EXACT_FLAGS = ("-ffp-contract=off",)
+SANITIZE_FLAGS = (
+    "-O2",
+    "-g",
+    "-fsanitize=address,undefined",
+    "-fno-sanitize-recover=all",
+    "-fno-omit-frame-pointer",
+)
+
+
+class CBuildError(RuntimeError):
+    """The C compiler or a compiled program failed (the message holds its output)."""
+
+
+def find_compiler() -> str | None:
+    """Path of ``$CC`` (default ``gcc``), or None if it is not installed."""
+    return shutil.which(os.environ.get("CC", "gcc"))
+
+
+def compile_c(
+    sources: Sequence[Path | str],
+    output: Path | str,
+    *,
+    flags: Sequence[str] = (),
+    shared: bool = False,
+    libraries: Sequence[str] = (),
+) -> Path:
+    """Compile ``sources`` into ``output`` (an executable, or a shared library if ``shared``).
+
+    Raises
+    ------
+    CBuildError
+        If no compiler is found or it reports an error (warnings are errors with
+        :data:`STRICT_FLAGS`).
+    """
+    cc = find_compiler()
+    if cc is None:
+        raise CBuildError("no C compiler found (set CC or install gcc)")
+    output = Path(output)
+    cmd = [cc, *flags, *(["-shared", "-fPIC"] if shared else [])]
+    cmd += [str(s) for s in sources] + ["-o", str(output)] + [f"-l{lib}" for lib in libraries]
+    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    if done.returncode != 0 or done.stderr.strip():
+        raise CBuildError(f"{' '.join(cmd)} failed:\n{done.stdout}{done.stderr}")
+    return output
+
+
+def drive_source(prefix: str, dtype: str, order: int) -> str:
+    """C source of ``void <prefix>_drive(...)``: run a trace through the exported observer.
+
+    ``theta, omega, u`` hold ``n`` doubles, converted to the observer's type as firmware
+    would; ``tau_hat[k]`` receives the estimate at sample ``k`` and ``z[k*(order+1) + i]`` the
+    state the estimate and update of sample ``k`` started from.
+    """
+    n = order + 1
+    return f"""\
+#include "{prefix}.h"
+
+void {prefix}_drive(long n, const double *init, const double *theta, const double *omega,
+                    const double *u, double *tau_hat, double *z);
+
+void {prefix}_drive(long n, const double *init, const double *theta, const double *omega,
+                    const double *u, double *tau_hat, double *z)
+{{
+    {prefix}_state s;
+    long k;
+    int i;
+    {prefix}_init(&s, ({dtype})init[0], ({dtype})init[1], ({dtype})init[2]);
+    for (k = 0; k < n; ++k) {{
+        const {dtype} th = ({dtype})theta[k];
+        const {dtype} om = ({dtype})omega[k];
+        for (i = 0; i < {n}; ++i) {{
+            z[k * {n} + i] = (double)s.z[i];
+        }}
+        tau_hat[k] = (double){prefix}_estimate(&s, th, om);
+        {prefix}_update(&s, th, om, ({dtype})u[k]);
+    }}
+}}
+"""
+
+
+_MAIN = """\
+#include <stdio.h>
+#include <stdlib.h>
+
+void {prefix}_drive(long n, const double *init, const double *theta, const double *omega,
+                    const double *u, double *tau_hat, double *z);
+
+/* usage: drive IN OUT. IN: n (int64), init[3], theta[n], omega[n], u[n] (float64);
+   OUT: tau_hat[n], z[n * {n}] (float64). */
+int main(int argc, char **argv)
+{{
+    FILE *in;
+    FILE *out;
+    long long count = 0;
+    size_t n, ok;
+    double init[3];
+    double *buf;
+    if (argc != 3 || (in = fopen(argv[1], "rb")) == NULL) {{
+        return 2;
+    }}
+    if (fread(&count, sizeof count, 1, in) != 1 || count <= 0
+        || fread(init, sizeof(double), 3, in) != 3) {{
+        fclose(in);
+        return 3;
+    }}
+    n = (size_t)count;
+    buf = (double *)malloc(sizeof(double) * n * (4 + {n}));
+    if (buf == NULL) {{
+        fclose(in);
+        return 4;
+    }}
+    ok = fread(buf, sizeof(double), 3 * n, in);
+    fclose(in);
+    if (ok != 3 * n) {{
+        free(buf);
+        return 5;
+    }}
+    {prefix}_drive((long)n, init, buf, buf + n, buf + 2 * n, buf + 3 * n, buf + 4 * n);
+    out = fopen(argv[2], "wb");
+    if (out == NULL) {{
+        free(buf);
+        return 6;
+    }}
+    ok = fwrite(buf + 3 * n, sizeof(double), n * (1 + {n}), out);
+    fclose(out);
+    free(buf);
+    return ok == n * (1 + {n}) ? 0 : 7;
+}}
+"""
+
+
+def _write_drive(directory: Path, prefix: str, dtype: str, order: int) -> Path:
+    path = directory / f"{prefix}_drive.c"
+    path.write_text(drive_source(prefix, dtype, order))
+    return path
+
+
+def _as_trace(theta, omega, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (theta, omega, u)]
+    if len({a.shape for a in arrays}) != 1 or arrays[0].ndim != 1:
+        raise ValueError("theta, omega and u must be 1-D arrays of the same length")
+    return arrays[0], arrays[1], arrays[2]
+
+
+class CObserver:
+    """An exported observer compiled into a shared library and loaded with ctypes.
+
+    Parameters
+    ----------
+    header, source : Path
+        The files written by :func:`hpdob.export_c`.
+    prefix, dtype : str
+        As given to :func:`hpdob.export_c`.
+    order : int
+        The design's truncation order.
+    build_dir : Path
+        Where the drive loop and the library are written (use a fresh directory per build:
+        the dynamic loader caches libraries by path).
+    flags : sequence of str
+        Compiler flags; default :data:`STRICT_FLAGS`, ``-O2`` and :data:`EXACT_FLAGS`.
+    """
+
+    def __init__(self, header, source, *, prefix, dtype, order, build_dir, flags=None):
+        build_dir = Path(build_dir)
+        build_dir.mkdir(parents=True, exist_ok=True)
+        flags = (*STRICT_FLAGS, "-O2", *EXACT_FLAGS) if flags is None else tuple(flags)
+        drive = _write_drive(Path(source).parent, prefix, dtype, order)
+        self.library_path = compile_c(
+            [source, drive], build_dir / f"lib{prefix}_{dtype}.so", flags=flags, shared=True
+        )
+        self.order, self.dtype = order, dtype
+        scalar = ctypes.c_double if dtype == "double" else ctypes.c_float
+        self._scalar = scalar
+
+        class State(ctypes.Structure):
+            _fields_ = [("z", scalar * (order + 1))]
+
+        self._state = State()
+        lib = ctypes.CDLL(str(self.library_path))
+        pointer = ctypes.POINTER(State)
+        self._init = lib[f"{prefix}_init"]
+        self._init.argtypes, self._init.restype = [pointer, scalar, scalar, scalar], None
+        self._estimate = lib[f"{prefix}_estimate"]
+        self._estimate.argtypes, self._estimate.restype = [pointer, scalar, scalar], scalar
+        self._update = lib[f"{prefix}_update"]
+        self._update.argtypes, self._update.restype = [pointer, scalar, scalar, scalar], None
+        double_p = ctypes.POINTER(ctypes.c_double)
+        self._drive = lib[f"{prefix}_drive"]
+        self._drive.argtypes = [ctypes.c_long, *([double_p] * 6)]
+        self._drive.restype = None
+        self._ref = ctypes.byref(self._state)
+
+    def init(self, theta0: float, omega0: float, tau0: float) -> None:
+        """``<prefix>_init`` on the held state (arguments rounded to the C type)."""
+        self._init(self._ref, theta0, omega0, tau0)
+
+    def estimate(self, theta: float, omega: float) -> float:
+        """``<prefix>_estimate`` of the held state [N m]."""
+        return self._estimate(self._ref, theta, omega)
+
+    def update(self, theta: float, omega: float, u: float) -> None:
+        """``<prefix>_update`` of the held state."""
+        self._update(self._ref, theta, omega, u)
+
+    @property
+    def state(self) -> tuple:
+        """The C state ``z`` as Python floats."""
+        return tuple(self._state.z)
+
+    def drive(self, theta, omega, u, *, init=(0.0, 0.0, 0.0)):
+        """Run a trace in C from ``<prefix>_init(*init)``; return ``(tau_hat, z)``.
+
+        ``z[k]`` is the state sample ``k`` started from, shape ``(n, order + 1)``.
+        """
+        theta, omega, u = _as_trace(theta, omega, u)
+        n = theta.size
+        start = np.ascontiguousarray(init, dtype=np.float64)
+        tau_hat, z = np.empty(n), np.empty((n, self.order + 1))
+
+        def ptr(a):
+            return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+
+        self._drive(n, ptr(start), ptr(theta), ptr(omega), ptr(u), ptr(tau_hat), ptr(z))
+        return tau_hat, z
+
+
+def sanitizer_available(directory: Path) -> str | None:
+    """None if ``-fsanitize=address,undefined`` builds and runs here, else the reason."""
+    if find_compiler() is None:
+        return "no C compiler found"
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    probe = directory / "probe.c"
+    probe.write_text("int main(void) { return 0; }\n")
+    try:
+        exe = compile_c([probe], directory / "probe", flags=SANITIZE_FLAGS)
+    except CBuildError as err:
+        return f"the sanitizer runtime cannot be linked: {err}"
+    done = subprocess.run([str(exe)], capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        return f"a sanitized program cannot run here: {done.stderr.strip()[:200]}"
+    return None
+
+
+def sanitized_run(
+    source, *, prefix, dtype, order, build_dir, theta, omega, u, init=(0.0, 0.0, 0.0)
+):
+    """Build the drive loop under ASan + UBSan (``-O2``) and run a trace through it.
+
+    Returns ``(tau_hat, z)`` like :meth:`CObserver.drive`.
+
+    Raises
+    ------
+    CBuildError
+        If the build fails or the program exits non-zero or prints anything (every sanitizer
+        finding is fatal: ``-fno-sanitize-recover=all``).
+    """
+    build_dir = Path(build_dir)
+    build_dir.mkdir(parents=True, exist_ok=True)
+    theta, omega, u = _as_trace(theta, omega, u)
+    n = theta.size
+    drive = _write_drive(Path(source).parent, prefix, dtype, order)
+    main = build_dir / f"{prefix}_main.c"
+    main.write_text(_MAIN.format(prefix=prefix, n=order + 1))
+    exe = compile_c(
+        [source, drive, main],
+        build_dir / f"{prefix}_sanitized",
+        flags=(*STRICT_FLAGS, *SANITIZE_FLAGS),
+    )
+    inputs, outputs = build_dir / "trace.bin", build_dir / "result.bin"
+    with open(inputs, "wb") as f:
+        f.write(np.int64(n).tobytes())
+        f.write(np.ascontiguousarray(init, dtype=np.float64).tobytes())
+        for a in (theta, omega, u):
+            f.write(a.tobytes())
+    env = dict(os.environ)
+    env["ASAN_OPTIONS"] = "detect_leaks=1:abort_on_error=0:halt_on_error=1"
+    env["UBSAN_OPTIONS"] = "print_stacktrace=1:halt_on_error=1"
+    done = subprocess.run(
+        [str(exe), str(inputs), str(outputs)], capture_output=True, text=True, env=env, check=False
+    )
+    if done.returncode != 0 or done.stdout or done.stderr:
+        raise CBuildError(
+            f"sanitized drive of {prefix} exited with {done.returncode}:\n"
+            f"{done.stdout}{done.stderr}"
+        )
+    data = np.fromfile(outputs, dtype=np.float64)
+    return data[:n], data[n:].reshape(n, order + 1)
