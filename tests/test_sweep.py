@@ -121,8 +121,12 @@ def test_bad_arguments(kwargs, exc, pattern):
 @pytest.mark.parametrize(
     ("change", "exc", "pattern"),
     [
-        ({"colour": 1}, ValueError, r"^base has unknown key 'colour'; valid keys: plant"),
-        ({"observer": {"order": 1, "speed": 3}}, ValueError, r"unknown key 'speed'"),
+        ({"colour": 1}, ValueError, r"^unknown key base.colour = 1; valid keys of base: plant"),
+        (
+            {"observer": {"order": 1, "speed": 3}},
+            ValueError,
+            r"^unknown key observer.speed = 3; valid keys of observer: order",
+        ),
         ({"observer": "hpdob"}, TypeError, r"^base\['observer'\] must be a dict"),
         ({"controller": None}, TypeError, r"^controller must be a PD"),
         ({"reference": 3.0}, TypeError, r"^reference must be a Signal"),

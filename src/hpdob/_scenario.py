@@ -15,7 +15,7 @@ from ._devices import Actuator, Encoder
 from ._model import ServoModel
 from ._observer import DisturbanceObserver
 from ._signals import Chirp, Constant, Noise, Ramp, Sine, SmoothStep, Step
-from ._validation import ParameterTypeError, ParameterValueError, check_choice, positive
+from ._validation import ParameterTypeError, ParameterValueError, check_choice, check_keys, positive
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -71,12 +71,7 @@ def _build(cls, fields: dict, key: str, allowed=None, required=None):
         params = [f for f in dataclasses.fields(cls) if f.init and not f.name.startswith("_")]
         allowed = [f.name for f in params]
         required = [f.name for f in params if f.default is dataclasses.MISSING]
-    unknown = sorted(set(fields) - set(allowed))
-    if unknown:
-        raise ParameterValueError(
-            f"unknown key {key}.{unknown[0]} = {fields[unknown[0]]!r}; "
-            f"valid keys of {key}: {', '.join(allowed)}"
-        )
+    check_keys(fields, allowed, key)
     missing = [name for name in required or () if name not in fields]
     if missing:
         raise ParameterValueError(f"missing required key {key}.{missing[0]}")
@@ -142,12 +137,7 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
     """
     if not isinstance(data, dict):
         raise ParameterTypeError(f"a scenario must be a table, got {type(data).__name__}")
-    unknown = sorted(set(data) - set(TOP_LEVEL))
-    if unknown:
-        raise ParameterValueError(
-            f"unknown key {unknown[0]} = {data[unknown[0]]!r}; valid "
-            f"top-level keys: {', '.join(TOP_LEVEL)}"
-        )
+    check_keys(data, TOP_LEVEL)
     missing = [k for k in REQUIRED if k not in data]
     if missing:
         raise ParameterValueError(
@@ -221,12 +211,7 @@ def load_sweep(path) -> tuple[dict, dict]:
         raise ParameterValueError(
             f"a sweep spec needs a [sweep] table with {', '.join(SWEEP_KEYS)}; got {options!r}"
         )
-    unknown = sorted(set(options) - set(SWEEP_KEYS))
-    if unknown:
-        raise ParameterValueError(
-            f"unknown key sweep.{unknown[0]} = {options[unknown[0]]!r}; "
-            f"valid keys of sweep: {', '.join(SWEEP_KEYS)}"
-        )
+    check_keys(options, SWEEP_KEYS, "sweep")
     base = scenario_from_dict(data, build_observer=False)
     base.pop("label", None)
     return base, dict(options)

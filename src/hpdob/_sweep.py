@@ -27,7 +27,13 @@ from ._simulate import (
 )
 from ._sweep_spec import expand_scenarios
 from ._synthesis import ObserverDesign, design_observer
-from ._validation import ParameterTypeError, ParameterValueError, as_int, as_real_vector
+from ._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    as_int,
+    as_real_vector,
+    check_keys,
+)
 
 __all__ = ["sweep"]
 
@@ -73,12 +79,7 @@ def _observer_spec(observer) -> dict | None:
             f"arguments ({', '.join(OBSERVER_KEYS)}), a DisturbanceObserver "
             f"or None, got {type(observer).__name__}"
         )
-    unknown = sorted(set(observer) - set(OBSERVER_KEYS))
-    if unknown:
-        raise ParameterValueError(
-            f"base['observer'] has unknown key {unknown[0]!r}; valid keys: "
-            f"{', '.join(OBSERVER_KEYS)}"
-        )
+    check_keys(observer, OBSERVER_KEYS, "observer")
     return dict(observer)
 
 
@@ -87,11 +88,7 @@ def _resolve_base(base) -> dict:
         raise ParameterTypeError(
             f"base must be a dict of simulate() arguments, got {type(base).__name__}"
         )
-    unknown = sorted(set(base) - set(SIMULATE_KEYS))
-    if unknown:
-        raise ParameterValueError(
-            f"base has unknown key {unknown[0]!r}; valid keys: {', '.join(SIMULATE_KEYS)}"
-        )
+    check_keys(base, SIMULATE_KEYS, "base")
     missing = [
         k
         for k in ("plant", "nominal", "Ts", "duration", "controller", "reference")

@@ -23,6 +23,7 @@ __all__ = [
     "as_real",
     "as_real_vector",
     "check_choice",
+    "check_keys",
     "nonnegative",
     "positive",
 ]
@@ -137,3 +138,19 @@ def check_choice(value: object, name: str, choices: Iterable[str]) -> str:
         listed = ", ".join(repr(c) for c in options)
         raise ParameterValueError(f"{name} must be one of {listed}; got {_show(value)}")
     return value
+
+
+def check_keys(mapping, valid, where: str = "") -> None:
+    """Raise if ``mapping`` has a key outside ``valid``, naming it, its value and the valid keys.
+
+    ``where`` qualifies the key (``plant`` gives ``unknown key plant.inertia = 1.0; valid keys
+    of plant: J, b, ...``).
+    """
+    unknown = sorted((k for k in mapping if k not in valid), key=str)
+    if unknown:
+        key = unknown[0]
+        name = f"{where}.{key}" if where else str(key)
+        of = f" of {where}" if where else ""
+        raise ParameterValueError(
+            f"unknown key {name} = {_show(mapping[key])}; valid keys{of}: {', '.join(valid)}"
+        )
