@@ -16,6 +16,9 @@ initial_state, estimate, update
     The pure functional core of the sample loop.
 PD, Encoder, Actuator, simulate, SimulationResult
     Sampled-data closed-loop simulation (continuous plant, sampled PD, DOb inner loop).
+MujocoServo
+    A servo (optionally with a pendulum link) simulated by MuJoCo, as ``plant=`` of
+    ``simulate`` and ``sweep``; MuJoCo is imported only when a model is built.
 sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
 signals
@@ -27,6 +30,7 @@ from ._controller import PD
 from ._core import estimate, initial_state, update
 from ._devices import Actuator, Encoder
 from ._model import DiscreteServoModel, ServoModel
+from ._mujoco import MujocoServo
 from ._observer import DisturbanceObserver
 from ._result import SimulationResult
 from ._simulate import SimulationDivergedWarning, simulate
@@ -47,6 +51,7 @@ __all__ = [
     "DiscreteServoModel",
     "DisturbanceObserver",
     "Encoder",
+    "MujocoServo",
     "ObserverDesign",
     "ParameterTypeError",
     "ParameterValueError",
