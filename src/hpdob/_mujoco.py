@@ -132,6 +132,7 @@ class MujocoServo:
             ),
             "integrator": check_choice(integrator, "integrator", INTEGRATORS),
         }
+        import_mujoco()  # fail here, not at the first run, if the extra is missing
         source = servo_xml(**params)
         self._set(source, None, "hinge", "motor", _check_timestep(timestep), params, {})
 
