@@ -29,10 +29,13 @@ def code_blocks(path: Path, language: str) -> list[str]:
         ROOT / "docs" / "usage.md",
         ROOT / "docs" / "simulation.md",
         ROOT / "docs" / "sweep.md",
+        ROOT / "docs" / "mujoco.md",
     ],
     ids=str,
 )
 def test_python_blocks_run(path):
+    if path.name == "mujoco.md":
+        pytest.importorskip("mujoco")  # the [mujoco] extra (part of [test])
     namespace: dict = {}
     for block in code_blocks(path, "python"):
         exec(compile(block, str(path), "exec"), namespace)
