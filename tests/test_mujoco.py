@@ -95,6 +95,11 @@ def test_built_model_has_the_requested_physics():
     angles = np.array([-2.0, -0.3, 0.0, 0.5, math.pi / 2, 2.5])
     expected = LINK_MASS * G * LINK_LENGTH * np.sin(angles)  # hanging down at theta = 0
     np.testing.assert_allclose(servo.bias_torque(angles), expected, rtol=1e-13, atol=1e-17)
+    assert servo.bias_torque(math.pi / 2).shape == (1,)
+    with pytest.raises(ValueError, match=r"^theta must be a 1-D array of finite joint angles"):
+        servo.bias_torque([0.0, math.nan])
+    with pytest.raises(TypeError, match=r"^theta must be a finite joint angle \[rad\], got 'up'"):
+        servo.bias_torque("up")
     rotor = MujocoServo(3.06e-4)
     assert joint_inertia(rotor) == pytest.approx(3.06e-4, rel=1e-14)
     np.testing.assert_array_equal(rotor.bias_torque(angles), 0.0)
@@ -386,7 +391,8 @@ def test_from_xml_scales_ctrl_by_the_motor_gear():
         ({"joint": "shoulder", "actuator": "rail_motor"},
          r"^actuator must drive joint 'shoulder' directly, got 'rail_motor'.*'drive', 'servo'"),
         ({"joint": "shoulder", "actuator": "servo"},
-         r"^actuator must be a torque source \(a <motor>.*got 'servo'"),
+         r"^actuator must be a torque source \(a <motor>.*got 'servo' with gain type "
+         r"mjGAIN_FIXED, bias type mjBIAS_AFFINE"),
         ({"joint": "shoulder"}, r"^actuator must name the motor of joint 'shoulder': 2 actuators "
                                 r"drive it \('drive', 'servo'\)"),
         ({"joint": 3}, r"^joint must be a joint name \(str\), got int"),

@@ -415,11 +415,10 @@ class MujocoServo:
         omega : float, optional
             Joint velocity [rad/s] (matters only for multi-joint models). Default 0.
         """
-        angles = np.atleast_1d(np.asarray(theta, dtype=float))
-        if angles.ndim != 1:
-            angles = as_real_vector(theta, "theta", "an array of joint angles [rad]")
-        if not np.all(np.isfinite(angles)):
-            raise ParameterValueError(f"theta must be finite joint angles [rad], got {theta!r}")
+        if np.ndim(theta) == 0:
+            angles = np.array([as_real(theta, "theta", "a finite joint angle [rad]")])
+        else:
+            angles = as_real_vector(theta, "theta", "a 1-D array of finite joint angles [rad]")
         omega = as_real(omega, "omega", "a finite joint velocity [rad/s]")
         handle = self.open(1e-3)
         mujoco, model, data = handle.mujoco, handle.model, handle.data

@@ -170,9 +170,15 @@ def find_actuator(model, joint_id: int, joint_name: str, actuator) -> tuple[int,
     )
     scale = float(model.actuator_gear[index, 0] * model.actuator_gainprm[index, 0])
     if not motor or scale == 0.0:
+        kinds = (
+            mujoco.mjtGain(model.actuator_gaintype[index]).name,
+            mujoco.mjtBias(model.actuator_biastype[index]).name,
+            mujoco.mjtDyn(model.actuator_dyntype[index]).name,
+        )
         raise ParameterValueError(
             f"actuator must be a torque source (a <motor>: fixed nonzero gain, no bias, no "
-            f"activation dynamics), got {actuator!r}, which is not"
+            f"activation dynamics), got {actuator!r} with gain type {kinds[0]}, bias type "
+            f"{kinds[1]}, dynamics {kinds[2]} and gear x gain = {scale!r}"
         )
     return index, 1.0 / scale
 
