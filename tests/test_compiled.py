@@ -17,7 +17,7 @@ from hpdob._simulate import simulate
 def test_import_hpdob_loads_no_heavy_modules():
     code = (
         "import sys, hpdob; heavy = [m for m in ('numba', 'matplotlib', 'pandas', 'dask', "
-        "'control', 'scipy.signal') if m in sys.modules]; print(heavy)"
+        "'control', 'scipy.signal', 'mujoco') if m in sys.modules]; print(heavy)"
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]"

@@ -30,10 +30,13 @@ def code_blocks(path: Path, language: str) -> list[str]:
         ROOT / "docs" / "simulation.md",
         ROOT / "docs" / "sweep.md",
         ROOT / "docs" / "deployment.md",
+        ROOT / "docs" / "mujoco.md",
     ],
     ids=str,
 )
 def test_python_blocks_run(path):
+    if path.name == "mujoco.md":
+        pytest.importorskip("mujoco")  # the [mujoco] extra (part of [test])
     namespace: dict = {}
     for block in code_blocks(path, "python"):
         exec(compile(block, str(path), "exec"), namespace)
@@ -62,6 +65,8 @@ MODULES = sorted(
 
 @pytest.mark.parametrize("name", MODULES)
 def test_doctests(name):
+    if name.startswith("hpdob._mujoco"):
+        pytest.importorskip("mujoco")  # the [mujoco] extra (part of [test])
     module = importlib.import_module(name)
     result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
     assert result.failed == 0

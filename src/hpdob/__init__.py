@@ -18,6 +18,9 @@ export_c
     Export a design as dependency-free C99 for a microcontroller.
 PD, Encoder, Actuator, simulate, SimulationResult
     Sampled-data closed-loop simulation (continuous plant, sampled PD, DOb inner loop).
+MujocoServo
+    A servo (optionally with a pendulum link) simulated by MuJoCo, as ``plant=`` of
+    ``simulate`` and ``sweep``; MuJoCo is imported only when a model is built.
 sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
 signals
@@ -30,6 +33,7 @@ from ._core import estimate, initial_state, update
 from ._devices import Actuator, Encoder
 from ._export_c import export_c
 from ._model import DiscreteServoModel, ServoModel
+from ._mujoco import MujocoServo
 from ._observer import DisturbanceObserver
 from ._result import SimulationResult
 from ._simulate import SimulationDivergedWarning, simulate
@@ -50,6 +54,7 @@ __all__ = [
     "DiscreteServoModel",
     "DisturbanceObserver",
     "Encoder",
+    "MujocoServo",
     "ObserverDesign",
     "ParameterTypeError",
     "ParameterValueError",

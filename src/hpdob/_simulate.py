@@ -14,6 +14,8 @@ from ._controller import PD
 from ._devices import Actuator, Encoder
 from ._kernel import SENSOR_ENCODER_DIFFERENCE, SENSOR_ENCODER_EXACT, SENSOR_IDEAL
 from ._model import ServoModel
+from ._mujoco import MujocoServo
+from ._mujoco_loop import run_mujoco_loop
 from ._observer import DisturbanceObserver
 from ._result import SimulationResult
 from ._signals import Signal, trajectory
@@ -26,13 +28,23 @@ from ._validation import (
     positive,
 )
 
-__all__ = ["DEFAULT_SUBSTEPS", "DIVERGENCE_LIMIT", "SimulationDivergedWarning", "simulate"]
+__all__ = [
+    "DEFAULT_SUBSTEPS",
+    "DIVERGENCE_LIMIT",
+    "PLANT_TYPES",
+    "SimulationDivergedWarning",
+    "simulate",
+]
 
 #: Default plant sub-steps per sample. Doubling it changes the canonical metrics by < 0.1 %
 #: (tests/test_simulate.py::test_substep_convergence).
 DEFAULT_SUBSTEPS = 8
 #: A run stops when |theta| [rad] or |omega| [rad/s] exceeds this, or the state is not finite.
 DIVERGENCE_LIMIT = 1e9
+
+
+#: What ``plant=`` accepts: hpdob's own integrator, or MuJoCo.
+PLANT_TYPES = (ServoModel, MujocoServo)
 
 
 class SimulationDivergedWarning(RuntimeWarning):
@@ -47,6 +59,18 @@ def _require(value, cls, name: str, *, optional: bool = False):
         suffix = " or None" if optional else ""
         raise ParameterTypeError(f"{name} must be a {names}{suffix}, got {type(value).__name__}")
     return value
+
+
+def resolve_substeps(plant, Ts: float, substeps) -> int:
+    """Plant steps per sample: ``substeps`` (default :data:`DEFAULT_SUBSTEPS`), or
+    ``Ts/timestep`` for a :class:`MujocoServo` with its own MuJoCo time step."""
+    if substeps is not None:
+        substeps = as_int(
+            substeps, "substeps", "a positive integer number of sub-steps per sample", minimum=1
+        )
+    if isinstance(plant, MujocoServo):
+        substeps = plant.steps_per_sample(Ts, substeps)
+    return DEFAULT_SUBSTEPS if substeps is None else substeps
 
 
 def _sample_count(Ts: float, duration: float) -> int:
@@ -139,7 +163,7 @@ def _observer_arrays(observer, nominal: ServoModel, Ts: float, x0):
 
 def simulate(
     *,
-    plant: ServoModel,
+    plant: ServoModel | MujocoServo,
     nominal: ServoModel,
     Ts: float,
     duration: float,
@@ -165,8 +189,10 @@ def simulate(
 
     Parameters
     ----------
-    plant : ServoModel
-        The true motor (``J``, ``b``, ``coulomb``, ``coulomb_velocity``).
+    plant : ServoModel or MujocoServo
+        The true motor: a :class:`ServoModel` (``J``, ``b``, ``coulomb``,
+        ``coulomb_velocity``) integrated by hpdob, or a :class:`MujocoServo` integrated by
+        MuJoCo (its dry friction is MuJoCo's ``frictionloss``; see docs/mujoco.md).
     nominal : ServoModel
         The model the controller (``J_n``) and the observer use.
     Ts : float
@@ -188,7 +214,9 @@ def simulate(
         ``tau_ext`` and used for the ground truth) and the sub-step midpoints
         ``k Ts + (j + 1/2) Ts/substeps`` (used by the integrator). None: no disturbance.
     substeps : int, optional
-        Plant sub-steps per sample, default :data:`DEFAULT_SUBSTEPS` (8).
+        Plant sub-steps per sample, default :data:`DEFAULT_SUBSTEPS` (8). For a
+        :class:`MujocoServo` these are MuJoCo steps of ``Ts/substeps``; if the servo has its
+        own ``timestep``, ``substeps`` is ``Ts/timestep`` (None or that value).
     sensor : Encoder, optional
         Default: the ideal state.
     actuator : Actuator, optional
@@ -223,7 +251,7 @@ def simulate(
     >>> print(f"{m['rms_position_error_regulation']:.4f} rad")
     0.0064 rad
     """
-    plant = _require(plant, ServoModel, "plant")
+    plant = _require(plant, PLANT_TYPES, "plant")
     nominal = _require(nominal, ServoModel, "nominal")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
     duration = positive(duration, "duration", "a positive finite duration [s]")
@@ -231,13 +259,7 @@ def simulate(
     controller = _require(controller, PD, "controller")
     sensor = _require(sensor, Encoder, "sensor", optional=True)
     actuator = _require(actuator, Actuator, "actuator", optional=True) or Actuator()
-    S = (
-        DEFAULT_SUBSTEPS
-        if substeps is None
-        else as_int(
-            substeps, "substeps", "a positive integer number of sub-steps per sample", minimum=1
-        )
-    )
+    S = resolve_substeps(plant, Ts, substeps)
     x0 = as_real_vector(x0, "x0", "an initial state [theta (rad), omega (rad/s)]", length=2)
     if not isinstance(label, str):
         raise ParameterTypeError(f"label must be a str, got {type(label).__name__}")
@@ -300,7 +322,7 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
 
 def run_prepared(
     *,
-    plant: ServoModel,
+    plant: ServoModel | MujocoServo,
     nominal: ServoModel,
     controller: PD,
     design,
@@ -314,7 +336,8 @@ def run_prepared(
     """Run the compiled kernel on validated inputs and pre-sampled signals (no warning).
 
     The shared engine of :func:`simulate` and :func:`hpdob.sweep`; ``design`` is an
-    :class:`ObserverDesign` or None and ``z0`` its initial state.
+    :class:`ObserverDesign` or None and ``z0`` its initial state. A :class:`MujocoServo`
+    plant runs the same loop in Python around MuJoCo (:mod:`hpdob._mujoco_loop`).
     """
     Ts, S, t = signals.Ts, signals.substeps, signals.t
     n = t.size
@@ -328,40 +351,30 @@ def run_prepared(
             seed = 0 if sensor.seed is None else sensor.seed
             noise = sensor.noise_std * np.random.default_rng(seed).standard_normal(n)
 
-    sub = plant.discretize(Ts / S)
-    half = plant.discretize(Ts / (2 * S))
-    if design is None:
-        k_gain, p_weight, Kx, Ku = np.zeros(1), np.zeros(1), np.zeros((1, 2)), np.zeros(1)
-        last = np.zeros(2)
-    else:
-        k_gain, p_weight = np.array(design._k), np.array(design._p)
-        Kx, Ku = design.state_input, design.control_input
-        last = np.array(design._last_gain)
     out = {
         name: np.zeros(n)
         for name in ("theta", "omega", "theta_m", "omega_m", "u", "tau_hat", "tau_dn")
     }
     limit = math.inf if actuator.torque_limit is None else actuator.torque_limit
-    # fmt: off
-    done = closed_loop_kernel()(
-        n, S, Ts, x0, sub.A, sub.B, half.A, half.B,
-        plant.J, plant.b, plant.coulomb, plant.coulomb_velocity,
-        nominal.J, nominal.b, controller.kp, controller.kd, controller.feedforward,
-        signals.r, signals.r_dot, signals.r_ddot, signals.tau_mid, signals.tau_sample,
-        sensor_mode, resolution, noise, limit, actuator.delay_samples,
-        design is not None, k_gain, p_weight, np.ascontiguousarray(Kx),
-        np.ascontiguousarray(Ku), last, np.ascontiguousarray(z0, dtype=float),
-        DIVERGENCE_LIMIT,
-        out["theta"], out["omega"], out["theta_m"], out["omega_m"], out["u"],
-        out["tau_hat"], out["tau_dn"],
-    )
-    # fmt: on
+    if isinstance(plant, MujocoServo):
+        done = run_mujoco_loop(
+            plant, n_samples=n, substeps=S, Ts=Ts, x0=x0, J_n=nominal.J, b_n=nominal.b,
+            kp=controller.kp, kd=controller.kd, feedforward=controller.feedforward,
+            r=signals.r, r_dot=signals.r_dot, r_ddot=signals.r_ddot, tau_mid=signals.tau_mid,
+            tau_sample=signals.tau_sample, sensor_mode=sensor_mode, resolution=resolution,
+            position_noise=noise, torque_limit=limit, delay=actuator.delay_samples,
+            design=design, z0=z0, divergence_limit=DIVERGENCE_LIMIT, out=out,
+        )  # fmt: skip
+    else:
+        done = _run_kernel(plant, nominal, controller, design, z0, actuator, x0, signals,
+                           sensor_mode, resolution, noise, limit, out)  # fmt: skip
     diverged = done < n
     message = "ok"
     if diverged:
+        unstable = " or MuJoCo flagged it unstable" if isinstance(plant, MujocoServo) else ""
         message = (
             f"{label or 'simulation'} diverged: |theta| or |omega| exceeded "
-            f"{DIVERGENCE_LIMIT:g} (or became non-finite) by t = {done * Ts:.6g} s; "
+            f"{DIVERGENCE_LIMIT:g} (or became non-finite{unstable}) by t = {done * Ts:.6g} s; "
             f"the result holds the {done} samples before that"
         )
     keep = slice(0, done)
@@ -383,3 +396,33 @@ def run_prepared(
         diverged=diverged,
         message=message,
     )
+
+
+def _run_kernel(plant, nominal, controller, design, z0, actuator, x0, signals,
+                sensor_mode, resolution, noise, limit, out) -> int:  # fmt: skip
+    """The compiled kernel on a :class:`ServoModel` plant; returns the samples completed."""
+    Ts, S, n = signals.Ts, signals.substeps, signals.t.size
+    sub = plant.discretize(Ts / S)
+    half = plant.discretize(Ts / (2 * S))
+    if design is None:
+        k_gain, p_weight, Kx, Ku = np.zeros(1), np.zeros(1), np.zeros((1, 2)), np.zeros(1)
+        last = np.zeros(2)
+    else:
+        k_gain, p_weight = np.array(design._k), np.array(design._p)
+        Kx, Ku = design.state_input, design.control_input
+        last = np.array(design._last_gain)
+    # fmt: off
+    done = closed_loop_kernel()(
+        n, S, Ts, x0, sub.A, sub.B, half.A, half.B,
+        plant.J, plant.b, plant.coulomb, plant.coulomb_velocity,
+        nominal.J, nominal.b, controller.kp, controller.kd, controller.feedforward,
+        signals.r, signals.r_dot, signals.r_ddot, signals.tau_mid, signals.tau_sample,
+        sensor_mode, resolution, noise, limit, actuator.delay_samples,
+        design is not None, k_gain, p_weight, np.ascontiguousarray(Kx),
+        np.ascontiguousarray(Ku), last, np.ascontiguousarray(z0, dtype=float),
+        DIVERGENCE_LIMIT,
+        out["theta"], out["omega"], out["theta_m"], out["omega_m"], out["u"],
+        out["tau_hat"], out["tau_dn"],
+    )
+    # fmt: on
+    return done

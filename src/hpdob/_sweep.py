@@ -18,10 +18,11 @@ from ._devices import Actuator, Encoder
 from ._model import ServoModel
 from ._observer import DisturbanceObserver
 from ._simulate import (
-    DEFAULT_SUBSTEPS,
+    PLANT_TYPES,
     _observer_arrays,
     _require,
     _sample_count,
+    resolve_substeps,
     run_prepared,
     sample_signals,
 )
@@ -98,7 +99,7 @@ def _resolve_base(base) -> dict:
         raise ParameterValueError(f"base is missing the required key {missing[0]!r}")
     resolved = dict(base)
     resolved["observer"] = _observer_spec(base.get("observer"))
-    resolved.setdefault("substeps", DEFAULT_SUBSTEPS)
+    resolved.setdefault("substeps", None)  # per scenario: the default or a MujocoServo's own
     resolved.setdefault("x0", (0.0, 0.0))
     return resolved
 
@@ -109,7 +110,7 @@ def _scenario_parts(base: dict, params: dict):
     def sub(prefix):
         return {k[len(prefix) :]: v for k, v in params.items() if k.startswith(prefix)}
 
-    plant = _require(base["plant"], ServoModel, "plant").replace(**sub("plant."))
+    plant = _require(base["plant"], PLANT_TYPES, "plant").replace(**sub("plant."))
     nominal = _require(base["nominal"], ServoModel, "nominal").replace(**sub("nominal."))
     ctrl = _require(base["controller"], PD, "controller")
     gains = {"kp": ctrl.kp, "kd": ctrl.kd, **sub("controller.")}
@@ -136,7 +137,7 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
     row = dict(params)
     try:
         plant, nominal, controller, Ts, design = _scenario_parts(base, params)
-        S = as_int(base["substeps"], "substeps", "a positive integer", minimum=1)
+        S = resolve_substeps(plant, Ts, base["substeps"])
         n = _sample_count(Ts, base["duration"])
         x0 = as_real_vector(base["x0"], "x0", "an initial state (theta, omega)", length=2)
         key = (Ts, n, S)
@@ -283,7 +284,9 @@ def sweep(base: dict, *, grid=None, vary=None, n=None, seed=0, scheduler=None, p
         started at ``x0`` with ``tau0 = 0`` (an observer object is turned into such a dict).
     grid : dict, optional
         Dotted path -> list of values; the scenarios are their Cartesian product. Paths:
-        ``plant.J``, ``plant.b``, ``plant.coulomb``, ``plant.coulomb_velocity``, ``nominal.J``,
+        ``plant.J``, ``plant.b``, ``plant.coulomb``, ``plant.coulomb_velocity`` (a
+        :class:`ServoModel` plant), ``plant.link_mass``, ``plant.link_length`` (a
+        :class:`MujocoServo` plant), ``nominal.J``,
         ``nominal.b``, ``observer.order``, ``observer.bandwidth``, ``controller.kp``,
         ``controller.kd``, ``Ts``, ``disturbance_scale`` (multiplies the disturbance).
     vary : dict, optional

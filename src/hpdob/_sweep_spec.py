@@ -14,6 +14,7 @@ __all__ = ["DISTRIBUTIONS", "PATHS", "expand_scenarios"]
 #: Parameters a sweep can vary (dotted paths into :func:`hpdob.simulate`'s arguments).
 PATHS = (
     "plant.J", "plant.b", "plant.coulomb", "plant.coulomb_velocity",
+    "plant.link_mass", "plant.link_length",
     "nominal.J", "nominal.b",
     "observer.order", "observer.bandwidth",
     "controller.kp", "controller.kd",
