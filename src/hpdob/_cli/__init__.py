@@ -13,11 +13,11 @@ import sys
 
 from .._validation import ParameterTypeError, ParameterValueError
 from .._version import __version__
-from . import _design, _reproduce, _simulate
+from . import _analyze, _design, _reproduce, _simulate
 
 __all__ = ["main"]
 
-_COMMANDS = (_reproduce, _simulate, _design)
+_COMMANDS = (_reproduce, _simulate, _design, _analyze)
 
 
 class CLIError(Exception):
