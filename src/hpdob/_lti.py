@@ -195,7 +195,7 @@ def _frequencies(frequency, name: str = "frequency") -> np.ndarray:
         raise ParameterValueError(f"{name} must hold at least one frequency [Hz], got []")
     if np.any(values < 0):
         raise ParameterValueError(
-            f"{name} must be non-negative frequencies [Hz], got {values[values < 0][0]!r}"
+            f"{name} must be non-negative frequencies [Hz], got {float(values[values < 0][0])!r}"
         )
     return values
 

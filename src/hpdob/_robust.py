@@ -245,7 +245,7 @@ def _grid_or_scalar(value, name: str, what: str, *, allow_zero: bool):
         raise ParameterValueError(f"{name} must hold at least one value ({what}), got []")
     bad = grid[grid < 0] if allow_zero else grid[grid <= 0]
     if bad.size:
-        raise ParameterValueError(f"{name} must be {what}, got {bad[0]!r} in {name}")
+        raise ParameterValueError(f"{name} must be {what}, got {float(bad[0])!r} in {name}")
     return grid, True
 
 

@@ -44,7 +44,7 @@ def positive_grid(values, name: str, what: str) -> np.ndarray:
         raise ParameterValueError(f"{name} must hold at least one value ({what}), got []")
     bad = grid[grid <= 0]
     if bad.size:
-        raise ParameterValueError(f"{name} must be {what}, got {bad[0]!r} in {name}")
+        raise ParameterValueError(f"{name} must be {what}, got {float(bad[0])!r} in {name}")
     return grid
 
 
