@@ -24,7 +24,12 @@ def code_blocks(path: Path, language: str) -> list[str]:
 
 @pytest.mark.parametrize(
     "path",
-    [ROOT / "README.md", ROOT / "docs" / "usage.md", ROOT / "docs" / "simulation.md"],
+    [
+        ROOT / "README.md",
+        ROOT / "docs" / "usage.md",
+        ROOT / "docs" / "simulation.md",
+        ROOT / "docs" / "analysis.md",
+    ],
     ids=str,
 )
 def test_python_blocks_run(path):

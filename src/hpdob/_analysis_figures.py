@@ -53,7 +53,10 @@ def bode_figure(designs, frequency, *, sensitivities=None, mark_frequency=None):
     if mark_frequency is not None:
         for ax in axes:
             ax.axvline(mark_frequency, color="0.5", linestyle=":", linewidth=1.0)
-    fig.suptitle("Disturbance-estimation response on the nominal plant (closed form)")
+    title = "Disturbance-estimation response Q (closed form)"
+    if sensitivities is not None:
+        title += " and the loop's input sensitivity S"
+    fig.suptitle(title)
     return fig
 
 

@@ -117,6 +117,10 @@ def noise_gains(
     observer reconstructs the command's effect exactly, so :math:`\hat\tau` responds to the
     noise only through its own measurement input (:func:`observer_noise_gain`).
 
+    References
+    ----------
+    ``docs/analysis.md``, section 4 (method, accuracy, Monte-Carlo confirmation).
+
     Examples
     --------
     >>> from hpdob import PD, ServoModel, design_observer, noise_gains, observer_noise_gain

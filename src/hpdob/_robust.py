@@ -226,9 +226,9 @@ class StabilityMap:
         style_axes(ax, xlabel="observer bandwidth g [rad/s]", ylabel=_UNITS[self.parameter])
         name = {0: "DOb", 1: "HPDOb"}.get(self.order, f"order {self.order}")
         fixed = (
-            f"b = {self.b:g} N m s/rad"
+            f"b = {self.b:.3g} N m s/rad"
             if self.parameter == "J_ratio"
-            else f"J/J_n = {self.J_ratio:g}"
+            else f"J/J_n = {self.J_ratio:.3g}"
         )
         delay = f", {self.delay_samples}-sample delay" if self.delay_samples else ""
         ax.set_title(f"{name} (m={self.order}), {fixed}{delay}", fontsize="medium")
@@ -302,6 +302,11 @@ def robust_stability_map(
     TypeError, ValueError
         Naming the parameter: empty grids, non-positive ratios or bandwidths, negative
         friction, grids for both ``J_ratio`` and ``b`` (or for neither), a wrong order.
+
+    References
+    ----------
+    The robust stability of HPDOb-based controllers, named as future work in the paper's
+    conclusion; ``docs/analysis.md``, section 6.
 
     Examples
     --------

@@ -71,6 +71,12 @@ def gang_of_four(
     the input sensitivity :math:`S = (1 - Q)\,S_{PD}`, with :math:`S_{PD}` that of the PD loop
     alone: the observer removes disturbances where :math:`|1-Q|` is small.
 
+    References
+    ----------
+    K. J. Åström and R. M. Murray, *Feedback Systems*, chapter "Frequency Domain Design"
+    (sensitivity functions, the gang of four);
+    ``docs/analysis.md``, section 3.
+
     Examples
     --------
     >>> from hpdob import PD, ServoModel, design_observer, gang_of_four
@@ -117,7 +123,39 @@ def gang_of_four(
 
 
 def loop_transfer(*, plant, nominal, Ts, controller, observer=None, sensor=None, actuator=None):
-    """Loop gain ``L = -a/a_in`` at the plant input (SISO ``StateSpace``, ``dt = Ts``)."""
+    r"""Loop gain :math:`L = -a/a_{in}` of the loop cut at the plant input.
+
+    The plant is driven by :math:`a_{in}` instead of the torque :math:`a` the actuator delivers
+    (the PD and the observer stay in place, the observer still sees the command ``u``); with
+    negative unit feedback :math:`a_{in} = a` this closes the loop of :func:`hpdob.closed_loop`.
+
+    Parameters
+    ----------
+    plant, nominal, Ts, controller, observer, sensor, actuator
+        As for :func:`hpdob.closed_loop`.
+
+    Returns
+    -------
+    control.StateSpace
+        SISO, ``dt = Ts``, input ``a_in`` [N m], output ``L`` (dimensionless).
+
+    Raises
+    ------
+    TypeError, ValueError
+        As for :func:`hpdob.closed_loop`.
+
+    References
+    ----------
+    Section IV of the paper (DOb inner loop); ``docs/analysis.md``, section 3.
+
+    Examples
+    --------
+    >>> from hpdob import PD, ServoModel, loop_transfer
+    >>> motor = ServoModel(2.8e-4)
+    >>> L = loop_transfer(plant=motor, nominal=motor, Ts=1e-3, controller=PD(50, 5))
+    >>> L.ninputs, L.noutputs, L.dt
+    (1, 1, 0.001)
+    """
     import control
 
     spec = loop_spec(
@@ -251,6 +289,11 @@ def loop_margins(
     Nyquist frequency), every crossover refined by Brent's method. The gain margins are checked
     against the closed-loop eigenvalues: they bound the interval of loop-gain factors around
     1 for which the closed loop is stable.
+
+    References
+    ----------
+    ``docs/analysis.md``, section 3 (definitions, and the checks against the closed-loop
+    eigenvalues and against a one-sample delay).
 
     Examples
     --------

@@ -219,6 +219,11 @@ def noise_tradeoff(
         For arguments of the wrong type or value (empty grids, non-positive bandwidths, a
         frequency at or above Nyquist, ...), naming the parameter.
 
+    References
+    ----------
+    The accuracy/noise trade-off of higher-order DObs named in the paper's introduction;
+    ``docs/analysis.md``, section 5 (the numbers for the canonical motor).
+
     Examples
     --------
     >>> from hpdob import ServoModel, noise_tradeoff

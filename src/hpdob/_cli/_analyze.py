@@ -48,7 +48,8 @@ def _orders(text: str) -> list[int]:
         ) from None
 
 
-def _add_common(parser: argparse.ArgumentParser) -> None:
+def _add_common(parser: argparse.ArgumentParser, *, loop: bool = True) -> None:
+    """Output options and the model/loop options (``loop=False``: the nominal model only)."""
     parser.add_argument(
         "--out",
         type=Path,
@@ -56,18 +57,47 @@ def _add_common(parser: argparse.ArgumentParser) -> None:
         metavar="DIR",
         help="output directory (default: %(default)s)",
     )
-    parser.add_argument("--dpi", type=float, default=150.0, help="figure resolution")
-    group = parser.add_argument_group("loop (defaults: the canonical scenario)")
-    group.add_argument("--J-n", type=float, default=NOMINAL.J, help="nominal inertia [kg m^2]")
-    group.add_argument(
-        "--b-n", type=float, default=NOMINAL.b, help="nominal viscous friction [N m s/rad]"
+    parser.add_argument(
+        "--dpi", type=float, default=150.0, help="figure resolution (default: %(default)s)"
     )
-    group.add_argument("--J", type=float, default=PLANT.J, help="true inertia [kg m^2]")
-    group.add_argument("--b", type=float, default=PLANT.b, help="true viscous friction [N m s/rad]")
-    group.add_argument("--Ts", type=float, default=TS, help="sampling period [s]")
-    group.add_argument("--kp", type=float, default=CONTROLLER.kp, help="PD gain kp [1/s^2]")
-    group.add_argument("--kd", type=float, default=CONTROLLER.kd, help="PD gain kd [1/s]")
-    group.add_argument("--delay", type=int, default=0, help="actuator delay [samples] (default: 0)")
+    title = "loop (defaults: the canonical scenario)" if loop else "nominal model (canonical)"
+    group = parser.add_argument_group(title)
+    group.add_argument(
+        "--J-n", type=float, default=NOMINAL.J, help="nominal inertia [kg m^2] (%(default)s)"
+    )
+    group.add_argument(
+        "--b-n",
+        type=float,
+        default=NOMINAL.b,
+        help="nominal viscous friction [N m s/rad] (%(default)s)",
+    )
+    group.add_argument("--Ts", type=float, default=TS, help="sampling period [s] (%(default)s)")
+    if not loop:
+        return
+    group.add_argument(
+        "--J", type=float, default=PLANT.J, help="true inertia [kg m^2] (%(default)s)"
+    )
+    group.add_argument(
+        "--b", type=float, default=PLANT.b, help="true viscous friction [N m s/rad] (%(default)s)"
+    )
+    group.add_argument(
+        "--kp", type=float, default=CONTROLLER.kp, help="PD gain kp [1/s^2] (%(default)s)"
+    )
+    group.add_argument(
+        "--kd", type=float, default=CONTROLLER.kd, help="PD gain kd [1/s] (%(default)s)"
+    )
+    group.add_argument(
+        "--delay", type=int, default=0, help="actuator delay [samples] (%(default)s)"
+    )
+
+
+def _add_orders(parser: argparse.ArgumentParser, default: str) -> None:
+    parser.add_argument(
+        "--orders",
+        type=_orders,
+        default=_orders(default),
+        help=f"comma-separated truncation orders, 0 DOb, 1 HPDOb (default {default})",
+    )
 
 
 def register(subparsers) -> None:
@@ -81,7 +111,7 @@ def register(subparsers) -> None:
     sub.required = True
     bode = sub.add_parser("bode", help="estimation response Q, 1-Q and input sensitivity")
     _add_common(bode)
-    bode.add_argument("--orders", type=_orders, default=[0, 1, 2, 3])
+    _add_orders(bode, "0,1,2,3")
     bode.add_argument("--bandwidth", type=float, default=100.0, help="[rad/s] (default 100)")
     bode.add_argument(
         "--frequency",
@@ -91,16 +121,21 @@ def register(subparsers) -> None:
     )
     noise = sub.add_parser("noise", help="noise gains of estimate and command per order")
     _add_common(noise)
-    noise.add_argument("--orders", type=_orders, default=[0, 1, 2, 3])
+    _add_orders(noise, "0,1,2,3")
     noise.add_argument(
         "--bandwidths",
         type=_grid,
         default=_grid("10:2000:25"),
         help="[rad/s], LO:HI:N or a list (default 10:2000:25)",
     )
-    tradeoff = sub.add_parser("tradeoff", help="estimation error against noise gain")
-    _add_common(tradeoff)
-    tradeoff.add_argument("--orders", type=_orders, default=[0, 1, 2, 3])
+    tradeoff = sub.add_parser(
+        "tradeoff",
+        help="estimation error against noise gain",
+        description="Estimation error for a sinusoidal disturbance against the estimate's noise "
+        "gain; both depend on the observer and its nominal model only.",
+    )
+    _add_common(tradeoff, loop=False)
+    _add_orders(tradeoff, "0,1,2,3")
     tradeoff.add_argument(
         "--bandwidths",
         type=_grid,
@@ -110,10 +145,15 @@ def register(subparsers) -> None:
     tradeoff.add_argument(
         "--frequency", type=float, default=2.0, help="disturbance frequency [Hz] (default 2)"
     )
-    tradeoff.add_argument("--noise", choices=("velocity", "position"), default="velocity")
+    tradeoff.add_argument(
+        "--noise",
+        choices=("velocity", "position"),
+        default="velocity",
+        help="measurement carrying the white noise (default: velocity)",
+    )
     stab = sub.add_parser("stability", help="robust stability map over model error")
     _add_common(stab)
-    stab.add_argument("--orders", type=_orders, default=[0, 1])
+    _add_orders(stab, "0,1")
     stab.add_argument(
         "--parameter",
         choices=("J_ratio", "b"),
@@ -342,8 +382,13 @@ def _stability(args) -> list[str]:
             delay_samples=args.delay,
         )
         stem = f"stability_{args.parameter}_m{m}" + (f"_delay{args.delay}" if args.delay else "")
-        point = J_ratio if args.parameter == "J_ratio" else args.b
-        _save(smap.plot(mark=(100.0, point)), args.out / f"{stem}.png", args.dpi)
+        # Mark the loop's own plant at the canonical bandwidth if it lies on the map.
+        point = (100.0, J_ratio if args.parameter == "J_ratio" else args.b)
+        inside = (
+            smap.bandwidths.min() <= point[0] <= smap.bandwidths.max()
+            and smap.values.min() <= point[1] <= smap.values.max()
+        )
+        _save(smap.plot(mark=point if inside else None), args.out / f"{stem}.png", args.dpi)
         smap.to_csv(args.out / f"{stem}.csv")
         written += [f"{stem}.png", f"{stem}.csv"]
         summary["maps"].append(
