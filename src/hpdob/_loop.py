@@ -39,7 +39,7 @@ INPUTS = ("r", "r_dot", "r_ddot", "tau_ext", "n_theta", "n_omega")
 OUTPUTS = ("theta", "omega", "u", "tau_hat")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LoopSpec:
     """Validated ingredients of the linear loop (internal)."""
 

@@ -68,7 +68,7 @@ class _Setting:
         )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StabilityMap:
     """Closed-loop spectral radius over a model-error grid and observer bandwidths.
 

@@ -48,7 +48,7 @@ def positive_grid(values, name: str, what: str) -> np.ndarray:
     return grid
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class NoiseTradeoff:
     """Estimation error against noise gain for several orders and bandwidths.
 
