@@ -31,6 +31,7 @@ def code_blocks(path: Path, language: str) -> list[str]:
         ROOT / "docs" / "sweep.md",
         ROOT / "docs" / "deployment.md",
         ROOT / "docs" / "mujoco.md",
+        ROOT / "docs" / "analysis.md",
     ],
     ids=str,
 )

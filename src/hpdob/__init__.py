@@ -25,17 +25,30 @@ sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
 signals
     Built-in reference and disturbance signals (steps, quintic steps, sines, ramps, ...).
+estimation_transfer, estimation_response
+    Closed-form disturbance-estimation response (the "Q-filter") of an observer.
+closed_loop, closed_loop_poles, gang_of_four, loop_transfer, loop_margins
+    The linear sampled-data loop as a python-control system, its poles, sensitivities, margins.
+noise_gains, observer_noise_gain, noise_tradeoff
+    Exact noise gains (discrete Lyapunov equation) and the accuracy/noise trade-off.
+robust_stability_map
+    Closed-loop stability over inertia or friction errors and observer bandwidths.
 """
 
 from . import signals
+from ._closedloop import closed_loop, closed_loop_poles
 from ._controller import PD
 from ._core import estimate, initial_state, update
 from ._devices import Actuator, Encoder
 from ._export_c import export_c
+from ._lti import estimation_response, estimation_transfer
 from ._model import DiscreteServoModel, ServoModel
 from ._mujoco import MujocoServo
+from ._noise import NoiseGains, noise_gains, observer_noise_gain
 from ._observer import DisturbanceObserver
 from ._result import SimulationResult
+from ._robust import StabilityMap, robust_stability_map
+from ._sensitivity import GangOfFour, LoopMargins, gang_of_four, loop_margins, loop_transfer
 from ._simulate import SimulationDivergedWarning, simulate
 from ._sweep import sweep
 from ._synthesis import (
@@ -45,6 +58,7 @@ from ._synthesis import (
     error_matrix,
     extrapolation_weights,
 )
+from ._tradeoff import NoiseTradeoff, noise_tradeoff
 from ._validation import ParameterTypeError, ParameterValueError
 from ._version import __version__
 
@@ -54,21 +68,37 @@ __all__ = [
     "DiscreteServoModel",
     "DisturbanceObserver",
     "Encoder",
+    "GangOfFour",
+    "LoopMargins",
     "MujocoServo",
+    "NoiseGains",
+    "NoiseTradeoff",
     "ObserverDesign",
     "ParameterTypeError",
     "ParameterValueError",
     "ServoModel",
     "SimulationDivergedWarning",
     "SimulationResult",
+    "StabilityMap",
     "__version__",
     "characteristic_polynomial",
+    "closed_loop",
+    "closed_loop_poles",
     "design_observer",
     "error_matrix",
     "estimate",
+    "estimation_response",
+    "estimation_transfer",
     "export_c",
     "extrapolation_weights",
+    "gang_of_four",
     "initial_state",
+    "loop_margins",
+    "loop_transfer",
+    "noise_gains",
+    "noise_tradeoff",
+    "observer_noise_gain",
+    "robust_stability_map",
     "signals",
     "simulate",
     "sweep",

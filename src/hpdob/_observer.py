@@ -171,6 +171,25 @@ class DisturbanceObserver:
         """
         self._state = _core.initial_state(self._design, x0, tau0)
 
+    def to_statespace(self):
+        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
+
+        Inputs ``theta, omega, u``, output ``tau_hat``, state the auxiliary variables:
+        ``A = M``, ``B = [K_x, K_u]``, ``C = e_{m+1}^T``, ``D = [-L_{m+1}^T, 0]``. From a zero
+        initial state it reproduces this object after ``reset()`` sample by sample. See
+        :func:`hpdob._lti.observer_statespace`.
+
+        Examples
+        --------
+        >>> from hpdob import DisturbanceObserver, ServoModel
+        >>> obs = DisturbanceObserver(ServoModel(2.8e-4).discretize(1e-3), order=0, poles=[0.9])
+        >>> obs.to_statespace().A
+        array([[0.9]])
+        """
+        from ._lti import observer_statespace
+
+        return observer_statespace(self._design)
+
     def copy(self) -> DisturbanceObserver:
         """Independent observer with the same design and the same current state."""
         return self._with_state(self._design, self._state)

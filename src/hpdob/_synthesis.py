@@ -214,6 +214,16 @@ class ObserverDesign:
         """Sampling period [s]."""
         return self.model.Ts
 
+    def to_statespace(self):
+        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
+
+        Inputs ``theta, omega, u``, output ``tau_hat``; see
+        :meth:`hpdob.DisturbanceObserver.to_statespace`.
+        """
+        from ._lti import observer_statespace
+
+        return observer_statespace(self)
+
     def __repr__(self) -> str:
         poles = ", ".join(_fmt_pole(p) for p in np.atleast_1d(self.poles))
         return (

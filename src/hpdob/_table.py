@@ -1,0 +1,42 @@
+"""Column tables of analysis results: CSV without pandas, and ``pandas.DataFrame``."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["columns_to_csv", "columns_to_pandas"]
+
+
+def _cell(value) -> str:
+    if isinstance(value, (str, np.str_)):
+        return str(value)
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    return repr(float(value))
+
+
+def columns_to_csv(columns: dict, path) -> Path:
+    """Write equal-length columns ``{name: values}`` to ``path`` (header row, full precision)."""
+    path = Path(path)
+    with path.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(list(columns))
+        writer.writerows([_cell(v) for v in row] for row in zip(*columns.values(), strict=True))
+    return path
+
+
+def columns_to_pandas(columns: dict):
+    """The columns as a ``pandas.DataFrame`` (needs pandas)."""
+    try:
+        import pandas as pd
+    except ImportError as err:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            "to_pandas() needs pandas; install it with `pip install pandas` or "
+            "`pip install hpdob[pandas]`"
+        ) from err
+    return pd.DataFrame(columns)

@@ -1,0 +1,119 @@
+"""The accuracy/noise trade-off table: its entries, its interpolation and its outputs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hpdob import (
+    NoiseTradeoff,
+    ParameterTypeError,
+    ParameterValueError,
+    ServoModel,
+    design_observer,
+    noise_tradeoff,
+    observer_noise_gain,
+)
+
+TS = 1e-3
+NOMINAL = ServoModel(2.8e-4)
+BANDWIDTHS = np.array([20.0, 35.0, 50.0, 100.0, 200.0, 300.0, 400.0, 600.0, 800.0])
+
+
+@pytest.fixture(scope="module")
+def table():
+    return noise_tradeoff(nominal=NOMINAL, Ts=TS, frequency=2.0, bandwidths=BANDWIDTHS)
+
+
+def test_entries_are_the_closed_form_error_and_the_exact_noise_gain(table):
+    assert isinstance(table, NoiseTradeoff)
+    assert table.orders == (0, 1, 2, 3) and table.error_gain.shape == (4, 9)
+    z = np.exp(2j * math.pi * 2.0 * TS)
+    for i, m in enumerate(table.orders):
+        lam = np.exp(-BANDWIDTHS * TS)
+        # |1 - Q| = |(z - 1)/(z - lam)|^(m+1) for a bandwidth design, written out
+        np.testing.assert_allclose(
+            table.error_gain[i], np.abs((z - 1) / (z - lam)) ** (m + 1), rtol=1e-12
+        )
+        design = design_observer(NOMINAL.discretize(TS), order=m, bandwidth=BANDWIDTHS[4])
+        assert table.noise_gain[i, 4] == pytest.approx(observer_noise_gain(design), rel=1e-14)
+        assert np.all(np.diff(table.noise_gain[i]) > 0)  # more bandwidth, more noise
+        assert np.all(np.diff(table.error_gain[i]) < 0)  # ... and less error
+    with pytest.raises(ValueError, match="read-only"):
+        table.error_gain[0, 0] = 0.0
+
+
+def test_error_at_noise_and_improvement(table):
+    # On its own grid points, an order's interpolated error is its error.
+    np.testing.assert_allclose(table.error_at_noise(1, table.noise_gain[1]), table.error_gain[1])
+    np.testing.assert_allclose(table.improvement(2, reference=2), 1.0)
+    # Between grid points it is log-log linear; outside the covered noise range it is NaN.
+    mid = math.sqrt(table.noise_gain[0, 3] * table.noise_gain[0, 4])
+    expected = math.sqrt(table.error_gain[0, 3] * table.error_gain[0, 4])
+    assert table.error_at_noise(0, mid)[0] == pytest.approx(expected, rel=1e-12)
+    assert np.isnan(table.error_at_noise(0, [1e-9, 1e9])).all()
+    # The HPDOb at the noise gain of a 400 rad/s DOb is more accurate (numbers: docs/analysis.md)
+    gain = table.improvement(1)
+    j = 6  # 400 rad/s
+    assert BANDWIDTHS[j] == pytest.approx(400.0)
+    assert gain[j] == pytest.approx(
+        table.error_gain[0, j] / table.error_at_noise(1, table.noise_gain[0, j])[0]
+    )
+    assert gain[j] > 1
+    with pytest.raises(ParameterValueError, match=r"order must be one of \[0, 1, 2, 3\], got 5"):
+        table.improvement(5)
+
+
+def test_outputs(table, tmp_path):
+    frame = table.to_pandas()
+    assert list(frame.columns) == [
+        "order",
+        "bandwidth_rad_s",
+        "frequency_Hz",
+        "error_gain",
+        "noise_gain_velocity",
+    ]
+    assert len(frame) == 36
+    path = table.to_csv(tmp_path / "tradeoff.csv")
+    lines = path.read_text().splitlines()
+    assert lines[0] == ",".join(frame.columns) and len(lines) == 37
+    assert float(lines[5].split(",")[3]) == table.error_gain[0, 4]  # lossless
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = table.plot()
+    ax = fig.axes[0]
+    assert "noise gain" in ax.get_xlabel() and "[N m/(rad/s)]" in ax.get_xlabel()
+    assert "2 Hz" in ax.get_ylabel()
+    assert len(ax.get_lines()) >= 4
+    plt.close(fig)
+
+
+def test_bad_arguments():
+    kw = {"nominal": NOMINAL, "Ts": TS, "frequency": 2.0, "bandwidths": [100.0]}
+    with pytest.raises(ParameterValueError, match="bandwidths must hold at least one value"):
+        noise_tradeoff(**{**kw, "bandwidths": []})
+    with pytest.raises(ParameterValueError, match=r"bandwidths must be positive.*-5\.0"):
+        noise_tradeoff(**{**kw, "bandwidths": [100.0, -5.0]})
+    with pytest.raises(ParameterValueError, match=r"frequency must be below the Nyquist.*500 Hz"):
+        noise_tradeoff(**{**kw, "frequency": 600.0})
+    with pytest.raises(ParameterValueError, match="frequency must be a positive"):
+        noise_tradeoff(**{**kw, "frequency": 0.0})
+    with pytest.raises(ParameterValueError, match="orders must hold at least one"):
+        noise_tradeoff(**kw, orders=())
+    with pytest.raises(ParameterValueError, match=r"orders must not repeat, got \[1, 1\]"):
+        noise_tradeoff(**kw, orders=(1, 1))
+    with pytest.raises(ParameterValueError, match=r"orders must be non-negative.*-1"):
+        noise_tradeoff(**kw, orders=(0, -1))
+    with pytest.raises(ParameterTypeError, match="orders must be a sequence"):
+        noise_tradeoff(**kw, orders=1)
+    with pytest.raises(ParameterValueError, match="noise must be one of"):
+        noise_tradeoff(**kw, noise="acceleration")
+    with pytest.raises(ParameterValueError, match="does not reach the estimate"):
+        noise_tradeoff(**kw, noise="position", gain_direction=(0.0, 1.0))
+    with pytest.raises(ParameterTypeError, match="nominal must be a ServoModel"):
+        noise_tradeoff(**{**kw, "nominal": NOMINAL.discretize(TS)})
