@@ -231,5 +231,5 @@ def test_bad_arguments():
         closed_loop_poles(**{**kw, "Ts": -1e-3})
     with pytest.raises(ParameterTypeError, match="observer must be a DisturbanceObserver or"):
         closed_loop(**kw, observer="HPDOb")
-    with pytest.raises(ParameterTypeError, match="sensor must be a Encoder or None"):
+    with pytest.raises(ParameterTypeError, match="sensor must be an Encoder or None"):
         closed_loop(**kw, sensor="encoder")

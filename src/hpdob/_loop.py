@@ -27,7 +27,7 @@ from ._devices import Actuator, Encoder
 from ._lti import as_design
 from ._model import DiscreteServoModel, ServoModel
 from ._synthesis import ObserverDesign
-from ._validation import ParameterTypeError, ParameterValueError, positive
+from ._validation import ParameterValueError, positive, require_instance
 
 __all__ = ["INPUTS", "OUTPUTS", "LoopSpec", "loop_matrices", "loop_spec"]
 
@@ -53,25 +53,14 @@ class LoopSpec:
     delay: int
 
 
-def _require(value, cls, name: str, *, optional: bool = False):
-    if value is None and optional:
-        return None
-    if not isinstance(value, cls):
-        suffix = " or None" if optional else ""
-        raise ParameterTypeError(
-            f"{name} must be a {cls.__name__}{suffix}, got {type(value).__name__}"
-        )
-    return value
-
-
 def loop_spec(*, plant, nominal, Ts, controller, observer=None, sensor=None, actuator=None):
     """Validate the arguments shared by the closed-loop functions; return a :class:`LoopSpec`."""
-    plant = _require(plant, ServoModel, "plant")
-    nominal = _require(nominal, ServoModel, "nominal")
+    plant = require_instance(plant, ServoModel, "plant")
+    nominal = require_instance(nominal, ServoModel, "nominal")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
-    controller = _require(controller, PD, "controller")
-    sensor = _require(sensor, Encoder, "sensor", optional=True)
-    actuator = _require(actuator, Actuator, "actuator", optional=True) or Actuator()
+    controller = require_instance(controller, PD, "controller")
+    sensor = require_instance(sensor, Encoder, "sensor", optional=True)
+    actuator = require_instance(actuator, Actuator, "actuator", optional=True) or Actuator()
     if actuator.torque_limit is not None:
         raise ParameterValueError(
             "actuator.torque_limit must be None for the linear loop (saturation is not "

@@ -7,14 +7,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validation import ParameterTypeError, ParameterValueError, nonnegative, positive
+from ._validation import ParameterTypeError, ParameterValueError, nonnegative, positive, readonly
 
 __all__ = ["DiscreteServoModel", "ServoModel"]
-
-
-def _readonly(array: np.ndarray) -> np.ndarray:
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True)
@@ -228,9 +223,9 @@ class DiscreteServoModel:
         A = np.array([[1.0, Ts * phi1], [0.0, decay]])
         B = np.array([Ts * Ts * phi2 / model.J, Ts * phi1 / model.J])
         object.__setattr__(self, "Ts", Ts)
-        object.__setattr__(self, "A", _readonly(A))
-        object.__setattr__(self, "B", _readonly(B))
-        object.__setattr__(self, "D", _readonly(B.copy()))
+        object.__setattr__(self, "A", readonly(A))
+        object.__setattr__(self, "B", readonly(B))
+        object.__setattr__(self, "D", readonly(B.copy()))
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, DiscreteServoModel):

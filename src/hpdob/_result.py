@@ -12,7 +12,7 @@ import numpy as np
 
 from ._validation import ParameterValueError
 
-__all__ = ["CANONICAL_WINDOWS", "SimulationResult", "metrics_json"]
+__all__ = ["CANONICAL_WINDOWS", "SimulationResult", "json_ready", "metrics_json"]
 
 #: Time windows [s] of the canonical position metrics: regulation and tracking.
 CANONICAL_WINDOWS = {"regulation": (1.2, 4.0), "tracking": (4.0, math.inf)}
@@ -34,15 +34,22 @@ COLUMNS = {
 }
 
 
+def json_ready(value):
+    """``value`` for strict JSON: numpy scalars become Python ones, non-finite floats None."""
+    if isinstance(value, dict):
+        return {str(k): json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(v) for v in value]
+    if isinstance(value, (np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
 def metrics_json(metrics: dict) -> str:
     """``{run: {metric: value}}`` as JSON text, NaN written as ``null`` (strict JSON)."""
-
-    def clean(value):
-        if isinstance(value, dict):
-            return {k: clean(v) for k, v in value.items()}
-        return None if isinstance(value, float) and math.isnan(value) else value
-
-    return json.dumps(clean(metrics), indent=2, allow_nan=False) + "\n"
+    return json.dumps(json_ready(metrics), indent=2, allow_nan=False) + "\n"
 
 
 def _rms(values: np.ndarray) -> float:

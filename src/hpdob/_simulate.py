@@ -26,6 +26,7 @@ from ._validation import (
     as_int,
     as_real_vector,
     positive,
+    require_instance,
 )
 
 __all__ = [
@@ -49,16 +50,6 @@ PLANT_TYPES = (ServoModel, MujocoServo)
 
 class SimulationDivergedWarning(RuntimeWarning):
     """A simulation stopped early because the closed loop diverged."""
-
-
-def _require(value, cls, name: str, *, optional: bool = False):
-    if value is None and optional:
-        return None
-    if not isinstance(value, cls):
-        names = " or ".join(c.__name__ for c in (cls if isinstance(cls, tuple) else (cls,)))
-        suffix = " or None" if optional else ""
-        raise ParameterTypeError(f"{name} must be a {names}{suffix}, got {type(value).__name__}")
-    return value
 
 
 def resolve_substeps(plant, Ts: float, substeps) -> int:
@@ -189,7 +180,7 @@ def simulate(
 
     Parameters
     ----------
-    plant : ServoModel or MujocoServo
+    plant : ServoModel or a MujocoServo
         The true motor: a :class:`ServoModel` (``J``, ``b``, ``coulomb``,
         ``coulomb_velocity``) integrated by hpdob, or a :class:`MujocoServo` integrated by
         MuJoCo (its dry friction is MuJoCo's ``frictionloss``; see docs/mujoco.md).
@@ -251,14 +242,14 @@ def simulate(
     >>> print(f"{m['rms_position_error_regulation']:.4f} rad")
     0.0064 rad
     """
-    plant = _require(plant, PLANT_TYPES, "plant")
-    nominal = _require(nominal, ServoModel, "nominal")
+    plant = require_instance(plant, PLANT_TYPES, "plant")
+    nominal = require_instance(nominal, ServoModel, "nominal")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
     duration = positive(duration, "duration", "a positive finite duration [s]")
     n = _sample_count(Ts, duration)
-    controller = _require(controller, PD, "controller")
-    sensor = _require(sensor, Encoder, "sensor", optional=True)
-    actuator = _require(actuator, Actuator, "actuator", optional=True) or Actuator()
+    controller = require_instance(controller, PD, "controller")
+    sensor = require_instance(sensor, Encoder, "sensor", optional=True)
+    actuator = require_instance(actuator, Actuator, "actuator", optional=True) or Actuator()
     S = resolve_substeps(plant, Ts, substeps)
     x0 = as_real_vector(x0, "x0", "an initial state [theta (rad), omega (rad/s)]", length=2)
     if not isinstance(label, str):

@@ -20,7 +20,6 @@ from ._observer import DisturbanceObserver
 from ._simulate import (
     PLANT_TYPES,
     _observer_arrays,
-    _require,
     _sample_count,
     resolve_substeps,
     run_prepared,
@@ -34,6 +33,7 @@ from ._validation import (
     as_int,
     as_real_vector,
     check_keys,
+    require_instance,
 )
 
 __all__ = ["sweep"]
@@ -110,9 +110,9 @@ def _scenario_parts(base: dict, params: dict):
     def sub(prefix):
         return {k[len(prefix) :]: v for k, v in params.items() if k.startswith(prefix)}
 
-    plant = _require(base["plant"], PLANT_TYPES, "plant").replace(**sub("plant."))
-    nominal = _require(base["nominal"], ServoModel, "nominal").replace(**sub("nominal."))
-    ctrl = _require(base["controller"], PD, "controller")
+    plant = require_instance(base["plant"], PLANT_TYPES, "plant").replace(**sub("plant."))
+    nominal = require_instance(base["nominal"], ServoModel, "nominal").replace(**sub("nominal."))
+    ctrl = require_instance(base["controller"], PD, "controller")
     gains = {"kp": ctrl.kp, "kd": ctrl.kd, **sub("controller.")}
     controller = PD(gains["kp"], gains["kd"], feedforward=ctrl.feedforward)
     Ts = params.get("Ts", base["Ts"])
@@ -149,8 +149,8 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
             if cache is not None:
                 cache[key] = signals
         design, z0 = _observer_arrays(design, nominal, Ts, x0)  # starts at x0, tau0 = 0
-        sensor = _require(base.get("sensor"), Encoder, "sensor", optional=True)
-        actuator = _require(base.get("actuator"), Actuator, "actuator", optional=True)
+        sensor = require_instance(base.get("sensor"), Encoder, "sensor", optional=True)
+        actuator = require_instance(base.get("actuator"), Actuator, "actuator", optional=True)
         result = run_prepared(
             plant=plant,
             nominal=nominal,

@@ -24,7 +24,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._model import DiscreteServoModel, ServoModel
-from ._validation import ParameterTypeError, ParameterValueError, as_int, as_real_vector, positive
+from ._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    as_int,
+    as_real_vector,
+    positive,
+    readonly,
+)
 
 __all__ = [
     "ObserverDesign",
@@ -150,11 +157,6 @@ def _validate_poles(poles, order: int) -> np.ndarray:
 def _fmt_pole(p: complex) -> str:
     p = complex(p)
     return f"{p.real:.6g}" if p.imag == 0.0 else f"({p.real:.6g}{p.imag:+.6g}j)"
-
-
-def _readonly(array: np.ndarray) -> np.ndarray:
-    array.setflags(write=False)
-    return array
 
 
 @dataclass(frozen=True, eq=False)
@@ -342,14 +344,14 @@ def design_observer(
     return ObserverDesign(
         model=model,
         order=m,
-        poles=_readonly(placed),
+        poles=readonly(placed),
         bandwidth=g_out,
-        gain_direction=_readonly(d),
-        k=_readonly(k),
-        gains=_readonly(G),
-        error_matrix=_readonly(M),
-        state_input=_readonly(Kx),
-        control_input=_readonly(Ku),
+        gain_direction=readonly(d),
+        k=readonly(k),
+        gains=readonly(G),
+        error_matrix=readonly(M),
+        state_input=readonly(Kx),
+        control_input=readonly(Ku),
         _k=tuple(float(v) for v in k),
         _p=tuple(float(v) for v in extrapolation_weights(m)),
         _rows=rows,

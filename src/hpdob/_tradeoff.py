@@ -26,15 +26,10 @@ from ._validation import (
     as_real_vector,
     check_choice,
     positive,
+    readonly,
 )
 
 __all__ = ["NoiseTradeoff", "noise_tradeoff"]
-
-
-def _readonly(array) -> np.ndarray:
-    array = np.array(array, dtype=float)
-    array.setflags(write=False)
-    return array
 
 
 def positive_grid(values, name: str, what: str) -> np.ndarray:
@@ -268,10 +263,10 @@ def noise_tradeoff(
         )
     return NoiseTradeoff(
         orders=ms,
-        bandwidths=_readonly(grid),
+        bandwidths=readonly(grid),
         frequency=f,
         noise=noise,
         Ts=Ts,
-        error_gain=_readonly(err),
-        noise_gain=_readonly(gain),
+        error_gain=readonly(err),
+        noise_gain=readonly(gain),
     )

@@ -19,6 +19,7 @@ import numpy as np
 __all__ = [
     "ParameterTypeError",
     "ParameterValueError",
+    "as_grid",
     "as_int",
     "as_real",
     "as_real_vector",
@@ -26,6 +27,8 @@ __all__ = [
     "check_keys",
     "nonnegative",
     "positive",
+    "readonly",
+    "require_instance",
 ]
 
 
@@ -154,3 +157,43 @@ def check_keys(mapping, valid, where: str = "") -> None:
         raise ParameterValueError(
             f"unknown key {name} = {_show(mapping[key])}; valid keys{of}: {', '.join(valid)}"
         )
+
+
+def require_instance(value, cls, name: str, *, optional: bool = False):
+    """Return ``value`` if it is an instance of ``cls`` (a class or tuple of classes).
+
+    ``optional=True`` also accepts None. The error names the accepted classes.
+    """
+    if value is None and optional:
+        return None
+    if not isinstance(value, cls):
+        names = [c.__name__ for c in (cls if isinstance(cls, tuple) else (cls,))]
+        listed = " or ".join(f"{'an' if n[0] in 'AEIOU' else 'a'} {n}" for n in names)
+        suffix = " or None" if optional else ""
+        raise ParameterTypeError(f"{name} must be {listed}{suffix}, got {type(value).__name__}")
+    return value
+
+
+def readonly(array: np.ndarray) -> np.ndarray:
+    """Mark ``array`` read-only and return it (immutable results hold read-only arrays)."""
+    array.setflags(write=False)
+    return array
+
+
+def as_grid(
+    values, name: str, what: str, *, allow_zero: bool = False, increasing: bool = False
+) -> np.ndarray:
+    """A non-empty 1-D grid of finite values > 0 (>= 0 with ``allow_zero``), as a new array.
+
+    With ``increasing=True`` the grid must also be strictly increasing (maps and boundaries
+    are drawn along it).
+    """
+    grid = as_real_vector(np.atleast_1d(values), name, what)
+    if grid.size == 0:
+        raise ParameterValueError(f"{name} must hold at least one value ({what}), got []")
+    bad = grid[grid < 0] if allow_zero else grid[grid <= 0]
+    if bad.size:
+        raise ParameterValueError(f"{name} must be {what}, got {float(bad[0])!r} in {name}")
+    if increasing and np.any(np.diff(grid) <= 0):
+        raise ParameterValueError(f"{name} must be strictly increasing, got {_show(grid)}")
+    return grid

@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
 from .._canonical import CONTROLLER, NOMINAL, PLANT, TS
+from .._result import json_ready
 
 __all__ = ["register"]
 
@@ -176,21 +176,8 @@ def register(subparsers) -> None:
         p.set_defaults(handler=_run)
 
 
-def _clean(value):
-    """JSON-ready: numpy scalars to Python, non-finite floats to None (strict JSON)."""
-    if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_clean(v) for v in value]
-    if isinstance(value, (np.integer, np.bool_)):
-        return value.item()
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    return value
-
-
 def _write_json(path: Path, data: dict) -> None:
-    path.write_text(json.dumps(_clean(data), indent=2, allow_nan=False) + "\n")
+    path.write_text(json.dumps(json_ready(data), indent=2, allow_nan=False) + "\n")
 
 
 def _loop(args):
