@@ -129,3 +129,32 @@ def test_bad_types():
         Noise(0.1, hold=0.1, stop=1.0, seed=1.5)
     with pytest.raises(ValueError, match=r"^n must be a non-negative integer"):
         Constant(1.0).derivative(np.zeros(2), -1)
+
+
+@pytest.mark.parametrize(
+    "signal",
+    [
+        Constant(1.0),
+        Step(0.5, 1.0),
+        Ramp(0.1, 2.0),
+        SmoothStep(0.0, 1.0, 1.0),
+        Sine(1.0, 2.0, start=0.1, phase=0.3, offset=0.2),
+        Chirp(1.0, 1.0, 5.0, 0.0, 2.0),
+        Sine(1.0, 1.0) + Ramp(0.0, 1.0),
+    ],
+    ids=lambda s: type(s).__name__,
+)
+@pytest.mark.parametrize("n", [0, 1, 2])
+def test_scalar_times_give_the_array_values(signal, n):
+    # A scalar t gives a 0-d result equal to the same time evaluated inside an array.
+    times = np.array([0.05, 0.7, 1.5])
+    values = signal.derivative(times, n)
+    for t, expected in zip(times, values, strict=True):
+        value = signal.derivative(float(t), n)
+        assert np.shape(value) == ()
+        np.testing.assert_allclose(float(value), expected, rtol=1e-14, atol=1e-14)
+
+
+def test_noise_at_a_scalar_time():
+    noise = Noise(0.1, 0.01, 2.0, seed=1)
+    assert float(noise(0.7)) == noise(np.array([0.7]))[0]

@@ -278,7 +278,7 @@ def test_bad_arguments(paper_model, kwargs, pattern):
 def test_degenerate_gain_direction(paper_model):
     D = paper_model.D
     orthogonal = (D[1], -D[0])  # d^T D_Dn == 0
-    with pytest.raises(ValueError, match=r"gain_direction must not be orthogonal to D_Dn"):
+    with pytest.raises(ValueError, match=r"gain_direction must not be zero or orthogonal to D_Dn"):
         design_observer(paper_model, order=1, bandwidth=100.0, gain_direction=orthogonal)
 
 
@@ -298,3 +298,36 @@ def test_needs_a_discrete_model():
 def test_poles_type(paper_model):
     with pytest.raises(TypeError, match="poles must be a sequence"):
         design_observer(paper_model, order=1, poles=["a", "b"])
+
+
+@pytest.mark.parametrize("poles", ["0.9", b"0.9", ["0.9", "0.8"], [True, False]])
+def test_poles_are_not_parsed_from_text_or_bools(paper_model, poles):
+    order = 0 if isinstance(poles, (str, bytes)) else 1
+    with pytest.raises(TypeError, match=r"^poles must be a sequence of \d numbers, got "):
+        design_observer(paper_model, order=order, poles=poles)
+
+
+def test_tiny_and_huge_gain_directions_give_the_unit_direction_gains(paper_model):
+    # L_i = k_i d / (d^T D_Dn) does not depend on the scale of d; a subnormal d must neither
+    # be rejected nor lose precision, a huge one must not overflow.
+    reference = design_observer(paper_model, order=1, bandwidth=300.0, gain_direction=(1.0, 0.0))
+    for scale in (1e-320, 1e300):
+        design = design_observer(paper_model, order=1, bandwidth=300.0, gain_direction=(scale, 0.0))
+        np.testing.assert_allclose(design.gains, reference.gains, rtol=1e-14)
+        np.testing.assert_array_equal(design.gain_direction, [scale, 0.0])
+
+
+@pytest.mark.parametrize(("order", "bandwidth"), [(4, 1.0), (200, 500.0)])
+def test_unrealisable_poles_are_rejected(paper_model, order, bandwidth):
+    # Order 4 with all five poles at exp(-1e-3) ~ 0.999: a 5-fold root that close to 1 moves
+    # by ~eps^(1/5) ~ 6e-4 under rounding of k, which pushes it outside the unit circle; at
+    # order 200 the binomial coefficients overflow the gains. Either way the recursion the
+    # design describes is unstable, so it must not be returned.
+    with pytest.raises(ValueError, match=r"^poles cannot be realised for order \d+ .*spectral"):
+        design_observer(paper_model, order=order, bandwidth=bandwidth)
+
+
+@pytest.mark.parametrize(("order", "bandwidth"), [(3, 1.0), (12, 500.0)])
+def test_realisable_high_orders_are_stable(paper_model, order, bandwidth):
+    design = design_observer(paper_model, order=order, bandwidth=bandwidth)
+    assert np.max(np.abs(np.linalg.eigvals(design.error_matrix))) < 1.0

@@ -221,7 +221,8 @@ class Sine(Signal):
         t = _times(t)
         n = _check_derivative(n)
         w = 2.0 * math.pi * self.frequency
-        out = t - self.start  # in-place arithmetic: this runs on every sub-step midpoint
+        out = np.array(t, dtype=float)  # a new array, also for scalar t (0-d)
+        out -= self.start  # in-place arithmetic: this runs on every sub-step midpoint
         out *= w
         out += self.phase + n * math.pi / 2.0  # d^n/dt^n sin(x) = w^n sin(x + n pi/2)
         np.sin(out, out=out)

@@ -29,6 +29,7 @@ from ._validation import (
     ParameterValueError,
     as_int,
     as_real_vector,
+    numeric_array,
     positive,
     readonly,
 )
@@ -115,12 +116,7 @@ def characteristic_polynomial(k) -> np.ndarray:
 
 
 def _validate_poles(poles, order: int) -> np.ndarray:
-    try:
-        values = np.array(poles, dtype=complex)
-    except (TypeError, ValueError):
-        raise ParameterTypeError(
-            f"poles must be a sequence of {order + 1} numbers, got {poles!r}"
-        ) from None
+    values = numeric_array(poles, "poles", f"a sequence of {order + 1} numbers", dtype=complex)
     if values.ndim == 0:
         values = values.reshape(1)
     if values.ndim != 1 or values.size != order + 1:
@@ -322,11 +318,15 @@ def design_observer(
         gain_direction, "gain_direction", "a direction vector (d_theta, d_omega)", length=2
     )
     D = np.asarray(model.D)
-    dD = float(d @ D)
-    if abs(dD) <= _DEGENERATE * np.linalg.norm(d) * np.linalg.norm(D):
+    # Only the direction matters (L_i = k_i d / d^T D): scale it to max |d_j| = 1 first so
+    # that tiny (subnormal) or huge entries neither underflow nor overflow below.
+    scale = float(np.max(np.abs(d)))
+    unit = d / scale if scale > 0.0 else d
+    dD = float(unit @ D)
+    if abs(dD) <= _DEGENERATE * np.linalg.norm(unit) * np.linalg.norm(D):
         raise ParameterValueError(
-            f"gain_direction must not be orthogonal to D_Dn = {D.tolist()}: "
-            f"d^T D_Dn = {dD:.3g} for gain_direction={d.tolist()}"
+            f"gain_direction must not be zero or orthogonal to D_Dn = {D.tolist()}: "
+            f"d^T D_Dn = {float(d @ D):.3g} for gain_direction={d.tolist()}"
         )
 
     desired = np.real(np.poly(placed)) if placed.size else np.array([1.0])
@@ -335,8 +335,16 @@ def design_observer(
     rhs = desired[::-1][: m + 1] - binomial[: m + 1]
     k = np.linalg.solve(_characteristic_basis(m), rhs)
 
-    G = np.outer(k, d / dD)
+    G = np.outer(k, unit / dD)
     M = error_matrix(k)
+    radius = float(np.max(np.abs(np.linalg.eigvals(M))))
+    if not radius < 1.0:  # also catches NaN from overflowing gains
+        raise ParameterValueError(
+            f"poles cannot be realised for order {m} in double precision: the computed error "
+            f"matrix has spectral radius {radius:.6g} >= 1 (requested max |p| = "
+            f"{float(np.max(np.abs(placed))):.6g}); high orders and repeated poles near 1 are "
+            f"too ill-conditioned. Use a lower order, a higher bandwidth or distinct poles"
+        )
     A, B = np.asarray(model.A), np.asarray(model.B)
     Kx = G @ A - M @ G
     Ku = G @ B

@@ -26,6 +26,7 @@ __all__ = [
     "check_choice",
     "check_keys",
     "nonnegative",
+    "numeric_array",
     "positive",
     "readonly",
     "require_instance",
@@ -118,12 +119,7 @@ def as_real_vector(
     ValueError
         If it has the wrong shape or a non-finite entry.
     """
-    if isinstance(value, (str, bytes)):
-        raise ParameterTypeError(f"{name} must be {what}, got {_show(value)} of type str")
-    try:
-        array = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ParameterTypeError(f"{name} must be {what}, got {_show(value)}") from None
+    array = numeric_array(value, name, what, dtype=float)
     if array.ndim != 1 or (length is not None and array.shape[0] != length):
         expected = f"shape ({length},)" if length is not None else "a 1-D sequence"
         raise ParameterValueError(
@@ -132,6 +128,31 @@ def as_real_vector(
     if not np.all(np.isfinite(array)):
         raise ParameterValueError(f"{name} must be {what} with finite entries, got {_show(value)}")
     return array
+
+
+def numeric_array(value: object, name: str, what: str, *, dtype=float) -> np.ndarray:
+    """``value`` as a new numeric array of ``dtype`` (float or complex).
+
+    Strings, bytes, booleans and (for ``dtype=float``) complex numbers are rejected rather
+    than parsed or silently truncated.
+    """
+    if isinstance(value, (str, bytes)):
+        raise ParameterTypeError(
+            f"{name} must be {what}, got {_show(value)} of type {type(value).__name__}"
+        )
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError):
+        raise ParameterTypeError(f"{name} must be {what}, got {_show(value)}") from None
+    forbidden = "USVb" + ("c" if np.dtype(dtype).kind == "f" else "")
+    if raw.dtype.kind in forbidden:
+        raise ParameterTypeError(
+            f"{name} must be {what}, got {_show(value)} with {raw.dtype.name} entries"
+        )
+    try:
+        return np.array(raw, dtype=dtype)
+    except (TypeError, ValueError):
+        raise ParameterTypeError(f"{name} must be {what}, got {_show(value)}") from None
 
 
 def check_choice(value: object, name: str, choices: Iterable[str]) -> str:
@@ -168,7 +189,7 @@ def require_instance(value, cls, name: str, *, optional: bool = False):
         return None
     if not isinstance(value, cls):
         names = [c.__name__ for c in (cls if isinstance(cls, tuple) else (cls,))]
-        listed = " or ".join(f"{'an' if n[0] in 'AEIOU' else 'a'} {n}" for n in names)
+        listed = " or ".join(f"{'an' if n[0].lower() in 'aeiou' else 'a'} {n}" for n in names)
         suffix = " or None" if optional else ""
         raise ParameterTypeError(f"{name} must be {listed}{suffix}, got {type(value).__name__}")
     return value

@@ -1,0 +1,78 @@
+"""Tests of the shared argument checks in hpdob._validation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from hpdob._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    as_grid,
+    as_real_vector,
+    numeric_array,
+    readonly,
+    require_instance,
+)
+
+
+@pytest.mark.parametrize(
+    "value", ["1.0", b"1", ["1", "2"], [True, False], np.array([1 + 1j, 2]), [[1, 2], [3]]]
+)
+def test_real_vectors_reject_text_bools_complex_and_ragged(value):
+    with pytest.raises(ParameterTypeError, match=r"^x must be a vector, got "):
+        as_real_vector(value, "x", "a vector")
+
+
+def test_real_vector_is_a_new_float_array():
+    source = np.array([1, 2])
+    vector = as_real_vector(source, "x", "a vector")
+    assert vector.dtype == float
+    vector[0] = 5.0
+    assert source[0] == 1  # the caller's array is untouched
+
+
+def test_complex_arrays_keep_their_imaginary_part():
+    np.testing.assert_array_equal(
+        numeric_array([0.5 + 0.1j, 0.5 - 0.1j], "p", "poles", dtype=complex),
+        [0.5 + 0.1j, 0.5 - 0.1j],
+    )
+
+
+@pytest.mark.parametrize(
+    ("value", "kwargs", "pattern"),
+    [
+        ([], {}, r"^g must hold at least one value \(bandwidths\), got \[\]"),
+        ([1.0, 0.0], {}, r"^g must be bandwidths, got 0.0 in g"),
+        ([1.0, -1.0], {"allow_zero": True}, r"^g must be bandwidths, got -1.0 in g"),
+        ([1.0, math.nan], {}, r"^g must be bandwidths with finite entries"),
+        ([2.0, 1.0], {"increasing": True}, r"^g must be strictly increasing, got \[2\. 1\.\]"),
+        ([1.0, 1.0], {"increasing": True}, r"^g must be strictly increasing"),
+    ],
+)
+def test_bad_grids(value, kwargs, pattern):
+    with pytest.raises(ParameterValueError, match=pattern):
+        as_grid(value, "g", "bandwidths", **kwargs)
+
+
+def test_grids():
+    np.testing.assert_array_equal(as_grid(3.0, "g", "bandwidths"), [3.0])
+    np.testing.assert_array_equal(as_grid([0.0, 2.0], "g", "f", allow_zero=True), [0.0, 2.0])
+    np.testing.assert_array_equal(as_grid([3.0, 1.0], "g", "bandwidths"), [3.0, 1.0])
+
+
+def test_require_instance_names_the_classes_with_articles():
+    with pytest.raises(ParameterTypeError, match=r"^a must be an int or a float, got str$"):
+        require_instance("1", (int, float), "a")
+    with pytest.raises(ParameterTypeError, match=r"^a must be a float or None, got str$"):
+        require_instance("1", float, "a", optional=True)
+    assert require_instance(None, float, "a", optional=True) is None
+    assert require_instance(2.0, float, "a") == 2.0
+
+
+def test_readonly():
+    array = readonly(np.zeros(2))
+    with pytest.raises(ValueError, match="read-only"):
+        array[0] = 1.0
