@@ -102,7 +102,7 @@ def test_defaults_are_the_paper_motor(capsys):
         (["--bandwidth", "-3"], "bandwidth must be a positive"),
         (["--bandwidth", "3", "--poles", "0.9,0.9"], "not allowed with argument"),
         (["--gain-direction", "1"], "gain_direction must be"),
-        (["--gain-direction", "0,0"], "gain_direction must not be orthogonal"),
+        (["--gain-direction", "0,0"], "gain_direction must not be zero or orthogonal"),
         (["--frobnicate"], "unrecognized arguments: --frobnicate"),
     ],
 )

@@ -233,3 +233,7 @@ def test_bad_arguments():
         closed_loop(**kw, observer="HPDOb")
     with pytest.raises(ParameterTypeError, match="sensor must be an Encoder or None"):
         closed_loop(**kw, sensor="encoder")
+    with pytest.raises(
+        ParameterValueError, match=r"^actuator.delay_samples must be at most 1000 .*1001"
+    ):
+        closed_loop_poles(**kw, actuator=Actuator(delay_samples=1001))

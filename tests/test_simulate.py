@@ -25,7 +25,7 @@ from hpdob._canonical import (
     canonical_run,
     canonical_scenario,
 )
-from hpdob._simulate import DEFAULT_SUBSTEPS
+from hpdob._simulate import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, default_substeps
 from hpdob.signals import Constant, Ramp, SmoothStep, Step
 from reference_loop import reference_loop
 
@@ -87,6 +87,37 @@ def test_virtual_experiment_metrics_are_robust(canonical_results):
     fine = canonical_run("virtual-experiment", substeps=2 * DEFAULT_SUBSTEPS).metrics()
     for metric, value in coarse.items():
         assert fine[metric] == pytest.approx(value, rel=2e-2), metric
+
+
+def test_default_substeps_follow_the_coulomb_stiffness():
+    plant = canonical_scenario()["plant"]  # c / (v J) = 0.01 / (0.01 * 3.06e-4) = 3268 1/s
+    assert default_substeps(plant, 1e-3) == DEFAULT_SUBSTEPS  # 2 ceil(3.27) = 8
+    # 2 ceil(Ts c / (v J)): h c / (v J) <= 0.5 on an even number of sub-steps.
+    assert default_substeps(plant.replace(coulomb_velocity=1e-3), 1e-3) == 66
+    assert default_substeps(plant.replace(coulomb_velocity=1e-4), 1e-3) == 654
+    assert default_substeps(plant.replace(coulomb=0.0), 1e-3) == DEFAULT_SUBSTEPS
+
+
+def test_stiff_coulomb_friction_converges():
+    """With v = 1e-3 the friction is 10x stiffer than canonical; 8 sub-steps (h c/(v J) = 4,
+    beyond the midpoint rule's stability limit of 2) get the estimation error wrong by ~4x,
+    the default (66) must agree with twice as many sub-steps to 0.1 %."""
+    plant = canonical_scenario()["plant"].replace(coulomb_velocity=1e-3)
+
+    def metrics(**kwargs):
+        return canonical_run("HPDOb-100", plant=plant, duration=5.0, **kwargs).metrics()
+
+    default, fine = metrics(), metrics(substeps=132)
+    for metric, value in default.items():
+        assert fine[metric] == pytest.approx(value, rel=1e-3), metric
+    coarse = metrics(substeps=DEFAULT_SUBSTEPS)
+    assert coarse["rms_estimation_error"] > 2 * fine["rms_estimation_error"]
+
+
+def test_run_length_is_capped():
+    with pytest.raises(ValueError, match=r"^duration/Ts \* substeps = 10000 \* 20000 = 2e\+08"):
+        canonical_run("HPDOb-100", substeps=20_000)
+    assert MAX_PLANT_STEPS == 100_000_000
 
 
 def test_hpdob_beats_dob_on_every_canonical_metric(canonical_results):

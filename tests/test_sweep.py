@@ -130,6 +130,22 @@ def test_bad_arguments(kwargs, exc, pattern):
         ({"observer": "hpdob"}, TypeError, r"^base\['observer'\] must be a dict"),
         ({"controller": None}, TypeError, r"^controller must be a PD"),
         ({"reference": 3.0}, TypeError, r"^reference must be a Signal"),
+        (
+            {"Ts": -1e-3},
+            ValueError,
+            r"^Ts must be a positive finite sampling period \[s\], got -0.001",
+        ),
+        (
+            {"duration": "1 s"},
+            TypeError,
+            r"^duration must be a positive finite duration \[s\], got '1 s'",
+        ),
+        ({"duration": 1.0005}, ValueError, r"^duration must be a positive multiple of Ts"),
+        ({"substeps": 0}, ValueError, r"^substeps must be a positive integer .*got 0"),
+        ({"substeps": 2.5}, TypeError, r"^substeps must be a positive integer .*got 2.5"),
+        ({"x0": (0.0,)}, ValueError, r"^x0 must be an initial state .*shape \(2,\)"),
+        ({"sensor": "encoder"}, TypeError, r"^sensor must be an Encoder or None, got str"),
+        ({"actuator": 1.0}, TypeError, r"^actuator must be an Actuator or None, got float"),
     ],
 )
 def test_bad_base(change, exc, pattern):

@@ -39,6 +39,10 @@ INPUTS = ("r", "r_dot", "r_ddot", "tau_ext", "n_theta", "n_omega")
 OUTPUTS = ("theta", "omega", "u", "tau_hat")
 
 
+#: Longest actuator delay [samples] of the linear loop: each sample adds a state.
+MAX_DELAY_SAMPLES = 1000
+
+
 @dataclass(frozen=True, eq=False)
 class LoopSpec:
     """Validated ingredients of the linear loop (internal)."""
@@ -65,6 +69,11 @@ def loop_spec(*, plant, nominal, Ts, controller, observer=None, sensor=None, act
         raise ParameterValueError(
             "actuator.torque_limit must be None for the linear loop (saturation is not "
             f"linear), got {actuator.torque_limit!r}"
+        )
+    if actuator.delay_samples > MAX_DELAY_SAMPLES:
+        raise ParameterValueError(
+            f"actuator.delay_samples must be at most {MAX_DELAY_SAMPLES} for the linear loop "
+            f"(each sample of delay adds a state), got {actuator.delay_samples}"
         )
     design = None
     if observer is not None:

@@ -40,6 +40,11 @@ __all__ = [
 #: Default plant sub-steps per sample. Doubling it changes the canonical metrics by < 0.1 %
 #: (tests/test_simulate.py::test_substep_convergence).
 DEFAULT_SUBSTEPS = 8
+#: Largest ``h c / (v J)`` (sub-step times the stiffness of the Coulomb term
+#: ``c tanh(omega / v)``) of the default sub-step count; the midpoint rule is unstable above 2.
+_COULOMB_STEP = 0.5
+#: Most plant steps (samples times sub-steps) one run may take: 1e8 steps need 0.8 GB.
+MAX_PLANT_STEPS = 100_000_000
 #: A run stops when |theta| [rad] or |omega| [rad/s] exceeds this, or the state is not finite.
 DIVERGENCE_LIMIT = 1e9
 
@@ -52,16 +57,30 @@ class SimulationDivergedWarning(RuntimeWarning):
     """A simulation stopped early because the closed loop diverged."""
 
 
+def default_substeps(plant: ServoModel, Ts: float) -> int:
+    """Default sub-steps per sample for ``plant``: :data:`DEFAULT_SUBSTEPS`, or more (an even
+    number) when the Coulomb friction is so stiff that ``h c / (v J)`` would exceed 0.5.
+
+    Near ``omega = 0`` the friction ``c tanh(omega / v)`` acts like a damper ``c / v``, which
+    the explicit midpoint rule only integrates accurately for ``h c / (v J) <= 0.5``
+    (``tests/test_simulate.py::test_stiff_coulomb_friction_converges``).
+    """
+    stiffness = plant.coulomb / (plant.coulomb_velocity * plant.J)  # [1/s]
+    return max(DEFAULT_SUBSTEPS, 2 * math.ceil(Ts * stiffness / (2.0 * _COULOMB_STEP)))
+
+
 def resolve_substeps(plant, Ts: float, substeps) -> int:
-    """Plant steps per sample: ``substeps`` (default :data:`DEFAULT_SUBSTEPS`), or
-    ``Ts/timestep`` for a :class:`MujocoServo` with its own MuJoCo time step."""
+    """Plant steps per sample: ``substeps``; by default :func:`default_substeps` for a
+    :class:`ServoModel`, ``Ts/timestep`` for a :class:`MujocoServo` with its own MuJoCo
+    time step, else :data:`DEFAULT_SUBSTEPS`."""
     if substeps is not None:
         substeps = as_int(
             substeps, "substeps", "a positive integer number of sub-steps per sample", minimum=1
         )
     if isinstance(plant, MujocoServo):
         substeps = plant.steps_per_sample(Ts, substeps)
-    return DEFAULT_SUBSTEPS if substeps is None else substeps
+        return DEFAULT_SUBSTEPS if substeps is None else substeps
+    return default_substeps(plant, Ts) if substeps is None else substeps
 
 
 def _sample_count(Ts: float, duration: float) -> int:
@@ -205,7 +224,9 @@ def simulate(
         ``tau_ext`` and used for the ground truth) and the sub-step midpoints
         ``k Ts + (j + 1/2) Ts/substeps`` (used by the integrator). None: no disturbance.
     substeps : int, optional
-        Plant sub-steps per sample, default :data:`DEFAULT_SUBSTEPS` (8). For a
+        Plant sub-steps per sample. Default: :data:`DEFAULT_SUBSTEPS` (8), raised to an even
+        number with ``h c / (v J) <= 0.5`` for stiff Coulomb friction (:func:`default_substeps`;
+        e.g. 66 for the canonical plant with ``coulomb_velocity = 1e-3``). For a
         :class:`MujocoServo` these are MuJoCo steps of ``Ts/substeps``; if the servo has its
         own ``timestep``, ``substeps`` is ``Ts/timestep`` (None or that value).
     sensor : Encoder, optional
@@ -295,6 +316,13 @@ class SampledSignals(NamedTuple):
 def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) -> SampledSignals:
     """Evaluate ``reference`` at ``k Ts`` and ``disturbance`` at ``k Ts`` and the sub-step
     midpoints ``k Ts + (j + 1/2) Ts / substeps``, ``0 <= k < n``, with validation."""
+    if n * substeps > MAX_PLANT_STEPS:
+        raise ParameterValueError(
+            f"duration/Ts * substeps = {n} * {substeps} = {n * substeps:.3g} plant steps exceeds "
+            f"the limit of {MAX_PLANT_STEPS:.0e} per run (the sub-step disturbance alone would "
+            f"need {8 * n * substeps / 1e9:.3g} GB); shorten duration, raise Ts or lower "
+            f"substeps (or the stiffness c/(v J) of the Coulomb friction that sets the default)"
+        )
     t = np.arange(n) * Ts
     r, r_dot, r_ddot = _reference(reference, t)
     if disturbance is None:

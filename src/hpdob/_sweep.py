@@ -33,6 +33,7 @@ from ._validation import (
     as_int,
     as_real_vector,
     check_keys,
+    positive,
     require_instance,
 )
 
@@ -99,8 +100,22 @@ def _resolve_base(base) -> dict:
         raise ParameterValueError(f"base is missing the required key {missing[0]!r}")
     resolved = dict(base)
     resolved["observer"] = _observer_spec(base.get("observer"))
-    resolved.setdefault("substeps", None)  # per scenario: the default or a MujocoServo's own
-    resolved.setdefault("x0", (0.0, 0.0))
+    # Shared arguments are checked here, once, so that a typo fails the call instead of
+    # every scenario (per-scenario values are checked again in run_scenario).
+    Ts = positive(base["Ts"], "Ts", "a positive finite sampling period [s]")
+    duration = positive(base["duration"], "duration", "a positive finite duration [s]")
+    _sample_count(Ts, duration)
+    substeps = base.get("substeps")  # None: per scenario, the default or a MujocoServo's own
+    if substeps is not None:
+        substeps = as_int(
+            substeps, "substeps", "a positive integer number of sub-steps per sample", minimum=1
+        )
+    x0 = as_real_vector(
+        base.get("x0", (0.0, 0.0)), "x0", "an initial state [theta (rad), omega (rad/s)]", length=2
+    )
+    require_instance(base.get("sensor"), Encoder, "sensor", optional=True)
+    require_instance(base.get("actuator"), Actuator, "actuator", optional=True)
+    resolved.update(Ts=Ts, duration=duration, substeps=substeps, x0=tuple(x0.tolist()))
     return resolved
 
 
@@ -216,7 +231,7 @@ def _run_local(base, chunks, workers, update) -> list:
     return rows
 
 
-def _run_dask(base, chunks, scheduler, update) -> list:
+def _run_dask(base, scenarios, scheduler, update) -> list:
     try:
         from dask.distributed import Client
         from dask.distributed import as_completed as dask_completed
@@ -227,6 +242,7 @@ def _run_dask(base, chunks, scheduler, update) -> list:
     own = isinstance(scheduler, str)
     client = Client(scheduler) if own else scheduler
     try:
+        chunks = _chunks(scenarios, len(client.scheduler_info().get("workers", {})))
         # Each task carries the (small) base itself rather than a scattered copy: tasks then
         # have no data dependencies, so a task whose worker dies is simply run again elsewhere
         # (scattered data lost with a worker cancels its dependants: "lost dependencies").
@@ -262,10 +278,9 @@ def _workers_and_mode(scheduler):
                 f"or a dask address like 'tcp://127.0.0.1:8786', got "
                 f"{scheduler!r}"
             )
-        return 1, "dask"
+        return None, "dask"  # the workers are counted once connected
     if type(scheduler).__name__ == "Client":
-        workers = len(getattr(scheduler, "scheduler_info", dict)().get("workers", {})) or 1
-        return workers, "dask"
+        return None, "dask"
     raise ParameterTypeError(
         f"scheduler must be None, a number of local workers, "
         f"'tcp://host:port' or a dask Client, got {type(scheduler).__name__}"
@@ -345,13 +360,12 @@ def sweep(base: dict, *, grid=None, vary=None, n=None, seed=0, scheduler=None, p
     sample_signals(
         resolved["reference"], resolved.get("disturbance"), Ts=resolved["Ts"], n=2, substeps=1
     )
-    chunks = _chunks(scenarios, workers)
     update, close = _progress_callback(progress, len(scenarios))
     try:
         if mode == "local":
-            rows = _run_local(resolved, chunks, workers, update)
+            rows = _run_local(resolved, _chunks(scenarios, workers), workers, update)
         else:
-            rows = _run_dask(resolved, chunks, scheduler, update)
+            rows = _run_dask(resolved, scenarios, scheduler, update)
     finally:
         close()
     rows.sort(key=lambda row: row["scenario"])
