@@ -165,6 +165,16 @@ def test_stability(capsys, tmp_path):
         (["tradeoff", "--bandwidths=100,-5"], "bandwidths must be positive"),
         (["bode", "--J-n=-1"], "J must be a positive finite inertia"),
         (["tradeoff", "--frequency", "700"], "frequency must be below the Nyquist"),
+        # empty comma lists (used to crash with IndexError) name the option
+        (["noise", "--bandwidths", ","], "argument --bandwidths: expected LO:HI:N"),
+        (["tradeoff", "--bandwidths", " , "], "at least one comma-separated number, got ' , '"),
+        (["stability", "--bandwidths", ","], "argument --bandwidths: expected LO:HI:N"),
+        (["stability", "--values", ","], "argument --values: expected LO:HI:N"),
+        (["bode", "--orders", ","], "argument --orders: expected comma-separated integer"),
+        (["bode", "--dpi", "0"], "argument --dpi: expected a positive finite number, got '0'"),
+        (["noise", "--dpi=-72"], "argument --dpi: expected a positive finite number, got '-72'"),
+        (["tradeoff", "--dpi", "inf"], "argument --dpi: expected a positive finite number"),
+        (["stability", "--dpi", "high"], "argument --dpi: expected a positive finite number"),
     ],
 )
 def test_bad_arguments_exit_2_with_one_line(capsys, tmp_path, argv, message):

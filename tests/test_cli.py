@@ -104,6 +104,8 @@ def test_defaults_are_the_paper_motor(capsys):
         (["--gain-direction", "1"], "gain_direction must be"),
         (["--gain-direction", "0,0"], "gain_direction must not be zero or orthogonal"),
         (["--frobnicate"], "unrecognized arguments: --frobnicate"),
+        (["--poles", ","], "argument --poles: expected comma-separated numbers, got ','"),
+        (["--gain-direction", ","], "argument --gain-direction: expected comma-separated"),
     ],
 )
 def test_bad_arguments_one_line_exit_2(capsys, argv, needle):
@@ -134,3 +136,22 @@ def test_no_command_is_an_error(capsys):
     with pytest.raises(SystemExit) as info:
         main([])
     assert info.value.code == 2
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["export-c", "--out"],
+        ["analyze", "bode", "--orders", "0", "--out"],
+    ],
+)
+def test_unwritable_output_is_one_line_exit_2(capsys, tmp_path, argv):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory\n")
+    out = blocker / "sub"  # a directory under a regular file cannot be created
+    code = main([*argv, str(out)])
+    _, err = capsys.readouterr()
+    assert code == 2
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith(f"hpdob {argv[0]}: error: ") and str(out) in err
+    assert blocker.read_text() == "not a directory\n"

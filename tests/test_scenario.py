@@ -11,7 +11,7 @@ import pytest
 from hpdob import simulate
 from hpdob._canonical import canonical_run
 from hpdob._cli import main
-from hpdob._scenario import load_scenario, scenario_from_dict, tomllib
+from hpdob._scenario import load_scenario, load_sweep, scenario_from_dict, tomllib
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted(  # scenario files (sweep specs, with a [sweep] table, are tested in test_sweep)
@@ -85,6 +85,22 @@ def edit(change):
             lambda d: d.update(Ts=0.0),
             r"^Ts must be a positive finite sampling period \[s\], got 0.0",
         ),
+        # top-level scalars are checked when the file is read, not when it is run
+        (
+            lambda d: d.update(duration=-1.0),
+            r"^duration must be a positive finite duration \[s\], got -1.0",
+        ),
+        (lambda d: d.update(duration=0), r"^duration must be a positive finite .*got 0"),
+        (lambda d: d.update(duration=float("nan")), r"^duration must be .*got nan"),
+        (lambda d: d.update(duration="2 s"), r"^duration must be .*got '2 s' of type str"),
+        (
+            lambda d: d.update(substeps=0),
+            r"^substeps must be a positive integer number of sub-steps per sample, got 0",
+        ),
+        (lambda d: d.update(substeps=2.5), r"^substeps must be a positive integer.*got 2.5"),
+        (lambda d: d.update(x0=[0.1]), r"^x0 must be an initial state .*expected shape \(2,\)"),
+        (lambda d: d.update(x0="zero"), r"^x0 must be an initial state .*got 'zero'"),
+        (lambda d: d.update(label=3), r"^label must be a str, got 3"),
         (lambda d: d.pop("reference"), r"^missing required key reference"),
         (lambda d: d.update(colour="red"), r"^unknown key colour = 'red'"),
         (
@@ -121,6 +137,15 @@ def edit(change):
 def test_errors_name_the_key_and_value(change, pattern):
     with pytest.raises((TypeError, ValueError), match=pattern):
         scenario_from_dict(edit(change))
+
+
+def test_sweep_spec_duration_is_checked_at_load(tmp_path):
+    # before: accepted, and every scenario of the sweep became an invalid row at run time
+    example = ROOT / "examples" / "sweep_bandwidth.toml"
+    spec = tmp_path / "spec.toml"
+    spec.write_text(example.read_text().replace("duration = 10.0", "duration = -10.0"))
+    with pytest.raises(ValueError, match=r"^duration must be a positive finite .*got -10.0"):
+        load_sweep(spec)
 
 
 def test_complex_poles_as_strings():

@@ -128,6 +128,12 @@ def test_bad_arguments(kwargs, exc, pattern):
             r"^unknown key observer.speed = 3; valid keys of observer: order",
         ),
         ({"observer": "hpdob"}, TypeError, r"^base\['observer'\] must be a dict"),
+        (
+            {"observer": {"bandwidth": 100.0}},
+            ValueError,
+            r"^base\['observer'\] must have the required key 'order' \(keys: order, poles, "
+            r"bandwidth, gain_direction\), got \{'bandwidth': 100.0\}",
+        ),
         ({"controller": None}, TypeError, r"^controller must be a PD"),
         ({"reference": 3.0}, TypeError, r"^reference must be a Signal"),
         (

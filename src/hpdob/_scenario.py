@@ -15,7 +15,15 @@ from ._devices import Actuator, Encoder
 from ._model import ServoModel
 from ._observer import DisturbanceObserver
 from ._signals import Chirp, Constant, Noise, Ramp, Sine, SmoothStep, Step
-from ._validation import ParameterTypeError, ParameterValueError, check_choice, check_keys, positive
+from ._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    as_int,
+    as_real_vector,
+    check_choice,
+    check_keys,
+    positive,
+)
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -143,8 +151,29 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
         raise ParameterValueError(
             f"missing required key {missing[0]}; a scenario needs {', '.join(REQUIRED)}"
         )
-    kwargs = {key: data[key] for key in ("duration", "substeps", "x0", "label") if key in data}
-    kwargs["Ts"] = positive(data["Ts"], "Ts", "a positive finite sampling period [s]")
+    # Top-level scalars are checked here, with simulate()'s messages, not at run time.
+    kwargs = {
+        "Ts": positive(data["Ts"], "Ts", "a positive finite sampling period [s]"),
+        "duration": positive(data["duration"], "duration", "a positive finite duration [s]"),
+    }
+    if "substeps" in data:
+        kwargs["substeps"] = as_int(
+            data["substeps"],
+            "substeps",
+            "a positive integer number of sub-steps per sample",
+            minimum=1,
+        )
+    if "x0" in data:
+        x0 = as_real_vector(
+            data["x0"], "x0", "an initial state [theta (rad), omega (rad/s)]", length=2
+        )
+        kwargs["x0"] = tuple(x0.tolist())
+    if "label" in data:
+        if not isinstance(data["label"], str):
+            raise ParameterTypeError(
+                f"label must be a str, got {data['label']!r} of type {type(data['label']).__name__}"
+            )
+        kwargs["label"] = data["label"]
     kwargs["plant"] = _build(ServoModel, _table(data, "plant"), "plant")
     kwargs["nominal"] = _build(ServoModel, _table(data, "nominal"), "nominal")
     kwargs["controller"] = _build(PD, _table(data, "controller"), "controller")

@@ -82,6 +82,11 @@ def _observer_spec(observer) -> dict | None:
             f"or None, got {type(observer).__name__}"
         )
     check_keys(observer, OBSERVER_KEYS, "observer")
+    if "order" not in observer:
+        raise ParameterValueError(
+            f"base['observer'] must have the required key 'order' (keys: "
+            f"{', '.join(OBSERVER_KEYS)}), got {observer!r}"
+        )
     return dict(observer)
 
 

@@ -2,7 +2,7 @@
 
 Each command lives in its own module that exposes ``register(subparsers)``; the module's
 handler returns the process exit code. Bad arguments print one line naming the argument
-and exit with code 2, never a traceback.
+and exit with code 2, never a traceback; so do files that cannot be written (OSError).
 """
 
 from __future__ import annotations
@@ -55,3 +55,6 @@ def main(argv: list[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 1
+    except OSError as err:  # e.g. an --out directory that cannot be created or written
+        print(f"hpdob {args.command}: error: {err}", file=sys.stderr)
+        return 2

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from dataclasses import asdict
 from pathlib import Path
 
@@ -23,7 +24,7 @@ ANALYSES = ("bode", "noise", "tradeoff", "stability")
 
 
 def _grid(text: str) -> list[float]:
-    """``LO:HI:N`` (N log-spaced values) or a comma-separated list of numbers."""
+    """``LO:HI:N`` (N log-spaced values) or a non-empty comma-separated list of numbers."""
     try:
         if ":" in text:
             lo, hi, n = text.split(":")
@@ -31,12 +32,26 @@ def _grid(text: str) -> list[float]:
             if not (lo > 0 and hi > 0 and count >= 1):
                 raise ValueError
             return np.geomspace(lo, hi, count).tolist()
-        return [float(item) for item in text.split(",") if item.strip()]
+        values = [float(item) for item in text.split(",") if item.strip()]
+        if not values:
+            raise ValueError
+        return values
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected LO:HI:N (N log-spaced positive values) or comma-separated numbers, "
-            f"got {text!r}"
+            f"expected LO:HI:N (N log-spaced positive values) or at least one "
+            f"comma-separated number, got {text!r}"
         ) from None
+
+
+def _positive_real(text: str) -> float:
+    """A finite number > 0 (e.g. ``--dpi``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+    return value
 
 
 def _orders(text: str) -> list[int]:
@@ -58,7 +73,10 @@ def _add_common(parser: argparse.ArgumentParser, *, loop: bool = True) -> None:
         help="output directory (default: %(default)s)",
     )
     parser.add_argument(
-        "--dpi", type=float, default=150.0, help="figure resolution (default: %(default)s)"
+        "--dpi",
+        type=_positive_real,
+        default=150.0,
+        help="figure resolution [dots per inch] (default: %(default)s)",
     )
     title = "loop (defaults: the canonical scenario)" if loop else "nominal model (canonical)"
     group = parser.add_argument_group(title)
