@@ -11,7 +11,14 @@ import pytest
 from hpdob import simulate
 from hpdob._canonical import canonical_run
 from hpdob._cli import main
-from hpdob._scenario import load_scenario, load_sweep, scenario_from_dict, tomllib
+from hpdob._scenario import (
+    load_metric_windows,
+    load_scenario,
+    load_sweep,
+    metric_windows,
+    scenario_from_dict,
+    tomllib,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted(  # scenario files (sweep specs, with a [sweep] table, are tested in test_sweep)
@@ -132,6 +139,20 @@ def edit(change):
             r"^observer\.poles\[0\] must be a number .*got '0.9\+x'",
         ),
         (lambda d: d.update(plant=3.0), r"^plant must be a table, got 3.0"),
+        (lambda d: d.update(metrics=[1.0, 2.0]), r"^metrics must be a table, got \[1.0, 2.0\]"),
+        (
+            lambda d: d.update(metrics={"settling": [0.0, 1.0]}),
+            r"^unknown key metrics.settling = \[0.0, 1.0\]; valid keys of metrics: regulation, "
+            r"tracking",
+        ),
+        (
+            lambda d: d.update(metrics={"tracking": [5.0, 4.0]}),
+            r"^metrics.tracking must have start < stop \[s\], got \[5.0, 4.0\]",
+        ),
+        (
+            lambda d: d.update(metrics={"regulation": "1-4"}),
+            r"^metrics.regulation must be a \(start, stop\) pair of times \[s\], got '1-4'",
+        ),
     ],
 )
 def test_errors_name_the_key_and_value(change, pattern):
@@ -171,3 +192,25 @@ def test_cli_error_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1
     assert "plant.J must be a positive finite inertia [kg m^2], got -0.000306" in err
+
+
+def test_metric_windows_default_to_the_canonical_ones():
+    windows = metric_windows(base())
+    assert windows == {"regulation": (1.2, 4.0), "tracking": (4.0, float("inf"))}
+    windows = metric_windows({"metrics": {"tracking": [0.1, 0.6]}})
+    assert windows == {"regulation": (1.2, 4.0), "tracking": (0.1, 0.6)}
+
+
+def test_metric_windows_are_used_by_hpdob_simulate(tmp_path, capsys):
+    # The example holds 2 rad after a move in 0.1-0.6 s and lasts 4 s: with the canonical
+    # windows its tracking metric would be empty (NaN).
+    path = ROOT / "examples" / "encoder_noise_order2.toml"
+    windows = load_metric_windows(path)
+    assert windows == {"regulation": (0.6, 4.0), "tracking": (0.1, 0.6)}
+    assert main(["simulate", str(path), "--out", str(tmp_path), "--no-plot"]) == 0
+    capsys.readouterr()
+    written = json.loads((tmp_path / "metrics.json").read_text())["order2-encoder"]
+    result = simulate(**load_scenario(path))
+    expected = result.metrics(regulation=(0.6, 4.0), tracking=(0.1, 0.6))
+    assert written == pytest.approx(expected, rel=1e-12)
+    assert all(np.isfinite(list(written.values())))

@@ -271,3 +271,22 @@ def test_progress_bar_when_forced(capsys):
     err = capsys.readouterr().err
     assert "hpdob sweep" in err
     assert "2/2" in err
+
+
+def test_metric_windows():
+    rows = sweep(
+        base(2.0),
+        grid={"observer.order": [1]},
+        metric_windows={"tracking": (0.5, 1.0)},
+        progress=False,
+    )
+    kwargs = {**base(2.0)}
+    spec = kwargs.pop("observer")
+    kwargs["observer"] = DisturbanceObserver(kwargs["nominal"].discretize(kwargs["Ts"]), **spec)
+    expected = simulate(**kwargs).metrics(tracking=(0.5, 1.0))
+    assert rows.loc[0, "rms_position_error_tracking"] == expected["rms_position_error_tracking"]
+    assert rows.loc[0, "rms_position_error_regulation"] == expected["rms_position_error_regulation"]
+    with pytest.raises(ValueError, match=r"^unknown key metric_windows.settle = "):
+        sweep(base(2.0), metric_windows={"settle": (0, 1)}, progress=False)
+    with pytest.raises(ValueError, match=r"^metric_windows\['tracking'\] must have start < stop"):
+        sweep(base(2.0), metric_windows={"tracking": (1, 0)}, progress=False)

@@ -12,7 +12,13 @@ import numpy as np
 
 from ._validation import ParameterValueError
 
-__all__ = ["CANONICAL_WINDOWS", "SimulationResult", "json_ready", "metrics_json"]
+__all__ = [
+    "CANONICAL_WINDOWS",
+    "SimulationResult",
+    "json_ready",
+    "metric_window",
+    "metrics_json",
+]
 
 #: Time windows [s] of the canonical position metrics: regulation and tracking.
 CANONICAL_WINDOWS = {"regulation": (1.2, 4.0), "tracking": (4.0, math.inf)}
@@ -50,6 +56,21 @@ def json_ready(value):
 def metrics_json(metrics: dict) -> str:
     """``{run: {metric: value}}`` as JSON text, NaN written as ``null`` (strict JSON)."""
     return json.dumps(json_ready(metrics), indent=2, allow_nan=False) + "\n"
+
+
+def metric_window(bounds, name: str) -> tuple[float, float]:
+    """``bounds`` as a ``(start, stop)`` window [s] with ``start < stop`` (stop may be inf)."""
+    try:
+        if isinstance(bounds, (str, bytes)):  # not a pair of numbers, even with two characters
+            raise TypeError
+        lo, hi = (float(v) for v in bounds)
+    except (TypeError, ValueError):
+        raise ParameterValueError(
+            f"{name} must be a (start, stop) pair of times [s], got {bounds!r}"
+        ) from None
+    if not lo < hi:
+        raise ParameterValueError(f"{name} must have start < stop [s], got {bounds!r}")
+    return lo, hi
 
 
 def _rms(values: np.ndarray) -> float:
@@ -150,14 +171,7 @@ class SimulationResult:
         """
 
         def window(bounds, name):
-            try:
-                lo, hi = (float(v) for v in bounds)
-            except (TypeError, ValueError):
-                raise ParameterValueError(
-                    f"{name} must be a (start, stop) pair of times [s], got {bounds!r}"
-                ) from None
-            if not lo < hi:
-                raise ParameterValueError(f"{name} must have start < stop, got {bounds!r}")
+            lo, hi = metric_window(bounds, name)
             mask = (self.t >= lo) & (self.t < hi)
             return _rms(self.position_error[mask])
 

@@ -14,6 +14,7 @@ from ._controller import PD
 from ._devices import Actuator, Encoder
 from ._model import ServoModel
 from ._observer import DisturbanceObserver
+from ._result import CANONICAL_WINDOWS, metric_window
 from ._signals import Chirp, Constant, Noise, Ramp, Sine, SmoothStep, Step
 from ._validation import (
     ParameterTypeError,
@@ -30,7 +31,14 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-__all__ = ["SIGNAL_TYPES", "load_scenario", "load_sweep", "scenario_from_dict"]
+__all__ = [
+    "SIGNAL_TYPES",
+    "load_metric_windows",
+    "load_scenario",
+    "load_sweep",
+    "metric_windows",
+    "scenario_from_dict",
+]
 
 SIGNAL_TYPES = {
     "constant": Constant,
@@ -55,6 +63,7 @@ TOP_LEVEL = (
     "actuator",
     "reference",
     "disturbance",
+    "metrics",
 )
 REQUIRED = ("Ts", "duration", "plant", "nominal", "controller", "reference")
 SWEEP_KEYS = ("grid", "vary", "n", "seed")
@@ -137,6 +146,18 @@ def _poles(values, key: str):
     return poles
 
 
+def metric_windows(data: dict) -> dict:
+    """The ``[metrics]`` table of a parsed scenario: ``{"regulation": (start, stop),
+    "tracking": (start, stop)}`` [s], each defaulting to :data:`CANONICAL_WINDOWS`."""
+    windows = dict(CANONICAL_WINDOWS)
+    if "metrics" in data:
+        table = _table(data, "metrics")
+        check_keys(table, tuple(CANONICAL_WINDOWS), "metrics")
+        for name, bounds in table.items():
+            windows[name] = metric_window(bounds, f"metrics.{name}")
+    return windows
+
+
 def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
     """Keyword arguments of :func:`hpdob.simulate` from a parsed TOML document.
 
@@ -151,6 +172,7 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
         raise ParameterValueError(
             f"missing required key {missing[0]}; a scenario needs {', '.join(REQUIRED)}"
         )
+    metric_windows(data)  # checked here; read with metric_windows() / load_metric_windows()
     # Top-level scalars are checked here, with simulate()'s messages, not at run time.
     kwargs = {
         "Ts": positive(data["Ts"], "Ts", "a positive finite sampling period [s]"),
@@ -243,7 +265,7 @@ def load_sweep(path) -> tuple[dict, dict]:
     check_keys(options, SWEEP_KEYS, "sweep")
     base = scenario_from_dict(data, build_observer=False)
     base.pop("label", None)
-    return base, dict(options)
+    return base, {**options, "metric_windows": metric_windows(data)}
 
 
 def load_scenario(path) -> dict:
@@ -252,3 +274,9 @@ def load_scenario(path) -> dict:
     kwargs = scenario_from_dict(_read_toml(path))
     kwargs.setdefault("label", path.stem)
     return kwargs
+
+
+def load_metric_windows(path) -> dict:
+    """The metric windows of a TOML scenario file (its ``[metrics]`` table, see
+    :func:`metric_windows`), as keyword arguments of :meth:`SimulationResult.metrics`."""
+    return metric_windows(_read_toml(Path(path)))

@@ -17,6 +17,7 @@ from ._controller import PD
 from ._devices import Actuator, Encoder
 from ._model import ServoModel
 from ._observer import DisturbanceObserver
+from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import (
     PLANT_TYPES,
     _observer_arrays,
@@ -124,6 +125,21 @@ def _resolve_base(base) -> dict:
     return resolved
 
 
+def _metric_windows(windows) -> dict:
+    resolved = dict(CANONICAL_WINDOWS)
+    if windows is None:
+        return resolved
+    if not isinstance(windows, dict):
+        raise ParameterTypeError(
+            "metric_windows must be a dict like {'regulation': (1.2, 4.0), 'tracking': "
+            f"(4.0, inf)}} or None, got {type(windows).__name__}"
+        )
+    check_keys(windows, tuple(CANONICAL_WINDOWS), "metric_windows")
+    for name, bounds in windows.items():
+        resolved[name] = metric_window(bounds, f"metric_windows['{name}']")
+    return resolved
+
+
 def _scenario_parts(base: dict, params: dict):
     """Validated simulate() pieces of one scenario (raises Parameter*Error on bad values)."""
 
@@ -185,7 +201,7 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
     except (ParameterValueError, ParameterTypeError) as err:
         row.update(dict.fromkeys(METRIC_COLUMNS, math.nan), stable=False, error=str(err))
         return row
-    row.update(result.metrics())
+    row.update(result.metrics(**base["metric_windows"]))
     row["max_abs_position_error"] = result.max_abs_position_error()
     row["stable"] = not result.diverged
     row["error"] = result.message if result.diverged else ""
@@ -292,7 +308,17 @@ def _workers_and_mode(scheduler):
     )
 
 
-def sweep(base: dict, *, grid=None, vary=None, n=None, seed=0, scheduler=None, progress=None):
+def sweep(
+    base: dict,
+    *,
+    grid=None,
+    vary=None,
+    n=None,
+    seed=0,
+    metric_windows=None,
+    scheduler=None,
+    progress=None,
+):
     """Run many closed-loop scenarios and return one row of parameters and metrics each.
 
     Parameters
@@ -317,6 +343,10 @@ def sweep(base: dict, *, grid=None, vary=None, n=None, seed=0, scheduler=None, p
     seed : int, optional
         Seed of all draws (``numpy.random.default_rng``). Same seed, same rows, bit for bit,
         locally or on a cluster.
+    metric_windows : dict, optional
+        ``{"regulation": (start, stop), "tracking": (start, stop)}`` [s]: the windows of the
+        position metrics (:meth:`SimulationResult.metrics`); missing entries keep the
+        canonical windows (1.2-4 s and 4 s-inf).
     scheduler : None, int, str or dask.distributed.Client, optional
         None or ``"threads"``: all local cores (threads; the compiled kernel releases the GIL).
         An int: that many local threads. ``"tcp://host:port"`` or a ``Client``: run chunks of
@@ -358,6 +388,7 @@ def sweep(base: dict, *, grid=None, vary=None, n=None, seed=0, scheduler=None, p
             "hpdob.sweep returns a pandas DataFrame: pip install 'hpdob[sweep]'"
         ) from err
     resolved = _resolve_base(base)
+    resolved["metric_windows"] = _metric_windows(metric_windows)
     scenarios = expand_scenarios(grid, vary, n, seed)
     workers, mode = _workers_and_mode(scheduler)
     # Validate the shared part once, loudly, before spending time on scenarios.

@@ -33,10 +33,11 @@ def _run(args: argparse.Namespace) -> int:
     import warnings
 
     from .._result import metrics_json
-    from .._scenario import load_scenario
+    from .._scenario import load_metric_windows, load_scenario
     from .._simulate import SimulationDivergedWarning, simulate
 
     kwargs = load_scenario(args.scenario)
+    windows = load_metric_windows(args.scenario)
     out = args.out or Path("hpdob-results") / args.scenario.stem
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SimulationDivergedWarning)  # reported below instead
@@ -44,7 +45,7 @@ def _run(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     stem = result.label or args.scenario.stem
     result.to_csv(out / f"{stem}.csv")
-    metrics = result.metrics()
+    metrics = result.metrics(**windows)
     (out / "metrics.json").write_text(metrics_json({stem: metrics}))
     if not args.no_plot:
         import matplotlib
