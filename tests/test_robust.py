@@ -194,6 +194,24 @@ def test_friction_map_with_zero_friction_on_the_grid():
         plt.close(smap.plot())  # linear axis when 0 is on the grid
 
 
+def test_unsorted_grids_are_rejected():
+    # boundary() brackets crossings between neighbouring grid values and names their kind from
+    # their order: a reversed grid used to turn the HPDOb's small-inertia limit at 100 rad/s
+    # (stable above J/J_n = 0.09517, docs/analysis.md section 6, so "lower") into an "upper"
+    # one. The map's axes must therefore increase strictly.
+    kw = {"order": 1, "nominal": NOMINAL, "Ts": TS, "controller": PDC}
+    grid = np.geomspace(0.05, 0.3, 6)
+    (edge,) = robust_stability_map(J_ratio=grid, bandwidth=[100.0], **kw).boundary()
+    assert edge["kind"] == "lower" and edge["J_ratio"] == pytest.approx(0.0952, rel=1e-3)
+    for bad in (grid[::-1], [0.1, 0.3, 0.2], [0.1, 0.2, 0.2]):
+        with pytest.raises(ParameterValueError, match=r"^J_ratio must be strictly increasing"):
+            robust_stability_map(J_ratio=bad, bandwidth=[100.0], **kw)
+    with pytest.raises(ParameterValueError, match=r"^b must be strictly increasing, got \[1\."):
+        robust_stability_map(J_ratio=1.0, b=[1.0, 0.0], bandwidth=[100.0], **kw)
+    with pytest.raises(ParameterValueError, match=r"^bandwidth must be strictly increasing"):
+        robust_stability_map(J_ratio=grid, bandwidth=[400.0, 100.0], **kw)
+
+
 def test_bad_arguments():
     kw = {"bandwidth": [100.0], "order": 1, "nominal": NOMINAL, "Ts": TS, "controller": PDC}
     with pytest.raises(ParameterValueError, match="J_ratio must hold at least one value"):

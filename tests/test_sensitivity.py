@@ -12,6 +12,7 @@ from hpdob import (
     Actuator,
     Encoder,
     ServoModel,
+    closed_loop,
     closed_loop_poles,
     design_observer,
     estimation_response,
@@ -77,6 +78,9 @@ def test_loop_gain_and_gang_of_four_from_independent_pieces(order, delay):
         (fr(g4.S), S),
         (fr(g4.PS), P_th * S),
         (fr(g4.CS), K_th * S),
+        (fr(g4.T), L * S),  # T = L/(1 + L)
+        # ... = a/tau_ext: the actuator torque a is the closed loop's command u delayed
+        (z_d * fr(closed_loop(**kw)["u", "tau_ext"]), L * S),
     ]
     for mine, independent in pairs:
         # Above 1 Hz they agree to 1e-6 or better; at 0.3 Hz, where |L| reaches 1e8 with the

@@ -30,7 +30,7 @@ import numpy as np
 
 from ._observer import DisturbanceObserver
 from ._synthesis import ObserverDesign, characteristic_polynomial
-from ._validation import ParameterTypeError, ParameterValueError, as_real_vector
+from ._validation import ParameterTypeError, as_grid
 
 __all__ = [
     "as_design",
@@ -189,17 +189,6 @@ def estimation_transfer(observer, *, error: bool = False):
     return control.tf(num, P, design.model.Ts, inputs=["tau_dn"], outputs=[output])
 
 
-def _frequencies(frequency, name: str = "frequency") -> np.ndarray:
-    values = as_real_vector(np.atleast_1d(frequency), name, "frequencies [Hz], >= 0")
-    if values.size == 0:
-        raise ParameterValueError(f"{name} must hold at least one frequency [Hz], got []")
-    if np.any(values < 0):
-        raise ParameterValueError(
-            f"{name} must be non-negative frequencies [Hz], got {float(values[values < 0][0])!r}"
-        )
-    return values
-
-
 def estimation_response(observer, frequency, *, error: bool = False) -> np.ndarray:
     r"""Complex frequency response of :func:`estimation_transfer` at ``frequency`` [Hz].
 
@@ -235,7 +224,7 @@ def estimation_response(observer, frequency, *, error: bool = False) -> np.ndarr
     (1+0j)
     """
     design = as_design(observer)
-    f = _frequencies(frequency)
+    f = as_grid(frequency, "frequency", "non-negative frequencies [Hz]", allow_zero=True)
     z = np.exp(2j * math.pi * f * design.model.Ts)
     # Factored forms: (z - 1)^(m+1) / prod(z - p_i). Expanded polynomials would cancel
     # catastrophically near z = 1, where 1 - Q is tiny.

@@ -19,10 +19,10 @@ from ._loop import LoopSpec, loop_matrices
 from ._model import ServoModel
 from ._synthesis import design_observer
 from ._table import columns_to_csv, columns_to_pandas
-from ._tradeoff import positive_grid
 from ._validation import (
     ParameterTypeError,
     ParameterValueError,
+    as_grid,
     as_int,
     as_real_vector,
     nonnegative,
@@ -81,9 +81,9 @@ class StabilityMap:
         ``"J_ratio"`` (true/nominal inertia) or ``"b"`` (true viscous friction [N m s/rad]):
         the quantity varied along the vertical axis.
     values : ndarray
-        Its grid.
+        Its grid (strictly increasing).
     bandwidths : ndarray
-        Observer bandwidths [rad/s].
+        Observer bandwidths [rad/s] (strictly increasing).
     spectral_radius : ndarray, shape (len(values), len(bandwidths))
         Largest closed-loop eigenvalue magnitude.
     order : int
@@ -236,17 +236,15 @@ class StabilityMap:
 
 
 def _grid_or_scalar(value, name: str, what: str, *, allow_zero: bool):
-    """``(array, is_grid)``: a scalar stays a 0-d value, a sequence becomes a checked grid."""
+    """``(array, is_grid)``: a scalar stays a 0-d value, a sequence becomes a checked grid.
+
+    A grid must be strictly increasing: :meth:`StabilityMap.boundary` brackets each crossing
+    between neighbouring grid values and names its kind from their order.
+    """
     if np.ndim(value) == 0:
         check = nonnegative if allow_zero else positive
         return np.array(check(value, name, what)), False
-    grid = as_real_vector(value, name, what)
-    if grid.size == 0:
-        raise ParameterValueError(f"{name} must hold at least one value ({what}), got []")
-    bad = grid[grid < 0] if allow_zero else grid[grid <= 0]
-    if bad.size:
-        raise ParameterValueError(f"{name} must be {what}, got {float(bad[0])!r} in {name}")
-    return grid, True
+    return as_grid(value, name, what, allow_zero=allow_zero, increasing=True), True
 
 
 def robust_stability_map(
@@ -273,9 +271,10 @@ def robust_stability_map(
     Parameters
     ----------
     J_ratio : float or array_like, optional
-        True/nominal inertia ratio(s) ``J / J_n``, positive. Default 1.
+        True/nominal inertia ratio(s) ``J / J_n``, positive; a grid must be strictly
+        increasing. Default 1.
     bandwidth : array_like
-        Observer bandwidths [rad/s], positive (the horizontal axis).
+        Observer bandwidths [rad/s], positive and strictly increasing (the horizontal axis).
     order : int
         Observer truncation order ``m >= 0``.
     nominal : ServoModel
@@ -284,7 +283,8 @@ def robust_stability_map(
         Sampling period [s].
     controller : PD
     b : float or array_like, optional
-        True viscous friction(s) [N m s/rad], >= 0. Default: ``nominal.b``.
+        True viscous friction(s) [N m s/rad], >= 0; a grid must be strictly increasing.
+        Default: ``nominal.b``.
     delay_samples : int, optional
         Actuator delay [samples] the observer does not know. Default 0.
     gain_direction : sequence of 2 floats, optional
@@ -300,8 +300,9 @@ def robust_stability_map(
     Raises
     ------
     TypeError, ValueError
-        Naming the parameter: empty grids, non-positive ratios or bandwidths, negative
-        friction, grids for both ``J_ratio`` and ``b`` (or for neither), a wrong order.
+        Naming the parameter: empty or not strictly increasing grids, non-positive ratios or
+        bandwidths, negative friction, grids for both ``J_ratio`` and ``b`` (or for neither), a
+        wrong order.
 
     References
     ----------
@@ -349,7 +350,9 @@ def robust_stability_map(
             "give a grid (a 1-D sequence) for exactly one of J_ratio and b, the other a "
             f"scalar; got {given}"
         )
-    bandwidths = positive_grid(bandwidth, "bandwidth", "positive observer bandwidths [rad/s]")
+    bandwidths = as_grid(
+        bandwidth, "bandwidth", "positive observer bandwidths [rad/s]", increasing=True
+    )
     setting = _Setting(
         nominal=nominal,
         Ts=Ts,

@@ -1,17 +1,23 @@
 r"""Sensitivity functions (gang of four) and stability margins of the loop at the plant input.
 
 The loop is cut where the DOb closes it and where inertia, friction and actuator errors enter:
-at the plant input. With :math:`a` the torque the plant receives, the loop gain is
-:math:`L = -a/a_{in}` when the plant is driven by :math:`a_{in}` instead (PD and observer both
-in place, references and noise zero), and for an input disturbance :math:`d = -\tau_{ext}`:
+at the plant input. Let :math:`a` be the torque the actuator delivers (the command ``u``,
+delayed by the actuator's delay if any); the plant is driven by :math:`a - \tau_{ext}`. For the
+loop gain the connection from :math:`a` to the plant is broken: the plant is driven by an
+external :math:`a_{in}` instead (PD and observer in place, the observer still reading ``u``;
+references, noise and :math:`\tau_{ext}` zero), and :math:`L = -a/a_{in}`. Closing
+:math:`a_{in} = a` restores the loop. With the input disturbance :math:`d = -\tau_{ext}`, so
+that the plant receives :math:`a + d`:
 
 .. math::
 
-    S = \frac{1}{1 + L} = \frac{a + d}{d},\quad T = 1 - S,\quad
+    S = \frac{1}{1 + L} = \frac{a + d}{d},\quad
+    T = \frac{L}{1 + L} = 1 - S = -\frac{a}{d} = \frac{a}{\tau_{ext}},\quad
     PS = \frac{\theta}{d},\quad CS = -\frac{u}{n_\theta}.
 
-With a position-only measurement these are the usual gang of four of Åström & Murray; here the
-controller also reads the velocity, so ``CS`` is the response of the command to position noise.
+With a position-only measurement these are the usual gang of four of Åström & Murray (input
+disturbance added to the control signal, :math:`T = -a/d`); here the controller also reads the
+velocity, so ``CS`` is the response of the command to position noise.
 """
 
 from __future__ import annotations
@@ -55,7 +61,9 @@ def gang_of_four(
 
         - ``S`` input sensitivity :math:`1/(1+L)`: total plant torque per input disturbance
           :math:`d = -\tau_{ext}` (dimensionless);
-        - ``T = 1 - S``, complementary sensitivity: torque the actuator delivers per ``d``;
+        - ``T`` complementary sensitivity :math:`L/(1+L) = 1 - S`: torque the actuator
+          delivers per external torque, :math:`a/\tau_{ext} = -a/d` (dimensionless; where
+          ``T = 1`` the actuator cancels the external torque);
         - ``PS`` load sensitivity: position per input disturbance [rad/(N m)];
         - ``CS`` noise sensitivity: command per position-measurement noise, with the sign of
           :math:`C/(1+PC)` [N m/rad].

@@ -22,25 +22,14 @@ from ._table import columns_to_csv, columns_to_pandas
 from ._validation import (
     ParameterTypeError,
     ParameterValueError,
+    as_grid,
     as_int,
-    as_real_vector,
     check_choice,
     positive,
     readonly,
 )
 
 __all__ = ["NoiseTradeoff", "noise_tradeoff"]
-
-
-def positive_grid(values, name: str, what: str) -> np.ndarray:
-    """A non-empty 1-D grid of positive finite values, as a new float array."""
-    grid = as_real_vector(np.atleast_1d(values), name, what)
-    if grid.size == 0:
-        raise ParameterValueError(f"{name} must hold at least one value ({what}), got []")
-    bad = grid[grid <= 0]
-    if bad.size:
-        raise ParameterValueError(f"{name} must be {what}, got {float(bad[0])!r} in {name}")
-    return grid
 
 
 @dataclass(frozen=True, eq=False)
@@ -237,7 +226,7 @@ def noise_tradeoff(
         raise ParameterValueError(
             f"frequency must be below the Nyquist frequency 1/(2 Ts) = {0.5 / Ts:g} Hz, got {f!r}"
         )
-    grid = positive_grid(bandwidths, "bandwidths", "positive observer bandwidths [rad/s]")
+    grid = as_grid(bandwidths, "bandwidths", "positive observer bandwidths [rad/s]")
     if isinstance(orders, (str, bytes)) or not hasattr(orders, "__iter__"):
         raise ParameterTypeError(f"orders must be a sequence of integers, got {orders!r}")
     ms = tuple(
