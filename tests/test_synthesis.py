@@ -331,3 +331,11 @@ def test_unrealisable_poles_are_rejected(paper_model, order, bandwidth):
 def test_realisable_high_orders_are_stable(paper_model, order, bandwidth):
     design = design_observer(paper_model, order=order, bandwidth=bandwidth)
     assert np.max(np.abs(np.linalg.eigvals(design.error_matrix))) < 1.0
+
+
+@pytest.mark.parametrize("order", [0, 1, 2, 5])
+def test_unit_root_polynomial(order):
+    from hpdob._synthesis import unit_root_polynomial
+
+    # (z - 1)^{m+1} from its roots, highest power first; ours is ascending.
+    np.testing.assert_array_equal(unit_root_polynomial(order)[::-1], np.poly(np.ones(order + 1)))

@@ -15,7 +15,7 @@ import re
 import struct
 from pathlib import Path
 
-from ._observer import DisturbanceObserver
+from ._observer import as_design
 from ._synthesis import ObserverDesign
 from ._validation import ParameterTypeError, ParameterValueError, check_choice
 from ._version import __version__
@@ -29,16 +29,6 @@ DTYPES = ("double", "float")
 MAX_PREFIX = 31 - len("_estimate")
 _IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
 _ORDER_NAMES = {0: "conventional DOb, paper eqs. 9-13", 1: "HPDOb, paper eqs. 14-24"}
-
-
-def _design_of(obs) -> ObserverDesign:
-    if isinstance(obs, DisturbanceObserver):
-        return obs.design
-    if isinstance(obs, ObserverDesign):
-        return obs
-    raise ParameterTypeError(
-        f"obs must be a DisturbanceObserver or an ObserverDesign, got {type(obs).__name__}"
-    )
 
 
 def _check_prefix(prefix) -> str:
@@ -312,7 +302,7 @@ void {prefix}_update({prefix}_state *s, {dtype} theta, {dtype} omega, {dtype} u)
 
 def render_c(obs, *, prefix: str = "dob", dtype: str = "double") -> tuple[str, str]:
     """Text of ``<prefix>.h`` and ``<prefix>.c`` for ``obs``; see :func:`export_c`."""
-    design = _design_of(obs)
+    design = as_design(obs, "obs")
     dtype = check_choice(dtype, "dtype", DTYPES)
     prefix = _check_prefix(prefix)
     return _header(design, prefix, dtype), _source(design, prefix, dtype)
@@ -392,7 +382,7 @@ def export_c(obs, directory, *, prefix: str = "dob", dtype: str = "double") -> t
     axis1.h axis1.c
     True
     """
-    design = _design_of(obs)
+    design = as_design(obs, "obs")
     dtype = check_choice(dtype, "dtype", DTYPES)
     prefix = _check_prefix(prefix)
     path = _check_directory(directory)

@@ -24,8 +24,8 @@ import numpy as np
 
 from ._controller import PD
 from ._devices import Actuator, Encoder
-from ._lti import as_design
 from ._model import DiscreteServoModel, ServoModel
+from ._observer import as_design, check_designed_on
 from ._synthesis import ObserverDesign
 from ._validation import ParameterValueError, positive, require_instance
 
@@ -78,13 +78,7 @@ def loop_spec(*, plant, nominal, Ts, controller, observer=None, sensor=None, act
     design = None
     if observer is not None:
         design = as_design(observer, "observer")
-        model = design.model
-        if (model.J, model.b, model.Ts) != (nominal.J, nominal.b, Ts):
-            raise ParameterValueError(
-                "observer must be designed on nominal.discretize(Ts): its model has "
-                f"J={model.J}, b={model.b}, Ts={model.Ts} but nominal has J={nominal.J}, "
-                f"b={nominal.b} and Ts={Ts}"
-            )
+        check_designed_on(design, nominal, Ts)
     return LoopSpec(
         plant=plant.discretize(Ts),
         J_n=nominal.J,

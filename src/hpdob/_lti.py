@@ -28,12 +28,11 @@ import math
 
 import numpy as np
 
-from ._observer import DisturbanceObserver
-from ._synthesis import ObserverDesign, characteristic_polynomial
+from ._observer import as_design
+from ._synthesis import ObserverDesign, characteristic_polynomial, unit_root_polynomial
 from ._validation import ParameterTypeError, as_grid
 
 __all__ = [
-    "as_design",
     "estimation_response",
     "estimation_transfer",
     "observer_statespace",
@@ -42,17 +41,6 @@ __all__ = [
 #: Input and output names of :func:`observer_statespace`.
 OBSERVER_INPUTS = ("theta", "omega", "u")
 OBSERVER_OUTPUT = "tau_hat"
-
-
-def as_design(observer, name: str = "observer") -> ObserverDesign:
-    """Return the :class:`ObserverDesign` of a ``DisturbanceObserver`` or a design itself."""
-    if isinstance(observer, DisturbanceObserver):
-        return observer.design
-    if isinstance(observer, ObserverDesign):
-        return observer
-    raise ParameterTypeError(
-        f"{name} must be a DisturbanceObserver or an ObserverDesign, got {type(observer).__name__}"
-    )
 
 
 def observer_matrices(design: ObserverDesign):
@@ -125,7 +113,7 @@ def _polynomials(design: ObserverDesign) -> tuple[np.ndarray, np.ndarray]:
     """``(P, E)``: ``det(zI - M)`` and ``(z - 1)^{m+1}``, highest power first."""
     m = design.order
     P = characteristic_polynomial(design.k)
-    E = np.array([math.comb(m + 1, j) * (-1.0) ** j for j in range(m + 2)])
+    E = unit_root_polynomial(m)[::-1]
     return P, E
 
 

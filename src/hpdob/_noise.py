@@ -22,7 +22,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ._loop import INPUTS, OUTPUTS, loop_matrices, loop_spec
-from ._lti import as_design, observer_matrices
+from ._lti import observer_matrices
+from ._observer import as_design
 from ._validation import ParameterValueError, check_choice
 
 __all__ = ["NoiseGains", "noise_gains", "observer_noise_gain"]

@@ -6,9 +6,30 @@ import numpy as np
 
 from . import _core
 from ._synthesis import ObserverDesign, design_observer
-from ._validation import ParameterTypeError
+from ._validation import ParameterTypeError, ParameterValueError
 
-__all__ = ["DisturbanceObserver"]
+__all__ = ["DisturbanceObserver", "as_design", "check_designed_on"]
+
+
+def as_design(observer, name: str = "observer") -> ObserverDesign:
+    """Return the :class:`ObserverDesign` of a ``DisturbanceObserver`` or a design itself."""
+    if isinstance(observer, DisturbanceObserver):
+        return observer.design
+    if isinstance(observer, ObserverDesign):
+        return observer
+    raise ParameterTypeError(
+        f"{name} must be a DisturbanceObserver or an ObserverDesign, got {type(observer).__name__}"
+    )
+
+
+def check_designed_on(design: ObserverDesign, nominal, Ts: float, name: str = "observer") -> None:
+    """Raise unless ``design`` was synthesised on ``nominal.discretize(Ts)`` (same J, b, Ts)."""
+    model = design.model
+    if (model.J, model.b, model.Ts) != (nominal.J, nominal.b, Ts):
+        raise ParameterValueError(
+            f"{name} must be designed on nominal.discretize(Ts): its model has J={model.J}, "
+            f"b={model.b}, Ts={model.Ts} but nominal has J={nominal.J}, b={nominal.b} and Ts={Ts}"
+        )
 
 
 class DisturbanceObserver:

@@ -16,7 +16,7 @@ from ._kernel import SENSOR_ENCODER_DIFFERENCE, SENSOR_ENCODER_EXACT, SENSOR_IDE
 from ._model import ServoModel
 from ._mujoco import MujocoServo
 from ._mujoco_loop import run_mujoco_loop
-from ._observer import DisturbanceObserver
+from ._observer import DisturbanceObserver, check_designed_on
 from ._result import SimulationResult
 from ._signals import Signal, trajectory
 from ._synthesis import ObserverDesign
@@ -161,13 +161,7 @@ def _observer_arrays(observer, nominal: ServoModel, Ts: float, x0):
             "observer must be a DisturbanceObserver, an ObserverDesign or "
             f"None, got {type(observer).__name__}"
         )
-    model = design.model
-    if (model.J, model.b, model.Ts) != (nominal.J, nominal.b, Ts):
-        raise ParameterValueError(
-            "observer must be designed on nominal.discretize(Ts): its model has "
-            f"J={model.J}, b={model.b}, "
-            f"Ts={model.Ts} but nominal has J={nominal.J}, b={nominal.b} and Ts={Ts}"
-        )
+    check_designed_on(design, nominal, Ts)
     return design, state
 
 

@@ -60,6 +60,13 @@ def extrapolation_weights(order: int) -> np.ndarray:
     return np.array([(-1.0) ** (m + 1 - i) * math.comb(m + 1, i - 1) for i in range(1, m + 2)])
 
 
+def unit_root_polynomial(order: int) -> np.ndarray:
+    r"""Coefficients of :math:`(z-1)^{m+1}` (``order = m``), **ascending** powers of ``z``:
+    :math:`\binom{m+1}{j}(-1)^{m+1-j}` for ``j = 0..m+1``."""
+    n = order + 1
+    return np.array([math.comb(n, j) * (-1.0) ** (n - j) for j in range(n + 1)])
+
+
 def _companion(order: int) -> np.ndarray:
     n = order + 1
     C = np.zeros((n, n))
@@ -111,7 +118,7 @@ def characteristic_polynomial(k) -> np.ndarray:
     m = k.size - 1
     ascending = np.zeros(m + 2)
     ascending[: m + 1] = _characteristic_basis(m) @ k
-    ascending += np.array([math.comb(m + 1, j) * (-1.0) ** (m + 1 - j) for j in range(m + 2)])
+    ascending += unit_root_polynomial(m)
     return ascending[::-1]
 
 
@@ -331,8 +338,7 @@ def design_observer(
 
     desired = np.real(np.poly(placed)) if placed.size else np.array([1.0])
     # desired (highest power first, monic, degree m+1) minus (z-1)^{m+1}, ascending powers.
-    binomial = np.array([math.comb(m + 1, j) * (-1.0) ** (m + 1 - j) for j in range(m + 2)])
-    rhs = desired[::-1][: m + 1] - binomial[: m + 1]
+    rhs = desired[::-1][: m + 1] - unit_root_polynomial(m)[: m + 1]
     k = np.linalg.solve(_characteristic_basis(m), rhs)
 
     G = np.outer(k, unit / dD)
