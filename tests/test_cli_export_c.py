@@ -1,0 +1,89 @@
+"""Tests of ``hpdob export-c`` and of the C example in examples/c (the library itself is
+tested in test_export_c.py)."""
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from hpdob import ServoModel, design_observer, export_c
+from hpdob._c_harness import find_compiler
+from hpdob._cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+DTYPES = ("double", "float")
+
+needs_cc = pytest.mark.skipif(
+    find_compiler() is None,
+    reason="no C compiler (gcc, or $CC) is installed, so the generated C cannot be built",
+)
+
+
+# -- command line and the C example --------------------------------------------------------
+def test_cli_export_matches_library(capsys, tmp_path):
+    argv = [
+        "export-c",
+        "--J",
+        "3.06e-4",
+        "--b",
+        "5e-5",
+        "--order",
+        "2",
+        "--bandwidth",
+        "150",
+        "--gain-direction",
+        "0,1",
+        "--prefix",
+        "axis",
+        "--dtype",
+        "float",
+        "-o",
+        str(tmp_path / "cli"),
+    ]
+    code = main(argv)
+    out, err = capsys.readouterr()
+    assert code == 0 and err == ""
+    paths = [Path(line) for line in out.splitlines()]
+    assert paths == [tmp_path / "cli" / "axis.h", tmp_path / "cli" / "axis.c"]
+    design = design_observer(
+        ServoModel(3.06e-4, 5e-5).discretize(1e-3),
+        order=2,
+        bandwidth=150.0,
+        gain_direction=(0, 1),
+    )
+    expected = export_c(design, tmp_path / "lib", prefix="axis", dtype="float")
+    assert [p.read_text() for p in paths] == [p.read_text() for p in expected]
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["--prefix", "9lives"], "prefix must be a C identifier"),
+        (["--dtype", "half"], "dtype must be one of 'double', 'float'; got 'half'"),
+        (["--order", "-1"], "order must be a non-negative integer"),
+    ],
+)
+def test_cli_bad_arguments_one_line_exit_2(capsys, tmp_path, argv, needle):
+    code = main(["export-c", "-o", str(tmp_path / "x"), *argv])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and needle in err
+    assert not (tmp_path / "x").exists()
+
+
+@needs_cc
+@pytest.mark.skipif(shutil.which("make") is None, reason="make is not installed")
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_c_example_builds_and_runs(tmp_path, dtype):
+    example = tmp_path / "c"
+    shutil.copytree(
+        ROOT / "examples" / "c", example, ignore=shutil.ignore_patterns("main", "dob.*", "*.args")
+    )
+    cmd = ["make", f"HPDOB={sys.executable} -m hpdob", f"DTYPE={dtype}"]
+    done = subprocess.run(cmd, cwd=example, capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert f"order 1 observer in {dtype}" in done.stdout
+    assert "with the observer" in done.stdout
+    assert (example / "dob.h").exists() and (example / "main").exists()
