@@ -277,8 +277,10 @@ def design_observer(
     ValueError
         If ``order < 0``, both or neither of ``poles``/``bandwidth`` are given, a pole is not
         strictly inside the unit circle or lacks its conjugate, the number of poles is not
-        ``order + 1``, ``bandwidth <= 0``, or ``gain_direction`` is (nearly) orthogonal to
-        ``D_Dn``.
+        ``order + 1``, ``bandwidth <= 0``, ``gain_direction`` is zero or (nearly) orthogonal
+        to ``D_Dn``, or the computed error matrix is not stable although the requested poles
+        are (high orders or repeated poles very close to 1: the gains, rounded to double
+        precision, no longer place them).
 
     Notes
     -----
