@@ -187,3 +187,18 @@ def test_bad_arguments_exit_2_with_one_line(capsys, tmp_path, argv, message):
 def test_analysis_is_required(capsys):
     code, _, err = run(capsys, "analyze")
     assert code == 2 and "ANALYSIS" in err
+
+
+def test_stability_grids_in_any_order(capsys, tmp_path):
+    # A grid on the command line is a set of values: descending or unsorted input gives the
+    # map of the sorted grid (the library itself requires increasing axes).
+    maps = []
+    for values, bandwidths in (("0.2,0.5,1.5", "100,400"), ("1.5,0.2,0.5,0.5", "400,100")):
+        out = tmp_path / values
+        code, _, _ = run(
+            capsys, "analyze", "stability", "--orders", "1", "--values", values,
+            "--bandwidths", bandwidths, "--out", str(out), "--dpi", "30",
+        )  # fmt: skip
+        assert code == 0
+        maps.append(json.loads((out / "stability.json").read_text())["maps"])
+    assert maps[0] == maps[1]

@@ -104,3 +104,26 @@ def test_plot(result):
 def test_metrics_json_is_strict():
     text = metrics_json({"run": {"a": 1.0, "b": math.nan}})
     assert json.loads(text) == {"run": {"a": 1.0, "b": None}}
+
+
+@pytest.mark.parametrize(
+    ("bounds", "error", "pattern"),
+    [
+        (["1", "4"], TypeError, r"^tracking must be a \(start, stop\) pair of times \[s\], got"),
+        ([True, 4.0], TypeError, r"^tracking must be a \(start, stop\) pair .*bool entry"),
+        ("14", TypeError, r"^tracking must be a \(start, stop\) pair .*of type str"),
+        (
+            (1.0, 2.0, 3.0),
+            ValueError,
+            r"^tracking must be a \(start, stop\) pair .*\(1.0, 2.0, 3.0\)",
+        ),
+        ((4.0, 1.0), ValueError, r"^tracking must have start < stop \[s\], got \(4.0, 1.0\)"),
+        ((math.nan, 1.0), ValueError, r"^tracking must have start < stop"),
+    ],
+)
+def test_bad_metric_windows(bounds, error, pattern):
+    from hpdob._result import metric_window
+
+    with pytest.raises(error, match=pattern):
+        metric_window(bounds, "tracking")
+    assert metric_window((1, math.inf), "tracking") == (1.0, math.inf)

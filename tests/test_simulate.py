@@ -96,11 +96,14 @@ def test_default_substeps_follow_the_coulomb_stiffness():
     assert default_substeps(plant.replace(coulomb_velocity=1e-3), 1e-3) == 66
     assert default_substeps(plant.replace(coulomb_velocity=1e-4), 1e-3) == 654
     assert default_substeps(plant.replace(coulomb=0.0), 1e-3) == DEFAULT_SUBSTEPS
+    # c/(v J) overflows to inf: a clear error, not ZeroDivisionError/OverflowError
+    with pytest.raises(ValueError, match=r"^plant Coulomb friction is too stiff .*= inf for"):
+        default_substeps(ServoModel(1e-200, coulomb=1.0, coulomb_velocity=1e-200), 1e-3)
 
 
 def test_stiff_coulomb_friction_converges():
     """With v = 1e-3 the friction is 10x stiffer than canonical; 8 sub-steps (h c/(v J) = 4,
-    beyond the midpoint rule's stability limit of 2) get the estimation error wrong by ~4x,
+    beyond the midpoint rule's stability limit of 2) overestimate the estimation error ~2.3x,
     the default (66) must agree with twice as many sub-steps to 0.1 %."""
     plant = canonical_scenario()["plant"].replace(coulomb_velocity=1e-3)
 
@@ -111,7 +114,7 @@ def test_stiff_coulomb_friction_converges():
     for metric, value in default.items():
         assert fine[metric] == pytest.approx(value, rel=1e-3), metric
     coarse = metrics(substeps=DEFAULT_SUBSTEPS)
-    assert coarse["rms_estimation_error"] > 2 * fine["rms_estimation_error"]
+    assert coarse["rms_estimation_error"] > 1.8 * fine["rms_estimation_error"]
 
 
 def test_run_length_is_capped():

@@ -290,3 +290,11 @@ def test_metric_windows():
         sweep(base(2.0), metric_windows={"settle": (0, 1)}, progress=False)
     with pytest.raises(ValueError, match=r"^metric_windows\['tracking'\] must have start < stop"):
         sweep(base(2.0), metric_windows={"tracking": (1, 0)}, progress=False)
+
+
+def test_base_duration_is_checked_per_scenario_when_Ts_varies():
+    # 0.5 s is no multiple of the base Ts = 0.3 ms, but every scenario has its own Ts.
+    rows = sweep({**base(0.5), "Ts": 3e-4}, grid={"Ts": [1e-3, 5e-4]}, progress=False)
+    assert rows["stable"].all() and (rows["error"] == "").all()
+    with pytest.raises(ValueError, match=r"^duration must be a positive multiple of Ts"):
+        sweep({**base(0.5), "Ts": 3e-4}, grid={"observer.order": [0]}, progress=False)

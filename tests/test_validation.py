@@ -19,7 +19,17 @@ from hpdob._validation import (
 
 
 @pytest.mark.parametrize(
-    "value", ["1.0", b"1", ["1", "2"], [True, False], np.array([1 + 1j, 2]), [[1, 2], [3]]]
+    "value",
+    [
+        None,
+        "1.0",
+        b"1",
+        ["1", "2"],
+        [True, False],
+        [0.5, True],
+        np.array([1 + 1j, 2]),
+        [[1, 2], [3]],
+    ],
 )
 def test_real_vectors_reject_text_bools_complex_and_ragged(value):
     with pytest.raises(ParameterTypeError, match=r"^x must be a vector, got "):

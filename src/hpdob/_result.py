@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._validation import ParameterValueError
+from ._validation import ParameterValueError, numeric_array
 
 __all__ = [
     "CANONICAL_WINDOWS",
@@ -60,14 +60,11 @@ def metrics_json(metrics: dict) -> str:
 
 def metric_window(bounds, name: str) -> tuple[float, float]:
     """``bounds`` as a ``(start, stop)`` window [s] with ``start < stop`` (stop may be inf)."""
-    try:
-        if isinstance(bounds, (str, bytes)):  # not a pair of numbers, even with two characters
-            raise TypeError
-        lo, hi = (float(v) for v in bounds)
-    except (TypeError, ValueError):
-        raise ParameterValueError(
-            f"{name} must be a (start, stop) pair of times [s], got {bounds!r}"
-        ) from None
+    what = "a (start, stop) pair of times [s]"
+    pair = numeric_array(bounds, name, what)
+    if pair.shape != (2,):
+        raise ParameterValueError(f"{name} must be {what}, got {bounds!r}")
+    lo, hi = float(pair[0]), float(pair[1])
     if not lo < hi:
         raise ParameterValueError(f"{name} must have start < stop [s], got {bounds!r}")
     return lo, hi

@@ -65,8 +65,15 @@ def default_substeps(plant: ServoModel, Ts: float) -> int:
     the explicit midpoint rule only integrates accurately for ``h c / (v J) <= 0.5``
     (``tests/test_simulate.py::test_stiff_coulomb_friction_converges``).
     """
-    stiffness = plant.coulomb / (plant.coulomb_velocity * plant.J)  # [1/s]
-    return max(DEFAULT_SUBSTEPS, 2 * math.ceil(Ts * stiffness / (2.0 * _COULOMB_STEP)))
+    c, v, J = plant.coulomb, plant.coulomb_velocity, plant.J
+    per_sample = Ts * (c / v / J) if c > 0.0 else 0.0  # Ts times the stiffness [1/s]
+    if not per_sample <= MAX_PLANT_STEPS:  # also inf (overflow)
+        raise ParameterValueError(
+            f"plant Coulomb friction is too stiff to integrate: Ts c/(v J) = {per_sample:.3g} "
+            f"for coulomb={c!r} N m, coulomb_velocity={v!r} rad/s, J={J!r} kg m^2 would need "
+            f"more than {MAX_PLANT_STEPS:.0e} sub-steps per sample; raise coulomb_velocity"
+        )
+    return max(DEFAULT_SUBSTEPS, 2 * math.ceil(per_sample / (2.0 * _COULOMB_STEP)))
 
 
 def resolve_substeps(plant, Ts: float, substeps) -> int:

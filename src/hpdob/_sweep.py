@@ -91,7 +91,7 @@ def _observer_spec(observer) -> dict | None:
     return dict(observer)
 
 
-def _resolve_base(base) -> dict:
+def _resolve_base(base, *, varies_Ts: bool = False) -> dict:
     if not isinstance(base, dict):
         raise ParameterTypeError(
             f"base must be a dict of simulate() arguments, got {type(base).__name__}"
@@ -110,7 +110,8 @@ def _resolve_base(base) -> dict:
     # every scenario (per-scenario values are checked again in run_scenario).
     Ts = positive(base["Ts"], "Ts", "a positive finite sampling period [s]")
     duration = positive(base["duration"], "duration", "a positive finite duration [s]")
-    _sample_count(Ts, duration)
+    if not varies_Ts:  # else checked per scenario, against that scenario's Ts
+        _sample_count(Ts, duration)
     substeps = base.get("substeps")  # None: per scenario, the default or a MujocoServo's own
     if substeps is not None:
         substeps = as_int(
@@ -387,7 +388,8 @@ def sweep(
         raise ImportError(
             "hpdob.sweep returns a pandas DataFrame: pip install 'hpdob[sweep]'"
         ) from err
-    resolved = _resolve_base(base)
+    varies_Ts = "Ts" in (grid or {}) or "Ts" in (vary or {})
+    resolved = _resolve_base(base, varies_Ts=varies_Ts)
     resolved["metric_windows"] = _metric_windows(metric_windows)
     scenarios = expand_scenarios(grid, vary, n, seed)
     workers, mode = _workers_and_mode(scheduler)

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from fractions import Fraction
 
 import numpy as np
 
@@ -27,6 +28,7 @@ from ._model import DiscreteServoModel, ServoModel
 from ._validation import (
     ParameterTypeError,
     ParameterValueError,
+    _show,
     as_int,
     as_real_vector,
     numeric_array,
@@ -42,6 +44,8 @@ __all__ = [
     "extrapolation_weights",
 ]
 
+#: Highest truncation order: binom(m+1, i) < 2**53 stays exact in double precision.
+MAX_ORDER = 50
 #: Relative tolerance for matching complex-conjugate partners.
 _PAIR_RTOL = 1e-9
 #: gain directions with |d^T D| <= _DEGENERATE * |d| |D| are rejected.
@@ -155,6 +159,39 @@ def _validate_poles(poles, order: int) -> np.ndarray:
     if np.all(values.imag == 0.0):
         return values.real.copy()
     return values
+
+
+def _schur_stable(k: np.ndarray) -> bool:
+    r"""True if every eigenvalue of ``M = C - k e_{m+1}^T`` lies strictly inside the unit circle,
+    decided exactly for the double-precision gains ``k``.
+
+    Eigenvalues computed in floating point cannot decide this for near-defective ``M``
+    (an ``(m+1)``-fold pole moves by ~``eps^(1/(m+1))``), so the characteristic polynomial
+    :math:`(z-1)^{m+1} + \sum_j k_j q_j(z)` is built in exact rational arithmetic and tested by
+    the Schur-Cohn recursion: with :math:`|c_0| < |c_n|`, :math:`p` is stable iff
+    :math:`(c_n p(z) - c_0 z^n p(1/z)) / z` is (e.g. Marden, *Geometry of Polynomials*, §42).
+    """
+    if not np.all(np.isfinite(k)):
+        return False
+    m = k.size - 1
+    Q = _characteristic_basis(m)
+    gains = [Fraction(float(v)) for v in k]
+    c = [
+        int(base) + sum((int(Q[i, j]) * gains[j] for j in range(m + 1)), Fraction(0))
+        for i, base in enumerate(unit_root_polynomial(m)[: m + 1])
+    ]
+    c.append(Fraction(1))  # ascending coefficients of the monic degree-(m+1) polynomial
+    while len(c) > 1:
+        n = len(c) - 1
+        if abs(c[0]) >= abs(c[n]):
+            return False
+        reduced = [c[n] * c[i] - c[0] * c[n - i] for i in range(1, n + 1)]
+        c = [v / reduced[-1] for v in reduced]  # monic again: keeps the numbers small
+    return True
+
+
+def _show_k(k: np.ndarray) -> str:
+    return np.array2string(np.asarray(k), threshold=6, precision=6)
 
 
 def _fmt_pole(p: complex) -> str:
@@ -278,9 +315,9 @@ def design_observer(
         If ``order < 0``, both or neither of ``poles``/``bandwidth`` are given, a pole is not
         strictly inside the unit circle or lacks its conjugate, the number of poles is not
         ``order + 1``, ``bandwidth <= 0``, ``gain_direction`` is zero or (nearly) orthogonal
-        to ``D_Dn``, or the computed error matrix is not stable although the requested poles
-        are (high orders or repeated poles very close to 1: the gains, rounded to double
-        precision, no longer place them).
+        to ``D_Dn``, ``order > 50``, or the error matrix is not stable although the requested
+        poles are (high orders or repeated poles very close to 1: the gains, rounded to
+        double precision, no longer place them; decided exactly by a Schur-Cohn test).
 
     Notes
     -----
@@ -310,6 +347,11 @@ def design_observer(
     if not isinstance(model, DiscreteServoModel):
         raise ParameterTypeError(f"model must be a DiscreteServoModel, got {type(model).__name__}")
     m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
+    if m > MAX_ORDER:
+        raise ParameterValueError(
+            f"order must be at most {MAX_ORDER}: the extrapolation weights binom(m+1, i) of "
+            f"higher orders are not exact in double precision, got {m}"
+        )
     if (poles is None) == (bandwidth is None):
         given = "both" if poles is not None else "neither"
         raise ParameterValueError(
@@ -345,12 +387,12 @@ def design_observer(
 
     G = np.outer(k, unit / dD)
     M = error_matrix(k)
-    radius = float(np.max(np.abs(np.linalg.eigvals(M))))
-    if not radius < 1.0:  # also catches NaN from overflowing gains
+    if not _schur_stable(k):
+        asked = f"bandwidth={g_out!r} rad/s" if g_out is not None else f"poles={_show(poles)}"
         raise ParameterValueError(
-            f"poles cannot be realised for order {m} in double precision: the computed error "
-            f"matrix has spectral radius {radius:.6g} >= 1 (requested max |p| = "
-            f"{float(np.max(np.abs(placed))):.6g}); high orders and repeated poles near 1 are "
+            f"{asked} cannot be realised for order {m} in double precision: with the gains "
+            f"rounded to doubles, k = {_show_k(k)}, the error matrix is not stable (an eigenvalue "
+            f"has |z| >= 1, exact Schur-Cohn test); high orders and repeated poles near 1 are "
             f"too ill-conditioned. Use a lower order, a higher bandwidth or distinct poles"
         )
     A, B = np.asarray(model.A), np.asarray(model.B)

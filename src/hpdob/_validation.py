@@ -136,10 +136,12 @@ def numeric_array(value: object, name: str, what: str, *, dtype=float) -> np.nda
     Strings, bytes, booleans and (for ``dtype=float``) complex numbers are rejected rather
     than parsed or silently truncated.
     """
-    if isinstance(value, (str, bytes)):
+    if value is None or isinstance(value, (str, bytes)):
         raise ParameterTypeError(
             f"{name} must be {what}, got {_show(value)} of type {type(value).__name__}"
         )
+    if isinstance(value, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in value):
+        raise ParameterTypeError(f"{name} must be {what}, got {_show(value)} with a bool entry")
     try:
         raw = np.asarray(value)
     except (TypeError, ValueError):

@@ -370,6 +370,8 @@ def _stability(args) -> list[str]:
     values = args.values
     if values is None:
         values = _grid("0.1:10:61") if args.parameter == "J_ratio" else _grid("1e-4:10:61")
+    # Map axes must increase; on the command line a grid is a set of values (10:1:5 or 3,1,2).
+    values, bandwidths = sorted(set(values)), sorted(set(args.bandwidths))
     grid = (
         {"J_ratio": values, "b": args.b}
         if args.parameter == "J_ratio"
@@ -379,7 +381,7 @@ def _stability(args) -> list[str]:
     for m in args.orders:
         smap = robust_stability_map(
             **grid,
-            bandwidth=args.bandwidths,
+            bandwidth=bandwidths,
             order=m,
             nominal=ServoModel(args.J_n, args.b_n),
             Ts=args.Ts,
