@@ -200,7 +200,7 @@ def simulate(
 
     Parameters
     ----------
-    plant : ServoModel or a MujocoServo
+    plant : ServoModel or MujocoServo
         The true motor: a :class:`ServoModel` (``J``, ``b``, ``coulomb``,
         ``coulomb_velocity``) integrated by hpdob, or a :class:`MujocoServo` integrated by
         MuJoCo (its dry friction is MuJoCo's ``frictionloss``; see docs/mujoco.md).

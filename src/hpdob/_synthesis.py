@@ -169,7 +169,9 @@ def _schur_stable(k: np.ndarray) -> bool:
     (an ``(m+1)``-fold pole moves by ~``eps^(1/(m+1))``), so the characteristic polynomial
     :math:`(z-1)^{m+1} + \sum_j k_j q_j(z)` is built in exact rational arithmetic and tested by
     the Schur-Cohn recursion: with :math:`|c_0| < |c_n|`, :math:`p` is stable iff
-    :math:`(c_n p(z) - c_0 z^n p(1/z)) / z` is (e.g. Marden, *Geometry of Polynomials*, §42).
+    :math:`(c_n p(z) - c_0 z^n p(1/z)) / z` is (the Schur-Cohn reduction, as in Jury's
+    stability test for discrete-time systems). Cross-checked against ``np.roots`` in
+    ``tests/test_synthesis.py``.
     """
     if not np.all(np.isfinite(k)):
         return False
