@@ -127,3 +127,13 @@ def test_bad_metric_windows(bounds, error, pattern):
     with pytest.raises(error, match=pattern):
         metric_window(bounds, "tracking")
     assert metric_window((1, math.inf), "tracking") == (1.0, math.inf)
+
+
+def test_rms_of_huge_values_does_not_overflow():
+    from hpdob._result import _rms
+
+    # sqrt(mean(x^2)) of [3e200, 4e200]: x^2 overflows, the answer 3.5355e200 does not
+    assert _rms(np.array([3e200, 4e200])) == pytest.approx(math.sqrt(12.5) * 1e200, rel=1e-15)
+    assert _rms(np.array([3.0, 4.0])) == pytest.approx(math.sqrt(12.5), rel=1e-15)
+    assert _rms(np.zeros(3)) == 0.0
+    assert math.isnan(_rms(np.array([])))

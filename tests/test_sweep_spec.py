@@ -69,7 +69,8 @@ def test_grid_times_draws():
         (
             {"vary": {"plant.J": ("gamma", 1, 2)}, "n": 2},
             r"vary\['plant.J'\] must be one of \('uniform', low, high\); \('normal', mean, "
-            r"standard deviation\); .*got \('gamma', 1, 2\)",
+            r"standard deviation\); \('loguniform', low, high \(0 < low\)\); "
+            r"got \('gamma', 1, 2\)$",
         ),
         ({"vary": {"plant.J": ("uniform", 2, 1)}, "n": 2}, r"uniform needs low < high"),
         ({"vary": {"plant.J": ("normal", 2, 0)}, "n": 2}, r"positive standard deviation"),

@@ -71,7 +71,13 @@ def metric_window(bounds, name: str) -> tuple[float, float]:
 
 
 def _rms(values: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(values**2))) if values.size else math.nan
+    """Root mean square, scaled so that huge values of a diverged run do not overflow."""
+    if not values.size:
+        return math.nan
+    scale = float(np.max(np.abs(values)))
+    if not 0.0 < scale < math.inf:
+        return scale  # all zero, or inf/nan in the trace
+    return scale * float(np.sqrt(np.mean((values / scale) ** 2)))
 
 
 @dataclass(frozen=True, eq=False)

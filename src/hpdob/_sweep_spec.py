@@ -22,9 +22,9 @@ PATHS = (
 )  # fmt: skip
 #: Random distributions for ``vary``: name -> meaning of its two parameters.
 DISTRIBUTIONS = {
-    "uniform": "(low, high)",
-    "normal": "(mean, standard deviation)",
-    "loguniform": "(low, high) with 0 < low",
+    "uniform": "low, high",
+    "normal": "mean, standard deviation",
+    "loguniform": "low, high (0 < low)",
 }
 
 
@@ -54,7 +54,7 @@ def _draw(path: str, spec, n: int, rng: np.random.Generator) -> np.ndarray:
     if path == "observer.order":
         raise ParameterValueError("vary cannot draw 'observer.order' (an integer): put it in grid")
     if not isinstance(spec, (tuple, list)) or len(spec) != 3 or spec[0] not in DISTRIBUTIONS:
-        listed = "; ".join(f"({name!r}, {args[1:-1]})" for name, args in DISTRIBUTIONS.items())
+        listed = "; ".join(f"({name!r}, {args})" for name, args in DISTRIBUTIONS.items())
         raise ParameterValueError(f"vary[{path!r}] must be one of {listed}; got {spec!r}")
     name = spec[0]
     a = as_real(spec[1], f"vary[{path!r}] first parameter", "a finite number")
