@@ -59,7 +59,7 @@ static double run(int compensate, int verbose)
         if (t >= 1.5 && fabs(theta - reference) > worst) {
             worst = fabs(theta - reference);
         }
-        if (verbose && k % 250 == 0) {
+        if (verbose && k % 300 == 0) {
             printf("%5.2f s  theta = %8.5f rad  load = %7.4f N m  tau_hat = %8.5f N m\n", t,
                    theta, load_torque(t), tau_hat);
         }
