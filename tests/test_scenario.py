@@ -81,7 +81,7 @@ def edit(change):
         ),
         (
             lambda d: d["observer"].update(poles=[0.9, 0.9]),
-            r"^observer\.give exactly one|^observer\..*exactly one",
+            r"^observer: give exactly one of poles .* got both$",
         ),
         (lambda d: d["observer"].pop("order"), r"^missing required key observer\.order"),
         (

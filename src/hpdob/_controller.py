@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 
 from ._validation import ParameterTypeError, nonnegative
 
@@ -40,6 +40,7 @@ class PD:
 
     kp: float
     kd: float
+    _: KW_ONLY
     feedforward: bool = True
 
     def __post_init__(self):

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 
 from ._validation import (
     ParameterValueError,
@@ -42,6 +42,7 @@ class Encoder:
     """
 
     counts_per_rev: int
+    _: KW_ONLY
     velocity: str = "backward-difference"
     noise_std: float = 0.0
     seed: int | None = None
@@ -91,6 +92,7 @@ class Actuator:
         Delay [samples], >= 0.
     """
 
+    _: KW_ONLY
     torque_limit: float | None = None
     delay_samples: int = 0
 

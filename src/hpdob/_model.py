@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import KW_ONLY, dataclass, field
 
 import numpy as np
 
@@ -60,6 +60,7 @@ class ServoModel:
 
     J: float
     b: float = 0.0
+    _: KW_ONLY
     coulomb: float = 0.0
     coulomb_velocity: float = 0.01
 

@@ -69,10 +69,14 @@ REQUIRED = ("Ts", "duration", "plant", "nominal", "controller", "reference")
 SWEEP_KEYS = ("grid", "vary", "n", "seed")
 
 
-def _prefixed(key: str, err: Exception) -> Exception:
-    """Re-raise a validation error with its parameter name qualified by ``key``."""
+def _prefixed(key: str, err: Exception, names) -> Exception:
+    """Re-raise a validation error with its parameter name qualified by ``key``
+    (``J must be ...`` from ``[plant]`` becomes ``plant.J must be ...``); a message that does
+    not start with one of the table's ``names`` is prefixed as ``key: message``."""
     cls = ParameterTypeError if isinstance(err, TypeError) else ParameterValueError
-    return cls(f"{key}.{err}")
+    text = str(err)
+    first = text.split(" ", 1)[0].split("[", 1)[0]
+    return cls(f"{key}.{text}" if first in names else f"{key}: {text}")
 
 
 def _table(data: dict, key: str) -> dict:
@@ -95,7 +99,7 @@ def _build(cls, fields: dict, key: str, allowed=None, required=None):
     try:
         return cls(**fields)
     except (ParameterTypeError, ParameterValueError) as err:
-        raise _prefixed(key, err) from None
+        raise _prefixed(key, err, allowed) from None
 
 
 def _signal(spec, key: str):
