@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._table import columns_to_csv, columns_to_pandas
 from ._validation import ParameterValueError, numeric_array
 
 __all__ = [
@@ -191,13 +192,7 @@ class SimulationResult:
     # -- export -----------------------------------------------------------------------------
     def to_csv(self, path) -> Path:
         """Write the traces to ``path`` as CSV (header row, full float precision)."""
-        path = Path(path)
-        data = np.column_stack([getattr(self, name) for name in COLUMNS])
-        with path.open("w", newline="") as handle:
-            writer = csv.writer(handle)
-            writer.writerow(list(COLUMNS))
-            writer.writerows([repr(float(v)) for v in row] for row in data)
-        return path
+        return columns_to_csv(self._columns(), path)
 
     @classmethod
     def from_csv(cls, path, *, label: str = "") -> SimulationResult:
@@ -219,14 +214,10 @@ class SimulationResult:
 
     def to_pandas(self):
         """The traces as a :class:`pandas.DataFrame` (needs pandas: ``pip install pandas``)."""
-        try:
-            import pandas as pd
-        except ImportError as err:  # pragma: no cover - depends on the environment
-            raise ImportError(
-                "SimulationResult.to_pandas() needs pandas; install it with "
-                "`pip install pandas` or `pip install hpdob[pandas]`"
-            ) from err
-        return pd.DataFrame({name: getattr(self, name) for name in COLUMNS})
+        return columns_to_pandas(self._columns(), caller="SimulationResult.to_pandas()")
+
+    def _columns(self) -> dict:
+        return {name: getattr(self, name) for name in COLUMNS}
 
     def plot(self, *, title: str | None = None):
         """Figure with position vs reference, disturbance and estimate, and estimation error.

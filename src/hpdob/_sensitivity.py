@@ -175,12 +175,14 @@ def loop_transfer(*, plant, nominal, Ts, controller, observer=None, sensor=None,
         sensor=sensor,
         actuator=actuator,
     )
+    return control.ss(*_broken_loop(spec), spec.plant.Ts, inputs=["a_in"], outputs=["L"])
+
+
+def _broken_loop(spec):
+    """``(A, B, C, D)`` of the loop transfer ``L = -a / a_in`` (loop broken at the actuator)."""
     A, B, C, D, inputs, _ = loop_matrices(spec, broken=True)
-    j = inputs.index("a_in")
-    i = _OUT["a"]
-    return control.ss(
-        A, B[:, [j]], -C[[i]], -D[[i]][:, [j]], spec.plant.Ts, inputs=["a_in"], outputs=["L"]
-    )
+    j, i = inputs.index("a_in"), _OUT["a"]
+    return A, B[:, [j]], -C[[i]], -D[[i]][:, [j]]
 
 
 @dataclass(frozen=True)
@@ -322,10 +324,7 @@ def loop_margins(
         sensor=sensor,
         actuator=actuator,
     )
-    A, B, C, D, inputs, _ = loop_matrices(spec, broken=True)
-    j, i = inputs.index("a_in"), _OUT["a"]
-    # L = -a / a_in
-    Ab, Bb, Cb, Db = A, B[:, [j]], -C[[i]], -D[[i]][:, [j]]
+    Ab, Bb, Cb, Db = _broken_loop(spec)
     dt = spec.plant.Ts
     w_nyq = math.pi / dt
     n = int(_GRID_PER_DECADE * math.log10(w_nyq / _W_MIN)) + 1

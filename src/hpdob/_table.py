@@ -30,13 +30,13 @@ def columns_to_csv(columns: dict, path) -> Path:
     return path
 
 
-def columns_to_pandas(columns: dict):
-    """The columns as a ``pandas.DataFrame`` (needs pandas)."""
+def columns_to_pandas(columns: dict, *, caller: str = "to_pandas()"):
+    """The columns as a ``pandas.DataFrame`` (needs pandas; ``caller`` names the method)."""
     try:
         import pandas as pd
     except ImportError as err:  # pragma: no cover - depends on the environment
         raise ImportError(
-            "to_pandas() needs pandas; install it with `pip install pandas` or "
+            f"{caller} needs pandas; install it with `pip install pandas` or "
             "`pip install hpdob[pandas]`"
         ) from err
     return pd.DataFrame(columns)
