@@ -16,14 +16,12 @@ from ._model import ServoModel
 from ._observer import DisturbanceObserver
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._signals import Chirp, Constant, Noise, Ramp, Sine, SmoothStep, Step
+from ._simulate import check_run_arguments
 from ._validation import (
     ParameterTypeError,
     ParameterValueError,
-    as_int,
-    as_real_vector,
     check_choice,
     check_keys,
-    positive,
 )
 
 if sys.version_info >= (3, 11):
@@ -178,21 +176,13 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
         )
     metric_windows(data)  # checked here; read with metric_windows() / load_metric_windows()
     # Top-level scalars are checked here, with simulate()'s messages, not at run time.
-    kwargs = {
-        "Ts": positive(data["Ts"], "Ts", "a positive finite sampling period [s]"),
-        "duration": positive(data["duration"], "duration", "a positive finite duration [s]"),
-    }
+    Ts, duration, substeps, x0 = check_run_arguments(
+        data["Ts"], data["duration"], data.get("substeps"), data.get("x0", (0.0, 0.0))
+    )
+    kwargs = {"Ts": Ts, "duration": duration}
     if "substeps" in data:
-        kwargs["substeps"] = as_int(
-            data["substeps"],
-            "substeps",
-            "a positive integer number of sub-steps per sample",
-            minimum=1,
-        )
+        kwargs["substeps"] = substeps
     if "x0" in data:
-        x0 = as_real_vector(
-            data["x0"], "x0", "an initial state [theta (rad), omega (rad/s)]", length=2
-        )
         kwargs["x0"] = tuple(x0.tolist())
     if "label" in data:
         if not isinstance(data["label"], str):

@@ -76,14 +76,23 @@ def default_substeps(plant: ServoModel, Ts: float) -> int:
     return max(DEFAULT_SUBSTEPS, 2 * math.ceil(per_sample / (2.0 * _COULOMB_STEP)))
 
 
-def resolve_substeps(plant, Ts: float, substeps) -> int:
-    """Plant steps per sample: ``substeps``; by default :func:`default_substeps` for a
-    :class:`ServoModel`, ``Ts/timestep`` for a :class:`MujocoServo` with its own MuJoCo
-    time step, else :data:`DEFAULT_SUBSTEPS`."""
+def check_run_arguments(Ts, duration, substeps=None, x0=(0.0, 0.0)):
+    """``(Ts, duration, substeps, x0)`` checked with :func:`simulate`'s messages: two positive
+    floats [s], a positive int or None, and a new float array ``[theta, omega]``."""
+    Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
+    duration = positive(duration, "duration", "a positive finite duration [s]")
     if substeps is not None:
         substeps = as_int(
             substeps, "substeps", "a positive integer number of sub-steps per sample", minimum=1
         )
+    x0 = as_real_vector(x0, "x0", "an initial state [theta (rad), omega (rad/s)]", length=2)
+    return Ts, duration, substeps, x0
+
+
+def resolve_substeps(plant, Ts: float, substeps: int | None) -> int:
+    """Plant steps per sample: ``substeps`` (checked by :func:`check_run_arguments`); by
+    default :func:`default_substeps` for a :class:`ServoModel`, ``Ts/timestep`` for a
+    :class:`MujocoServo` with its own MuJoCo time step, else :data:`DEFAULT_SUBSTEPS`."""
     if isinstance(plant, MujocoServo):
         substeps = plant.steps_per_sample(Ts, substeps)
         return DEFAULT_SUBSTEPS if substeps is None else substeps
@@ -266,14 +275,12 @@ def simulate(
     """
     plant = require_instance(plant, PLANT_TYPES, "plant")
     nominal = require_instance(nominal, ServoModel, "nominal")
-    Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
-    duration = positive(duration, "duration", "a positive finite duration [s]")
+    Ts, duration, substeps, x0 = check_run_arguments(Ts, duration, substeps, x0)
     n = _sample_count(Ts, duration)
     controller = require_instance(controller, PD, "controller")
     sensor = require_instance(sensor, Encoder, "sensor", optional=True)
     actuator = require_instance(actuator, Actuator, "actuator", optional=True) or Actuator()
     S = resolve_substeps(plant, Ts, substeps)
-    x0 = as_real_vector(x0, "x0", "an initial state [theta (rad), omega (rad/s)]", length=2)
     if not isinstance(label, str):
         raise ParameterTypeError(f"label must be a str, got {type(label).__name__}")
     design, z0 = _observer_arrays(observer, nominal, Ts, x0)

@@ -22,6 +22,7 @@ from ._simulate import (
     PLANT_TYPES,
     _observer_arrays,
     _sample_count,
+    check_run_arguments,
     resolve_substeps,
     run_prepared,
     sample_signals,
@@ -34,7 +35,6 @@ from ._validation import (
     as_int,
     as_real_vector,
     check_keys,
-    positive,
     require_instance,
 )
 
@@ -108,18 +108,12 @@ def _resolve_base(base, *, varies_Ts: bool = False) -> dict:
     resolved["observer"] = _observer_spec(base.get("observer"))
     # Shared arguments are checked here, once, so that a typo fails the call instead of
     # every scenario (per-scenario values are checked again in run_scenario).
-    Ts = positive(base["Ts"], "Ts", "a positive finite sampling period [s]")
-    duration = positive(base["duration"], "duration", "a positive finite duration [s]")
+    # substeps None: per scenario, the default or a MujocoServo's own
+    Ts, duration, substeps, x0 = check_run_arguments(
+        base["Ts"], base["duration"], base.get("substeps"), base.get("x0", (0.0, 0.0))
+    )
     if not varies_Ts:  # else checked per scenario, against that scenario's Ts
         _sample_count(Ts, duration)
-    substeps = base.get("substeps")  # None: per scenario, the default or a MujocoServo's own
-    if substeps is not None:
-        substeps = as_int(
-            substeps, "substeps", "a positive integer number of sub-steps per sample", minimum=1
-        )
-    x0 = as_real_vector(
-        base.get("x0", (0.0, 0.0)), "x0", "an initial state [theta (rad), omega (rad/s)]", length=2
-    )
     require_instance(base.get("sensor"), Encoder, "sensor", optional=True)
     require_instance(base.get("actuator"), Actuator, "actuator", optional=True)
     resolved.update(Ts=Ts, duration=duration, substeps=substeps, x0=tuple(x0.tolist()))
