@@ -13,6 +13,8 @@ import os
 import sys
 from concurrent.futures import ThreadPoolExecutor, as_completed
 
+import numpy as np
+
 from ._controller import PD
 from ._devices import Actuator, Encoder
 from ._model import ServoModel
@@ -33,7 +35,6 @@ from ._validation import (
     ParameterTypeError,
     ParameterValueError,
     as_int,
-    as_real_vector,
     check_keys,
     require_instance,
 )
@@ -170,7 +171,7 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
         plant, nominal, controller, Ts, design = _scenario_parts(base, params)
         S = resolve_substeps(plant, Ts, base["substeps"])
         n = _sample_count(Ts, base["duration"])
-        x0 = as_real_vector(base["x0"], "x0", "an initial state (theta, omega)", length=2)
+        x0 = np.array(base["x0"])  # checked once in _resolve_base, like sensor and actuator
         key = (Ts, n, S)
         signals = None if cache is None else cache.get(key)
         if signals is None:
@@ -180,16 +181,14 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
             if cache is not None:
                 cache[key] = signals
         design, z0 = _observer_arrays(design, nominal, Ts, x0)  # starts at x0, tau0 = 0
-        sensor = require_instance(base.get("sensor"), Encoder, "sensor", optional=True)
-        actuator = require_instance(base.get("actuator"), Actuator, "actuator", optional=True)
         result = run_prepared(
             plant=plant,
             nominal=nominal,
             controller=controller,
             design=design,
             z0=z0,
-            sensor=sensor,
-            actuator=actuator or Actuator(),
+            sensor=base.get("sensor"),
+            actuator=base.get("actuator") or Actuator(),
             x0=x0,
             signals=signals.scaled(float(params.get("disturbance_scale", 1.0))),
         )
