@@ -18,15 +18,7 @@ import time
 
 import numpy as np
 
-from hpdob import DisturbanceObserver, MujocoServo, ServoModel, simulate
-from hpdob._canonical import (
-    CONTROLLER,
-    PLANT,
-    REFERENCE,
-    TS,
-    canonical_observer,
-    canonical_scenario,
-)
+from hpdob import DisturbanceObserver, MujocoServo, ServoModel, paper, simulate
 from hpdob.signals import SmoothStep, Step
 
 METRICS = ("rms_estimation_error", "rms_position_error_regulation", "rms_position_error_tracking")
@@ -43,13 +35,13 @@ def cross_validation() -> None:
     head = ("run", "integrator", "substeps", "metrics", "theta", "time")
     print("{:10s} {:10s} {:>8s} {:>9s} {:>9s} {:>7s}".format(*head))
     for name in ("DOb-100", "HPDOb-100"):
-        kwargs = canonical_scenario()
-        kwargs["plant"] = PLANT.replace(coulomb=0.0)
-        kwargs["observer"] = canonical_observer(name)
+        kwargs = paper.scenario()
+        kwargs["plant"] = paper.PLANT.replace(coulomb=0.0)
+        kwargs["observer"] = paper.observer(name)
         for integrator in ("RK4", "Euler", "implicitfast"):
             for substeps in (4, 8, 16, 32):
                 reference, kernel_time = timed(**kwargs, substeps=substeps)
-                plant = MujocoServo(PLANT.J, PLANT.b, integrator=integrator)
+                plant = MujocoServo(paper.PLANT.J, paper.PLANT.b, integrator=integrator)
                 result, elapsed = timed(**{**kwargs, "plant": plant}, substeps=substeps)
                 want, got = reference.metrics(), result.metrics()
                 metric_gap = max(abs(got[k] - want[k]) / want[k] for k in METRICS)
@@ -64,20 +56,22 @@ def cross_validation() -> None:
 
 def pendulum() -> None:
     print("\n2. pendulum, 8 s: |tau_hat - gravity| [N m]")
-    plant = MujocoServo(PLANT.J, PLANT.b, link_mass=0.02, link_length=0.1)
-    nominal = ServoModel(plant.inertia, PLANT.b)
+    plant = MujocoServo(paper.PLANT.J, paper.PLANT.b, link_mass=0.02, link_length=0.1)
+    nominal = ServoModel(plant.inertia, paper.PLANT.b)
     print(f"{'bandwidth':>9s} {'order':>5s} {'rms':>9s} {'max':>9s} {'rms pos err (track)':>20s}")
     for bandwidth in (50.0, 100.0, 200.0):
         for order in (0, 1):
-            obs = DisturbanceObserver(nominal.discretize(TS), order=order, bandwidth=bandwidth)
+            obs = DisturbanceObserver(
+                nominal.discretize(paper.TS), order=order, bandwidth=bandwidth
+            )
             result = simulate(
                 plant=plant,
                 nominal=nominal,
-                Ts=TS,
+                Ts=paper.TS,
                 duration=8.0,
-                controller=CONTROLLER,
+                controller=paper.CONTROLLER,
                 observer=obs,
-                reference=REFERENCE,
+                reference=paper.REFERENCE,
             )
             error = result.tau_hat - plant.bias_torque(result.theta)
             print(
@@ -91,9 +85,9 @@ def friction() -> None:
     print("\n3a. canonical runs, tanh (hpdob) vs frictionloss (MuJoCo), 0.01 N m")
     print(f"{'run':10s} {'model':12s} " + " ".join(f"{m[4:]:>26s}" for m in METRICS))
     for name in ("PD", "DOb-50", "DOb-100", "DOb-200", "HPDOb-100"):
-        kwargs = {**canonical_scenario(), "observer": canonical_observer(name)}
+        kwargs = {**paper.scenario(), "observer": paper.observer(name)}
         tanh = simulate(**kwargs)
-        plant = MujocoServo(PLANT.J, PLANT.b, coulomb=PLANT.coulomb)
+        plant = MujocoServo(paper.PLANT.J, paper.PLANT.b, coulomb=paper.PLANT.coulomb)
         mujoco = simulate(**{**kwargs, "plant": plant})
         for label, result in (("tanh", tanh), ("frictionloss", mujoco)):
             m = result.metrics()
@@ -102,13 +96,13 @@ def friction() -> None:
     head = ("run", "model", "2-3 s", "5-6 s", "9-10 s", "est. err 9-10 s")
     print("{:10s} {:12s} {:>9s} {:>9s} {:>9s} {:>16s}".format(*head))
     for name in ("DOb-100", "HPDOb-100"):
-        kwargs = canonical_scenario()
+        kwargs = paper.scenario()
         kwargs.update(
             reference=SmoothStep(0.2, 1.2, 1.0),
             disturbance=Step(1.5005, 0.05),
-            observer=canonical_observer(name),
+            observer=paper.observer(name),
         )
-        plant = MujocoServo(PLANT.J, PLANT.b, coulomb=PLANT.coulomb)
+        plant = MujocoServo(paper.PLANT.J, paper.PLANT.b, coulomb=paper.PLANT.coulomb)
         for label, result in (
             ("tanh", simulate(**kwargs)),
             ("frictionloss", simulate(**{**kwargs, "plant": plant})),
@@ -128,9 +122,9 @@ def sweep_threads() -> None:
 
     print("\n4. sweep of 8 MuJoCo scenarios (2 s each, HPDOb, frictionloss)")
     base = {
-        **canonical_scenario(),
+        **paper.scenario(),
         "duration": 2.0,
-        "plant": MujocoServo(PLANT.J, PLANT.b, coulomb=PLANT.coulomb),
+        "plant": MujocoServo(paper.PLANT.J, paper.PLANT.b, coulomb=paper.PLANT.coulomb),
         "observer": {"order": 1, "bandwidth": 100.0},
     }
     grid = {"observer.bandwidth": [50.0 * i for i in range(1, 9)]}

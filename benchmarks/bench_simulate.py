@@ -20,8 +20,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from hpdob._canonical import canonical_observer, canonical_run, canonical_scenario
-from hpdob._simulate import DEFAULT_SUBSTEPS
+from hpdob import paper
+from hpdob.simulation._simulate import DEFAULT_SUBSTEPS
 from reference_loop import reference_loop
 
 
@@ -38,9 +38,9 @@ def linear_closed_loop():
     """The canonical HPDOb-100 loop as a discrete LTI system (python-control)."""
     import control
 
-    kw = canonical_scenario()
+    kw = paper.scenario()
     plant = kw["plant"].discretize(kw["Ts"])
-    design = canonical_observer("HPDOb-100").design
+    design = paper.observer("HPDOb-100").design
     J_n, kp, kd = kw["nominal"].J, kw["controller"].kp, kw["controller"].kd
     A, B, D = plant.A, plant.B, plant.D
     M, Kx, Ku, L = design.error_matrix, design.state_input, design.control_input, design.gains[-1]
@@ -72,10 +72,10 @@ def main() -> None:
         check=True,
     )
     print(f"import hpdob: {float(done.stdout) * 1e3:.0f} ms (fresh process)")
-    canonical_run("HPDOb-100")  # compile / load the cached kernel
-    t_a = best_of(lambda: canonical_run("HPDOb-100"), 30)
-    kw = canonical_scenario()
-    obs = canonical_observer("HPDOb-100")
+    paper.run("HPDOb-100")  # compile / load the cached kernel
+    t_a = best_of(lambda: paper.run("HPDOb-100"), 30)
+    kw = paper.scenario()
+    obs = paper.observer("HPDOb-100")
     t_b = best_of(lambda: reference_loop(**kw, observer=obs, substeps=DEFAULT_SUBSTEPS), 3)
     sys_cl = linear_closed_loop()
     t = np.arange(10_000) * kw["Ts"]

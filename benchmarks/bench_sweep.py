@@ -13,8 +13,7 @@ import time
 
 import numpy as np
 
-from hpdob import sweep
-from hpdob._canonical import canonical_scenario
+from hpdob import paper, sweep
 
 GRID = {
     "observer.order": [0, 1],
@@ -24,7 +23,7 @@ GRID = {
 
 
 def main() -> None:
-    base = {**canonical_scenario(), "observer": {"order": 1, "bandwidth": 100.0}}
+    base = {**paper.scenario(), "observer": {"order": 1, "bandwidth": 100.0}}
     sweep(base, grid={"observer.order": [0, 1]}, progress=False)  # warm the kernel
     scenarios = 2 * 25 * 4
     print(f"{'workers':>7}  {'scenarios':>9}  {'time [s]':>8}  {'Msamples/s':>10}")

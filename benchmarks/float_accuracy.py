@@ -3,7 +3,7 @@ drift on a continuously rotating axis.
 
 Part 1 (bound vs. measurement): orders 0-3, gain direction (1, 1), driven by the 10^5 random
 samples of tests/test_export_c.py (same seed) and by the canonical closed-loop runs
-(hpdob._canonical; orders 2 and 3 on the HPDOb-100 scenario): the largest float error, the
+(hpdob.paper._scenario; orders 2 and 3 on the HPDOb-100 scenario): the largest float error, the
 largest bound and the largest ratio error/bound over the samples.
 
 Part 2 (long runs):
@@ -38,10 +38,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hpdob import DisturbanceObserver, ServoModel, design_observer, export_c
-from hpdob._c_harness import CObserver
-from hpdob._canonical import canonical_run
-from hpdob._rounding import export_error_bound
+from hpdob import DisturbanceObserver, ServoModel, design_observer, export_c, paper
+from hpdob.testing._c_harness import CObserver
+from hpdob.testing._rounding import export_error_bound
 
 J_N, TS = 2.8e-4, 1e-3
 MODEL = ServoModel(J=J_N).discretize(TS)
@@ -102,7 +101,7 @@ def bound_vs_measured(workdir: Path) -> None:
         design = design_observer(MODEL, order=order, bandwidth=100.0)
         c = builds(design, workdir / f"bound{order}")
         name = {0: "DOb-100", 1: "HPDOb-100"}.get(order)
-        result = canonical_run(
+        result = paper.run(
             name or "HPDOb-100",
             **({} if name else {"observer": DisturbanceObserver.from_design(design)}),
         )

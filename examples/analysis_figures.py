@@ -28,20 +28,20 @@ from hpdob import (
     loop_margins,
     noise_gains,
     noise_tradeoff,
+    paper,
     robust_stability_map,
 )
-from hpdob._analysis_figures import bode_figure, noise_figure, order_name
-from hpdob._canonical import CONTROLLER, NOMINAL, TS, canonical_run
-from hpdob._model import ServoModel
+from hpdob.analysis._figures import bode_figure, noise_figure, order_name
+from hpdob.models._servo import ServoModel
 
 PLANT = ServoModel(3.06e-4, 5e-5)  # the canonical motor's linear part (Coulomb friction off)
-LOOP = {"plant": PLANT, "nominal": NOMINAL, "Ts": TS, "controller": CONTROLLER}
+LOOP = {"plant": PLANT, "nominal": paper.NOMINAL, "Ts": paper.TS, "controller": paper.CONTROLLER}
 ORDERS = (0, 1, 2, 3)
 DPI = 100
 
 
 def design(order, bandwidth=100.0):
-    return design_observer(NOMINAL.discretize(TS), order=order, bandwidth=bandwidth)
+    return design_observer(paper.NOMINAL.discretize(paper.TS), order=order, bandwidth=bandwidth)
 
 
 def save(fig, out: Path, name: str) -> None:
@@ -77,7 +77,7 @@ def bode(out: Path) -> None:
     for d in designs:
         lm = loop_margins(**LOOP, observer=d)
         lo, hi = lm.inertia_factor_range
-        ratio = PLANT.J / NOMINAL.J
+        ratio = PLANT.J / paper.NOMINAL.J
         print(
             f"| {order_name(d.order)} | {lm.gain_margin_lower:.3f}, {lm.gain_margin:.2f} | "
             f"{lo * ratio:.3f} – {hi * ratio:.2f} | {lm.phase_margin:.1f} at "
@@ -109,7 +109,7 @@ def noise(out: Path) -> None:
     g = noise_gains(
         **LOOP, observer=design(1), sensor=Encoder(16384), actuator=Actuator(delay_samples=1)
     )
-    ve, ideal = canonical_run("virtual-experiment"), canonical_run("HPDOb-100")
+    ve, ideal = paper.run("virtual-experiment"), paper.run("HPDOb-100")
     print(
         f"\nencoder (16384 counts, differenced velocity, 1-sample delay), HPDOb-100: "
         f"{g.tau_hat_position:.2f} N m/rad x q/sqrt(12) = "
@@ -121,7 +121,9 @@ def noise(out: Path) -> None:
 
 def tradeoff(out: Path) -> None:
     grid = np.unique(np.concatenate([np.geomspace(2.0, 3000.0, 141), [25, 50, 100, 200, 400]]))
-    table = noise_tradeoff(nominal=NOMINAL, Ts=TS, frequency=2.0, bandwidths=grid, orders=ORDERS)
+    table = noise_tradeoff(
+        nominal=paper.NOMINAL, Ts=paper.TS, frequency=2.0, bandwidths=grid, orders=ORDERS
+    )
     save(table.plot(), out, "analysis_tradeoff.png")
     print(
         "\n| DOb bandwidth [rad/s] | noise gain [N m/(rad/s)] | DOb error | "
@@ -161,7 +163,12 @@ def tradeoff(out: Path) -> None:
 def stability(out: Path) -> None:
     ratios, bandwidths = np.geomspace(0.1, 10.0, 61), np.geomspace(10.0, 2000.0, 61)
     frictions = np.geomspace(1e-4, 10.0, 61)
-    common = {"bandwidth": bandwidths, "nominal": NOMINAL, "Ts": TS, "controller": CONTROLLER}
+    common = {
+        "bandwidth": bandwidths,
+        "nominal": paper.NOMINAL,
+        "Ts": paper.TS,
+        "controller": paper.CONTROLLER,
+    }
     panels = [
         ("DOb", robust_stability_map(J_ratio=ratios, b=PLANT.b, order=0, **common)),
         ("HPDOb", robust_stability_map(J_ratio=ratios, b=PLANT.b, order=1, **common)),
@@ -173,12 +180,12 @@ def stability(out: Path) -> None:
         for m in (0, 1)
     ]
     friction = [
-        robust_stability_map(J_ratio=PLANT.J / NOMINAL.J, b=frictions, order=m, **common)
+        robust_stability_map(J_ratio=PLANT.J / paper.NOMINAL.J, b=frictions, order=m, **common)
         for m in (1, 2)
     ]
     for name, maps, point in (
-        ("analysis_stability_inertia.png", [p[1] for p in panels], PLANT.J / NOMINAL.J),
-        ("analysis_stability_delay.png", delayed, PLANT.J / NOMINAL.J),
+        ("analysis_stability_inertia.png", [p[1] for p in panels], PLANT.J / paper.NOMINAL.J),
+        ("analysis_stability_delay.png", delayed, PLANT.J / paper.NOMINAL.J),
         ("analysis_stability_friction.png", friction, PLANT.b),
     ):
         rows = math.ceil(len(maps) / 2)
@@ -204,7 +211,7 @@ def stability(out: Path) -> None:
             print(f"| J/J_n | {m} | {delay} | " + " | ".join(ranges(smap)) + " |")
     for m in ORDERS:
         smap = robust_stability_map(
-            J_ratio=PLANT.J / NOMINAL.J,
+            J_ratio=PLANT.J / paper.NOMINAL.J,
             b=frictions,
             order=m,
             **{**common, "bandwidth": TABLE_BANDWIDTHS},
@@ -243,14 +250,14 @@ def largest_stable_bandwidth(order: int, delay: int) -> float:
 
     def margin(log_g):
         smap = robust_stability_map(
-            J_ratio=[PLANT.J / NOMINAL.J],
+            J_ratio=[PLANT.J / paper.NOMINAL.J],
             b=PLANT.b,
             order=order,
             delay_samples=delay,
             bandwidth=[math.exp(log_g)],
-            nominal=NOMINAL,
-            Ts=TS,
-            controller=CONTROLLER,
+            nominal=paper.NOMINAL,
+            Ts=paper.TS,
+            controller=paper.CONTROLLER,
         )
         return float(smap.spectral_radius[0, 0]) - 1.0
 

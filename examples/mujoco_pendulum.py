@@ -24,8 +24,7 @@ matplotlib.use("Agg")  # no display needed
 import matplotlib.pyplot as plt
 import numpy as np
 
-from hpdob import DisturbanceObserver, MujocoServo, ServoModel, simulate
-from hpdob._canonical import CONTROLLER, PLANT, REFERENCE, TS
+from hpdob import DisturbanceObserver, MujocoServo, ServoModel, paper, simulate
 
 LINK_MASS, LINK_LENGTH = 0.02, 0.1  # kg, m
 OBSERVERS = {"DOb": 0, "HPDOb": 1}  # name -> truncation order
@@ -34,19 +33,21 @@ COLORS = {"DOb": "tab:green", "HPDOb": "tab:blue"}
 
 def run(duration: float, bandwidth: float) -> tuple[MujocoServo, dict]:
     """Simulate both observers on the MuJoCo pendulum; return the plant and the results."""
-    plant = MujocoServo(PLANT.J, PLANT.b, link_mass=LINK_MASS, link_length=LINK_LENGTH)
-    nominal = ServoModel(plant.inertia, PLANT.b)
+    plant = MujocoServo(paper.PLANT.J, paper.PLANT.b, link_mass=LINK_MASS, link_length=LINK_LENGTH)
+    nominal = ServoModel(plant.inertia, paper.PLANT.b)
     results = {}
     for name, order in OBSERVERS.items():
-        observer = DisturbanceObserver(nominal.discretize(TS), order=order, bandwidth=bandwidth)
+        observer = DisturbanceObserver(
+            nominal.discretize(paper.TS), order=order, bandwidth=bandwidth
+        )
         results[name] = simulate(
             plant=plant,
             nominal=nominal,
-            Ts=TS,
+            Ts=paper.TS,
             duration=duration,
-            controller=CONTROLLER,
+            controller=paper.CONTROLLER,
             observer=observer,
-            reference=REFERENCE,
+            reference=paper.REFERENCE,
             label=f"{name}-{bandwidth:g}",
         )
     return plant, results

@@ -18,7 +18,7 @@ from hpdob import (
     noise_tradeoff,
     robust_stability_map,
 )
-from hpdob._cli import main
+from hpdob.cli import main
 
 TS = 1e-3
 NOMINAL, PLANT, PDC = ServoModel(2.8e-4), ServoModel(3.06e-4, 5e-5), PD(50.0, 5.0)  # canonical

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from hpdob import ServoModel, design_observer
-from hpdob._cli import main
+from hpdob.cli import main
 
 
 def run(capsys, *argv):

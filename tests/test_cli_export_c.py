@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from hpdob import ServoModel, design_observer, export_c
-from hpdob._c_harness import find_compiler
-from hpdob._cli import main
+from hpdob.cli import main
+from hpdob.testing._c_harness import find_compiler
 
 ROOT = Path(__file__).resolve().parents[1]
 DTYPES = ("double", "float")

@@ -7,11 +7,10 @@ import sys
 
 import numpy as np
 
-from hpdob import Actuator, Encoder
-from hpdob._canonical import canonical_observer, canonical_scenario
-from hpdob._compiled import closed_loop_kernel
-from hpdob._kernel import run_closed_loop
-from hpdob._simulate import simulate
+from hpdob import Actuator, Encoder, paper
+from hpdob.simulation._compiled import closed_loop_kernel
+from hpdob.simulation._kernel import run_closed_loop
+from hpdob.simulation._simulate import simulate
 
 
 def test_import_hpdob_loads_no_heavy_modules():
@@ -32,16 +31,16 @@ def test_kernel_is_numba_compiled_with_cache():
 
 def test_compiled_equals_plain_python(monkeypatch):
     """Same inputs, bit-identical outputs: compiled vs the uncompiled Python function."""
-    kw = canonical_scenario()
+    kw = paper.scenario()
     kw.update(
         duration=0.6,
         sensor=Encoder(4096, noise_std=2e-4, seed=1),
         actuator=Actuator(torque_limit=0.06, delay_samples=1),
-        observer=canonical_observer("HPDOb-100"),
+        observer=paper.observer("HPDOb-100"),
         substeps=4,
     )
     compiled = simulate(**kw)
-    monkeypatch.setattr("hpdob._simulate.closed_loop_kernel", lambda: run_closed_loop)
+    monkeypatch.setattr("hpdob.simulation._simulate.closed_loop_kernel", lambda: run_closed_loop)
     plain = simulate(**kw)
     for name in ("theta", "omega", "u", "tau_hat", "tau_dn", "theta_measured"):
         np.testing.assert_array_equal(getattr(compiled, name), getattr(plain, name), err_msg=name)

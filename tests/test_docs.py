@@ -66,7 +66,7 @@ MODULES = sorted(
 
 @pytest.mark.parametrize("name", MODULES)
 def test_doctests(name):
-    if name.startswith("hpdob._mujoco"):
+    if name.startswith("hpdob.models._mujoco"):
         pytest.importorskip("mujoco")  # the [mujoco] extra (part of [test])
     module = importlib.import_module(name)
     result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)

@@ -1,7 +1,7 @@
 """Tests of hpdob.export_c: the generated C99 is compiled with gcc and driven side by side with
 the Python DisturbanceObserver. A double build must reproduce it bit for bit (and so within the
 issue's 1e-12); a float build must stay within the rounding-error bound derived in
-docs/deployment.md (hpdob._rounding), computed independently of the C code from the design.
+docs/deployment.md (hpdob.testing._rounding), computed independently of the C code from the design.
 """
 
 from __future__ import annotations
@@ -17,8 +17,10 @@ import numpy as np
 import pytest
 
 import hpdob
-from hpdob import DisturbanceObserver, ServoModel, design_observer, export_c
-from hpdob._c_harness import (
+from hpdob import DisturbanceObserver, ServoModel, design_observer, export_c, paper
+from hpdob._validation import ParameterTypeError, ParameterValueError
+from hpdob.export._c import render_c
+from hpdob.testing._c_harness import (
     STRICT_FLAGS,
     CBuildError,
     CObserver,
@@ -27,13 +29,12 @@ from hpdob._c_harness import (
     sanitized_run,
     sanitizer_available,
 )
-from hpdob._canonical import NOMINAL, TS, canonical_run
-from hpdob._export_c import render_c
-from hpdob._rounding import export_error_bound
-from hpdob._validation import ParameterTypeError, ParameterValueError
+from hpdob.testing._rounding import export_error_bound
 
 ROOT = Path(__file__).resolve().parents[1]
-MODEL = NOMINAL.discretize(TS)  # the canonical nominal model: J_n = 2.8e-4, b_n = 0, 1 ms
+MODEL = paper.NOMINAL.discretize(
+    paper.TS
+)  # the canonical nominal model: J_n = 2.8e-4, b_n = 0, 1 ms
 ORDERS = (0, 1, 2, 3)
 DTYPES = ("double", "float")
 N_RANDOM = 100_000
@@ -331,9 +332,9 @@ def canonical_traces():
         if name not in cache:
             if name.startswith("order-"):
                 obs = DisturbanceObserver(MODEL, order=order, bandwidth=100.0)
-                result = canonical_run("HPDOb-100", observer=obs, label=name)
+                result = paper.run("HPDOb-100", observer=obs, label=name)
             else:
-                result = canonical_run(name)
+                result = paper.run(name)
             assert not result.diverged
             cache[name] = result
         return cache[name]
@@ -451,11 +452,11 @@ def test_sanitizer_catches_a_planted_out_of_bounds_read(sanitizer, tmp_path):
 def rotation_trace(n, theta0, speed):
     """A trajectory of the nominal plant (b = 0) turning at ``speed`` +- 5 rad/s under the load
     0.05 + 0.02 sin(4 pi t) N m: omega is chosen, u and theta follow from eq. (8)."""
-    t = np.arange(n + 1) * TS
+    t = np.arange(n + 1) * paper.TS
     omega = speed + 5.0 * np.sin(2.0 * np.pi * t)
     tau = 0.05 + 0.02 * np.sin(4.0 * np.pi * t[:-1])
-    u = tau + NOMINAL.J * np.diff(omega) / TS
-    steps = np.cumsum(TS * (omega[:-1] + omega[1:]) / 2.0)
+    u = tau + paper.NOMINAL.J * np.diff(omega) / paper.TS
+    steps = np.cumsum(paper.TS * (omega[:-1] + omega[1:]) / 2.0)
     theta = theta0 + np.concatenate([[0.0], steps[:-1]])
     return theta, omega[:-1], u, (theta[0], omega[0], tau[0])
 

@@ -24,15 +24,8 @@ from hpdob import (  # noqa: E402
     MujocoServo,
     ServoModel,
     SimulationDivergedWarning,
+    paper,
     simulate,
-)
-from hpdob._canonical import (  # noqa: E402
-    CONTROLLER,
-    PLANT,
-    REFERENCE,
-    TS,
-    canonical_observer,
-    canonical_scenario,
 )
 from hpdob.signals import SmoothStep, Step  # noqa: E402
 
@@ -56,8 +49,8 @@ G = 9.81  # m/s^2, MuJoCo's default gravity
 
 def no_coulomb_scenario(**changes):
     """The canonical scenario with Coulomb friction removed from the plant."""
-    kwargs = canonical_scenario()
-    kwargs["plant"] = PLANT.replace(coulomb=0.0)
+    kwargs = paper.scenario()
+    kwargs["plant"] = paper.PLANT.replace(coulomb=0.0)
     kwargs.update(changes)
     return kwargs
 
@@ -119,7 +112,7 @@ def test_open_times_and_pickles():
 @pytest.mark.parametrize("name", ["DOb-100", "HPDOb-100"])
 def test_cross_validation_canonical(name):
     """No link, no Coulomb friction: MuJoCo (RK4, h = Ts/8) reproduces hpdob's integrator."""
-    kwargs = no_coulomb_scenario(observer=canonical_observer(name))
+    kwargs = no_coulomb_scenario(observer=paper.observer(name))
     reference = simulate(**kwargs)
     plant = kwargs["plant"]
     result = simulate(**{**kwargs, "plant": MujocoServo(plant.J, plant.b)})
@@ -134,7 +127,7 @@ def test_first_order_integrator_misses():
     """MuJoCo's (semi-implicit) Euler misses hpdob's result by far more than the tolerance, and
     by half as much when its step halves (first order): the tolerance can fail, and it is RK4
     that makes it tight."""
-    kwargs = no_coulomb_scenario(observer=canonical_observer("DOb-100"), duration=5.0)
+    kwargs = no_coulomb_scenario(observer=paper.observer("DOb-100"), duration=5.0)
     gaps = []
     for substeps in (4, 8):
         reference = simulate(**kwargs, substeps=substeps)
@@ -151,7 +144,7 @@ def test_same_sample_loop_with_encoder_noise_delay_and_limit():
         duration=3.0,
         sensor=Encoder(4096, noise_std=1e-4, seed=5),
         actuator=Actuator(torque_limit=0.055, delay_samples=2),
-        observer=canonical_observer("DOb-100"),
+        observer=paper.observer("DOb-100"),
         substeps=4,
     )
     reference = simulate(**kwargs)
@@ -166,15 +159,15 @@ def test_same_sample_loop_with_encoder_noise_delay_and_limit():
 
 
 def test_mujoco_timestep_sets_the_steps_per_sample():
-    kwargs = no_coulomb_scenario(duration=0.5, observer=canonical_observer("HPDOb-100"))
+    kwargs = no_coulomb_scenario(duration=0.5, observer=paper.observer("HPDOb-100"))
     J, b = kwargs["plant"].J, kwargs["plant"].b
-    own = simulate(**{**kwargs, "plant": MujocoServo(J, b, timestep=TS / 16)})
+    own = simulate(**{**kwargs, "plant": MujocoServo(J, b, timestep=paper.TS / 16)})
     by_substeps = simulate(**{**kwargs, "plant": MujocoServo(J, b)}, substeps=16)
     np.testing.assert_array_equal(own.theta, by_substeps.theta)
     with pytest.raises(ValueError, match=r"^Ts must be an integer multiple of .* timestep 0.0003"):
         simulate(**{**kwargs, "plant": MujocoServo(J, b, timestep=3e-4)})
     with pytest.raises(ValueError, match=r"^substeps must be None or Ts/timestep = 16 .* got 8"):
-        simulate(**{**kwargs, "plant": MujocoServo(J, b, timestep=TS / 16)}, substeps=8)
+        simulate(**{**kwargs, "plant": MujocoServo(J, b, timestep=paper.TS / 16)}, substeps=8)
 
 
 # -- 2. pendulum: gravity as a position-dependent load -------------------------------------
@@ -184,19 +177,19 @@ def test_mujoco_timestep_sets_the_steps_per_sample():
 def pendulum_runs():
     """DOb and HPDOb at 100 rad/s on the pendulum; the nominal model is the rigid body (J + m L^2,
     b), so the nominal disturbance is exactly the gravity torque."""
-    plant = MujocoServo(PLANT.J, PLANT.b, link_mass=LINK_MASS, link_length=LINK_LENGTH)
-    nominal = ServoModel(plant.inertia, PLANT.b)
+    plant = MujocoServo(paper.PLANT.J, paper.PLANT.b, link_mass=LINK_MASS, link_length=LINK_LENGTH)
+    nominal = ServoModel(plant.inertia, paper.PLANT.b)
     runs = {}
     for order in (0, 1):
-        obs = DisturbanceObserver(nominal.discretize(TS), order=order, bandwidth=100.0)
+        obs = DisturbanceObserver(nominal.discretize(paper.TS), order=order, bandwidth=100.0)
         runs[order] = simulate(
             plant=plant,
             nominal=nominal,
-            Ts=TS,
+            Ts=paper.TS,
             duration=6.0,
-            controller=CONTROLLER,
+            controller=paper.CONTROLLER,
             observer=obs,
-            reference=REFERENCE,
+            reference=paper.REFERENCE,
         )
     gravity = {order: plant.bias_torque(run.theta) for order, run in runs.items()}
     return plant, runs, gravity
@@ -220,7 +213,7 @@ def test_pendulum_hpdob_beats_dob_at_equal_bandwidth(pendulum_runs):
 
 
 #: Observer lag constant T = Ts/(1 - lambda) of the 100 rad/s designs (poles at exp(-100 Ts)).
-LAG = TS / (1 - math.exp(-100.0 * TS))
+LAG = paper.TS / (1 - math.exp(-100.0 * paper.TS))
 
 
 def test_pendulum_dob_lags_the_gravity_torque_as_theory_says(pendulum_runs):
@@ -230,11 +223,11 @@ def test_pendulum_dob_lags_the_gravity_torque_as_theory_says(pendulum_runs):
     tau_hat - tau = -tau' (T - Ts/2). The residual of that law must be < 15 % of the error
     (measured 6.5 %)."""
     _, runs, gravity = pendulum_runs
-    rate = np.gradient(gravity[0], TS)
+    rate = np.gradient(gravity[0], paper.TS)
     error = runs[0].tau_hat - gravity[0]
-    residual = error + rate * (LAG - TS / 2)
+    residual = error + rate * (LAG - paper.TS / 2)
     assert np.sqrt(np.mean(residual**2)) < 0.15 * np.sqrt(np.mean(error**2))
-    assert np.max(np.abs(error)) <= 1.1 * np.max(np.abs(rate)) * (LAG - TS / 2)
+    assert np.max(np.abs(error)) <= 1.1 * np.max(np.abs(rate)) * (LAG - paper.TS / 2)
 
 
 def test_pendulum_hpdob_tracks_the_gravity_torque(pendulum_runs):
@@ -244,12 +237,12 @@ def test_pendulum_hpdob_tracks_the_gravity_torque(pendulum_runs):
     stays below the law's bound max|tau'| Ts/2 + max|tau''| T^2 (2.9e-5 N m; measured 2.1e-5 N m,
     0.11 % of m g L)."""
     _, runs, gravity = pendulum_runs
-    rate = np.gradient(gravity[1], TS)
-    curvature = np.gradient(rate, TS)
+    rate = np.gradient(gravity[1], paper.TS)
+    curvature = np.gradient(rate, paper.TS)
     error = runs[1].tau_hat - gravity[1]
-    residual = error - (rate * TS / 2 - curvature * LAG**2)
+    residual = error - (rate * paper.TS / 2 - curvature * LAG**2)
     assert np.sqrt(np.mean(residual**2)) < 0.2 * np.sqrt(np.mean(error**2))
-    bound = np.max(np.abs(rate)) * TS / 2 + np.max(np.abs(curvature)) * LAG**2
+    bound = np.max(np.abs(rate)) * paper.TS / 2 + np.max(np.abs(curvature)) * LAG**2
     assert np.max(np.abs(error)) <= bound
     assert np.max(np.abs(error)) <= 2e-3 * LINK_MASS * G * LINK_LENGTH
 
@@ -265,18 +258,18 @@ def test_frictionloss_observers_converge(name):
     level (measured <= 5e-4 N m); the position error stays within 2 % of the step over the last
     second (a PD alone would sit 3.6 rad off) and does not grow (the HPDOb settles into a small
     stick-slip cycle, docs/mujoco.md)."""
-    kwargs = canonical_scenario()
+    kwargs = paper.scenario()
     kwargs.update(
-        plant=MujocoServo(PLANT.J, PLANT.b, coulomb=PLANT.coulomb),
+        plant=MujocoServo(paper.PLANT.J, paper.PLANT.b, coulomb=paper.PLANT.coulomb),
         reference=SmoothStep(0.2, 1.2, 1.0),
         disturbance=Step(1.5005, 0.05),
         duration=6.0,
-        observer=canonical_observer(name),
+        observer=paper.observer(name),
     )
     result = simulate(**kwargs)
     t, error, position_error = result.t, result.estimation_error, result.theta - result.r
     assert not result.diverged
-    assert np.max(np.abs(error[t >= 2.5])) < 0.1 * PLANT.coulomb
+    assert np.max(np.abs(error[t >= 2.5])) < 0.1 * paper.PLANT.coulomb
     last = np.max(np.abs(position_error[t >= 5.0]))
     assert last < 0.02
     assert last <= np.max(np.abs(position_error[(t >= 2.5) & (t < 3.5)]))
@@ -286,10 +279,10 @@ def test_frictionloss_observers_converge(name):
 def test_frictionloss_against_tanh_model(name):
     """Canonical scenario: MuJoCo's frictionloss vs hpdob's tanh (same level 0.01 N m). They
     differ only near zero velocity, so the metrics agree within 25 % (measured <= 11 %)."""
-    kwargs = canonical_scenario()
-    tanh = simulate(**kwargs, observer=canonical_observer(name))
-    plant = MujocoServo(PLANT.J, PLANT.b, coulomb=PLANT.coulomb)
-    friction = simulate(**{**kwargs, "plant": plant}, observer=canonical_observer(name))
+    kwargs = paper.scenario()
+    tanh = simulate(**kwargs, observer=paper.observer(name))
+    plant = MujocoServo(paper.PLANT.J, paper.PLANT.b, coulomb=paper.PLANT.coulomb)
+    friction = simulate(**{**kwargs, "plant": plant}, observer=paper.observer(name))
     for key, value in friction.metrics().items():
         assert abs(value / tanh.metrics()[key] - 1) < 0.25, key
 
@@ -301,7 +294,7 @@ def test_mujoco_instability_ends_the_run(monkeypatch, tmp_path):
     """A torque so large that MuJoCo flags the acceleration (and would reset its state)."""
     monkeypatch.chdir(tmp_path)  # MuJoCo writes its warning to ./MUJOCO_LOG.TXT
     kwargs = no_coulomb_scenario(duration=1.0, controller=PD(1e15, 0.0), x0=(1.0, 0.0))
-    kwargs["plant"] = MujocoServo(PLANT.J)
+    kwargs["plant"] = MujocoServo(paper.PLANT.J)
     with pytest.warns(SimulationDivergedWarning, match="MuJoCo flagged it unstable"):
         result = simulate(**kwargs)
     assert result.diverged and len(result) == 1
@@ -310,7 +303,7 @@ def test_mujoco_instability_ends_the_run(monkeypatch, tmp_path):
 def test_divergence_limit_ends_the_run(monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)  # in case MuJoCo logs a warning
     kwargs = no_coulomb_scenario(duration=5.0, controller=PD(5e6, 0.0), x0=(1e-3, 0.0))
-    kwargs["plant"] = MujocoServo(PLANT.J)
+    kwargs["plant"] = MujocoServo(paper.PLANT.J)
     with pytest.warns(SimulationDivergedWarning, match="diverged"):
         result = simulate(**kwargs)
     assert result.diverged and 1 < len(result) < 5000
@@ -352,11 +345,11 @@ def test_from_xml_reproduces_the_built_model(tmp_path):
     nominal = ServoModel(servo.inertia, 5e-5)
     kwargs = {
         "nominal": nominal,
-        "Ts": TS,
+        "Ts": paper.TS,
         "duration": 1.0,
-        "controller": CONTROLLER,
-        "reference": REFERENCE,
-        "observer": DisturbanceObserver(nominal.discretize(TS), order=1, bandwidth=100.0),
+        "controller": paper.CONTROLLER,
+        "reference": paper.REFERENCE,
+        "observer": DisturbanceObserver(nominal.discretize(paper.TS), order=1, bandwidth=100.0),
     }
     built = simulate(plant=servo, **kwargs)
     from_file = simulate(plant=wrapped, **kwargs)
@@ -485,7 +478,7 @@ def test_sweep_over_a_mujoco_plant():
 
     base = {
         **no_coulomb_scenario(duration=1.0),
-        "plant": MujocoServo(PLANT.J, PLANT.b),
+        "plant": MujocoServo(paper.PLANT.J, paper.PLANT.b),
         "observer": {"order": 1, "bandwidth": 100.0},
     }
     rows = sweep(
@@ -498,16 +491,16 @@ def test_sweep_over_a_mujoco_plant():
     direct = simulate(
         **{
             **base,
-            "plant": MujocoServo(PLANT.J, PLANT.b, link_mass=0.02, link_length=0.1),
+            "plant": MujocoServo(paper.PLANT.J, paper.PLANT.b, link_mass=0.02, link_length=0.1),
             "observer": DisturbanceObserver(
-                base["nominal"].discretize(TS), order=1, bandwidth=100.0
+                base["nominal"].discretize(paper.TS), order=1, bandwidth=100.0
             ),
         }
     )
     row = rows[(rows["plant.link_mass"] == 0.02) & (rows["observer.order"] == 1)].iloc[0]
     assert row["rms_estimation_error"] == direct.metrics()["rms_estimation_error"]
     # a ServoModel has no link: that row fails with the valid keys, the sweep goes on
-    rows = sweep({**base, "plant": PLANT}, grid={"plant.link_mass": [0.02]}, progress=False)
+    rows = sweep({**base, "plant": paper.PLANT}, grid={"plant.link_mass": [0.02]}, progress=False)
     assert not rows["stable"][0] and "valid: ['J', 'b', 'coulomb'" in rows["error"][0]
 
 

@@ -12,8 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hpdob import SimulationResult
-from hpdob._canonical import CANONICAL_RUNS
+from hpdob import SimulationResult, paper
 
 
 @pytest.fixture(scope="module")
@@ -33,7 +32,7 @@ def reproduced(tmp_path_factory):
 def test_exit_code_and_summary(reproduced):
     _, done = reproduced
     assert done.returncode == 0, done.stderr
-    for name in CANONICAL_RUNS:
+    for name in paper.RUNS:
         assert name in done.stdout
     assert "rms_estimation_error" in done.stdout
 
@@ -43,7 +42,7 @@ def test_files(reproduced):
     for fig in ("fig2", "fig3", "fig4", "fig5"):
         assert (out / f"{fig}.png").stat().st_size > 50_000
         assert (out / f"{fig}.pdf").stat().st_size > 10_000
-    for name in CANONICAL_RUNS:
+    for name in paper.RUNS:
         trace = SimulationResult.from_csv(out / "traces" / f"{name}.csv")
         assert len(trace) == 10_000
 
@@ -51,7 +50,7 @@ def test_files(reproduced):
 def test_metrics_json(reproduced):
     out, _ = reproduced
     metrics = json.loads((out / "metrics.json").read_text())
-    assert list(metrics) == list(CANONICAL_RUNS)
+    assert list(metrics) == list(paper.RUNS)
     for values in metrics.values():
         assert set(values) == {
             "rms_estimation_error",

@@ -9,16 +9,15 @@ import matplotlib
 import numpy as np
 import pytest
 
-from hpdob import SimulationResult
-from hpdob._canonical import canonical_run
-from hpdob._result import COLUMNS, metrics_json
+from hpdob import SimulationResult, paper
+from hpdob.simulation._result import COLUMNS, metrics_json
 
 matplotlib.use("Agg")
 
 
 @pytest.fixture(scope="module")
 def result():
-    return canonical_run("HPDOb-100", duration=5.0)
+    return paper.run("HPDOb-100", duration=5.0)
 
 
 def synthetic(n=10, Ts=0.5):
@@ -122,7 +121,7 @@ def test_metrics_json_is_strict():
     ],
 )
 def test_bad_metric_windows(bounds, error, pattern):
-    from hpdob._result import metric_window
+    from hpdob.simulation._result import metric_window
 
     with pytest.raises(error, match=pattern):
         metric_window(bounds, "tracking")
@@ -130,7 +129,7 @@ def test_bad_metric_windows(bounds, error, pattern):
 
 
 def test_rms_of_huge_values_does_not_overflow():
-    from hpdob._result import _rms
+    from hpdob.simulation._result import _rms
 
     # sqrt(mean(x^2)) of [3e200, 4e200]: x^2 overflows, the answer 3.5355e200 does not
     assert _rms(np.array([3e200, 4e200])) == pytest.approx(math.sqrt(12.5) * 1e200, rel=1e-15)

@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 from hpdob import design_observer
-from hpdob._rounding import (
+from hpdob._validation import ParameterValueError
+from hpdob.testing._rounding import (
     UNIT_ROUNDOFF,
     error_amplification,
     export_error_bound,
     impulse_rows,
 )
-from hpdob._validation import ParameterValueError
 
 
 def gamma(n, u):

@@ -8,10 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hpdob import simulate
-from hpdob._canonical import canonical_run
-from hpdob._cli import main
-from hpdob._scenario import (
+from hpdob import paper, simulate
+from hpdob.cli import main
+from hpdob.simulation._scenario import (
     load_metric_windows,
     load_scenario,
     load_sweep,
@@ -34,7 +33,7 @@ def base():
 def test_canonical_example_is_the_canonical_run():
     kwargs = load_scenario(CANONICAL_TOML)
     from_file = simulate(**kwargs)
-    built_in = canonical_run("HPDOb-100")
+    built_in = paper.run("HPDOb-100")
     np.testing.assert_array_equal(from_file.theta, built_in.theta)
     np.testing.assert_array_equal(from_file.tau_hat, built_in.tau_hat)
 

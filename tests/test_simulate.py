@@ -15,24 +15,17 @@ from hpdob import (
     ServoModel,
     SimulationDivergedWarning,
     design_observer,
+    paper,
     simulate,
 )
-from hpdob._canonical import (
-    CANONICAL_RUNS,
-    VIRTUAL_ACTUATOR,
-    VIRTUAL_SENSOR,
-    canonical_observer,
-    canonical_run,
-    canonical_scenario,
-)
-from hpdob._simulate import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, default_substeps
 from hpdob.signals import Constant, Ramp, SmoothStep, Step
+from hpdob.simulation._simulate import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, default_substeps
 from reference_loop import reference_loop
 
 
 @pytest.fixture(scope="module")
 def canonical_results():
-    return {name: canonical_run(name) for name in CANONICAL_RUNS}
+    return {name: paper.run(name) for name in paper.RUNS}
 
 
 def assert_traces_close(result, expected, rtol):
@@ -42,25 +35,23 @@ def assert_traces_close(result, expected, rtol):
         np.testing.assert_allclose(got, values, rtol=rtol, atol=rtol * scale, err_msg=name)
 
 
-@pytest.mark.parametrize("name", list(CANONICAL_RUNS))
+@pytest.mark.parametrize("name", list(paper.RUNS))
 def test_agrees_with_reference_loop(canonical_results, name):
-    kwargs = canonical_scenario()
+    kwargs = paper.scenario()
     if name == "virtual-experiment":
-        kwargs.update(sensor=VIRTUAL_SENSOR, actuator=VIRTUAL_ACTUATOR)
-    expected = reference_loop(
-        **kwargs, observer=canonical_observer(name), substeps=DEFAULT_SUBSTEPS
-    )
+        kwargs.update(sensor=paper.VIRTUAL_SENSOR, actuator=paper.VIRTUAL_ACTUATOR)
+    expected = reference_loop(**kwargs, observer=paper.observer(name), substeps=DEFAULT_SUBSTEPS)
     assert_traces_close(canonical_results[name], expected, rtol=1e-12)
 
 
 def test_agrees_with_reference_loop_noise_delay_saturation():
-    kwargs = canonical_scenario()
+    kwargs = paper.scenario()
     kwargs.update(
         duration=3.0,
         sensor=Encoder(4096, noise_std=1e-4, seed=5),
         actuator=Actuator(torque_limit=0.055, delay_samples=2),
     )
-    obs = canonical_observer("DOb-100")
+    obs = paper.observer("DOb-100")
     result = simulate(**kwargs, observer=obs, substeps=4)
     assert np.max(np.abs(result.u)) == pytest.approx(0.055)  # the limit is active
     expected = reference_loop(**kwargs, observer=obs, substeps=4)
@@ -77,20 +68,20 @@ def test_substep_convergence(canonical_results):
     for name, coarse in canonical_results.items():
         if name == "virtual-experiment":
             continue
-        fine = canonical_run(name, substeps=2 * DEFAULT_SUBSTEPS)
+        fine = paper.run(name, substeps=2 * DEFAULT_SUBSTEPS)
         for metric, value in coarse.metrics().items():
             assert fine.metrics()[metric] == pytest.approx(value, rel=1e-3), (name, metric)
 
 
 def test_virtual_experiment_metrics_are_robust(canonical_results):
     coarse = canonical_results["virtual-experiment"].metrics()
-    fine = canonical_run("virtual-experiment", substeps=2 * DEFAULT_SUBSTEPS).metrics()
+    fine = paper.run("virtual-experiment", substeps=2 * DEFAULT_SUBSTEPS).metrics()
     for metric, value in coarse.items():
         assert fine[metric] == pytest.approx(value, rel=2e-2), metric
 
 
 def test_default_substeps_follow_the_coulomb_stiffness():
-    plant = canonical_scenario()["plant"]  # c / (v J) = 0.01 / (0.01 * 3.06e-4) = 3268 1/s
+    plant = paper.scenario()["plant"]  # c / (v J) = 0.01 / (0.01 * 3.06e-4) = 3268 1/s
     assert default_substeps(plant, 1e-3) == DEFAULT_SUBSTEPS  # 2 ceil(3.27) = 8
     # 2 ceil(Ts c / (v J)): h c / (v J) <= 0.5 on an even number of sub-steps.
     assert default_substeps(plant.replace(coulomb_velocity=1e-3), 1e-3) == 66
@@ -105,10 +96,10 @@ def test_stiff_coulomb_friction_converges():
     """With v = 1e-3 the friction is 10x stiffer than canonical; 8 sub-steps (h c/(v J) = 4,
     beyond the midpoint rule's stability limit of 2) overestimate the estimation error ~2.3x,
     the default (66) must agree with twice as many sub-steps to 0.1 %."""
-    plant = canonical_scenario()["plant"].replace(coulomb_velocity=1e-3)
+    plant = paper.scenario()["plant"].replace(coulomb_velocity=1e-3)
 
     def metrics(**kwargs):
-        return canonical_run("HPDOb-100", plant=plant, duration=5.0, **kwargs).metrics()
+        return paper.run("HPDOb-100", plant=plant, duration=5.0, **kwargs).metrics()
 
     default, fine = metrics(), metrics(substeps=132)
     for metric, value in default.items():
@@ -119,7 +110,7 @@ def test_stiff_coulomb_friction_converges():
 
 def test_run_length_is_capped():
     with pytest.raises(ValueError, match=r"^duration/Ts \* substeps = 10000 \* 20000 = 2e\+08"):
-        canonical_run("HPDOb-100", substeps=20_000)
+        paper.run("HPDOb-100", substeps=20_000)
     assert MAX_PLANT_STEPS == 100_000_000
 
 
@@ -350,7 +341,7 @@ def test_divergence_is_reported_not_raised():
     ],
 )
 def test_bad_arguments(change, exc, pattern):
-    kwargs = canonical_scenario()
+    kwargs = paper.scenario()
     kwargs["duration"] = 1.0
     kwargs.update(change)
     with pytest.raises(exc, match=pattern):
@@ -358,10 +349,10 @@ def test_bad_arguments(change, exc, pattern):
 
 
 def test_observer_on_the_wrong_model():
-    kwargs = canonical_scenario()
+    kwargs = paper.scenario()
     obs = DisturbanceObserver(ServoModel(3.06e-4).discretize(1e-3), order=1, bandwidth=100.0)
     with pytest.raises(ValueError, match=r"observer must be designed on nominal.discretize\(Ts\)"):
         simulate(**kwargs, observer=obs)
-    obs2 = canonical_observer("HPDOb-100")
+    obs2 = paper.observer("HPDOb-100")
     with pytest.raises(ValueError, match=r"Ts=0.001 but nominal .* Ts=0.0005"):
         simulate(**{**kwargs, "Ts": 5e-4}, observer=obs2)

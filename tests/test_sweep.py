@@ -12,8 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hpdob import DisturbanceObserver, ServoModel, SimulationDivergedWarning, simulate, sweep
-from hpdob._canonical import canonical_scenario
+from hpdob import DisturbanceObserver, ServoModel, SimulationDivergedWarning, paper, simulate, sweep
 
 METRICS = [
     "rms_estimation_error",
@@ -25,7 +24,7 @@ METRICS = [
 
 def base(duration=2.0):
     return {
-        **canonical_scenario(),
+        **paper.scenario(),
         "duration": duration,
         "observer": {"order": 1, "bandwidth": 100.0},
     }
@@ -228,7 +227,7 @@ def test_a_killed_worker_does_not_lose_rows(cluster):
 
 
 def test_cli_sweep_example(tmp_path, capsys):
-    from hpdob._cli import main
+    from hpdob.cli import main
 
     example = Path(__file__).resolve().parents[1] / "examples" / "sweep_bandwidth.toml"
     out = tmp_path / "rows.parquet"
@@ -243,7 +242,7 @@ def test_cli_sweep_example(tmp_path, capsys):
 
 
 def test_cli_sweep_errors(tmp_path, capsys):
-    from hpdob._cli import main
+    from hpdob.cli import main
 
     example = Path(__file__).resolve().parents[1] / "examples" / "sweep_bandwidth.toml"
     assert main(["sweep", str(example), "--out", str(tmp_path / "rows.xlsx")]) == 2

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from hpdob._sweep_spec import PATHS, expand_scenarios
+from hpdob.simulation._sweep_spec import PATHS, expand_scenarios
 
 
 def test_grid_is_a_cartesian_product_in_key_order():

@@ -35,32 +35,49 @@ robust_stability_map
     Closed-loop stability over inertia or friction errors and observer bandwidths.
 """
 
-from . import signals
-from ._closedloop import closed_loop, closed_loop_poles
-from ._controller import PD
-from ._core import estimate, initial_state, update
-from ._devices import Actuator, Encoder
-from ._export_c import export_c
-from ._lti import estimation_response, estimation_transfer
-from ._model import DiscreteServoModel, ServoModel
-from ._mujoco import MujocoServo
-from ._noise import NoiseGains, noise_gains, observer_noise_gain
-from ._observer import DisturbanceObserver
-from ._result import SimulationResult
-from ._robust import StabilityMap, robust_stability_map
-from ._sensitivity import GangOfFour, LoopMargins, gang_of_four, loop_margins, loop_transfer
-from ._simulate import SimulationDivergedWarning, simulate
-from ._sweep import sweep
-from ._synthesis import (
+from . import paper, signals
+from ._validation import ParameterTypeError, ParameterValueError
+from ._version import __version__
+from .analysis import (
+    GangOfFour,
+    LoopMargins,
+    NoiseGains,
+    NoiseTradeoff,
+    StabilityMap,
+    closed_loop,
+    closed_loop_poles,
+    estimation_response,
+    estimation_transfer,
+    gang_of_four,
+    loop_margins,
+    loop_transfer,
+    noise_gains,
+    noise_tradeoff,
+    observer_noise_gain,
+    robust_stability_map,
+)
+from .export import export_c
+from .models import DiscreteServoModel, MujocoServo, ServoModel
+from .observers import (
+    DisturbanceObserver,
     ObserverDesign,
     characteristic_polynomial,
     design_observer,
     error_matrix,
+    estimate,
     extrapolation_weights,
+    initial_state,
+    update,
 )
-from ._tradeoff import NoiseTradeoff, noise_tradeoff
-from ._validation import ParameterTypeError, ParameterValueError
-from ._version import __version__
+from .simulation import (
+    PD,
+    Actuator,
+    Encoder,
+    SimulationDivergedWarning,
+    SimulationResult,
+    simulate,
+    sweep,
+)
 
 __all__ = [
     "PD",
@@ -98,6 +115,7 @@ __all__ = [
     "noise_gains",
     "noise_tradeoff",
     "observer_noise_gain",
+    "paper",
     "robust_stability_map",
     "signals",
     "simulate",

@@ -1,0 +1,37 @@
+"""Analysis of observers and of the linear closed loop.
+
+estimation_transfer, estimation_response
+    Closed-form disturbance-estimation response (the "Q-filter") of an observer.
+closed_loop, closed_loop_poles, gang_of_four, loop_transfer, loop_margins
+    The linear sampled-data loop as a python-control system, its poles, sensitivities, margins.
+noise_gains, observer_noise_gain, noise_tradeoff
+    Exact noise gains (discrete Lyapunov equation) and the accuracy/noise trade-off.
+robust_stability_map
+    Closed-loop stability over inertia or friction errors and observer bandwidths.
+"""
+
+from ._closed_loop import closed_loop, closed_loop_poles
+from ._estimation import estimation_response, estimation_transfer
+from ._noise import NoiseGains, noise_gains, observer_noise_gain
+from ._robust import StabilityMap, robust_stability_map
+from ._sensitivity import GangOfFour, LoopMargins, gang_of_four, loop_margins, loop_transfer
+from ._tradeoff import NoiseTradeoff, noise_tradeoff
+
+__all__ = [
+    "GangOfFour",
+    "LoopMargins",
+    "NoiseGains",
+    "NoiseTradeoff",
+    "StabilityMap",
+    "closed_loop",
+    "closed_loop_poles",
+    "estimation_response",
+    "estimation_transfer",
+    "gang_of_four",
+    "loop_margins",
+    "loop_transfer",
+    "noise_gains",
+    "noise_tradeoff",
+    "observer_noise_gain",
+    "robust_stability_map",
+]

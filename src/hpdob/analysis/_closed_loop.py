@@ -1,0 +1,149 @@
+"""The linear sampled-data closed loop as a python-control system, and its poles."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._linear_loop import INPUTS, OUTPUTS, loop_matrices, loop_spec, state_names
+
+__all__ = ["closed_loop", "closed_loop_poles"]
+
+
+def closed_loop(*, plant, nominal, Ts, controller, observer=None, sensor=None, actuator=None):
+    """The linear sampled-data closed loop as a discrete python-control ``StateSpace``.
+
+    Parameters
+    ----------
+    plant : ServoModel
+        The true motor (``J`` [kg m^2], ``b`` [N m s/rad]; Coulomb friction is ignored).
+    nominal : ServoModel
+        The model the controller (``J_n``) and the observer use.
+    Ts : float
+        Sampling period [s].
+    controller : PD
+    observer : DisturbanceObserver or ObserverDesign, optional
+        Designed on ``nominal.discretize(Ts)``. None: PD only (``tau_hat`` is then 0).
+    sensor : Encoder, optional
+        Only its ``velocity`` method is used. Default: the ideal state.
+    actuator : Actuator, optional
+        Only ``delay_samples`` is used; ``torque_limit`` must be None.
+
+    Returns
+    -------
+    control.StateSpace
+        ``dt = Ts``; inputs ``r, r_dot, r_ddot`` [rad, rad/s, rad/s^2], ``tau_ext`` [N m],
+        ``n_theta`` [rad], ``n_omega`` [rad/s]; outputs ``theta`` [rad], ``omega`` [rad/s],
+        ``u`` [N m], ``tau_hat`` [N m]; states ``theta, omega``, then ``theta_prev`` (previous
+        measured angle, backward-difference sensor only), ``u_delay1..d`` (commands in the
+        actuator's delay line) and ``z1..z{m+1}`` (observer).
+
+    Raises
+    ------
+    TypeError, ValueError
+        For arguments of the wrong type or value, with the parameter named.
+
+    Notes
+    -----
+    The loop is the one :func:`hpdob.simulate` runs, made linear: the true plant's exact ZOH
+    discretisation (``plant.J``, ``plant.b``; Coulomb friction left out), the sampled PD with
+    its feed-forward, the observer (if any) designed on ``nominal.discretize(Ts)``, an optional
+    actuator delay of whole samples and, with an ``Encoder(velocity="backward-difference")``,
+    the velocity differenced from the measured position. Quantisation, sensor noise levels and
+    torque limits are not linear and are not modelled (a torque limit is rejected); measurement
+    noise enters through the inputs ``n_theta`` and ``n_omega`` instead. The external torque
+    ``tau_ext`` is held over each sample (the simulator integrates it between samples: for a
+    torque that changes within a sample the two differ by that intra-sample variation).
+
+    References
+    ----------
+    Section IV of the paper (PD outer loop, DOb inner loop); eq. (8) for the sampled plant.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hpdob import PD, ServoModel, closed_loop, design_observer
+    >>> nominal = ServoModel(2.8e-4)
+    >>> obs = design_observer(nominal.discretize(1e-3), order=1, bandwidth=100.0)
+    >>> loop = closed_loop(plant=ServoModel(3.06e-4, 5e-5), nominal=nominal, Ts=1e-3,
+    ...                    controller=PD(50, 5), observer=obs)
+    >>> loop.input_labels
+    ['r', 'r_dot', 'r_ddot', 'tau_ext', 'n_theta', 'n_omega']
+    >>> round(float(loop.dcgain()[0, 0]), 9)   # theta / r at DC
+    1.0
+    """
+    import control
+
+    spec = loop_spec(
+        plant=plant,
+        nominal=nominal,
+        Ts=Ts,
+        controller=controller,
+        observer=observer,
+        sensor=sensor,
+        actuator=actuator,
+    )
+    A, B, C, D, _, _ = loop_matrices(spec)
+    n = len(OUTPUTS)
+    return control.ss(
+        A,
+        B,
+        C[:n],
+        D[:n],
+        spec.plant.Ts,
+        inputs=list(INPUTS),
+        outputs=list(OUTPUTS),
+        states=state_names(spec),
+    )
+
+
+def closed_loop_poles(
+    *, plant, nominal, Ts, controller, observer=None, sensor=None, actuator=None
+) -> np.ndarray:
+    """Eigenvalues of the linear closed loop of :func:`closed_loop` (same arguments).
+
+    The loop is asymptotically stable when every eigenvalue lies strictly inside the unit
+    circle (see :func:`spectral_radius`).
+
+    Parameters
+    ----------
+    plant, nominal, Ts, controller, observer, sensor, actuator
+        As for :func:`closed_loop`.
+
+    Returns
+    -------
+    ndarray of complex
+        Sorted by decreasing magnitude. Repeated eigenvalues (e.g. an observer's ``m + 1``
+        poles at one place) are returned split by about ``eps**(1/multiplicity)``, the
+        conditioning of a Jordan block.
+
+    Raises
+    ------
+    TypeError, ValueError
+        As for :func:`closed_loop`.
+
+    Examples
+    --------
+    >>> from hpdob import PD, ServoModel, closed_loop_poles, design_observer
+    >>> nominal = ServoModel(2.8e-4)
+    >>> obs = design_observer(nominal.discretize(1e-3), order=0, poles=[0.9])
+    >>> poles = closed_loop_poles(plant=nominal, nominal=nominal, Ts=1e-3,
+    ...                           controller=PD(50, 5), observer=obs)
+    >>> bool(min(abs(poles - 0.9)) < 1e-12)   # on the nominal plant the observer pole stays
+    True
+    """
+    spec = loop_spec(
+        plant=plant,
+        nominal=nominal,
+        Ts=Ts,
+        controller=controller,
+        observer=observer,
+        sensor=sensor,
+        actuator=actuator,
+    )
+    return _poles(spec)
+
+
+def _poles(spec) -> np.ndarray:
+    A = loop_matrices(spec)[0]
+    poles = np.linalg.eigvals(A)
+    return poles[np.argsort(-np.abs(poles), kind="stable")]

@@ -1,0 +1,390 @@
+r"""Robust stability maps: closed-loop spectral radius over model error and observer bandwidth.
+
+The true plant differs from the nominal model in inertia (``J = J_ratio * J_n``) or in viscous
+friction (``b``), optionally with an actuator delay the observer does not know; for each
+observer bandwidth the linear closed loop of :func:`hpdob.closed_loop` is built and the largest
+magnitude of its eigenvalues (the spectral radius) decides: below 1 stable, above 1 unstable.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._table import columns_to_csv, columns_to_pandas
+from .._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    as_grid,
+    as_int,
+    as_real_vector,
+    nonnegative,
+    positive,
+)
+from ..models._servo import ServoModel
+from ..observers._synthesis import design_observer
+from ..simulation._controller import PD
+from ..simulation._devices import Encoder
+from ._linear_loop import LoopSpec, loop_matrices
+
+__all__ = ["StabilityMap", "robust_stability_map"]
+
+PARAMETERS = ("J_ratio", "b")
+_UNITS = {"J_ratio": "true/nominal inertia J/J_n [-]", "b": "true viscous friction b [N m s/rad]"}
+
+
+@dataclass(frozen=True)
+class _Setting:
+    nominal: ServoModel
+    Ts: float
+    controller: PD
+    order: int
+    gain_direction: tuple
+    delay: int
+    backward_difference: bool
+
+    def radius(self, design, J_ratio: float, b: float) -> float:
+        plant = ServoModel(J_ratio * self.nominal.J, b).discretize(self.Ts)
+        spec = LoopSpec(
+            plant=plant,
+            J_n=self.nominal.J,
+            kp=self.controller.kp,
+            kd=self.controller.kd,
+            feedforward=self.controller.feedforward,
+            design=design,
+            backward_difference=self.backward_difference,
+            delay=self.delay,
+        )
+        return float(np.abs(np.linalg.eigvals(loop_matrices(spec)[0])).max())
+
+    def design(self, bandwidth: float):
+        return design_observer(
+            self.nominal.discretize(self.Ts),
+            order=self.order,
+            bandwidth=bandwidth,
+            gain_direction=self.gain_direction,
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class StabilityMap:
+    """Closed-loop spectral radius over a model-error grid and observer bandwidths.
+
+    Built by :func:`robust_stability_map`. ``spectral_radius[i, j]`` belongs to
+    ``values[i]`` (of ``parameter``) and ``bandwidths[j]``. Arrays are read-only.
+
+    Attributes
+    ----------
+    parameter : str
+        ``"J_ratio"`` (true/nominal inertia) or ``"b"`` (true viscous friction [N m s/rad]):
+        the quantity varied along the vertical axis.
+    values : ndarray
+        Its grid (strictly increasing).
+    bandwidths : ndarray
+        Observer bandwidths [rad/s] (strictly increasing).
+    spectral_radius : ndarray, shape (len(values), len(bandwidths))
+        Largest closed-loop eigenvalue magnitude.
+    order : int
+        Observer truncation order.
+    J_ratio, b : float or None
+        The fixed value of the parameter that is not varied (None for the varied one).
+    delay_samples : int
+        Actuator delay [samples] (unknown to the observer).
+    """
+
+    parameter: str
+    values: np.ndarray = field(repr=False)
+    bandwidths: np.ndarray = field(repr=False)
+    spectral_radius: np.ndarray = field(repr=False)
+    order: int
+    J_ratio: float | None
+    b: float | None
+    delay_samples: int
+    _setting: _Setting = field(repr=False, compare=False)
+
+    @property
+    def stable(self) -> np.ndarray:
+        """Boolean array: ``spectral_radius < 1``."""
+        return self.spectral_radius < 1.0
+
+    def radius_at(self, value: float, bandwidth: float) -> float:
+        """Spectral radius at one point (need not be on the grid)."""
+        if self.parameter == "J_ratio":
+            value = positive(value, "value", "a positive true/nominal inertia ratio J/J_n")
+        else:
+            value = nonnegative(value, "value", "a non-negative viscous friction [N m s/rad]")
+        g = positive(bandwidth, "bandwidth", "a positive observer bandwidth [rad/s]")
+        J_ratio, b = (value, self.b) if self.parameter == "J_ratio" else (self.J_ratio, value)
+        return self._setting.radius(self._setting.design(g), J_ratio, b)
+
+    def boundary(self) -> list[dict]:
+        """The stability boundary, refined between grid points by Brent's method.
+
+        Returns
+        -------
+        list of dict
+            One entry per crossing of ``spectral_radius = 1`` along the ``values`` axis at each
+            bandwidth: ``{"bandwidth": g, parameter: critical value, "kind": "upper" or
+            "lower"}``. ``"upper"`` means stable just below the critical value and unstable
+            just above; ``"lower"`` the reverse.
+        """
+        from scipy.optimize import brentq
+
+        out = []
+        logs = self.parameter == "J_ratio" or np.all(self.values > 0)
+        for j, g in enumerate(self.bandwidths):
+            design = self._setting.design(float(g))
+            col = self.spectral_radius[:, j] - 1.0
+            for i in np.nonzero(np.sign(col[:-1]) * np.sign(col[1:]) < 0)[0]:
+                lo, hi = float(self.values[i]), float(self.values[i + 1])
+
+                def f(x, design=design):
+                    v = math.exp(x) if logs else x
+                    J_ratio, b = (v, self.b) if self.parameter == "J_ratio" else (self.J_ratio, v)
+                    return self._setting.radius(design, J_ratio, b) - 1.0
+
+                a, c = (math.log(lo), math.log(hi)) if logs else (lo, hi)
+                x = brentq(f, a, c, xtol=1e-13, rtol=1e-12)
+                out.append(
+                    {
+                        "bandwidth": float(g),
+                        self.parameter: math.exp(x) if logs else x,
+                        "kind": "upper" if col[i] < 0 else "lower",
+                    }
+                )
+        return out
+
+    def _columns(self) -> dict:
+        n_v, n_g = self.spectral_radius.shape
+        fixed = "b" if self.parameter == "J_ratio" else "J_ratio"
+        return {
+            self.parameter: np.repeat(self.values, n_g),
+            "bandwidth_rad_s": np.tile(self.bandwidths, n_v),
+            fixed: np.full(n_v * n_g, getattr(self, fixed)),
+            "order": np.full(n_v * n_g, self.order),
+            "delay_samples": np.full(n_v * n_g, self.delay_samples),
+            "spectral_radius": self.spectral_radius.ravel(),
+            "stable": self.stable.ravel(),
+        }
+
+    def to_pandas(self):
+        """Long-format ``pandas.DataFrame``, one row per grid point."""
+        return columns_to_pandas(self._columns())
+
+    def to_csv(self, path):
+        """Write the long-format table of :meth:`to_pandas` to ``path`` (no pandas needed)."""
+        return columns_to_csv(self._columns(), path)
+
+    def plot(self, ax=None, *, mark=None):
+        r"""Heat-map of the closed loop's slowest decay rate with the stability boundary drawn.
+
+        Colour: :math:`-\ln(\rho)/T_s` [1/s] for spectral radius :math:`\rho` (blue decays,
+        red grows, symmetric-log scale); black line: :math:`\rho = 1`.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+        mark : tuple of float, optional
+            ``(bandwidth, value)`` of a design point to mark (e.g. the canonical one).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        import matplotlib.pyplot as plt
+        from matplotlib.colors import SymLogNorm
+
+        from .._plotting import PAPER_WIDTH, style_axes
+
+        if ax is None:
+            fig, ax = plt.subplots(figsize=(PAPER_WIDTH * 0.62, 3.6), layout="constrained")
+        else:
+            fig = ax.figure
+        rho = self.spectral_radius
+        # Slowest decay rate [1/s]: positive stable, negative growing; symmetric log colours.
+        rate = -np.log(rho) / self._setting.Ts
+        top = max(float(np.abs(rate).max()), 1.0)
+        mesh = ax.pcolormesh(
+            self.bandwidths,
+            self.values,
+            rate,
+            shading="nearest",
+            cmap="RdBu",
+            norm=SymLogNorm(linthresh=1.0, vmin=-top, vmax=top),
+        )
+        if rho.shape[0] > 1 and rho.shape[1] > 1 and rho.min() < 1.0 < rho.max():
+            ax.contour(self.bandwidths, self.values, rho, levels=[1.0], colors="k", linewidths=1.4)
+        ax.set_xscale("log")
+        if self.parameter == "J_ratio" or np.all(self.values > 0):
+            ax.set_yscale("log")
+        if mark is not None:
+            ax.plot(*mark, marker="*", color="gold", markeredgecolor="k", markersize=11)
+        cbar = fig.colorbar(mesh, ax=ax)
+        cbar.set_label("slowest decay rate -ln(radius)/Ts [1/s]\n(< 0: unstable)")
+        style_axes(ax, xlabel="observer bandwidth g [rad/s]", ylabel=_UNITS[self.parameter])
+        name = {0: "DOb", 1: "HPDOb"}.get(self.order, f"order {self.order}")
+        fixed = (
+            f"b = {self.b:.3g} N m s/rad"
+            if self.parameter == "J_ratio"
+            else f"J/J_n = {self.J_ratio:.3g}"
+        )
+        delay = f", {self.delay_samples}-sample delay" if self.delay_samples else ""
+        ax.set_title(f"{name} (m={self.order}), {fixed}{delay}", fontsize="medium")
+        return fig
+
+
+def _grid_or_scalar(value, name: str, what: str, *, allow_zero: bool):
+    """``(array, is_grid)``: a scalar stays a 0-d value, a sequence becomes a checked grid.
+
+    A grid must be strictly increasing: :meth:`StabilityMap.boundary` brackets each crossing
+    between neighbouring grid values and names its kind from their order.
+    """
+    if np.ndim(value) == 0:
+        check = nonnegative if allow_zero else positive
+        return np.array(check(value, name, what)), False
+    return as_grid(value, name, what, allow_zero=allow_zero, increasing=True), True
+
+
+def robust_stability_map(
+    *,
+    J_ratio=1.0,
+    bandwidth,
+    order: int,
+    nominal: ServoModel,
+    Ts: float,
+    controller: PD,
+    b=None,
+    delay_samples: int = 0,
+    gain_direction=(1.0, 1.0),
+    sensor: Encoder | None = None,
+) -> StabilityMap:
+    r"""Closed-loop stability over a grid of model errors and observer bandwidths.
+
+    Give a grid (1-D sequence) for exactly one of ``J_ratio`` and ``b``; the other is held at
+    its scalar value. For every grid point the true plant is ``ServoModel(J_ratio * J_n, b)``,
+    the observer of ``order`` is designed at the bandwidth on ``nominal.discretize(Ts)``, and
+    the spectral radius of the linear closed loop (:func:`hpdob.closed_loop_poles`, Coulomb
+    friction and saturation left out) is recorded.
+
+    Parameters
+    ----------
+    J_ratio : float or array_like, optional
+        True/nominal inertia ratio(s) ``J / J_n``, positive; a grid must be strictly
+        increasing. Default 1.
+    bandwidth : array_like
+        Observer bandwidths [rad/s], positive and strictly increasing (the horizontal axis).
+    order : int
+        Observer truncation order ``m >= 0``.
+    nominal : ServoModel
+        Nominal model (``J_n``, ``b_n``) of controller and observer.
+    Ts : float
+        Sampling period [s].
+    controller : PD
+    b : float or array_like, optional
+        True viscous friction(s) [N m s/rad], >= 0; a grid must be strictly increasing.
+        Default: ``nominal.b``.
+    delay_samples : int, optional
+        Actuator delay [samples] the observer does not know. Default 0.
+    gain_direction : sequence of 2 floats, optional
+        As for :func:`hpdob.design_observer`.
+    sensor : Encoder, optional
+        As for :func:`hpdob.closed_loop` (only the velocity method matters).
+
+    Returns
+    -------
+    StabilityMap
+        With ``.stable``, ``.boundary()``, ``.plot()``, ``.to_pandas()`` and ``.to_csv()``.
+
+    Raises
+    ------
+    TypeError, ValueError
+        Naming the parameter: empty or not strictly increasing grids, non-positive ratios or
+        bandwidths, negative friction, grids for both ``J_ratio`` and ``b`` (or for neither), a
+        wrong order.
+
+    References
+    ----------
+    The robust stability of HPDOb-based controllers, named as future work in the paper's
+    conclusion; ``docs/analysis.md``, section 6.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hpdob import PD, ServoModel, design_observer, loop_margins, robust_stability_map
+    >>> nominal, pd = ServoModel(2.8e-4), PD(50, 5)
+    >>> smap = robust_stability_map(J_ratio=np.geomspace(0.05, 2, 9), bandwidth=[100.0],
+    ...                             order=1, nominal=nominal, Ts=1e-3, controller=pd)
+    >>> bool(smap.stable[0, 0]), bool(smap.stable[-1, 0])   # J = J_n/20 unstable, 2 J_n stable
+    (False, True)
+    >>> edge = smap.boundary()[0]["J_ratio"]          # refined: spectral radius exactly 1
+    >>> obs = design_observer(nominal.discretize(1e-3), order=1, bandwidth=100.0)
+    >>> lm = loop_margins(plant=nominal, nominal=nominal, Ts=1e-3, controller=pd, observer=obs)
+    >>> bool(abs(edge - 1 / lm.gain_margin) < 1e-6 * edge)  # b = 0: J/J_n = 1/gain margin
+    True
+    """
+    if not isinstance(nominal, ServoModel):
+        raise ParameterTypeError(f"nominal must be a ServoModel, got {type(nominal).__name__}")
+    if not isinstance(controller, PD):
+        raise ParameterTypeError(f"controller must be a PD, got {type(controller).__name__}")
+    if sensor is not None and not isinstance(sensor, Encoder):
+        raise ParameterTypeError(f"sensor must be an Encoder or None, got {type(sensor).__name__}")
+    Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
+    m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
+    delay = as_int(
+        delay_samples, "delay_samples", "a non-negative integer number of samples", minimum=0
+    )
+    ratios, ratio_grid = _grid_or_scalar(
+        J_ratio, "J_ratio", "positive true/nominal inertia ratios J/J_n", allow_zero=False
+    )
+    frictions, friction_grid = _grid_or_scalar(
+        nominal.b if b is None else b,
+        "b",
+        "non-negative true viscous frictions [N m s/rad]",
+        allow_zero=True,
+    )
+    if ratio_grid == friction_grid:
+        given = "both" if ratio_grid else "neither"
+        raise ParameterValueError(
+            "give a grid (a 1-D sequence) for exactly one of J_ratio and b, the other a "
+            f"scalar; got {given}"
+        )
+    bandwidths = as_grid(
+        bandwidth, "bandwidth", "positive observer bandwidths [rad/s]", increasing=True
+    )
+    setting = _Setting(
+        nominal=nominal,
+        Ts=Ts,
+        controller=controller,
+        order=m,
+        gain_direction=tuple(
+            as_real_vector(gain_direction, "gain_direction", "a direction vector", length=2)
+        ),
+        delay=delay,
+        backward_difference=sensor is not None and sensor.velocity == "backward-difference",
+    )
+    designs = [setting.design(float(g)) for g in bandwidths]
+    values = ratios if ratio_grid else frictions
+    # Validate every plant before computing (ServoModel checks finiteness of J and b).
+    for v in values:
+        J_r, b_r = (float(v), float(frictions)) if ratio_grid else (float(ratios), float(v))
+        ServoModel(J_r * nominal.J, b_r).discretize(Ts)
+    rho = np.empty((values.size, bandwidths.size))
+    for i, v in enumerate(values):
+        J_r, b_r = (float(v), float(frictions)) if ratio_grid else (float(ratios), float(v))
+        for j, design in enumerate(designs):
+            rho[i, j] = setting.radius(design, J_r, b_r)
+    for array in (values, bandwidths, rho):
+        array.setflags(write=False)
+    return StabilityMap(
+        parameter="J_ratio" if ratio_grid else "b",
+        values=values,
+        bandwidths=bandwidths,
+        spectral_radius=rho,
+        order=m,
+        J_ratio=None if ratio_grid else float(ratios),
+        b=float(frictions) if ratio_grid else None,
+        delay_samples=delay,
+        _setting=setting,
+    )

@@ -1,0 +1,201 @@
+"""``hpdob design``: synthesise an observer and print its matrices and gains."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+import numpy as np
+
+from ..models._servo import ServoModel
+from ..observers._synthesis import design_observer
+
+__all__ = ["register"]
+
+#: The paper's motor (Maxon EC 90 flat class) and sampling period: the command's defaults.
+PAPER_MOTOR = {"J": 3.06e-4, "b": 5e-5, "Ts": 1e-3}
+
+
+def _number_list(kind):
+    def parse(text: str):
+        try:
+            return [kind(item.strip().replace("i", "j")) for item in text.split(",")]
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected comma-separated numbers, got {text!r}"
+            ) from None
+
+    return parse
+
+
+def _real(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def _integer(text: str) -> int:
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+
+
+def add_design_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the model and observer options shared by commands that design an observer."""
+    model = parser.add_argument_group("nominal model")
+    model.add_argument(
+        "--J",
+        type=_real,
+        default=PAPER_MOTOR["J"],
+        help="nominal inertia J_n [kg m^2] (default: %(default)s)",
+    )
+    model.add_argument(
+        "--b",
+        type=_real,
+        default=PAPER_MOTOR["b"],
+        help="nominal viscous friction b_n [N m s/rad] (default: %(default)s)",
+    )
+    model.add_argument(
+        "--Ts",
+        type=_real,
+        default=PAPER_MOTOR["Ts"],
+        help="sampling period [s] (default: %(default)s)",
+    )
+    obs = parser.add_argument_group("observer")
+    obs.add_argument(
+        "--order",
+        type=_integer,
+        default=1,
+        help="truncation order: 0 DOb, 1 HPDOb, >= 2 generalised (default: %(default)s)",
+    )
+    which = obs.add_mutually_exclusive_group()
+    which.add_argument(
+        "--bandwidth",
+        type=_real,
+        default=None,
+        help="bandwidth g [rad/s], all poles at exp(-g Ts) (default: 100)",
+    )
+    which.add_argument(
+        "--poles",
+        type=_number_list(complex),
+        default=None,
+        help="order+1 comma-separated poles, e.g. 0.9,0.9 or 0.9+0.1j,0.9-0.1j",
+    )
+    obs.add_argument(
+        "--gain-direction",
+        type=_number_list(float),
+        default=[1.0, 1.0],
+        help="gain direction d, e.g. 1,1 (eq. 25) or 0,1 (default: 1,1)",
+    )
+
+
+def design_from_args(args: argparse.Namespace):
+    """Build the :class:`ObserverDesign` described by parsed ``add_design_arguments``."""
+    model = ServoModel(args.J, args.b).discretize(args.Ts)
+    bandwidth = args.bandwidth
+    if bandwidth is None and args.poles is None:
+        bandwidth = 100.0
+    return design_observer(
+        model,
+        order=args.order,
+        poles=args.poles,
+        bandwidth=bandwidth,
+        gain_direction=args.gain_direction,
+    )
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "design",
+        help="synthesise an observer and print A_D, B_D, D_D, gains, error matrix",
+        description="Synthesise a disturbance observer on the exact ZOH discretisation of the "
+        "nominal servo model and print its matrices. Defaults: the paper's motor "
+        "(J = 3.06e-4 kg m^2, b = 5e-5 N m s/rad), Ts = 1 ms, HPDOb (order 1) at "
+        "100 rad/s.",
+    )
+    add_design_arguments(parser)
+    parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    parser.set_defaults(handler=_run)
+
+
+def _complex_json(values) -> list:
+    return [{"real": float(np.real(v)), "imag": float(np.imag(v))} for v in np.atleast_1d(values)]
+
+
+def design_summary(design) -> dict:
+    """JSON-ready dictionary describing ``design`` (used by ``--json``)."""
+    model = design.model
+    return {
+        "model": {"J": model.J, "b": model.b, "Ts": model.Ts},
+        "order": design.order,
+        "poles": _complex_json(design.poles),
+        "bandwidth": design.bandwidth,
+        "gain_direction": design.gain_direction.tolist(),
+        "A_D": model.A.tolist(),
+        "B_D": model.B.tolist(),
+        "D_D": model.D.tolist(),
+        "k": design.k.tolist(),
+        "gains": design.gains.tolist(),
+        "error_matrix": design.error_matrix.tolist(),
+        "eigenvalues": _complex_json(np.linalg.eigvals(design.error_matrix)),
+    }
+
+
+def _fmt(value: complex) -> str:
+    value = complex(value)
+    # Drop imaginary parts below the 6 printed digits (repeated poles split by ~sqrt(eps)).
+    if abs(value.imag) <= 5e-7 * max(abs(value), 1e-300):
+        return f"{value.real:.6g}"
+    return f"{value.real:.6g}{value.imag:+.6g}j"
+
+
+def _matrix_lines(name: str, matrix) -> list[str]:
+    rows = np.atleast_2d(np.asarray(matrix))
+    cells = [[f"{v:.6e}" for v in row] for row in rows]
+    width = max(len(c) for row in cells for c in row)
+    lines = []
+    for i, row in enumerate(cells):
+        label = name if i == 0 else ""
+        lines.append(f"  {label:<14}[ " + "  ".join(c.rjust(width) for c in row) + " ]")
+    return lines
+
+
+def design_table(design) -> str:
+    """Human-readable table of ``design`` (the default output of ``hpdob design``)."""
+    model = design.model
+    kind = {0: "conventional DOb", 1: "HPDOb"}.get(design.order, "generalised DOb")
+    lines = [
+        f"Disturbance observer: order {design.order} ({kind})",
+        f"  nominal model   J_n = {model.J:.6g} kg m^2, b_n = {model.b:.6g} N m s/rad, "
+        f"Ts = {model.Ts:.6g} s",
+        f"  poles           {', '.join(_fmt(p) for p in np.atleast_1d(design.poles))}"
+        + (f"   (bandwidth {design.bandwidth:.6g} rad/s)" if design.bandwidth else ""),
+        f"  gain direction  {design.gain_direction.tolist()}",
+        "",
+        "Discrete nominal model x[k+1] = A_D x[k] + B_D u[k] - D_D tau[k]   (eq. 8)",
+        *_matrix_lines("A_D", model.A),
+        *_matrix_lines("B_D^T", model.B),
+        *_matrix_lines("D_D^T", model.D),
+        "",
+        "Gains (row i is L_i^T; k_i = L_i^T D_D)",
+    ]
+    for i, (row, k) in enumerate(zip(design.gains, design.k, strict=True), start=1):
+        lines.append(f"  L_{i:<13}[ {row[0]: .6e}  {row[1]: .6e} ]   k_{i} = {k:.6g}")
+    lines += [
+        "",
+        "Estimation-error matrix M  (eqs. 12, 22)",
+        *_matrix_lines("M", design.error_matrix),
+        "  eigenvalues   " + ", ".join(_fmt(v) for v in np.linalg.eigvals(design.error_matrix)),
+    ]
+    return "\n".join(lines)
+
+
+def _run(args: argparse.Namespace) -> int:
+    design = design_from_args(args)
+    if args.json:
+        print(json.dumps(design_summary(design), indent=2))
+    else:
+        print(design_table(design))
+    return 0

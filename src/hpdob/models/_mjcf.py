@@ -1,0 +1,189 @@
+r"""MJCF for :class:`hpdob.MujocoServo`: the built servo model, and finding the joint and motor
+of a user's model (with errors that list the valid names).
+
+MuJoCo is imported on first use only (:func:`import_mujoco`).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from .._validation import ParameterTypeError, ParameterValueError
+
+__all__ = [
+    "GRAVITY",
+    "INTEGRATORS",
+    "MujocoHandle",
+    "compile_model",
+    "find_actuator",
+    "find_joint",
+    "import_mujoco",
+    "integrator_name",
+    "object_names",
+    "servo_xml",
+]
+
+#: MuJoCo's integrators, by their MJCF name (``<option integrator=...>``).
+INTEGRATORS = ("RK4", "Euler", "implicit", "implicitfast")
+#: Gravitational acceleration of the built model [m/s^2] (MuJoCo's default, along -z).
+GRAVITY = 9.81
+#: The rotor body carries this fraction of ``J`` as its own inertia (MuJoCo needs a moving body
+#: to have positive mass and inertia); the joint's ``armature`` is ``J`` minus it.
+_BODY_INERTIA_FRACTION = 1e-6
+_BODY_MASS = 1e-6  # kg, on the axis: no gravity torque, no inertia about the axis
+
+
+def import_mujoco():
+    """Import and return the ``mujoco`` module, or raise an ImportError saying how to get it."""
+    try:
+        import mujoco
+    except ImportError as err:
+        raise ImportError("hpdob.MujocoServo needs MuJoCo: pip install 'hpdob[mujoco]'") from err
+    return mujoco
+
+
+class MujocoHandle(NamedTuple):
+    """A compiled MuJoCo model and its data, ready for one run (see :meth:`MujocoServo.open`)."""
+
+    mujoco: object
+    model: object
+    data: object
+    qpos: int  # address of the joint angle in data.qpos
+    dof: int  # address of the joint velocity in data.qvel / qacc / qfrc_*
+    actuator: int  # index of the motor in data.ctrl
+    ctrl_per_torque: float  # ctrl = u * ctrl_per_torque gives the joint torque u [N m]
+
+
+def servo_xml(J, b, coulomb, link_mass, link_length, integrator) -> str:
+    body_inertia = min(J * _BODY_INERTIA_FRACTION, 0.5 * J)
+    armature = J - body_inertia
+    link = ""
+    if link_mass > 0.0:
+        link = (
+            f'\n      <body name="link" pos="0 0 {-link_length!r}">'
+            f'\n        <inertial pos="0 0 0" mass="{link_mass!r}" diaginertia="0 0 0"/>'
+            "\n      </body>"
+        )
+    i = repr(body_inertia)
+    return f"""<mujoco model="hpdob_servo">
+  <compiler angle="radian" inertiafromgeom="false"/>
+  <option timestep="0.001" integrator="{integrator}" gravity="0 0 {-GRAVITY!r}"/>
+  <worldbody>
+    <body name="rotor">
+      <joint name="hinge" type="hinge" axis="0 1 0" armature="{armature!r}"
+             damping="{b!r}" frictionloss="{coulomb!r}"/>
+      <inertial pos="0 0 0" mass="{_BODY_MASS!r}" diaginertia="{i} {i} {i}"/>{link}
+    </body>
+  </worldbody>
+  <actuator>
+    <motor name="motor" joint="hinge" gear="1"/>
+  </actuator>
+</mujoco>
+"""
+
+
+def compile_model(source: str, path: str | None):
+    mujoco = import_mujoco()
+    try:
+        if path is not None:
+            return mujoco.MjModel.from_xml_path(path)
+        return mujoco.MjModel.from_xml_string(source)
+    except ValueError as err:
+        where = f"the MJCF file {path!r}" if path is not None else "the MJCF XML string"
+        raise ParameterValueError(f"MuJoCo could not compile {where}: {err}") from None
+
+
+def object_names(model, obj, count: int) -> list[str]:
+    mujoco = import_mujoco()
+    return [mujoco.mj_id2name(model, obj, i) or f"#{i} (unnamed)" for i in range(count)]
+
+
+def _listed(names) -> str:
+    return ", ".join(repr(n) for n in names) if names else "none"
+
+
+def find_joint(model, joint) -> int:
+    mujoco = import_mujoco()
+    names = object_names(model, mujoco.mjtObj.mjOBJ_JOINT, model.njnt)
+    hinge = mujoco.mjtJoint.mjJNT_HINGE
+    hinges = [n for i, n in enumerate(names) if model.jnt_type[i] == hinge]
+    if joint is None:
+        if len(hinges) != 1:
+            raise ParameterValueError(
+                f"joint must name the servo's hinge joint: the model has {len(hinges)} hinge "
+                f"joints ({_listed(hinges)}); joints: {_listed(names)}"
+            )
+        joint = hinges[0]
+    if not isinstance(joint, str):
+        raise ParameterTypeError(f"joint must be a joint name (str), got {type(joint).__name__}")
+    if joint not in names:
+        raise ParameterValueError(
+            f"joint must be the name of a hinge joint of the model, got {joint!r}; "
+            f"hinge joints: {_listed(hinges)}"
+        )
+    index = names.index(joint)
+    if model.jnt_type[index] != hinge:
+        kind = mujoco.mjtJoint(model.jnt_type[index]).name.removeprefix("mjJNT_").lower()
+        raise ParameterValueError(
+            f"joint must be a hinge joint (1 rotational dof), got {joint!r}, a {kind} joint; "
+            f"hinge joints: {_listed(hinges)}"
+        )
+    return index
+
+
+def find_actuator(model, joint_id: int, joint_name: str, actuator) -> tuple[int, float]:
+    mujoco = import_mujoco()
+    names = object_names(model, mujoco.mjtObj.mjOBJ_ACTUATOR, model.nu)
+    drivers = [
+        n
+        for i, n in enumerate(names)
+        if model.actuator_trntype[i] == mujoco.mjtTrn.mjTRN_JOINT
+        and model.actuator_trnid[i, 0] == joint_id
+    ]
+    if actuator is None:
+        if len(drivers) != 1:
+            raise ParameterValueError(
+                f"actuator must name the motor of joint {joint_name!r}: {len(drivers)} "
+                f"actuators drive it ({_listed(drivers)}); actuators: {_listed(names)}"
+            )
+        actuator = drivers[0]
+    if not isinstance(actuator, str):
+        raise ParameterTypeError(
+            f"actuator must be an actuator name (str), got {type(actuator).__name__}"
+        )
+    if actuator not in names:
+        raise ParameterValueError(
+            f"actuator must be the name of an actuator of the model, got {actuator!r}; "
+            f"actuators driving joint {joint_name!r}: {_listed(drivers)}; "
+            f"all actuators: {_listed(names)}"
+        )
+    index = names.index(actuator)
+    if actuator not in drivers:
+        raise ParameterValueError(
+            f"actuator must drive joint {joint_name!r} directly, got {actuator!r}, which "
+            f"does not; actuators driving it: {_listed(drivers)}"
+        )
+    motor = (
+        model.actuator_gaintype[index] == mujoco.mjtGain.mjGAIN_FIXED
+        and model.actuator_biastype[index] == mujoco.mjtBias.mjBIAS_NONE
+        and model.actuator_dyntype[index] == mujoco.mjtDyn.mjDYN_NONE
+    )
+    scale = float(model.actuator_gear[index, 0] * model.actuator_gainprm[index, 0])
+    if not motor or scale == 0.0:
+        kinds = (
+            mujoco.mjtGain(model.actuator_gaintype[index]).name,
+            mujoco.mjtBias(model.actuator_biastype[index]).name,
+            mujoco.mjtDyn(model.actuator_dyntype[index]).name,
+        )
+        raise ParameterValueError(
+            f"actuator must be a torque source (a <motor>: fixed nonzero gain, no bias, no "
+            f"activation dynamics), got {actuator!r} with gain type {kinds[0]}, bias type "
+            f"{kinds[1]}, dynamics {kinds[2]} and gear x gain = {scale!r}"
+        )
+    return index, 1.0 / scale
+
+
+def integrator_name(model) -> str:
+    """The MJCF name of ``model``'s integrator (e.g. ``'RK4'``)."""
+    name = import_mujoco().mjtIntegrator(model.opt.integrator).name.removeprefix("mjINT_")
+    return next((i for i in INTEGRATORS if i.upper() == name), name)

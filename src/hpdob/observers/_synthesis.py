@@ -1,0 +1,419 @@
+r"""Unified synthesis of discrete disturbance observers of any truncation order.
+
+Order ``m = 0`` is the conventional DOb (eqs. 9-13), ``m = 1`` the HPDOb (eqs. 14-24) and
+``m >= 2`` the generalisation announced in the paper. With auxiliary variables
+:math:`z_{i,k} = \tau_{k-(m+1-i)} + L_i^T x_k`, ``i = 1..m+1``, and the disturbance model
+:math:`\Delta^{m+1}\tau = 0`, the observer is
+
+.. math::
+
+    \hat z_{k+1} = M \hat z_k + (G A - M G) x_k + G B u_k, \qquad
+    \hat\tau_k = \hat z_{m+1,k} - L_{m+1}^T x_k,
+
+where ``G`` stacks the gains :math:`L_i^T` as rows, :math:`M = C - k\,e_{m+1}^T`, ``C`` is the
+companion matrix of :math:`(z-1)^{m+1}` (ones on the super-diagonal, last row the
+extrapolation weights :math:`p_i = (-1)^{m+1-i}\binom{m+1}{i-1}`) and
+:math:`k_i = L_i^T D_{Dn}`. The derivation is in ``docs/theory.md``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from fractions import Fraction
+
+import numpy as np
+
+from .._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    _show,
+    as_int,
+    as_real_vector,
+    numeric_array,
+    positive,
+    readonly,
+)
+from ..models._servo import DiscreteServoModel, ServoModel
+
+__all__ = [
+    "ObserverDesign",
+    "characteristic_polynomial",
+    "design_observer",
+    "error_matrix",
+    "extrapolation_weights",
+]
+
+#: Highest truncation order: binom(m+1, i) < 2**53 stays exact in double precision.
+MAX_ORDER = 50
+#: Relative tolerance for matching complex-conjugate partners.
+_PAIR_RTOL = 1e-9
+#: gain directions with |d^T D| <= _DEGENERATE * |d| |D| are rejected.
+_DEGENERATE = 1e-8
+
+
+def extrapolation_weights(order: int) -> np.ndarray:
+    r"""Weights :math:`p_i` with :math:`\tau_{k+1} = \sum_i p_i \tau_{k-(m+1-i)}` when
+    :math:`\Delta^{m+1}\tau_{k+1} = 0`.
+
+    :math:`p_i = (-1)^{m+1-i}\binom{m+1}{i-1}` for ``i = 1..m+1`` (``order = m``): the
+    degree-``m`` polynomial extrapolation of the last ``m+1`` samples. ``[1]`` for the DOb,
+    ``[-1, 2]`` for the HPDOb (eqs. 17-19).
+    """
+    m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
+    return np.array([(-1.0) ** (m + 1 - i) * math.comb(m + 1, i - 1) for i in range(1, m + 2)])
+
+
+def unit_root_polynomial(order: int) -> np.ndarray:
+    r"""Coefficients of :math:`(z-1)^{m+1}` (``order = m``), **ascending** powers of ``z``:
+    :math:`\binom{m+1}{j}(-1)^{m+1-j}` for ``j = 0..m+1``."""
+    n = order + 1
+    return np.array([math.comb(n, j) * (-1.0) ** (n - j) for j in range(n + 1)])
+
+
+def _companion(order: int) -> np.ndarray:
+    n = order + 1
+    C = np.zeros((n, n))
+    C[np.arange(n - 1), np.arange(1, n)] = 1.0
+    C[-1, :] += extrapolation_weights(order)
+    return C
+
+
+def error_matrix(k) -> np.ndarray:
+    r"""Estimation-error matrix :math:`M = C - k\,e_{m+1}^T` for ``k_i = L_i^T D_Dn``.
+
+    ``k`` has ``m + 1`` entries. For one entry this is ``[[1 - k1]]`` (eq. 12); for two it is
+    ``[[0, 1 - k1], [-1, 2 - k2]]`` (eq. 22).
+    """
+    k = as_real_vector(k, "k", "a sequence of scalar gains k_i = L_i^T D_Dn")
+    if k.size == 0:
+        raise ParameterValueError("k must have at least one entry, got an empty sequence")
+    M = _companion(k.size - 1)
+    M[:, -1] -= k
+    return M
+
+
+def _characteristic_basis(order: int) -> np.ndarray:
+    r"""Matrix ``Q`` with ``charpoly(M) = (z-1)^{m+1} + Q @ k`` (ascending powers of z).
+
+    Column ``j`` (1-based) holds the coefficients of
+    :math:`q_j(z) = z^{m-j}\sum_{i\le j} p_i z^{i-1}` for ``j <= m`` and :math:`q_{m+1} = z^m`;
+    derived in ``docs/theory.md``.
+    """
+    m = order
+    p = extrapolation_weights(m)
+    Q = np.zeros((m + 1, m + 1))
+    for j in range(1, m + 1):
+        for i in range(1, j + 1):
+            Q[m - j + i - 1, j - 1] += p[i - 1]
+    Q[m, m] = 1.0
+    return Q
+
+
+def characteristic_polynomial(k) -> np.ndarray:
+    r"""Coefficients (highest power first) of :math:`\det(zI - M)` for gains ``k``.
+
+    Computed from the affine formula :math:`(z-1)^{m+1} + \sum_j k_j q_j(z)`, not from
+    eigenvalues, so it is exact to rounding for repeated roots too.
+    """
+    k = as_real_vector(k, "k", "a sequence of scalar gains k_i = L_i^T D_Dn")
+    if k.size == 0:
+        raise ParameterValueError("k must have at least one entry, got an empty sequence")
+    m = k.size - 1
+    ascending = np.zeros(m + 2)
+    ascending[: m + 1] = _characteristic_basis(m) @ k
+    ascending += unit_root_polynomial(m)
+    return ascending[::-1]
+
+
+def _validate_poles(poles, order: int) -> np.ndarray:
+    values = numeric_array(poles, "poles", f"a sequence of {order + 1} numbers", dtype=complex)
+    if values.ndim == 0:
+        values = values.reshape(1)
+    if values.ndim != 1 or values.size != order + 1:
+        raise ParameterValueError(
+            f"poles must have order + 1 = {order + 1} entries for order {order}, "
+            f"got {values.size} ({poles!r})"
+        )
+    if not np.all(np.isfinite(values)):
+        raise ParameterValueError(f"poles must be finite, got {poles!r}")
+    outside = values[np.abs(values) >= 1.0]
+    if outside.size:
+        raise ParameterValueError(
+            f"poles must lie strictly inside the unit circle (|p| < 1), got "
+            f"{_fmt_pole(outside[0])} with |p| = {abs(outside[0]):.6g}"
+        )
+    # Complex poles must come in conjugate pairs (with equal multiplicity).
+    unmatched = [p for p in values if p.imag != 0.0]
+    while unmatched:
+        p = unmatched.pop(0)
+        scale = max(abs(p), 1e-300)
+        partner = next((q for q in unmatched if abs(q - p.conjugate()) <= _PAIR_RTOL * scale), None)
+        if partner is None:
+            raise ParameterValueError(
+                f"poles must come in complex-conjugate pairs so the gains are real: "
+                f"{_fmt_pole(p)} has no partner {_fmt_pole(p.conjugate())} in "
+                f"{poles!r}"
+            )
+        unmatched.remove(partner)
+    if np.all(values.imag == 0.0):
+        return values.real.copy()
+    return values
+
+
+def _schur_stable(k: np.ndarray) -> bool:
+    r"""True if every eigenvalue of ``M = C - k e_{m+1}^T`` lies strictly inside the unit circle,
+    decided exactly for the double-precision gains ``k``.
+
+    Eigenvalues computed in floating point cannot decide this for near-defective ``M``
+    (an ``(m+1)``-fold pole moves by ~``eps^(1/(m+1))``), so the characteristic polynomial
+    :math:`(z-1)^{m+1} + \sum_j k_j q_j(z)` is built in exact rational arithmetic and tested by
+    the Schur-Cohn recursion: with :math:`|c_0| < |c_n|`, :math:`p` is stable iff
+    :math:`(c_n p(z) - c_0 z^n p(1/z)) / z` is (the Schur-Cohn reduction, as in Jury's
+    stability test for discrete-time systems). Cross-checked against ``np.roots`` in
+    ``tests/test_synthesis.py``.
+    """
+    if not np.all(np.isfinite(k)):
+        return False
+    m = k.size - 1
+    Q = _characteristic_basis(m)
+    gains = [Fraction(float(v)) for v in k]
+    c = [
+        int(base) + sum((int(Q[i, j]) * gains[j] for j in range(m + 1)), Fraction(0))
+        for i, base in enumerate(unit_root_polynomial(m)[: m + 1])
+    ]
+    c.append(Fraction(1))  # ascending coefficients of the monic degree-(m+1) polynomial
+    while len(c) > 1:
+        n = len(c) - 1
+        if abs(c[0]) >= abs(c[n]):
+            return False
+        reduced = [c[n] * c[i] - c[0] * c[n - i] for i in range(1, n + 1)]
+        c = [v / reduced[-1] for v in reduced]  # monic again: keeps the numbers small
+    return True
+
+
+def _show_k(k: np.ndarray) -> str:
+    return np.array2string(np.asarray(k), threshold=6, precision=6)
+
+
+def _fmt_pole(p: complex) -> str:
+    p = complex(p)
+    return f"{p.real:.6g}" if p.imag == 0.0 else f"({p.real:.6g}{p.imag:+.6g}j)"
+
+
+@dataclass(frozen=True, eq=False)
+class ObserverDesign:
+    r"""A synthesised disturbance observer of truncation order ``order`` (immutable).
+
+    Built by :func:`design_observer`; every array attribute is read-only.
+
+    Attributes
+    ----------
+    model : DiscreteServoModel
+        The nominal discrete model (:math:`A_{Dn}, B_{Dn}, D_{Dn}`).
+    order : int
+        Truncation order ``m``: 0 conventional DOb, 1 HPDOb, ``m >= 2`` generalised.
+    poles : ndarray, shape (order + 1,)
+        Requested eigenvalues of the error matrix (float if all real, else complex).
+    bandwidth : float or None
+        Bandwidth ``g`` [rad/s] if the poles came from it (all at ``exp(-g Ts)``).
+    gain_direction : ndarray, shape (2,)
+        Direction ``d`` of every gain vector, ``L_i = k_i d / (d^T D_Dn)``.
+    k : ndarray, shape (order + 1,)
+        Scalar gains :math:`k_i = L_i^T D_{Dn}` (the paper's :math:`k_1, k_2` of eq. 25).
+    gains : ndarray, shape (order + 1, 2)
+        Row ``i`` is :math:`L_{i+1}^T`.
+    error_matrix : ndarray, shape (order + 1, order + 1)
+        :math:`M` of :math:`e_{k+1} = M e_k + [0,\dots,0,\Delta^{m+1}\tau_{k+1}]^T`
+        (eqs. 12, 22).
+    state_matrix, state_input, control_input : ndarray
+        The observer recursion :math:`\hat z_{k+1} = M\hat z_k + K_x x_k + K_u u_k` with
+        ``state_matrix = M``, ``state_input = K_x = G A - M G`` (shape (order+1, 2)) and
+        ``control_input = K_u = G B`` (shape (order+1,)).
+    """
+
+    model: DiscreteServoModel
+    order: int
+    poles: np.ndarray
+    bandwidth: float | None
+    gain_direction: np.ndarray
+    k: np.ndarray
+    gains: np.ndarray
+    error_matrix: np.ndarray
+    state_input: np.ndarray
+    control_input: np.ndarray
+    # Python-float copies for the allocation-free sample loop in ``_core``.
+    _k: tuple = field(repr=False)
+    _p: tuple = field(repr=False)
+    _rows: tuple = field(repr=False)
+    _last_gain: tuple = field(repr=False)
+
+    @property
+    def state_matrix(self) -> np.ndarray:
+        """Alias of :attr:`error_matrix`: the observer's own state matrix is ``M``."""
+        return self.error_matrix
+
+    @property
+    def Ts(self) -> float:
+        """Sampling period [s]."""
+        return self.model.Ts
+
+    def to_statespace(self):
+        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
+
+        Inputs ``theta, omega, u``, output ``tau_hat``; see
+        :meth:`hpdob.DisturbanceObserver.to_statespace`.
+        """
+        from ..analysis._estimation import observer_statespace
+
+        return observer_statespace(self)
+
+    def __repr__(self) -> str:
+        poles = ", ".join(_fmt_pole(p) for p in np.atleast_1d(self.poles))
+        return (
+            f"ObserverDesign(order={self.order}, poles=[{poles}], "
+            f"Ts={self.model.Ts:g}, J_n={self.model.J:g}, b_n={self.model.b:g})"
+        )
+
+
+def design_observer(
+    model: DiscreteServoModel,
+    *,
+    order: int,
+    poles=None,
+    bandwidth: float | None = None,
+    gain_direction=(1.0, 1.0),
+) -> ObserverDesign:
+    r"""Synthesise an observer of truncation order ``order`` by eigenvalue placement.
+
+    Parameters
+    ----------
+    model : DiscreteServoModel
+        Nominal discrete model, e.g. ``ServoModel(J_n, b_n).discretize(Ts)``.
+    order : int
+        Truncation order ``m >= 0``: 0 is the conventional DOb (eqs. 9-13), 1 the HPDOb
+        (eqs. 14-24), higher orders cancel disturbances whose samples are polynomials of
+        degree ``m`` exactly.
+    poles : sequence of complex, optional
+        ``order + 1`` desired eigenvalues of the error matrix, strictly inside the unit circle;
+        complex ones in conjugate pairs; repeated poles are allowed.
+    bandwidth : float, optional
+        Observer bandwidth ``g > 0`` [rad/s]; places every pole at ``exp(-g Ts)``.
+        Exactly one of ``poles`` and ``bandwidth`` must be given.
+    gain_direction : sequence of 2 floats, optional
+        Direction ``d`` of the gain vectors, ``L_i = k_i d / (d^T D_Dn)``. The default
+        ``(1, 1)`` is the paper's eq. (25). ``(0, 1)`` makes the estimate independent of the
+        absolute position.
+
+    Returns
+    -------
+    ObserverDesign
+
+    Raises
+    ------
+    TypeError
+        If ``model`` is not a :class:`DiscreteServoModel` or an argument has the wrong type.
+    ValueError
+        If ``order < 0``, both or neither of ``poles``/``bandwidth`` are given, a pole is not
+        strictly inside the unit circle or lacks its conjugate, the number of poles is not
+        ``order + 1``, ``bandwidth <= 0``, ``gain_direction`` is zero or (nearly) orthogonal
+        to ``D_Dn``, ``order > 50``, or the error matrix is not stable although the requested
+        poles are (high orders or repeated poles very close to 1: the gains, rounded to
+        double precision, no longer place them; decided exactly by a Schur-Cohn test).
+
+    Notes
+    -----
+    The characteristic polynomial of the error matrix is affine in ``k``:
+    :math:`\det(zI - M) = (z-1)^{m+1} + \sum_j k_j q_j(z)` (``docs/theory.md``), so ``k``
+    follows from one triangular linear solve, which generalises eq. (24). Repeated poles
+    are placed exactly; no pole-placement routine is involved.
+
+    References
+    ----------
+    E. Sariyildiz, "A High Performance Disturbance Observer: A Unified Synthesis Approach",
+    eqs. (9)-(13), (14)-(25).
+
+    Examples
+    --------
+    >>> from hpdob import ServoModel, design_observer
+    >>> model = ServoModel(J=2.8e-4).discretize(1e-3)
+    >>> design = design_observer(model, order=1, poles=[0.9, 0.8])
+    >>> design.k     # eq. (24): [1 - 0.9*0.8, 2 - 0.9 - 0.8]
+    array([0.28, 0.3 ])
+    """
+    if isinstance(model, ServoModel):
+        raise ParameterTypeError(
+            "model must be a DiscreteServoModel; discretise the continuous model "
+            "first, e.g. ServoModel(J, b).discretize(Ts)"
+        )
+    if not isinstance(model, DiscreteServoModel):
+        raise ParameterTypeError(f"model must be a DiscreteServoModel, got {type(model).__name__}")
+    m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
+    if m > MAX_ORDER:
+        raise ParameterValueError(
+            f"order must be at most {MAX_ORDER}: the extrapolation weights binom(m+1, i) of "
+            f"higher orders are not exact in double precision, got {m}"
+        )
+    if (poles is None) == (bandwidth is None):
+        given = "both" if poles is not None else "neither"
+        raise ParameterValueError(
+            f"give exactly one of poles (order + 1 = {m + 1} eigenvalues) or "
+            f"bandwidth (rad/s); got {given}"
+        )
+    if bandwidth is not None:
+        g = positive(bandwidth, "bandwidth", "a positive finite observer bandwidth [rad/s]")
+        placed = np.full(m + 1, math.exp(-g * model.Ts))
+        g_out: float | None = g
+    else:
+        placed = _validate_poles(poles, m)
+        g_out = None
+    d = as_real_vector(
+        gain_direction, "gain_direction", "a direction vector (d_theta, d_omega)", length=2
+    )
+    D = np.asarray(model.D)
+    # Only the direction matters (L_i = k_i d / d^T D): scale it to max |d_j| = 1 first so
+    # that tiny (subnormal) or huge entries neither underflow nor overflow below.
+    scale = float(np.max(np.abs(d)))
+    unit = d / scale if scale > 0.0 else d
+    dD = float(unit @ D)
+    if abs(dD) <= _DEGENERATE * np.linalg.norm(unit) * np.linalg.norm(D):
+        raise ParameterValueError(
+            f"gain_direction must not be zero or orthogonal to D_Dn = {D.tolist()}: "
+            f"d^T D_Dn = {float(d @ D):.3g} for gain_direction={d.tolist()}"
+        )
+
+    desired = np.real(np.poly(placed)) if placed.size else np.array([1.0])
+    # desired (highest power first, monic, degree m+1) minus (z-1)^{m+1}, ascending powers.
+    rhs = desired[::-1][: m + 1] - unit_root_polynomial(m)[: m + 1]
+    k = np.linalg.solve(_characteristic_basis(m), rhs)
+
+    G = np.outer(k, unit / dD)
+    M = error_matrix(k)
+    if not _schur_stable(k):
+        asked = f"bandwidth={g_out!r} rad/s" if g_out is not None else f"poles={_show(poles)}"
+        raise ParameterValueError(
+            f"{asked} cannot be realised for order {m} in double precision: with the gains "
+            f"rounded to doubles, k = {_show_k(k)}, the error matrix is not stable (an eigenvalue "
+            f"has |z| >= 1, exact Schur-Cohn test); high orders and repeated poles near 1 are "
+            f"too ill-conditioned. Use a lower order, a higher bandwidth or distinct poles"
+        )
+    A, B = np.asarray(model.A), np.asarray(model.B)
+    Kx = G @ A - M @ G
+    Ku = G @ B
+    rows = tuple((float(Kx[i, 0]), float(Kx[i, 1]), float(Ku[i])) for i in range(m + 1))
+    return ObserverDesign(
+        model=model,
+        order=m,
+        poles=readonly(placed),
+        bandwidth=g_out,
+        gain_direction=readonly(d),
+        k=readonly(k),
+        gains=readonly(G),
+        error_matrix=readonly(M),
+        state_input=readonly(Kx),
+        control_input=readonly(Ku),
+        _k=tuple(float(v) for v in k),
+        _p=tuple(float(v) for v in extrapolation_weights(m)),
+        _rows=rows,
+        _last_gain=(float(G[-1, 0]), float(G[-1, 1])),
+    )

@@ -1,0 +1,90 @@
+"""The canonical scenario: the paper's section IV set-up, defined once.
+
+True plant J = 3.06e-4 kg m^2 (Maxon EC 90 flat class), b = 5e-5 N m s/rad, Coulomb friction
+0.01 N m (tanh scale 0.01 rad/s); nominal model J_n = 2.8e-4 kg m^2, b_n = 0; Ts = 1 ms;
+10 s; PD(kp=50, kd=5) with feed-forward; ideal sensor and actuator; zero initial state.
+Reference: quintic step 0 -> 1 rad over 0.2-1.2 s, hold, then 1 + 0.5 (1 - cos(pi (t - 4)))
+from t = 4 s. External disturbance: 0.05 N m step at t = 1.5005 s plus
+0.02 sin(4 pi (t - 2.5005)) N m from t = 2.5005 s.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .._signals import Sine, SmoothStep, Step
+from .._validation import check_choice
+from ..models._servo import ServoModel
+from ..observers._runtime import DisturbanceObserver
+from ..simulation._controller import PD
+from ..simulation._devices import Actuator, Encoder
+from ..simulation._simulate import simulate
+
+__all__ = [
+    "RUNS",
+    "observer",
+    "run",
+    "scenario",
+]
+
+PLANT = ServoModel(J=3.06e-4, b=5e-5, coulomb=0.01, coulomb_velocity=0.01)
+NOMINAL = ServoModel(J=2.8e-4, b=0.0)
+TS = 1e-3  # s
+DURATION = 10.0  # s
+CONTROLLER = PD(kp=50.0, kd=5.0, feedforward=True)
+REFERENCE = SmoothStep(0.2, 1.2, 1.0) + Sine(-0.5, 0.5, start=4.0, phase=math.pi / 2, offset=0.5)
+DISTURBANCE = Step(1.5005, 0.05) + Sine(0.02, 2.0, start=2.5005)
+
+#: Encoder and actuator of the virtual experiment standing in for the paper's Fig. 5 (a
+#: simulation, not hardware): 16384 counts/rev with backward-difference velocity, the
+#: EC 90 flat class's nominal torque as limit (0.444 N m), one sample of transport delay.
+VIRTUAL_SENSOR = Encoder(16384, velocity="backward-difference")
+VIRTUAL_ACTUATOR = Actuator(torque_limit=0.444, delay_samples=1)
+
+#: Observer of each canonical run (None: PD only); gain direction (1, 1).
+RUNS = {
+    "PD": None,
+    "DOb-50": {"order": 0, "bandwidth": 50.0},
+    "DOb-100": {"order": 0, "bandwidth": 100.0},
+    "DOb-200": {"order": 0, "bandwidth": 200.0},
+    "HPDOb-100": {"order": 1, "bandwidth": 100.0},
+    "virtual-experiment": {"order": 1, "bandwidth": 100.0},
+}
+
+
+def scenario() -> dict:
+    """Keyword arguments of :func:`hpdob.simulate` for the canonical scenario, no observer."""
+    return {
+        "plant": PLANT,
+        "nominal": NOMINAL,
+        "Ts": TS,
+        "duration": DURATION,
+        "controller": CONTROLLER,
+        "reference": REFERENCE,
+        "disturbance": DISTURBANCE,
+    }
+
+
+def observer(name: str) -> DisturbanceObserver | None:
+    """The observer of canonical run ``name``, reset at ``x0 = (0, 0)``, ``tau0 = 0``."""
+    check_choice(name, "name", RUNS)
+    spec = RUNS[name]
+    if spec is None:
+        return None
+    obs = DisturbanceObserver(NOMINAL.discretize(TS), gain_direction=(1.0, 1.0), **spec)
+    obs.reset(x0=(0.0, 0.0), tau0=0.0)
+    return obs
+
+
+def run(name: str, **overrides):
+    """Simulate canonical run ``name`` (one of :data:`RUNS`).
+
+    ``overrides`` replace keyword arguments of :func:`hpdob.simulate` (e.g. ``substeps``).
+    """
+    kwargs = scenario()
+    kwargs["observer"] = observer(name)
+    if name == "virtual-experiment":
+        kwargs["sensor"], kwargs["actuator"] = VIRTUAL_SENSOR, VIRTUAL_ACTUATOR
+    kwargs["label"] = name
+    kwargs.update(overrides)
+    return simulate(**kwargs)

@@ -1,0 +1,25 @@
+"""The sampled-data loop and its simulation: controller, sensor, actuator, simulate, sweep.
+
+PD, Encoder, Actuator
+    Outer-loop controller, sensor and actuator models.
+simulate, SimulationResult, SimulationDivergedWarning
+    One closed-loop run (continuous plant, sampled PD, observer inner loop).
+sweep
+    Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
+"""
+
+from ._controller import PD
+from ._devices import Actuator, Encoder
+from ._result import SimulationResult
+from ._simulate import SimulationDivergedWarning, simulate
+from ._sweep import sweep
+
+__all__ = [
+    "PD",
+    "Actuator",
+    "Encoder",
+    "SimulationDivergedWarning",
+    "SimulationResult",
+    "simulate",
+    "sweep",
+]

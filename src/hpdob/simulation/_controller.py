@@ -1,0 +1,71 @@
+"""Outer-loop controller: acceleration-level PD with disturbance compensation."""
+
+from __future__ import annotations
+
+from dataclasses import KW_ONLY, dataclass
+
+from .._validation import ParameterTypeError, nonnegative
+
+__all__ = ["PD"]
+
+
+@dataclass(frozen=True)
+class PD:
+    r"""Acceleration-level PD controller with the observer's compensation (paper, section IV).
+
+    .. math::
+
+        u_k = J_n\,(\ddot r_k + k_p (r_k - \theta_k) + k_d (\dot r_k - \omega_k)) + \hat\tau_k
+
+    with :math:`J_n` the nominal inertia and :math:`\hat\tau_k` the disturbance estimate (0
+    without an observer). The closed loop of the nominal plant without disturbance is
+    :math:`\ddot e + k_d \dot e + k_p e = 0`.
+
+    Parameters
+    ----------
+    kp : float
+        Proportional gain [1/s^2], non-negative.
+    kd : float
+        Derivative gain [1/s], non-negative.
+    feedforward : bool, optional
+        Include the reference acceleration :math:`\ddot r_k`. Default True.
+
+    Examples
+    --------
+    >>> from hpdob import PD
+    >>> u = PD(50.0, 5.0).torque(J_n=2.8e-4, r=1.0, r_dot=0.0, r_ddot=0.0, theta=0.9, omega=0.0)
+    >>> round(u, 12)  # 2.8e-4 * 50 * 0.1 [N m]
+    0.0014
+    """
+
+    kp: float
+    kd: float
+    _: KW_ONLY
+    feedforward: bool = True
+
+    def __post_init__(self):
+        object.__setattr__(
+            self, "kp", nonnegative(self.kp, "kp", "a non-negative finite gain [1/s^2]")
+        )
+        object.__setattr__(
+            self, "kd", nonnegative(self.kd, "kd", "a non-negative finite gain [1/s]")
+        )
+        if not isinstance(self.feedforward, bool):
+            raise ParameterTypeError(f"feedforward must be True or False, got {self.feedforward!r}")
+
+    def torque(
+        self,
+        *,
+        J_n: float,
+        r: float,
+        r_dot: float,
+        r_ddot: float,
+        theta: float,
+        omega: float,
+        tau_hat: float = 0.0,
+    ) -> float:
+        """Control torque [N m] for one sample (see the class docstring)."""
+        acc = self.kp * (r - theta) + self.kd * (r_dot - omega)
+        if self.feedforward:
+            acc += r_ddot
+        return J_n * acc + tau_hat

@@ -1,0 +1,231 @@
+"""The result of a closed-loop simulation: sampled traces, metrics, CSV and plots."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._table import columns_to_csv, columns_to_pandas
+from .._validation import ParameterValueError, numeric_array
+
+__all__ = [
+    "CANONICAL_WINDOWS",
+    "SimulationResult",
+    "json_ready",
+    "metric_window",
+    "metrics_json",
+]
+
+#: Time windows [s] of the canonical position metrics: regulation and tracking.
+CANONICAL_WINDOWS = {"regulation": (1.2, 4.0), "tracking": (4.0, math.inf)}
+
+#: Columns written by :meth:`SimulationResult.to_csv`, with units.
+COLUMNS = {
+    "t": "s",
+    "theta": "rad",
+    "omega": "rad/s",
+    "theta_measured": "rad",
+    "omega_measured": "rad/s",
+    "r": "rad",
+    "r_dot": "rad/s",
+    "r_ddot": "rad/s^2",
+    "u": "N m",
+    "tau_hat": "N m",
+    "tau_dn": "N m",
+    "tau_ext": "N m",
+}
+
+
+def json_ready(value):
+    """``value`` for strict JSON: numpy scalars become Python ones, non-finite floats None."""
+    if isinstance(value, dict):
+        return {str(k): json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(v) for v in value]
+    if isinstance(value, (np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+def metrics_json(metrics: dict) -> str:
+    """``{run: {metric: value}}`` as JSON text, NaN written as ``null`` (strict JSON)."""
+    return json.dumps(json_ready(metrics), indent=2, allow_nan=False) + "\n"
+
+
+def metric_window(bounds, name: str) -> tuple[float, float]:
+    """``bounds`` as a ``(start, stop)`` window [s] with ``start < stop`` (stop may be inf)."""
+    what = "a (start, stop) pair of times [s]"
+    pair = numeric_array(bounds, name, what)
+    if pair.shape != (2,):
+        raise ParameterValueError(f"{name} must be {what}, got {bounds!r}")
+    lo, hi = float(pair[0]), float(pair[1])
+    if not lo < hi:
+        raise ParameterValueError(f"{name} must have start < stop [s], got {bounds!r}")
+    return lo, hi
+
+
+def _rms(values: np.ndarray) -> float:
+    """Root mean square, scaled so that huge values of a diverged run do not overflow."""
+    if not values.size:
+        return math.nan
+    scale = float(np.max(np.abs(values)))
+    if not 0.0 < scale < math.inf:
+        return scale  # all zero, or inf/nan in the trace
+    return scale * float(np.sqrt(np.mean((values / scale) ** 2)))
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationResult:
+    """Sampled traces of one closed-loop run (all arrays have one entry per sample).
+
+    Attributes
+    ----------
+    t : ndarray
+        Sampling instants ``k Ts`` [s].
+    theta, omega : ndarray
+        True angle [rad] and velocity [rad/s] of the plant at ``t``.
+    theta_measured, omega_measured : ndarray
+        What the sensor delivered to the controller and observer.
+    r, r_dot, r_ddot : ndarray
+        Reference and its derivatives [rad, rad/s, rad/s^2].
+    u : ndarray
+        Torque command [N m] (after the actuator limit; the observer's input).
+    tau_hat : ndarray
+        Disturbance estimate [N m] (zeros without an observer).
+    tau_dn : ndarray
+        Ground truth: the nominal disturbance of eq. (3) just after ``u_k`` is applied,
+        ``u - b_n omega - J_n theta_ddot(t_k+)`` [N m].
+    tau_ext : ndarray
+        External disturbance torque at ``t`` [N m].
+    Ts : float
+        Sampling period [s].
+    label : str
+        Name of the run (used in plots and tables).
+    diverged : bool
+        True if the run stopped early because the state blew up; the arrays then end there.
+    message : str
+        Human-readable status.
+    """
+
+    t: np.ndarray
+    theta: np.ndarray
+    omega: np.ndarray
+    theta_measured: np.ndarray
+    omega_measured: np.ndarray
+    r: np.ndarray
+    r_dot: np.ndarray
+    r_ddot: np.ndarray
+    u: np.ndarray
+    tau_hat: np.ndarray
+    tau_dn: np.ndarray
+    tau_ext: np.ndarray
+    Ts: float
+    label: str = ""
+    diverged: bool = False
+    message: str = "ok"
+
+    def __post_init__(self):
+        n = len(self.t)
+        for name in COLUMNS:
+            array = np.array(getattr(self, name), dtype=float)
+            if array.shape != (n,):
+                raise ParameterValueError(
+                    f"{name} must have shape ({n},) like t, got {array.shape}"
+                )
+            array.setflags(write=False)
+            object.__setattr__(self, name, array)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @property
+    def estimation_error(self) -> np.ndarray:
+        """``tau_hat - tau_dn`` [N m]."""
+        return self.tau_hat - self.tau_dn
+
+    @property
+    def position_error(self) -> np.ndarray:
+        """``theta - r`` [rad]."""
+        return self.theta - self.r
+
+    def metrics(
+        self, *, regulation=CANONICAL_WINDOWS["regulation"], tracking=CANONICAL_WINDOWS["tracking"]
+    ) -> dict[str, float]:
+        """RMS metrics of the run.
+
+        Parameters
+        ----------
+        regulation, tracking : (float, float)
+            Half-open windows ``[start, stop)`` [s] of the two position metrics. The defaults
+            are the canonical scenario's: regulation 1.2 <= t < 4 s, tracking t >= 4 s.
+
+        Returns
+        -------
+        dict
+            ``rms_estimation_error`` [N m] (``tau_hat - tau_dn`` over the whole run),
+            ``rms_position_error_regulation`` and ``rms_position_error_tracking`` [rad]
+            (``theta - r`` in each window; NaN if the window holds no sample).
+        """
+
+        def window(bounds, name):
+            lo, hi = metric_window(bounds, name)
+            mask = (self.t >= lo) & (self.t < hi)
+            return _rms(self.position_error[mask])
+
+        return {
+            "rms_estimation_error": _rms(self.estimation_error),
+            "rms_position_error_regulation": window(regulation, "regulation"),
+            "rms_position_error_tracking": window(tracking, "tracking"),
+        }
+
+    def max_abs_position_error(self) -> float:
+        """Largest ``|theta - r|`` over the run [rad]."""
+        return float(np.max(np.abs(self.position_error))) if len(self) else math.nan
+
+    # -- export -----------------------------------------------------------------------------
+    def to_csv(self, path) -> Path:
+        """Write the traces to ``path`` as CSV (header row, full float precision)."""
+        return columns_to_csv(self._columns(), path)
+
+    @classmethod
+    def from_csv(cls, path, *, label: str = "") -> SimulationResult:
+        """Read traces written by :meth:`to_csv` (``Ts`` is taken from the time column)."""
+        path = Path(path)
+        with path.open(newline="") as handle:
+            reader = csv.reader(handle)
+            header = next(reader, None)
+            if header != list(COLUMNS):
+                raise ParameterValueError(
+                    f"{path} does not look like an hpdob trace file: "
+                    f"expected columns {list(COLUMNS)}, got {header}"
+                )
+            rows = [[float(v) for v in row] for row in reader]
+        data = np.array(rows, dtype=float).reshape(-1, len(COLUMNS))
+        t = data[:, 0]
+        Ts = float(t[1] - t[0]) if t.size > 1 else math.nan
+        return cls(**{name: data[:, i] for i, name in enumerate(COLUMNS)}, Ts=Ts, label=label)
+
+    def to_pandas(self):
+        """The traces as a :class:`pandas.DataFrame` (needs pandas: ``pip install pandas``)."""
+        return columns_to_pandas(self._columns(), caller="SimulationResult.to_pandas()")
+
+    def _columns(self) -> dict:
+        return {name: getattr(self, name) for name in COLUMNS}
+
+    def plot(self, *, title: str | None = None):
+        """Figure with position vs reference, disturbance and estimate, and estimation error.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        from .._plotting import plot_result
+
+        return plot_result(self, title=title)

@@ -1,0 +1,276 @@
+"""Scenarios described in TOML: parsed into the keyword arguments of :func:`hpdob.simulate`.
+
+Every error names the key (``plant.J``, ``disturbance[2].type``, ...) and the offending value.
+The format is documented in ``docs/simulation.md``; ``examples/*.toml`` are runnable examples.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+from .._signals import Chirp, Constant, Noise, Ramp, Sine, SmoothStep, Step
+from .._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    check_choice,
+    check_keys,
+)
+from ..models._servo import ServoModel
+from ..observers._runtime import DisturbanceObserver
+from ._controller import PD
+from ._devices import Actuator, Encoder
+from ._result import CANONICAL_WINDOWS, metric_window
+from ._simulate import check_run_arguments
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = [
+    "SIGNAL_TYPES",
+    "load_metric_windows",
+    "load_scenario",
+    "load_sweep",
+    "metric_windows",
+    "scenario_from_dict",
+]
+
+SIGNAL_TYPES = {
+    "constant": Constant,
+    "step": Step,
+    "ramp": Ramp,
+    "smooth_step": SmoothStep,
+    "sine": Sine,
+    "chirp": Chirp,
+    "noise": Noise,
+}
+TOP_LEVEL = (
+    "label",
+    "Ts",
+    "duration",
+    "substeps",
+    "x0",
+    "plant",
+    "nominal",
+    "controller",
+    "observer",
+    "sensor",
+    "actuator",
+    "reference",
+    "disturbance",
+    "metrics",
+)
+REQUIRED = ("Ts", "duration", "plant", "nominal", "controller", "reference")
+SWEEP_KEYS = ("grid", "vary", "n", "seed")
+
+
+def _prefixed(key: str, err: Exception, names) -> Exception:
+    """Re-raise a validation error with its parameter name qualified by ``key``
+    (``J must be ...`` from ``[plant]`` becomes ``plant.J must be ...``); a message that does
+    not start with one of the table's ``names`` is prefixed as ``key: message``."""
+    cls = ParameterTypeError if isinstance(err, TypeError) else ParameterValueError
+    text = str(err)
+    first = text.split(" ", 1)[0].split("[", 1)[0]
+    return cls(f"{key}.{text}" if first in names else f"{key}: {text}")
+
+
+def _table(data: dict, key: str) -> dict:
+    value = data[key]
+    if not isinstance(value, dict):
+        raise ParameterTypeError(f"{key} must be a table, got {value!r}")
+    return value
+
+
+def _build(cls, fields: dict, key: str, allowed=None, required=None):
+    """``cls(**fields)`` with unknown and missing keys and bad values reported as ``key.name``."""
+    if allowed is None:  # a dataclass: its public init fields
+        params = [f for f in dataclasses.fields(cls) if f.init and not f.name.startswith("_")]
+        allowed = [f.name for f in params]
+        required = [f.name for f in params if f.default is dataclasses.MISSING]
+    check_keys(fields, allowed, key)
+    missing = [name for name in required or () if name not in fields]
+    if missing:
+        raise ParameterValueError(f"missing required key {key}.{missing[0]}")
+    try:
+        return cls(**fields)
+    except (ParameterTypeError, ParameterValueError) as err:
+        raise _prefixed(key, err, allowed) from None
+
+
+def _signal(spec, key: str):
+    if not isinstance(spec, dict):
+        raise ParameterTypeError(f"{key} must be a table with a 'type' key, got {spec!r}")
+    fields = dict(spec)
+    kind = fields.pop("type", None)
+    try:
+        check_choice(kind, f"{key}.type", SIGNAL_TYPES)
+    except ParameterValueError:
+        raise ParameterValueError(
+            f"{key}.type must be one of {', '.join(repr(k) for k in SIGNAL_TYPES)}; got {kind!r}"
+        ) from None
+    cls = SIGNAL_TYPES[kind]
+    return _build(cls, fields, key)
+
+
+def _signal_sum(specs, key: str):
+    if isinstance(specs, dict):
+        specs = [specs]
+    if not isinstance(specs, list) or not specs:
+        raise ParameterValueError(
+            f"{key} must be one table or a non-empty array of tables ([[{key}]]), got {specs!r}"
+        )
+    total = None
+    for i, spec in enumerate(specs):
+        signal = _signal(spec, f"{key}[{i}]")
+        total = signal if total is None else total + signal
+    return total
+
+
+def _poles(values, key: str):
+    if not isinstance(values, list):
+        raise ParameterTypeError(
+            f"{key} must be an array of numbers or strings like '0.9+0.1j', got {values!r}"
+        )
+    poles = []
+    for i, value in enumerate(values):
+        if isinstance(value, str):
+            try:
+                value = complex(value.replace(" ", ""))
+            except ValueError:
+                raise ParameterValueError(
+                    f"{key}[{i}] must be a number or a complex number "
+                    f"like '0.9+0.1j', got {value!r}"
+                ) from None
+        poles.append(value)
+    return poles
+
+
+def metric_windows(data: dict) -> dict:
+    """The ``[metrics]`` table of a parsed scenario: ``{"regulation": (start, stop),
+    "tracking": (start, stop)}`` [s], each defaulting to :data:`CANONICAL_WINDOWS`."""
+    windows = dict(CANONICAL_WINDOWS)
+    if "metrics" in data:
+        table = _table(data, "metrics")
+        check_keys(table, tuple(CANONICAL_WINDOWS), "metrics")
+        for name, bounds in table.items():
+            windows[name] = metric_window(bounds, f"metrics.{name}")
+    return windows
+
+
+def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
+    """Keyword arguments of :func:`hpdob.simulate` from a parsed TOML document.
+
+    With ``build_observer=False`` the ``observer`` entry stays a dict of
+    :class:`DisturbanceObserver` arguments (what :func:`hpdob.sweep` takes).
+    """
+    if not isinstance(data, dict):
+        raise ParameterTypeError(f"a scenario must be a table, got {type(data).__name__}")
+    check_keys(data, TOP_LEVEL)
+    missing = [k for k in REQUIRED if k not in data]
+    if missing:
+        raise ParameterValueError(
+            f"missing required key {missing[0]}; a scenario needs {', '.join(REQUIRED)}"
+        )
+    metric_windows(data)  # checked here; read with metric_windows() / load_metric_windows()
+    # Top-level scalars are checked here, with simulate()'s messages, not at run time.
+    Ts, duration, substeps, x0 = check_run_arguments(
+        data["Ts"], data["duration"], data.get("substeps"), data.get("x0", (0.0, 0.0))
+    )
+    kwargs = {"Ts": Ts, "duration": duration}
+    if "substeps" in data:
+        kwargs["substeps"] = substeps
+    if "x0" in data:
+        kwargs["x0"] = tuple(x0.tolist())
+    if "label" in data:
+        if not isinstance(data["label"], str):
+            raise ParameterTypeError(
+                f"label must be a str, got {data['label']!r} of type {type(data['label']).__name__}"
+            )
+        kwargs["label"] = data["label"]
+    kwargs["plant"] = _build(ServoModel, _table(data, "plant"), "plant")
+    kwargs["nominal"] = _build(ServoModel, _table(data, "nominal"), "nominal")
+    kwargs["controller"] = _build(PD, _table(data, "controller"), "controller")
+    kwargs["reference"] = _signal_sum(data["reference"], "reference")
+    if "disturbance" in data:
+        kwargs["disturbance"] = _signal_sum(data["disturbance"], "disturbance")
+    if "sensor" in data:
+        sensor = dict(_table(data, "sensor"))
+        kind = sensor.pop("type", "encoder")
+        if kind == "encoder":
+            kwargs["sensor"] = _build(Encoder, sensor, "sensor")
+        elif kind != "ideal" or sensor:
+            raise ParameterValueError(
+                f"sensor.type must be 'encoder' or 'ideal' (the latter "
+                f"without other keys), got {kind!r}"
+            )
+    if "actuator" in data:
+        kwargs["actuator"] = _build(Actuator, _table(data, "actuator"), "actuator")
+    if "observer" in data:
+        spec = dict(_table(data, "observer"))
+        if "poles" in spec:
+            spec["poles"] = _poles(spec["poles"], "observer.poles")
+        if not build_observer:
+            # validate now, with the file's key names, but hand on the arguments
+            _build(
+                lambda **kw: DisturbanceObserver(kwargs["nominal"].discretize(kwargs["Ts"]), **kw),
+                spec,
+                "observer",
+                allowed=("order", "poles", "bandwidth", "gain_direction"),
+                required=("order",),
+            )
+            kwargs["observer"] = spec
+            return kwargs
+        model = kwargs["nominal"].discretize(kwargs["Ts"])
+        kwargs["observer"] = _build(
+            lambda **kw: DisturbanceObserver(model, **kw),
+            spec,
+            "observer",
+            allowed=("order", "poles", "bandwidth", "gain_direction"),
+            required=("order",),
+        )
+    return kwargs
+
+
+def _read_toml(path: Path) -> dict:
+    try:
+        text = path.read_text()
+    except OSError as err:
+        raise ParameterValueError(
+            f"cannot read scenario file {str(path)!r}: {err.strerror}"
+        ) from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise ParameterValueError(f"{path} is not valid TOML: {err}") from None
+
+
+def load_sweep(path) -> tuple[dict, dict]:
+    """Read a sweep spec: a scenario plus a ``[sweep]`` table (``grid``, ``vary``, ``n``,
+    ``seed``). Returns ``(base, options)`` for ``hpdob.sweep(base, **options)``."""
+    data = dict(_read_toml(Path(path)))
+    options = data.pop("sweep", None)
+    if not isinstance(options, dict):
+        raise ParameterValueError(
+            f"a sweep spec needs a [sweep] table with {', '.join(SWEEP_KEYS)}; got {options!r}"
+        )
+    check_keys(options, SWEEP_KEYS, "sweep")
+    base = scenario_from_dict(data, build_observer=False)
+    base.pop("label", None)
+    return base, {**options, "metric_windows": metric_windows(data)}
+
+
+def load_scenario(path) -> dict:
+    """Read a TOML scenario file; return the keyword arguments of :func:`hpdob.simulate`."""
+    path = Path(path)
+    kwargs = scenario_from_dict(_read_toml(path))
+    kwargs.setdefault("label", path.stem)
+    return kwargs
+
+
+def load_metric_windows(path) -> dict:
+    """The metric windows of a TOML scenario file (its ``[metrics]`` table, see
+    :func:`metric_windows`), as keyword arguments of :meth:`SimulationResult.metrics`."""
+    return metric_windows(_read_toml(Path(path)))

@@ -1,0 +1,116 @@
+"""What a sweep varies: the parameter paths, the distributions, and the scenario list."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from .._validation import ParameterTypeError, ParameterValueError, as_int, as_real
+
+__all__ = ["DISTRIBUTIONS", "PATHS", "expand_scenarios"]
+
+#: Parameters a sweep can vary (dotted paths into :func:`hpdob.simulate`'s arguments).
+PATHS = (
+    "plant.J", "plant.b", "plant.coulomb", "plant.coulomb_velocity",
+    "plant.link_mass", "plant.link_length",
+    "nominal.J", "nominal.b",
+    "observer.order", "observer.bandwidth",
+    "controller.kp", "controller.kd",
+    "Ts", "disturbance_scale",
+)  # fmt: skip
+#: Random distributions for ``vary``: name -> meaning of its two parameters.
+DISTRIBUTIONS = {
+    "uniform": "low, high",
+    "normal": "mean, standard deviation",
+    "loguniform": "low, high (0 < low)",
+}
+
+
+def _check_path(path, where: str) -> str:
+    if path not in PATHS:
+        raise ParameterValueError(
+            f"{where} path {path!r} is not a sweep parameter; valid paths: {', '.join(PATHS)}"
+        )
+    return path
+
+
+def _grid_values(path: str, values) -> list:
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__iter__"):
+        raise ParameterTypeError(f"grid[{path!r}] must be a list of values, got {values!r}")
+    values = list(values)
+    if not values:
+        raise ParameterValueError(f"grid[{path!r}] must be a non-empty list of values, got []")
+    if path == "observer.order":
+        return [
+            as_int(v, f"grid[{path!r}] entry", "a non-negative integer order", minimum=0)
+            for v in values
+        ]
+    return [as_real(v, f"grid[{path!r}] entry", "a finite number") for v in values]
+
+
+def _draw(path: str, spec, n: int, rng: np.random.Generator) -> np.ndarray:
+    if path == "observer.order":
+        raise ParameterValueError("vary cannot draw 'observer.order' (an integer): put it in grid")
+    if not isinstance(spec, (tuple, list)) or len(spec) != 3 or spec[0] not in DISTRIBUTIONS:
+        listed = "; ".join(f"({name!r}, {args})" for name, args in DISTRIBUTIONS.items())
+        raise ParameterValueError(f"vary[{path!r}] must be one of {listed}; got {spec!r}")
+    name = spec[0]
+    a = as_real(spec[1], f"vary[{path!r}] first parameter", "a finite number")
+    b = as_real(spec[2], f"vary[{path!r}] second parameter", "a finite number")
+    if name == "uniform":
+        if not a < b:
+            raise ParameterValueError(f"vary[{path!r}] uniform needs low < high, got {spec!r}")
+        return rng.uniform(a, b, n)
+    if name == "normal":
+        if not b > 0:
+            raise ParameterValueError(
+                f"vary[{path!r}] normal needs a positive standard deviation, got {spec!r}"
+            )
+        return rng.normal(a, b, n)
+    if not 0 < a < b:
+        raise ParameterValueError(f"vary[{path!r}] loguniform needs 0 < low < high, got {spec!r}")
+    return np.exp(rng.uniform(math.log(a), math.log(b), n))
+
+
+def expand_scenarios(grid=None, vary=None, n=None, seed=0) -> list[dict]:
+    """The sweep's scenarios: one ``{path: value}`` dict each, in a fixed order.
+
+    The Cartesian product of ``grid`` (in its key order); for each grid point, ``n`` random
+    draws of the ``vary`` parameters. All draws come from ``numpy.random.default_rng(seed)``,
+    path by path in sorted order, before anything runs, so the same arguments give the same
+    scenarios wherever they are executed.
+    """
+    grid = {} if grid is None else grid
+    vary = {} if vary is None else vary
+    if not isinstance(grid, dict):
+        raise ParameterTypeError(f"grid must be a dict of path -> list, got {grid!r}")
+    if not isinstance(vary, dict):
+        raise ParameterTypeError(
+            f"vary must be a dict of path -> (distribution, a, b), got {vary!r}"
+        )
+    for path in grid:
+        _check_path(path, "grid")
+    for path in vary:
+        _check_path(path, "vary")
+        if path in grid:
+            raise ParameterValueError(f"path {path!r} is in both grid and vary; give it once")
+    if vary and n is None:
+        raise ParameterValueError("n (the number of random draws) is required with vary")
+    if n is not None:
+        n = as_int(n, "n", "a positive integer number of draws", minimum=1)
+        if not vary:
+            raise ParameterValueError(
+                f"n={n} needs vary (random parameters); without vary use grid alone"
+            )
+    seed = as_int(seed, "seed", "a non-negative integer seed", minimum=0)
+    axes = {path: _grid_values(path, values) for path, values in grid.items()}
+    rng = np.random.default_rng(seed)
+    draws = {path: _draw(path, vary[path], n, rng) for path in sorted(vary)}
+    scenarios = []
+    for point in itertools.product(*axes.values()):
+        fixed = dict(zip(axes, point, strict=True))
+        for i in range(n or 1):
+            scenarios.append({**fixed, **{path: float(v[i]) for path, v in draws.items()}})
+    return scenarios

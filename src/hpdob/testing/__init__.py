@@ -1,0 +1,22 @@
+"""Test and benchmark helpers (not needed to use hpdob; documented for reuse).
+
+These compile exported C with the system's C compiler and bound the rounding error of a
+``float`` build. hpdob's own test suite and benchmarks use them; nothing in the library does.
+
+CObserver, compile_c, find_compiler, STRICT_FLAGS
+    Build an exported observer into a shared library and drive it from Python (ctypes).
+export_error_bound, error_amplification
+    First-order bound of the error of a ``float`` build against ``double`` (docs/deployment.md).
+"""
+
+from ._c_harness import STRICT_FLAGS, CObserver, compile_c, find_compiler
+from ._rounding import error_amplification, export_error_bound
+
+__all__ = [
+    "STRICT_FLAGS",
+    "CObserver",
+    "compile_c",
+    "error_amplification",
+    "export_error_bound",
+    "find_compiler",
+]
