@@ -223,13 +223,16 @@ def test_bad_arguments():
     wrong = design_observer(ServoModel(3e-4).discretize(TS), order=1, bandwidth=100.0)
     with pytest.raises(ParameterValueError, match="observer must be designed on nominal"):
         closed_loop_poles(**kw, observer=wrong)
-    with pytest.raises(ParameterTypeError, match="plant must be a ServoModel, got DiscreteServo"):
+    with pytest.raises(
+        ParameterTypeError,
+        match=r"plant must be a ServoModel, a TwoMassServo or a MujocoServo .*, got DiscreteServo",
+    ):
         closed_loop(**{**kw, "plant": PLANT.discretize(TS)})
     with pytest.raises(ParameterTypeError, match="controller must be a PD"):
         closed_loop(**{**kw, "controller": (50, 5)})
     with pytest.raises(ParameterValueError, match=r"Ts must be a positive.*-0.001"):
         closed_loop_poles(**{**kw, "Ts": -1e-3})
-    with pytest.raises(ParameterTypeError, match="observer must be a DisturbanceObserver or"):
+    with pytest.raises(ParameterTypeError, match="observer must be a DisturbanceObserver, an Obs"):
         closed_loop(**kw, observer="HPDOb")
     with pytest.raises(ParameterTypeError, match="sensor must be an Encoder or None"):
         closed_loop(**kw, sensor="encoder")

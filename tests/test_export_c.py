@@ -198,7 +198,10 @@ def test_bad_arguments_raise_and_write_nothing(tmp_path, kwargs, error, needle):
 
 def test_bad_observer_and_directory(tmp_path):
     design = design_observer(MODEL, order=0, bandwidth=100.0)
-    with pytest.raises(ParameterTypeError, match="obs must be a DisturbanceObserver or an "):
+    with pytest.raises(
+        ParameterTypeError,
+        match="obs must be a DisturbanceObserver, an ObserverDesign or another observer",
+    ):
         export_c(MODEL, tmp_path)
     with pytest.raises(ParameterTypeError, match="directory must be a path"):
         export_c(design, None)

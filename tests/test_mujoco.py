@@ -462,7 +462,9 @@ def test_replace_and_immutability():
 
 def test_simulate_names_both_plant_types():
     kwargs = no_coulomb_scenario(plant="motor", duration=0.1)
-    with pytest.raises(TypeError, match=r"^plant must be a ServoModel or a MujocoServo, got str"):
+    with pytest.raises(
+        TypeError, match=r"^plant must be a ServoModel, a TwoMassServo or a MujocoServo .*, got str"
+    ):
         simulate(**kwargs)
 
 

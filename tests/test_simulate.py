@@ -314,7 +314,11 @@ def test_divergence_is_reported_not_raised():
         ({"Ts": 0.0}, ValueError, r"^Ts must be a positive"),
         ({"duration": -1.0}, ValueError, r"^duration must be a positive"),
         ({"duration": 1.00005}, ValueError, r"^duration must be a positive multiple of Ts"),
-        ({"plant": "motor"}, TypeError, r"^plant must be a ServoModel or a MujocoServo, got str"),
+        (
+            {"plant": "motor"},
+            TypeError,
+            r"^plant must be a ServoModel, a TwoMassServo or a MujocoServo .*, got str",
+        ),
         ({"nominal": None}, TypeError, r"^nominal must be a ServoModel"),
         ({"controller": (50, 5)}, TypeError, r"^controller must be a PD"),
         ({"substeps": 0}, ValueError, r"^substeps must be a positive integer"),

@@ -325,10 +325,10 @@ def _radius_near_one(k) -> float:
     to w = z - 1 exactly, and only then rounded; the cluster at w0 = p - 1 then has roots
     accurate to ~|w0| eps^(1/(m+1)) instead of eps^(1/(m+1)).
     """
-    from hpdob.observers._synthesis import _characteristic_basis, unit_root_polynomial
+    from hpdob.observers._error_dynamics import characteristic_basis, unit_root_polynomial
 
     m = len(k) - 1
-    Q = _characteristic_basis(m)
+    Q = characteristic_basis(m)
     c = [Fraction(int(b)) for b in unit_root_polynomial(m)]
     for i in range(m + 1):
         c[i] += sum(int(Q[i, j]) * Fraction(float(k[j])) for j in range(m + 1))
@@ -356,7 +356,7 @@ def test_realisability_is_decided_exactly_near_the_threshold(paper_model, case, 
 
 
 def test_schur_cohn_agrees_with_roots_on_well_conditioned_polynomials(rng):
-    from hpdob.observers._synthesis import _schur_stable
+    from hpdob.observers._error_dynamics import schur_stable
 
     # Random real error matrices M = C - k e^T: their characteristic polynomials have distinct
     # roots well away from the unit circle (|1 - |z|| > 1e-6), where np.roots is reliable.
@@ -367,7 +367,7 @@ def test_schur_cohn_agrees_with_roots_on_well_conditioned_polynomials(rng):
         radius = np.max(np.abs(np.linalg.eigvals(error_matrix(k))))
         if abs(radius - 1.0) < 1e-6:
             continue
-        assert _schur_stable(k) == (radius < 1.0), (k, radius)
+        assert schur_stable(k) == (radius < 1.0), (k, radius)
         checked += 1
     assert checked > 350
 
@@ -381,7 +381,7 @@ def test_order_is_capped(paper_model):
 
 @pytest.mark.parametrize("order", [0, 1, 2, 5])
 def test_unit_root_polynomial(order):
-    from hpdob.observers._synthesis import unit_root_polynomial
+    from hpdob.observers._error_dynamics import unit_root_polynomial
 
     # (z - 1)^{m+1} from its roots, highest power first; ours is ascending.
     np.testing.assert_array_equal(unit_root_polynomial(order)[::-1], np.poly(np.ones(order + 1)))

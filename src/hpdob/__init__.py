@@ -10,12 +10,16 @@ ServoModel, DiscreteServoModel
     Servo model (eq. 1) and its exact zero-order-hold discretisation (eqs. 4-8).
 design_observer, ObserverDesign
     Pure synthesis of an observer of any order by eigenvalue placement or bandwidth.
-DisturbanceObserver
-    Stateful runtime object for the sample loop (``estimate`` then ``update``).
+LinearObserver
+    The observer protocol: every observer as a linear discrete-time system.
+DisturbanceObserver, Observer
+    Stateful runtime objects for the sample loop (``estimate`` then ``update``).
 initial_state, estimate, update
     The pure functional core of the sample loop.
 export_c
     Export a design as dependency-free C99 for a microcontroller.
+ServoLoop
+    The closed loop as a value: the first argument of simulate and the analysis functions.
 PD, Encoder, Actuator, simulate, SimulationResult
     Sampled-data closed-loop simulation (continuous plant, sampled PD, DOb inner loop).
 MujocoServo
@@ -60,6 +64,8 @@ from .export import export_c
 from .models import DiscreteServoModel, MujocoServo, ServoModel
 from .observers import (
     DisturbanceObserver,
+    LinearObserver,
+    Observer,
     ObserverDesign,
     characteristic_polynomial,
     design_observer,
@@ -73,6 +79,7 @@ from .simulation import (
     PD,
     Actuator,
     Encoder,
+    ServoLoop,
     SimulationDivergedWarning,
     SimulationResult,
     simulate,
@@ -86,13 +93,16 @@ __all__ = [
     "DisturbanceObserver",
     "Encoder",
     "GangOfFour",
+    "LinearObserver",
     "LoopMargins",
     "MujocoServo",
     "NoiseGains",
     "NoiseTradeoff",
+    "Observer",
     "ObserverDesign",
     "ParameterTypeError",
     "ParameterValueError",
+    "ServoLoop",
     "ServoModel",
     "SimulationDivergedWarning",
     "SimulationResult",

@@ -4,29 +4,25 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..simulation._loop import ServoLoop, accepts_loop
 from ._linear_loop import INPUTS, OUTPUTS, loop_matrices, loop_spec, state_names
 
 __all__ = ["closed_loop", "closed_loop_poles"]
 
 
-def closed_loop(*, plant, nominal, Ts, controller, observer=None, sensor=None, actuator=None):
+@accepts_loop
+def closed_loop(loop: ServoLoop):
     """The linear sampled-data closed loop as a discrete python-control ``StateSpace``.
 
     Parameters
     ----------
-    plant : ServoModel
-        The true motor (``J`` [kg m^2], ``b`` [N m s/rad]; Coulomb friction is ignored).
-    nominal : ServoModel
-        The model the controller (``J_n``) and the observer use.
-    Ts : float
-        Sampling period [s].
-    controller : PD
-    observer : DisturbanceObserver or ObserverDesign, optional
-        Designed on ``nominal.discretize(Ts)``. None: PD only (``tau_hat`` is then 0).
-    sensor : Encoder, optional
-        Only its ``velocity`` method is used. Default: the ideal state.
-    actuator : Actuator, optional
-        Only ``delay_samples`` is used; ``torque_limit`` must be None.
+    loop : ServoLoop
+        The loop (see :class:`~hpdob.ServoLoop`); its keyword arguments (``plant=...,
+        nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...``) are
+        accepted instead, as before. The plant must have a linear model (a
+        :class:`~hpdob.ServoModel` or a :class:`~hpdob.TwoMassServo`; Coulomb friction is
+        ignored); of the sensor only its ``velocity`` method is used (default: the ideal
+        state); of the actuator only ``delay_samples`` (``torque_limit`` must be None).
 
     Returns
     -------
@@ -35,7 +31,9 @@ def closed_loop(*, plant, nominal, Ts, controller, observer=None, sensor=None, a
         ``n_theta`` [rad], ``n_omega`` [rad/s]; outputs ``theta`` [rad], ``omega`` [rad/s],
         ``u`` [N m], ``tau_hat`` [N m]; states ``theta, omega``, then ``theta_prev`` (previous
         measured angle, backward-difference sensor only), ``u_delay1..d`` (commands in the
-        actuator's delay line) and ``z1..z{m+1}`` (observer).
+        actuator's delay line) and the observer's (``z1..z{m+1}`` for the order-m family).
+        A two-mass plant has the states ``theta, omega, theta_load, omega_load``; ``theta`` and
+        ``omega`` are then the motor's.
 
     Raises
     ------
@@ -61,11 +59,11 @@ def closed_loop(*, plant, nominal, Ts, controller, observer=None, sensor=None, a
     Examples
     --------
     >>> import numpy as np
-    >>> from hpdob import PD, ServoModel, closed_loop, design_observer
+    >>> from hpdob import PD, ServoLoop, ServoModel, closed_loop, design_observer
     >>> nominal = ServoModel(2.8e-4)
     >>> obs = design_observer(nominal.discretize(1e-3), order=1, bandwidth=100.0)
-    >>> loop = closed_loop(plant=ServoModel(3.06e-4, 5e-5), nominal=nominal, Ts=1e-3,
-    ...                    controller=PD(50, 5), observer=obs)
+    >>> loop = closed_loop(ServoLoop(plant=ServoModel(3.06e-4, 5e-5), nominal=nominal,
+    ...                              Ts=1e-3, controller=PD(50, 5), observer=obs))
     >>> loop.input_labels
     ['r', 'r_dot', 'r_ddot', 'tau_ext', 'n_theta', 'n_omega']
     >>> round(float(loop.dcgain()[0, 0]), 9)   # theta / r at DC
@@ -73,15 +71,7 @@ def closed_loop(*, plant, nominal, Ts, controller, observer=None, sensor=None, a
     """
     import control
 
-    spec = loop_spec(
-        plant=plant,
-        nominal=nominal,
-        Ts=Ts,
-        controller=controller,
-        observer=observer,
-        sensor=sensor,
-        actuator=actuator,
-    )
+    spec = loop_spec(loop)
     A, B, C, D, _, _ = loop_matrices(spec)
     n = len(OUTPUTS)
     return control.ss(
@@ -89,16 +79,15 @@ def closed_loop(*, plant, nominal, Ts, controller, observer=None, sensor=None, a
         B,
         C[:n],
         D[:n],
-        spec.plant.Ts,
+        loop.Ts,
         inputs=list(INPUTS),
         outputs=list(OUTPUTS),
         states=state_names(spec),
     )
 
 
-def closed_loop_poles(
-    *, plant, nominal, Ts, controller, observer=None, sensor=None, actuator=None
-) -> np.ndarray:
+@accepts_loop
+def closed_loop_poles(loop: ServoLoop) -> np.ndarray:
     """Eigenvalues of the linear closed loop of :func:`closed_loop` (same arguments).
 
     The loop is asymptotically stable when every eigenvalue lies strictly inside the unit
@@ -106,8 +95,10 @@ def closed_loop_poles(
 
     Parameters
     ----------
-    plant, nominal, Ts, controller, observer, sensor, actuator
-        As for :func:`closed_loop`.
+    loop : ServoLoop
+        The loop (see :class:`~hpdob.ServoLoop`). Its keyword arguments (``plant=...,
+        nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...``) are
+        accepted instead, as before.
 
     Returns
     -------
@@ -131,15 +122,7 @@ def closed_loop_poles(
     >>> bool(min(abs(poles - 0.9)) < 1e-12)   # on the nominal plant the observer pole stays
     True
     """
-    spec = loop_spec(
-        plant=plant,
-        nominal=nominal,
-        Ts=Ts,
-        controller=controller,
-        observer=observer,
-        sensor=sensor,
-        actuator=actuator,
-    )
+    spec = loop_spec(loop)
     return _poles(spec)
 
 

@@ -28,9 +28,9 @@ import math
 
 import numpy as np
 
-from .._validation import ParameterTypeError, as_grid
-from ..observers._runtime import as_design
-from ..observers._synthesis import ObserverDesign, characteristic_polynomial, unit_root_polynomial
+from .._validation import ParameterTypeError, ParameterValueError, as_grid
+from ..observers._error_dynamics import unit_root_polynomial
+from ..observers._system import LinearObserver, as_system
 
 __all__ = [
     "estimation_response",
@@ -43,33 +43,30 @@ OBSERVER_INPUTS = ("theta", "omega", "u")
 OBSERVER_OUTPUT = "tau_hat"
 
 
-def observer_matrices(design: ObserverDesign):
-    """``(A, B, C, D)`` numpy arrays of the observer with inputs ``theta, omega, u``."""
-    n = design.order + 1
-    A = np.array(design.error_matrix, dtype=float)
-    B = np.column_stack([design.state_input, design.control_input])
-    C = np.zeros((1, n))
-    C[0, -1] = 1.0
-    D = np.array([[-design.gains[-1, 0], -design.gains[-1, 1], 0.0]])
-    return A, B, C, D
+def observer_matrices(observer):
+    """``(A, B, C, D)`` numpy arrays of the observer: ``(F, G, H, E)`` of its system."""
+    system = as_system(observer)
+    return (np.array(m, dtype=float) for m in (system.F, system.G, system.H, system.E))
 
 
 def observer_statespace(observer):
     r"""The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
 
-    State :math:`\hat z` (``z1 ... z{m+1}``), inputs ``theta`` [rad], ``omega`` [rad/s], ``u``
-    [N m], output ``tau_hat`` [N m]:
+    ``A, B, C, D = F, G, H, E`` of its :class:`~hpdob.LinearObserver`: inputs its measured
+    signals (``theta`` [rad], and ``omega`` [rad/s] for a state-measuring observer) and ``u``
+    [N m]; outputs ``tau_hat`` [N m] (and ``omega_hat`` [rad/s] where the observer has one).
+    For the order-m family the state is the auxiliary variables ``z1 ... z{m+1}`` and
 
     .. math::
 
         A = M,\quad B = [K_x,\ K_u],\quad C = e_{m+1}^T,\quad D = [-L_{m+1}^T,\ 0].
 
-    Run from a zero initial state on the sequences ``x_k, u_k`` it returns, sample by sample,
-    what :class:`~hpdob.DisturbanceObserver` returns after ``reset()``.
+    Run from a zero initial state on the sequences of measurements and ``u`` it returns,
+    sample by sample, what the runtime observer returns after ``reset()``.
 
     Parameters
     ----------
-    observer : DisturbanceObserver or ObserverDesign
+    observer : LinearObserver, design or runtime observer
 
     Returns
     -------
@@ -78,7 +75,7 @@ def observer_statespace(observer):
     Raises
     ------
     TypeError
-        If ``observer`` is neither a ``DisturbanceObserver`` nor an ``ObserverDesign``.
+        If ``observer`` is not an observer.
 
     References
     ----------
@@ -95,47 +92,74 @@ def observer_statespace(observer):
     """
     import control
 
-    design = as_design(observer)
-    A, B, C, D = observer_matrices(design)
+    system = as_system(observer)
+    A, B, C, D = observer_matrices(system)
+    state = "z" if system.truncation_order is not None else "s"
     return control.ss(
         A,
         B,
         C,
         D,
-        design.model.Ts,
-        inputs=list(OBSERVER_INPUTS),
-        outputs=[OBSERVER_OUTPUT],
-        states=[f"z{i + 1}" for i in range(design.order + 1)],
+        system.Ts,
+        inputs=list(system.input_names),
+        outputs=list(system.outputs),
+        states=[f"{state}{i + 1}" for i in range(system.n_states)],
     )
 
 
-def _polynomials(design: ObserverDesign) -> tuple[np.ndarray, np.ndarray]:
-    """``(P, E)``: ``det(zI - M)`` and ``(z - 1)^{m+1}``, highest power first."""
-    m = design.order
-    P = characteristic_polynomial(design.k)
-    E = unit_root_polynomial(m)[::-1]
-    return P, E
+def _nominal_model(system: LinearObserver):
+    if system.model is None:
+        raise ParameterValueError(
+            "the estimation response of an observer is defined on its nominal plant: give the "
+            "observer's LinearObserver a model (the DiscreteServoModel it was designed on)"
+        )
+    return system.model
+
+
+def _generic_statespace(system: LinearObserver):
+    r"""``(A, B, C, D)``: :math:`\tau_{dn} \to \hat\tau` with the observer on its nominal plant,
+    ``u = 0``: state ``[x, s]``, :math:`x_{k+1} = A_n x_k - D_n \tau_k`."""
+    model = _nominal_model(system)
+    An, Dn = np.asarray(model.A), np.asarray(model.D)
+    p = len(system.measures)
+    Cm = np.eye(2)[:p]  # measured rows of x
+    F, G, H, E = (np.asarray(a) for a in (system.F, system.G, system.H, system.E))
+    n = system.n_states
+    A = np.zeros((2 + n, 2 + n))
+    A[:2, :2] = An
+    A[2:, :2] = G[:, :p] @ Cm
+    A[2:, 2:] = F
+    B = np.zeros((2 + n, 1))
+    B[:2, 0] = -Dn
+    C = np.hstack([E[:1, :p] @ Cm, H[:1]])
+    return A, B, C, np.zeros((1, 1))
 
 
 def estimation_transfer(observer, *, error: bool = False):
-    r"""Closed-form disturbance-estimation transfer function of an observer on its nominal plant.
+    r"""Disturbance-estimation transfer function of an observer on its nominal plant.
 
     .. math::
 
-        Q(z) = \frac{\hat\tau(z)}{\tau_{dn}(z)} = \frac{\det(zI-M) - (z-1)^{m+1}}{\det(zI-M)},
-        \qquad
-        1 - Q(z) = \frac{\tau_{dn}(z) - \hat\tau(z)}{\tau_{dn}(z)} = \frac{(z-1)^{m+1}}{\det(zI-M)}.
+        Q(z) = \frac{\hat\tau(z)}{\tau_{dn}(z)},\qquad
+        1 - Q(z) = \frac{\tau_{dn}(z) - \hat\tau(z)}{\tau_{dn}(z)}.
 
-    :math:`\tau_{dn}` is the nominal (pseudo-)disturbance of eq. (8), held over each sample; the
-    response holds in open and in closed loop, for any control input. ``Q`` is the DOb's
+    :math:`\tau_{dn}` is the nominal (pseudo-)disturbance of eq. (8), held over each sample.
+    For the order-m family the closed form is
+
+    .. math:: Q(z) = \frac{\det(zI-M) - (z-1)^{m+1}}{\det(zI-M)},\qquad
+              1 - Q(z) = \frac{(z-1)^{m+1}}{\det(zI-M)},
+
+    which holds in open and in closed loop, for any control input. ``Q`` is the DOb's
     "Q-filter": strictly proper (the estimate lags the disturbance by at least one sample), unit
     gain at DC, and :math:`1 - Q` has a zero of multiplicity ``m + 1`` at ``z = 1``, so a
     polynomial disturbance of degree ``m`` is estimated without steady-state error. The
-    derivation is in ``docs/analysis.md``.
+    derivation is in ``docs/analysis.md``. For an observer without this structure (``Q`` is
+    then taken with ``u = 0``) the series connection of the nominal plant and the observer is
+    reduced by :func:`control.minreal`.
 
     Parameters
     ----------
-    observer : DisturbanceObserver or ObserverDesign
+    observer : LinearObserver, design or runtime observer
     error : bool, optional
         Return the estimation-error response :math:`1 - Q` instead of ``Q``. Default False.
 
@@ -148,7 +172,7 @@ def estimation_transfer(observer, *, error: bool = False):
     Raises
     ------
     TypeError
-        If ``observer`` is neither a ``DisturbanceObserver`` nor an ``ObserverDesign``.
+        If ``observer`` is not an observer.
 
     References
     ----------
@@ -165,31 +189,36 @@ def estimation_transfer(observer, *, error: bool = False):
     """
     import control
 
-    design = as_design(observer)
+    system = as_system(observer)
     if not isinstance(error, bool):
         raise ParameterTypeError(f"error must be True or False, got {error!r}")
-    P, E = _polynomials(design)
-    if error:
-        num, output = E, "tau_error"
-    else:
-        num = (P - E)[1:]  # the leading z^{m+1} cancels: Q is strictly proper
-        output = "tau_hat"
-    return control.tf(num, P, design.model.Ts, inputs=["tau_dn"], outputs=[output])
+    output = "tau_error" if error else "tau_hat"
+    dynamics = system.error_dynamics
+    if dynamics is not None:
+        P = np.asarray(dynamics.polynomial)
+        E = unit_root_polynomial(dynamics.order)[::-1]
+        num = E if error else (P - E)[1:]  # the leading z^{m+1} cancels: Q is strictly proper
+        return control.tf(num, P, system.Ts, inputs=["tau_dn"], outputs=[output])
+    A, B, C, D = _generic_statespace(system)
+    Q = control.ss2tf(control.ss(A, B, C, D, system.Ts)).minreal(tol=1e-9)
+    tf = (1 - Q) if error else Q
+    return control.tf(tf.num, tf.den, system.Ts, inputs=["tau_dn"], outputs=[output])
 
 
 def estimation_response(observer, frequency, *, error: bool = False) -> np.ndarray:
     r"""Complex frequency response of :func:`estimation_transfer` at ``frequency`` [Hz].
 
-    :math:`Q(e^{j 2\pi f T_s})` (or :math:`1 - Q` with ``error=True``), evaluated in closed form
-    with numpy in factored form, :math:`1 - Q = (z-1)^{m+1}/\prod_i (z - \lambda_i)` over the
-    design's poles :math:`\lambda_i` (the roots of :math:`\det(zI-M)`), which keeps full relative
-    accuracy near ``z = 1`` where the error is tiny. No python-control objects: cheap inside
-    parameter sweeps. Frequencies above the Nyquist frequency :math:`1/(2 T_s)` alias, as for any
-    discrete system.
+    :math:`Q(e^{j 2\pi f T_s})` (or :math:`1 - Q` with ``error=True``). For the order-m family it
+    is evaluated in closed form in factored form, :math:`1 - Q = (z-1)^{m+1}/\prod_i (z -
+    \lambda_i)` over the design's poles :math:`\lambda_i` (the roots of :math:`\det(zI-M)`),
+    which keeps full relative accuracy near ``z = 1`` where the error is tiny; for other
+    observers from the state-space model of observer and nominal plant (``u = 0``). No
+    python-control objects: cheap inside parameter sweeps. Frequencies above the Nyquist
+    frequency :math:`1/(2 T_s)` alias, as for any discrete system.
 
     Parameters
     ----------
-    observer : DisturbanceObserver or ObserverDesign
+    observer : LinearObserver, design or runtime observer
     frequency : float or array_like
         Frequencies [Hz], >= 0.
     error : bool, optional
@@ -211,12 +240,20 @@ def estimation_response(observer, frequency, *, error: bool = False) -> np.ndarr
     >>> complex(estimation_response(design, 0.0)[0])      # unit DC gain
     (1+0j)
     """
-    design = as_design(observer)
+    system = as_system(observer)
+    if not isinstance(error, bool):
+        raise ParameterTypeError(f"error must be True or False, got {error!r}")
     f = as_grid(frequency, "frequency", "non-negative frequencies [Hz]", allow_zero=True)
-    z = np.exp(2j * math.pi * f * design.model.Ts)
-    # Factored forms: (z - 1)^(m+1) / prod(z - p_i). Expanded polynomials would cancel
-    # catastrophically near z = 1, where 1 - Q is tiny.
-    ratio = (z - 1.0) ** (design.order + 1)
-    for pole in np.atleast_1d(design.poles):
-        ratio = ratio / (z - pole)
-    return ratio if error else 1.0 - ratio
+    z = np.exp(2j * math.pi * f * system.Ts)
+    dynamics = system.error_dynamics
+    if dynamics is not None:
+        # Factored forms: (z - 1)^(m+1) / prod(z - p_i). Expanded polynomials would cancel
+        # catastrophically near z = 1, where 1 - Q is tiny.
+        ratio = (z - 1.0) ** (dynamics.order + 1)
+        for pole in dynamics.poles:
+            ratio = ratio / (z - pole)
+        return ratio if error else 1.0 - ratio
+    A, B, C, _ = _generic_statespace(system)
+    eye = np.eye(A.shape[0])
+    Q = np.array([(C @ np.linalg.solve(zk * eye - A, B))[0, 0] for zk in z])
+    return 1.0 - Q if error else Q

@@ -22,14 +22,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validation import ParameterValueError, positive, require_instance
-from ..models._servo import DiscreteServoModel, ServoModel
-from ..observers._runtime import as_design, check_designed_on
-from ..observers._synthesis import ObserverDesign
-from ..simulation._controller import PD
-from ..simulation._devices import Actuator, Encoder
+from .._validation import ParameterValueError
+from ..observers._system import LinearObserver
+from ..simulation._loop import ServoLoop
 
-__all__ = ["INPUTS", "OUTPUTS", "LoopSpec", "loop_matrices", "loop_spec"]
+__all__ = ["INPUTS", "OUTPUTS", "LoopSpec", "loop_matrices", "loop_spec", "state_names"]
 
 #: Inputs of :func:`hpdob.closed_loop`: reference and its derivatives [rad, rad/s, rad/s^2],
 #: external torque [N m] (opposing the motor, as in :func:`hpdob.simulate`), measurement noise
@@ -45,26 +42,29 @@ MAX_DELAY_SAMPLES = 1000
 
 @dataclass(frozen=True, eq=False)
 class LoopSpec:
-    """Validated ingredients of the linear loop (internal)."""
+    """Validated ingredients of the linear loop (internal).
 
-    plant: DiscreteServoModel
+    ``plant`` is the true plant's linear ZOH model (``A, B, D, C, state_names``).
+    """
+
+    plant: object
     J_n: float
     kp: float
     kd: float
     feedforward: bool
-    design: ObserverDesign | None
+    system: LinearObserver | None
     backward_difference: bool
     delay: int
+    observer_velocity: bool = False
+
+    @property
+    def Ts(self) -> float:
+        return self.plant.Ts
 
 
-def loop_spec(*, plant, nominal, Ts, controller, observer=None, sensor=None, actuator=None):
-    """Validate the arguments shared by the closed-loop functions; return a :class:`LoopSpec`."""
-    plant = require_instance(plant, ServoModel, "plant")
-    nominal = require_instance(nominal, ServoModel, "nominal")
-    Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
-    controller = require_instance(controller, PD, "controller")
-    sensor = require_instance(sensor, Encoder, "sensor", optional=True)
-    actuator = require_instance(actuator, Actuator, "actuator", optional=True) or Actuator()
+def loop_spec(loop: ServoLoop) -> LoopSpec:
+    """The linear ingredients of a :class:`~hpdob.ServoLoop` (raises for what is not linear)."""
+    actuator = loop.actuator
     if actuator.torque_limit is not None:
         raise ParameterValueError(
             "actuator.torque_limit must be None for the linear loop (saturation is not "
@@ -75,29 +75,28 @@ def loop_spec(*, plant, nominal, Ts, controller, observer=None, sensor=None, act
             f"actuator.delay_samples must be at most {MAX_DELAY_SAMPLES} for the linear loop "
             f"(each sample of delay adds a state), got {actuator.delay_samples}"
         )
-    design = None
-    if observer is not None:
-        design = as_design(observer, "observer")
-        check_designed_on(design, nominal, Ts)
+    sensor = loop.sensor
     return LoopSpec(
-        plant=plant.discretize(Ts),
-        J_n=nominal.J,
-        kp=controller.kp,
-        kd=controller.kd,
-        feedforward=controller.feedforward,
-        design=design,
+        plant=loop.plant.discretize(loop.Ts),
+        J_n=loop.nominal.J,
+        kp=loop.controller.kp,
+        kd=loop.controller.kd,
+        feedforward=loop.controller.feedforward,
+        system=loop.system,
         backward_difference=sensor is not None and sensor.velocity == "backward-difference",
         delay=actuator.delay_samples,
+        observer_velocity=loop.controller.velocity == "observer",
     )
 
 
 def state_names(spec: LoopSpec) -> list[str]:
-    names = ["theta", "omega"]
+    names = list(spec.plant.state_names)
     if spec.backward_difference:
         names.append("theta_prev")
     names += [f"u_delay{i + 1}" for i in range(spec.delay)]
-    if spec.design is not None:
-        names += [f"z{i + 1}" for i in range(spec.design.order + 1)]
+    if spec.system is not None:
+        letter = "z" if spec.system.truncation_order is not None else "s"
+        names += [f"{letter}{i + 1}" for i in range(spec.system.n_states)]
     return names
 
 
@@ -109,44 +108,54 @@ def loop_matrices(spec: LoopSpec, *, broken: bool = False):
     cut at the plant input: the plant is driven by an extra last input ``"a_in"`` instead of
     ``"a"``, so the loop gain is :math:`L = -a/a_{in}`.
     """
-    Ts = spec.plant.Ts
-    design = spec.design
+    Ts = spec.Ts
+    system = spec.system
     nd = spec.delay
-    i_prev = 2
+    nx = np.asarray(spec.plant.A).shape[0]
+    i_prev = nx
     i_delay = i_prev + int(spec.backward_difference)
     i_z = i_delay + nd
-    nz = 0 if design is None else design.order + 1
+    nz = 0 if system is None else system.n_states
     ns = i_z + nz
     inputs = [*INPUTS, "a_in"] if broken else list(INPUTS)
     nv = len(inputs)
     col = {name: ns + j for j, name in enumerate(inputs)}
+    Cp = np.asarray(spec.plant.C)
 
     def row():
         return np.zeros(ns + nv)
 
     # Measurement rows over [state, input].
     theta_m = row()
-    theta_m[0] = 1.0
+    theta_m[:nx] = Cp[0]
     theta_m[col["n_theta"]] = 1.0
     omega_m = row()
     if spec.backward_difference:
         omega_m += theta_m / Ts
         omega_m[i_prev] -= 1.0 / Ts
     else:
-        omega_m[1] = 1.0
+        omega_m[:nx] = Cp[1]
     omega_m[col["n_omega"]] += 1.0
     Y = np.vstack([theta_m, omega_m])
 
     tau_hat = row()
-    if design is not None:
-        tau_hat[i_z + nz - 1] = 1.0
-        tau_hat -= design.gains[-1] @ Y
+    omega_ctl = omega_m
+    if system is not None:
+        p = len(system.measures)
+        Ym = Y[:p]
+        H, E = np.asarray(system.H), np.asarray(system.E)
+        tau_hat[i_z:ns] = H[0]
+        tau_hat += E[0, :p] @ Ym
+        if spec.observer_velocity:
+            omega_ctl = row()
+            omega_ctl[i_z:ns] = H[1]
+            omega_ctl += E[1, :p] @ Ym
     u = tau_hat.copy()
     u[col["r"]] += spec.J_n * spec.kp
     u[col["r_dot"]] += spec.J_n * spec.kd
     if spec.feedforward:
         u[col["r_ddot"]] += spec.J_n
-    u -= spec.J_n * (spec.kp * theta_m + spec.kd * omega_m)
+    u -= spec.J_n * (spec.kp * theta_m + spec.kd * omega_ctl)
     if nd == 0:
         a = u.copy()
     else:
@@ -158,33 +167,27 @@ def loop_matrices(spec: LoopSpec, *, broken: bool = False):
     if broken:
         drive = row()
         drive[col["a_in"]] = 1.0
-    drive[col["tau_ext"]] -= 1.0
     A = np.asarray(spec.plant.A)
     B = np.asarray(spec.plant.B)
-    nxt[0:2, 0:2] = A
-    nxt[0:2] += np.outer(B, drive)
+    D = np.asarray(spec.plant.D)
+    nxt[:nx, :nx] = A
+    nxt[:nx] += np.outer(B, drive)
+    nxt[:nx, col["tau_ext"]] -= D
     if spec.backward_difference:
         nxt[i_prev] = theta_m
     for i in range(nd - 1):
         nxt[i_delay + i, i_delay + i + 1] = 1.0
     if nd:
         nxt[i_delay + nd - 1] = u
-    if design is not None:
-        nxt[i_z:, i_z:ns] = design.error_matrix
-        nxt[i_z:] += design.state_input @ Y + np.outer(design.control_input, u)
+    if system is not None:
+        G = np.asarray(system.G)
+        nxt[i_z:, i_z:ns] = system.F
+        nxt[i_z:] += G[:, :p] @ Ym + np.outer(G[:, p], u)
 
-    out_rows = []
-    for name in (*OUTPUTS, "a"):
-        if name == "theta":
-            r = row()
-            r[0] = 1.0
-        elif name == "omega":
-            r = row()
-            r[1] = 1.0
-        else:
-            r = {"u": u, "tau_hat": tau_hat, "a": a}[name]
-        out_rows.append(r)
-    out = np.vstack(out_rows)
+    theta_row, omega_row = row(), row()
+    theta_row[:nx], omega_row[:nx] = Cp[0], Cp[1]
+    rows = {"theta": theta_row, "omega": omega_row, "u": u, "tau_hat": tau_hat, "a": a}
+    out = np.vstack([rows[name] for name in (*OUTPUTS, "a")])
     return (
         nxt[:, :ns],
         nxt[:, ns:],

@@ -22,7 +22,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .._validation import ParameterValueError, check_choice
-from ..observers._runtime import as_design
+from ..observers._system import as_system
+from ..simulation._loop import ServoLoop, accepts_loop
 from ._estimation import observer_matrices
 from ._linear_loop import INPUTS, OUTPUTS, loop_matrices, loop_spec
 
@@ -86,9 +87,8 @@ class NoiseGains:
         return asdict(self)
 
 
-def noise_gains(
-    *, plant, nominal, Ts, controller, observer=None, sensor=None, actuator=None
-) -> NoiseGains:
+@accepts_loop
+def noise_gains(loop: ServoLoop) -> NoiseGains:
     r"""Exact noise gains of the linear closed loop, from the discrete Lyapunov equation.
 
     For white measurement noise of standard deviation :math:`\sigma` on the position (the
@@ -98,8 +98,10 @@ def noise_gains(
 
     Parameters
     ----------
-    plant, nominal, Ts, controller, observer, sensor, actuator
-        As for :func:`hpdob.closed_loop`. With ``Encoder(velocity="backward-difference")`` the
+    loop : ServoLoop
+        The loop (see :class:`~hpdob.ServoLoop`). Its keyword arguments (``plant=...,
+        nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...``) are
+        accepted instead, as before. With ``Encoder(velocity="backward-difference")`` the
         position noise also reaches the differenced velocity.
 
     Returns
@@ -137,21 +139,13 @@ def noise_gains(
     >>> abs(g0.tau_hat_velocity - observer_noise_gain(obs)) < 1e-12 * g0.tau_hat_velocity
     True
     """
-    spec = loop_spec(
-        plant=plant,
-        nominal=nominal,
-        Ts=Ts,
-        controller=controller,
-        observer=observer,
-        sensor=sensor,
-        actuator=actuator,
-    )
+    spec = loop_spec(loop)
     A, B, C, D, _, _ = loop_matrices(spec)
     radius = float(np.abs(np.linalg.eigvals(A)).max())
     if not radius < 1.0:
         raise ParameterValueError(
             f"the closed loop must be asymptotically stable for finite noise gains, got "
-            f"spectral radius {radius:.6g} >= 1 (plant J={plant.J}, b={plant.b})"
+            f"spectral radius {radius:.6g} >= 1 (plant {loop.plant!r})"
         )
     rows = [OUTPUTS.index(name) for name in ("tau_hat", "u", "theta")]
     values = {}
@@ -178,9 +172,10 @@ def observer_noise_gain(observer, *, noise: str = "velocity") -> float:
 
     Parameters
     ----------
-    observer : DisturbanceObserver or ObserverDesign
+    observer : LinearObserver, design or runtime observer
     noise : {"velocity", "position"}, optional
-        Which measurement carries the noise. Default ``"velocity"``.
+        Which measurement carries the noise. Default ``"velocity"``; a position-only observer
+        has the ``"position"`` channel only.
 
     Returns
     -------
@@ -199,8 +194,18 @@ def observer_noise_gain(observer, *, noise: str = "velocity") -> float:
     >>> observer_noise_gain(hpdob) > observer_noise_gain(dob)    # at equal bandwidth
     True
     """
-    design = as_design(observer)
+    system = as_system(observer)
     check_choice(noise, "noise", CHANNELS)
-    A, B, C, D = observer_matrices(design)
     j = CHANNELS.index(noise)
-    return float(h2_gains(A, B[:, [j]], C, D[:, [j]])[0])  # M is stable by construction
+    if j >= len(system.measures):
+        raise ParameterValueError(
+            f"noise must be 'position' for an observer that measures the angle only, got {noise!r}"
+        )
+    A, B, C, D = observer_matrices(system)
+    radius = float(np.abs(np.linalg.eigvals(A)).max()) if system.error_dynamics is None else 0.0
+    if not radius < 1.0:  # the order-m family is stable by construction (exact Schur-Cohn test)
+        raise ParameterValueError(
+            f"the observer must be asymptotically stable for a finite noise gain, got spectral "
+            f"radius {radius:.6g} >= 1"
+        )
+    return float(h2_gains(A, B[:, [j]], C[:1], D[:1, [j]])[0])

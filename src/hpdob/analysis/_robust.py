@@ -53,9 +53,10 @@ class _Setting:
             kp=self.controller.kp,
             kd=self.controller.kd,
             feedforward=self.controller.feedforward,
-            design=design,
+            system=design.system,
             backward_difference=self.backward_difference,
             delay=self.delay,
+            observer_velocity=self.controller.velocity == "observer",
         )
         return float(np.abs(np.linalg.eigvals(loop_matrices(spec)[0])).max())
 

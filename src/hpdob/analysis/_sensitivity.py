@@ -28,6 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..simulation._loop import ServoLoop, accepts_loop
 from ._linear_loop import INPUTS, loop_matrices, loop_spec
 
 __all__ = ["GangOfFour", "LoopMargins", "gang_of_four", "loop_margins"]
@@ -44,15 +45,16 @@ class GangOfFour(NamedTuple):
     CS: object
 
 
-def gang_of_four(
-    *, plant, nominal, Ts, controller, observer=None, sensor=None, actuator=None
-) -> GangOfFour:
+@accepts_loop
+def gang_of_four(loop: ServoLoop) -> GangOfFour:
     r"""Gang of four of the linear loop, cut at the plant input.
 
     Parameters
     ----------
-    plant, nominal, Ts, controller, observer, sensor, actuator
-        As for :func:`hpdob.closed_loop`.
+    loop : ServoLoop
+        The loop (see :class:`~hpdob.ServoLoop`). Its keyword arguments (``plant=...,
+        nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...``) are
+        accepted instead, as before.
 
     Returns
     -------
@@ -97,18 +99,10 @@ def gang_of_four(
     """
     import control
 
-    spec = loop_spec(
-        plant=plant,
-        nominal=nominal,
-        Ts=Ts,
-        controller=controller,
-        observer=observer,
-        sensor=sensor,
-        actuator=actuator,
-    )
+    spec = loop_spec(loop)
     A, B, C, D, _, _ = loop_matrices(spec)
     j_tau, j_noise = INPUTS.index("tau_ext"), INPUTS.index("n_theta")
-    dt = spec.plant.Ts
+    dt = spec.Ts
 
     def siso(out, j, sign, offset, name, output):
         i = _OUT[out]
@@ -130,7 +124,8 @@ def gang_of_four(
     )
 
 
-def loop_transfer(*, plant, nominal, Ts, controller, observer=None, sensor=None, actuator=None):
+@accepts_loop
+def loop_transfer(loop: ServoLoop):
     r"""Loop gain :math:`L = -a/a_{in}` of the loop cut at the plant input.
 
     The plant is driven by :math:`a_{in}` instead of the torque :math:`a` the actuator delivers
@@ -139,8 +134,10 @@ def loop_transfer(*, plant, nominal, Ts, controller, observer=None, sensor=None,
 
     Parameters
     ----------
-    plant, nominal, Ts, controller, observer, sensor, actuator
-        As for :func:`hpdob.closed_loop`.
+    loop : ServoLoop
+        The loop (see :class:`~hpdob.ServoLoop`). Its keyword arguments (``plant=...,
+        nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...``) are
+        accepted instead, as before.
 
     Returns
     -------
@@ -166,16 +163,8 @@ def loop_transfer(*, plant, nominal, Ts, controller, observer=None, sensor=None,
     """
     import control
 
-    spec = loop_spec(
-        plant=plant,
-        nominal=nominal,
-        Ts=Ts,
-        controller=controller,
-        observer=observer,
-        sensor=sensor,
-        actuator=actuator,
-    )
-    return control.ss(*_broken_loop(spec), spec.plant.Ts, inputs=["a_in"], outputs=["L"])
+    spec = loop_spec(loop)
+    return control.ss(*_broken_loop(spec), spec.Ts, inputs=["a_in"], outputs=["L"])
 
 
 def _broken_loop(spec):
@@ -267,9 +256,8 @@ def _closed_radius(A, B, C, D, c: float) -> float:
     return float(np.abs(np.linalg.eigvals(A + gain * (B @ C))).max())
 
 
-def loop_margins(
-    *, plant, nominal, Ts, controller, observer=None, sensor=None, actuator=None
-) -> LoopMargins:
+@accepts_loop
+def loop_margins(loop: ServoLoop) -> LoopMargins:
     r"""Gain, phase, delay and stability margins of the loop cut at the plant input.
 
     The loop gain :math:`L` (see :func:`gang_of_four`) includes the PD and the observer: this
@@ -277,8 +265,10 @@ def loop_margins(
 
     Parameters
     ----------
-    plant, nominal, Ts, controller, observer, sensor, actuator
-        As for :func:`hpdob.closed_loop`.
+    loop : ServoLoop
+        The loop (see :class:`~hpdob.ServoLoop`). Its keyword arguments (``plant=...,
+        nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...``) are
+        accepted instead, as before.
 
     Returns
     -------
@@ -315,17 +305,9 @@ def loop_margins(
     >>> lm.stable, lm.delay_margin > 1e-3      # tolerates one more sample of delay
     (True, True)
     """
-    spec = loop_spec(
-        plant=plant,
-        nominal=nominal,
-        Ts=Ts,
-        controller=controller,
-        observer=observer,
-        sensor=sensor,
-        actuator=actuator,
-    )
+    spec = loop_spec(loop)
     Ab, Bb, Cb, Db = _broken_loop(spec)
-    dt = spec.plant.Ts
+    dt = spec.Ts
     w_nyq = math.pi / dt
     n = int(_GRID_PER_DECADE * math.log10(w_nyq / _W_MIN)) + 1
     w = np.geomspace(_W_MIN, w_nyq, n)

@@ -17,8 +17,8 @@ from pathlib import Path
 
 from .._validation import ParameterTypeError, ParameterValueError, check_choice
 from .._version import __version__
-from ..observers._runtime import as_design
-from ..observers._synthesis import ObserverDesign
+from ..observers._program import RESET_OPERANDS, render_sum
+from ..observers._system import UNITS, LinearObserver, as_system
 
 __all__ = ["export_c", "render_c"]
 
@@ -28,7 +28,6 @@ DTYPES = ("double", "float")
 #: C99 (5.2.4.1) guarantees for external identifiers.
 MAX_PREFIX = 31 - len("_estimate")
 _IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
-_ORDER_NAMES = {0: "conventional DOb, paper eqs. 9-13", 1: "HPDOb, paper eqs. 14-24"}
 
 
 def _check_prefix(prefix) -> str:
@@ -82,32 +81,23 @@ def _literal(value: float, dtype: str, name: str) -> str:
     return text + "f"
 
 
-def _sum(terms: list[tuple[str, str]]) -> str:
-    """``[(sign, text), ...]`` as a C expression, one term per line after the first."""
-    first_sign, first = terms[0]
-    parts = [("-" if first_sign == "-" else "") + first]
-    parts += [f"{sign} {text}" for sign, text in terms[1:]]
-    line = " ".join(parts)
-    if len(line) <= 76:
-        return line
-    return "\n        ".join(parts)
+_SIGNAL_NOTES = {
+    "theta": "angle [rad]",
+    "omega": "velocity [rad/s]",
+}
 
 
-def _product(constant: str, value: float, operand: str, sign: str = "+") -> list:
-    """A ``constant * operand`` term, dropped when the constant is exactly zero."""
-    return [] if value == 0.0 else [(sign, f"{constant} * {operand}")]
+def _c_literal(dtype: str):
+    return lambda value: _literal(value, dtype, "(inline)")
 
 
-def _weight_term(p: float, operand: str, dtype: str) -> tuple[str, str]:
-    """``+ p * z`` of the extrapolation weights, written without the factor 1.
-
-    ``acc + p * z`` and ``acc - |p| * z`` round identically (negation is exact).
-    """
-    sign = "-" if p < 0 else "+"
-    magnitude = abs(p)
-    if magnitude == 1.0:
-        return (sign, operand)
-    return (sign, f"{_literal(magnitude, dtype, 'p')} * {operand}")
+def _expression(terms, operands, dtype: str) -> str:
+    """A program row as C, one term per line when long (left-to-right sum, as in Python)."""
+    text = render_sum(terms, operands, _c_literal(dtype))
+    if len(text) <= 76:
+        return text
+    # break before each top-level " + " / " - " (render_sum separates terms exactly so)
+    return re.sub(r" ([+-]) ", r"\n        \1 ", text)
 
 
 def _unused(names: list[str], body: str) -> list[str]:
@@ -115,43 +105,67 @@ def _unused(names: list[str], body: str) -> list[str]:
     return [f"    (void){n};" for n in names if not re.search(rf"\b{n}\b", body)]
 
 
-def _fmt_complex(p) -> str:
-    p = complex(p)
-    return repr(p.real) if p.imag == 0.0 else f"{p.real!r}{p.imag:+}j"
+def _signature(system: LinearObserver, dtype: str, *, with_u: bool) -> str:
+    names = [f"{dtype} {m}" for m in system.measures]
+    if with_u:
+        names.append(f"{dtype} u")
+    return ", ".join(names)
 
 
-def _header(design: ObserverDesign, prefix: str, dtype: str) -> str:
-    m, model = design.order, design.model
+def _header(system: LinearObserver, prefix: str, dtype: str) -> str:
     up = prefix.upper()
-    kind = _ORDER_NAMES.get(m, "generalised DOb, Delta^(m+1) tau = 0")
-    poles = ", ".join(_fmt_complex(p) for p in design.poles)
-    if design.bandwidth is not None:
-        poles += f" (bandwidth {design.bandwidth!r} rad/s)"
-    d = design.gain_direction
-    ts = _literal(model.Ts, dtype, "Ts")
+    n = system.n_states
+    meas = ", ".join(system.measures)
+    info = list(system.info) or [
+        ("observer", system.name),
+        ("sampling period", f"Ts = {system.Ts!r} s"),
+        ("states", str(n)),
+    ]
+    info.append(("measures", meas))
+    info.append(("scalar type", dtype))
+    width = max(len(key) for key, _ in info) + 1
+    design = "\n".join(f" *   {key:<{width}}{value}" for key, value in info)
+    args = ", ".join(system.measures)
+    est_note = (
+        "disturbance [N m], eq. 13/23"
+        if system.truncation_order is not None
+        else ("disturbance [N m]")
+    )
+    measure_note = "angle [rad], velocity [rad/s]" if len(system.measures) == 2 else "angle [rad]"
     steps = [
-        ("theta, omega = measure();", "angle [rad], velocity [rad/s]"),
-        (f"tau_hat = {prefix}_estimate(&s, theta, omega);", "disturbance [N m], eq. 13/23"),
+        (f"{args} = measure();", measure_note),
+        (f"tau_hat = {prefix}_estimate(&s, {args});", est_note),
         ("u = u_outer + tau_hat;", "compensate it"),
         ("apply(u);", "held over [k Ts, (k+1) Ts)"),
-        (f"{prefix}_update(&s, theta, omega, u);", "with the torque really applied"),
+        (f"{prefix}_update(&s, {args}, u);", "with the torque really applied"),
     ]
-    width = max(len(code) for code, _ in steps) + 2
-    loop = "\n".join(f" *   {code:<{width}}{note}" for code, note in steps)
+    if system.has_velocity:
+        steps.insert(2, (f"omega_hat = {prefix}_velocity(&s, {args});", "velocity [rad/s]"))
+    step_width = max(len(code) for code, _ in steps) + 2
+    loop = "\n".join(f" *   {code:<{step_width}}{note}" for code, note in steps)
+    order = ""
+    if system.truncation_order is not None:
+        order = (
+            f"/** Truncation order m of the observer (the state holds m + 1 values). */\n"
+            f"#define {up}_ORDER {system.truncation_order}\n"
+        )
+    meas_doc = ", ".join(f"{m} [{UNITS[m]}]" for m in system.measures)
+    velocity_decl = ""
+    if system.has_velocity:
+        velocity_decl = (
+            f"\n/** Velocity estimate omega_hat_k [rad/s] from the measured {meas_doc}. */\n"
+            f"{dtype} {prefix}_velocity(const {prefix}_state *s, "
+            f"{_signature(system, dtype, with_u=False)});\n"
+        )
     return f"""\
 /*
  * {prefix}.h -- disturbance observer exported by hpdob {__version__} (hpdob.export_c).
  * Generated file: re-export from the design instead of editing it.
  *
  * Design
- *   nominal model   J_n = {model.J!r} kg m^2, b_n = {model.b!r} N m s/rad
- *   sampling period Ts = {model.Ts!r} s
- *   order           {m} ({kind})
- *   poles           {poles}
- *   gain direction  ({float(d[0])!r}, {float(d[1])!r}): L_i = k_i d / (d^T D_Dn)
- *   scalar type     {dtype}
+{design}
  *
- * Sample loop, at every sample k and in this order (Ts = {model.Ts!r} s):
+ * Sample loop, at every sample k and in this order (Ts = {system.Ts!r} s):
 {loop}
  * Call {prefix}_init(&s, theta0, omega0, tau0) once before the first sample: it sets the
  * state a constant disturbance tau0 [N m] at rest in (theta0, omega0) would give.
@@ -168,24 +182,24 @@ extern "C" {{
 /** Scalar type of the observer. */
 typedef {dtype} {prefix}_real;
 
-/** Truncation order m of the observer (the state holds m + 1 values). */
-#define {up}_ORDER {m}
+{order}/** Number of states of the observer. */
+#define {up}_STATES {n}
 /** Sampling period Ts [s] the observer was designed for. */
-#define {up}_TS {ts}
+#define {up}_TS {_literal(system.Ts, dtype, "Ts")}
 
-/** Observer state: z[i-1] is the auxiliary variable z_i of docs/theory.md. */
+/** Observer state: z[i] is state s_(i+1) of the observer (docs/theory.md). */
 typedef struct {{
-    {dtype} z[{m + 1}];
+    {dtype} z[{n}];
 }} {prefix}_state;
 
 /** Reset to the state of a constant disturbance tau0 [N m] at rest in theta0, omega0. */
 void {prefix}_init({prefix}_state *s, {dtype} theta0, {dtype} omega0, {dtype} tau0);
 
-/** Disturbance estimate tau_hat_k [N m] from the measured theta_k [rad], omega_k [rad/s]. */
-{dtype} {prefix}_estimate(const {prefix}_state *s, {dtype} theta, {dtype} omega);
-
-/** Advance to sample k+1 with theta_k, omega_k and the torque u_k [N m] really applied. */
-void {prefix}_update({prefix}_state *s, {dtype} theta, {dtype} omega, {dtype} u);
+/** Disturbance estimate tau_hat_k [N m] from the measured {meas_doc}. */
+{dtype} {prefix}_estimate(const {prefix}_state *s, {_signature(system, dtype, with_u=False)});
+{velocity_decl}
+/** Advance to sample k+1 with the same measurement and the torque u_k [N m] applied. */
+void {prefix}_update({prefix}_state *s, {_signature(system, dtype, with_u=True)});
 
 #ifdef __cplusplus
 }}
@@ -195,89 +209,79 @@ void {prefix}_update({prefix}_state *s, {dtype} theta, {dtype} omega, {dtype} u)
 """
 
 
-def _constants(design: ObserverDesign, dtype: str, code: str) -> list[str]:
-    """Definitions of the constants ``code`` uses (an unused ``static const`` would warn)."""
-    lines, zero = [], []
-    for i in range(1, design.order + 2):
-        row = i - 1
-        kt, kw, ku = design._rows[row]
-        for name, value, comment in (
-            (f"K{i}", design._k[row], f"k_{i} = L_{i}^T D_Dn"),
-            (f"L{i}_THETA", design.gains[row, 0], f"L_{i}, theta entry [N m/rad]"),
-            (f"L{i}_OMEGA", design.gains[row, 1], f"L_{i}, omega entry [N m s/rad]"),
-            (f"KX{i}_THETA", kt, f"(G A - M G)[{row}][0]"),
-            (f"KX{i}_OMEGA", kw, f"(G A - M G)[{row}][1]"),
-            (f"KU{i}", ku, f"(G B)[{row}]"),
-        ):
-            if float(value) == 0.0:
-                zero.append(name)
-            elif re.search(rf"\b{name}\b", code):
-                literal = _literal(value, dtype, name)
-                lines.append(f"static const {dtype} {name} = {literal}; /* {comment} */")
+def _constants(system: LinearObserver, dtype: str, code: str) -> list[str]:
+    """Definitions of the named constants ``code`` uses (an unused ``static const`` warns)."""
+    lines = []
+    table = system.program.constant_table()
+    order = [name for name, _ in system.program.constants]
+    for name in sorted(table, key=lambda c: order.index(c) if c in order else len(order)):
+        value, note = table[name]
+        if re.search(rf"\b{name}\b", code):
+            comment = f" /* {note} */" if note else ""
+            lines.append(f"static const {dtype} {name} = {_literal(value, dtype, name)};{comment}")
+    zero = system.program.zero_constants
     if zero:
         lines.append(f"/* exactly zero, their terms are left out: {', '.join(zero)} */")
     return lines
 
 
-def _init_body(design: ObserverDesign) -> list[str]:
-    lines = []
-    for i in range(1, design.order + 2):
-        g = design.gains[i - 1]
-        terms = [("+", "tau0")]
-        terms += _product(f"L{i}_THETA", g[0], "theta0") + _product(f"L{i}_OMEGA", g[1], "omega0")
-        lines.append(f"    s->z[{i - 1}] = {_sum(terms)};")
-    return _unused(["theta0", "omega0"], "\n".join(lines)) + lines
+def _source(system: LinearObserver, prefix: str, dtype: str) -> str:
+    program = system.program
+    n = system.n_states
+    z = [f"z{i + 1}" for i in range(n)]
+    operands = [*z, *system.measures, "u"]
+    init_rows = [
+        f"    s->z[{i}] = {_expression(row, RESET_OPERANDS, dtype)};"
+        for i, row in enumerate(program.reset)
+    ]
+    init = "\n".join(_unused(list(RESET_OPERANDS), "\n".join(init_rows)) + init_rows)
 
+    def reads(body):
+        return [
+            f"    const {dtype} {z[i]} = s->z[{i}];"
+            for i in range(n)
+            if re.search(rf"\b{z[i]}\b", body)
+        ]
 
-def _estimate_body(design: ObserverDesign) -> list[str]:
-    n, g = design.order + 1, design.gains[-1]
-    terms = [("+", f"s->z[{n - 1}]")]
-    terms += _product(f"L{n}_THETA", g[0], "theta", "-")
-    terms += _product(f"L{n}_OMEGA", g[1], "omega", "-")
-    line = f"    return {_sum(terms)};"
-    return [*_unused(["theta", "omega"], line), line]
+    direct = [f"s->z[{i}]" for i in range(n)] + operands[n:]  # outputs read the state in place
 
+    def output_body(r):
+        line = f"    return {_expression(program.output[r], direct, dtype)};"
+        return "\n".join([*_unused(list(system.measures), line), line])
 
-def _update_body(design: ObserverDesign, dtype: str) -> list[str]:
-    n = design.order + 1
-    z = [f"z{i}" for i in range(1, n + 1)]
-    last = z[-1]
-    reads = [f"    const {dtype} {z[i]} = s->z[{i}];" for i in range(n)]
-    rows = []
-    for i in range(1, n):  # rows 1..m: shift the disturbance history
-        kt, kw, ku = design._rows[i - 1]
-        terms = [("+", z[i]), *_product(f"K{i}", design._k[i - 1], last, "-")]
-        terms += _product(f"KX{i}_THETA", kt, "theta") + _product(f"KX{i}_OMEGA", kw, "omega")
-        terms += _product(f"KU{i}", ku, "u")
-        rows.append(f"    s->z[{i - 1}] = {_sum(terms)};")
-    kt, kw, ku = design._rows[-1]  # row m+1: extrapolate the newest disturbance
-    terms = _product(f"K{n}", design._k[-1], last, "-")
-    terms += _product(f"KX{n}_THETA", kt, "theta") + _product(f"KX{n}_OMEGA", kw, "omega")
-    terms += _product(f"KU{n}", ku, "u")
-    terms += [_weight_term(p, zi, dtype) for p, zi in zip(design._p, z, strict=True)]
-    rows.append(f"    s->z[{n - 1}] = {_sum(terms)};")
-    return reads + _unused(["theta", "omega", "u"], "\n".join(rows)) + rows
-
-
-def _source(design: ObserverDesign, prefix: str, dtype: str) -> str:
-    n = design.order + 1
-    weights = " ".join(f"{p:+g}" for p in design._p)
-    init = "\n".join(_init_body(design))
-    est = "\n".join(_estimate_body(design))
-    upd = "\n".join(_update_body(design, dtype))
-    constants = "\n".join(_constants(design, dtype, init + est + upd))
+    est = output_body(0)
+    rows = [
+        f"    s->z[{i}] = {_expression(row, operands, dtype)};"
+        for i, row in enumerate(program.update)
+    ]
+    body = "\n".join(rows)
+    upd = "\n".join([*reads(body), *_unused([*system.measures, "u"], body), *rows])
+    velocity = ""
+    if system.has_velocity:
+        velocity = f"""
+{dtype} {prefix}_velocity(const {prefix}_state *s, {_signature(system, dtype, with_u=False)})
+{{
+{output_body(1)}
+}}
+"""
+    constants = "\n".join(_constants(system, dtype, init + est + upd + velocity))
+    recursion = (
+        " * Recursion (docs/theory.md, paper eqs. 11/13 for order 0, 20/21/23 for order 1):\n"
+        " *   z_{k+1} = M z_k + (G A - M G) x_k + G B u_k,   "
+        "tau_hat_k = z_{m+1,k} - L_{m+1}^T x_k.\n"
+        if system.truncation_order is not None
+        else " * Recursion: s_{k+1} = F s_k + G [y_k; u_k], outputs H s_k + E [y_k; u_k].\n"
+    )
     return f"""\
 /*
  * {prefix}.c -- disturbance observer exported by hpdob {__version__}; see {prefix}.h for the
  * design and the sample loop. Generated file: re-export instead of editing it.
  *
- * Recursion (docs/theory.md, paper eqs. 11/13 for order 0, 20/21/23 for order 1):
- *   z_{{k+1}} = M z_k + (G A - M G) x_k + G B u_k,   tau_hat_k = z_{{m+1,k}} - L_{{m+1}}^T x_k,
- *   M = C - k e_{{m+1}}^T, C the companion matrix of (z - 1)^{n} (last row {weights}).
- * Every sum is evaluated left to right in the order of hpdob.update (terms whose constant
- * is exactly zero are left out), so a double build reproduces the Python observer bit for
- * bit when the compiler does not contract a*b + c into fused multiply-adds.
- * z_i of the paper is s->z[i-1] here.
+{recursion} * Every sum is evaluated left to right in the order of the observer's program, as the
+ * Python observer and the compiled simulation kernel evaluate it (terms whose constant is
+ * exactly zero are left out), so a double build reproduces the Python observer bit for bit
+ * when the compiler does not contract a*b + c into fused multiply-adds.
+ * z[i] here is state s_(i+1) of the observer (z_(i+1) of the paper's auxiliary variables).
  */
 #include "{prefix}.h"
 
@@ -288,12 +292,12 @@ void {prefix}_init({prefix}_state *s, {dtype} theta0, {dtype} omega0, {dtype} ta
 {init}
 }}
 
-{dtype} {prefix}_estimate(const {prefix}_state *s, {dtype} theta, {dtype} omega)
+{dtype} {prefix}_estimate(const {prefix}_state *s, {_signature(system, dtype, with_u=False)})
 {{
 {est}
 }}
-
-void {prefix}_update({prefix}_state *s, {dtype} theta, {dtype} omega, {dtype} u)
+{velocity}
+void {prefix}_update({prefix}_state *s, {_signature(system, dtype, with_u=True)})
 {{
 {upd}
 }}
@@ -302,10 +306,10 @@ void {prefix}_update({prefix}_state *s, {dtype} theta, {dtype} omega, {dtype} u)
 
 def render_c(obs, *, prefix: str = "dob", dtype: str = "double") -> tuple[str, str]:
     """Text of ``<prefix>.h`` and ``<prefix>.c`` for ``obs``; see :func:`export_c`."""
-    design = as_design(obs, "obs")
+    system = as_system(obs, "obs")
     dtype = check_choice(dtype, "dtype", DTYPES)
     prefix = _check_prefix(prefix)
-    return _header(design, prefix, dtype), _source(design, prefix, dtype)
+    return _header(system, prefix, dtype), _source(system, prefix, dtype)
 
 
 def export_c(obs, directory, *, prefix: str = "dob", dtype: str = "double") -> tuple[Path, Path]:
@@ -382,11 +386,11 @@ def export_c(obs, directory, *, prefix: str = "dob", dtype: str = "double") -> t
     axis1.h axis1.c
     True
     """
-    design = as_design(obs, "obs")
+    system = as_system(obs, "obs")
     dtype = check_choice(dtype, "dtype", DTYPES)
     prefix = _check_prefix(prefix)
     path = _check_directory(directory)
-    header, source = _header(design, prefix, dtype), _source(design, prefix, dtype)
+    header, source = _header(system, prefix, dtype), _source(system, prefix, dtype)
     path.mkdir(parents=True, exist_ok=True)
     written = (path / f"{prefix}.h", path / f"{prefix}.c")
     for target, text in zip(written, (header, source), strict=True):

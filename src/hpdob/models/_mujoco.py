@@ -2,7 +2,7 @@ r"""A servo simulated by MuJoCo: an independent physics engine as the plant of :
 
 MuJoCo is imported on first use only (``pip install 'hpdob[mujoco]'``), so ``import hpdob``
 stays fast and works without it. The sample loop that drives the model is in
-:mod:`hpdob.simulation._mujoco_loop`.
+``hpdob.simulation._python_plant``.
 """
 
 from __future__ import annotations
@@ -32,6 +32,8 @@ from ._mjcf import (
     object_names,
     servo_xml,
 )
+from ._mujoco_session import MujocoSampler
+from ._plant import DEFAULT_SUBSTEPS, Plant
 
 __all__ = ["MujocoServo"]
 
@@ -42,7 +44,7 @@ def _check_timestep(timestep):
     return positive(timestep, "timestep", "a positive finite MuJoCo time step [s] or None")
 
 
-class MujocoServo:
+class MujocoServo(Plant):
     r"""A servo simulated by MuJoCo, usable as ``plant=`` in :func:`simulate` and :func:`sweep`.
 
     The built model is one hinge joint (axis horizontal) with
@@ -383,6 +385,23 @@ class MujocoServo:
                 f"timestep={self._timestep!r} s, got {substeps!r}"
             )
         return n
+
+    # -- the plant protocol (hpdob.models.Plant) --------------------------------------------
+    @property
+    def motor_inertia(self) -> float:
+        """Inertia of the joint [kg m^2] (:attr:`inertia`)."""
+        return self.inertia
+
+    def substeps(self, Ts: float, substeps: int | None) -> int:
+        """MuJoCo steps per sample (:meth:`steps_per_sample`; default 8 without a timestep)."""
+        if substeps is not None:
+            substeps = Plant.substeps(self, Ts, substeps)
+        n = self.steps_per_sample(Ts, substeps)
+        return DEFAULT_SUBSTEPS if n is None else n
+
+    def sampler(self, Ts: float, substeps: int) -> MujocoSampler:
+        """Runs advanced from Python by MuJoCo with ``substeps`` steps of ``Ts/substeps``."""
+        return MujocoSampler(self, Ts / substeps, substeps)
 
     def open(self, timestep: float) -> MujocoHandle:
         """Compile a fresh model with MuJoCo time step ``timestep`` [s] and its data at

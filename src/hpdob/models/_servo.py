@@ -8,12 +8,13 @@ from dataclasses import KW_ONLY, dataclass, field
 import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive, readonly
+from ._plant import ExactSubsteps, Plant, coulomb_substeps
 
 __all__ = ["DiscreteServoModel", "ServoModel"]
 
 
 @dataclass(frozen=True)
-class ServoModel:
+class ServoModel(Plant):
     r"""Continuous-time single-axis servo: inertia, viscous and Coulomb friction.
 
     The state is :math:`x = [\theta, \omega]` (rad, rad/s) and the dynamics are eq. (1)
@@ -104,6 +105,30 @@ class ServoModel:
         """
         return DiscreteServoModel(self, Ts)
 
+    # -- the plant protocol (hpdob.models.Plant) -------------------------------------------
+    def default_substeps(self, Ts: float) -> int:
+        """Default plant sub-steps per sample: 8, more for stiff Coulomb friction
+        (``h c / (v J) <= 0.5``)."""
+        return coulomb_substeps(self.coulomb, self.coulomb_velocity, self.J, Ts)
+
+    def sampler(self, Ts: float, substeps: int) -> ExactSubsteps:
+        """The exact sub-step matrices the compiled kernel advances this plant with."""
+        h = Ts / substeps
+        full, half = self.discretize(h), self.discretize(h / 2)
+        return ExactSubsteps(
+            A_h=full.A,
+            B_h=full.B,
+            D_h=full.D,
+            A_half=half.A,
+            B_half=half.B,
+            D_half=half.D,
+            shared=True,
+            internal=np.array([0.0, self.b]),
+            J_motor=self.J,
+            coulomb=self.coulomb,
+            coulomb_velocity=self.coulomb_velocity,
+        )
+
     def replace(self, **changes) -> ServoModel:
         """Return a copy with some parameters changed (validated like the constructor)."""
         values = {
@@ -120,6 +145,8 @@ class ServoModel:
         values.update(changes)
         return ServoModel(values.pop("J"), values.pop("b"), **values)
 
+
+_EYE2 = readonly(np.eye(2))
 
 #: 1/(n+2)! for the Taylor series of phi_2 (alternating; 22 terms reach 1/23! ~ 4e-23).
 _PHI2_TAYLOR = tuple(1.0 / math.factorial(n + 2) for n in range(22))
@@ -227,6 +254,14 @@ class DiscreteServoModel:
         object.__setattr__(self, "A", readonly(A))
         object.__setattr__(self, "B", readonly(B))
         object.__setattr__(self, "D", readonly(B.copy()))
+
+    #: Names of the state entries (rows of ``C``: the motor angle and velocity).
+    state_names = ("theta", "omega")
+
+    @property
+    def C(self) -> np.ndarray:
+        """Rows of the motor's angle and velocity in the state: the identity (read-only)."""
+        return _EYE2
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, DiscreteServoModel):

@@ -1,17 +1,20 @@
-"""Observers: the unified order-m synthesis, its runtime object and its functional core.
+"""Observers: the observer protocol, the unified order-m synthesis, runtime and functional core.
 
+LinearObserver, Program, Term, ErrorDynamics
+    The observer protocol: every observer is a linear discrete-time system (F, G, H, E, N),
+    evaluated in the order of its program by Python, the compiled kernel and exported C alike.
 design_observer, ObserverDesign
-    Pure synthesis of an observer of any truncation order (eigenvalue placement or bandwidth).
-DisturbanceObserver
-    Stateful runtime object for the sample loop (``estimate`` then ``update``).
-initial_state, estimate, update
-    The pure functional core of the sample loop.
+    Pure synthesis of an order-m observer (eigenvalue placement or bandwidth).
+Observer, DisturbanceObserver
+    Stateful runtime objects for the sample loop (``estimate`` then ``update``).
+initial_state, estimate, outputs, update
+    The pure functional core of the sample loop, for any observer.
 characteristic_polynomial, error_matrix, extrapolation_weights
     The structure of the error dynamics (eqs. 12, 22, 24 generalised).
 """
 
-from ._core import estimate, initial_state, update
-from ._runtime import DisturbanceObserver
+from ._core import estimate, initial_state, outputs, update
+from ._runtime import DisturbanceObserver, Observer
 from ._synthesis import (
     ObserverDesign,
     characteristic_polynomial,
@@ -19,15 +22,23 @@ from ._synthesis import (
     error_matrix,
     extrapolation_weights,
 )
+from ._system import ErrorDynamics, LinearObserver, Program, Term, as_system
 
 __all__ = [
     "DisturbanceObserver",
+    "ErrorDynamics",
+    "LinearObserver",
+    "Observer",
     "ObserverDesign",
+    "Program",
+    "Term",
+    "as_system",
     "characteristic_polynomial",
     "design_observer",
     "error_matrix",
     "estimate",
     "extrapolation_weights",
     "initial_state",
+    "outputs",
     "update",
 ]

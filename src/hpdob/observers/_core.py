@@ -1,12 +1,15 @@
-r"""Pure functional core of the observer sample loop.
+r"""Pure functional core of the observer sample loop, for any observer of the protocol.
 
-The observer state is a tuple of ``order + 1`` Python floats, :math:`\hat z_k`. Each function
-takes a design and a state and returns a new value; nothing is mutated, so the functions can
-be used to replay, branch or vectorise a sample loop. :class:`hpdob.DisturbanceObserver` is a
-thin stateful wrapper around them.
+The observer state is a tuple of Python floats, :math:`s_k`. Each function takes an observer
+(a :class:`~hpdob.LinearObserver`, a design or a runtime object) and a state and returns a new
+value; nothing is mutated, so the functions can be used to replay, branch or vectorise a sample
+loop. The runtime objects (:class:`hpdob.Observer`, :class:`hpdob.DisturbanceObserver`) are thin
+stateful wrappers around them.
 
-The hot path uses plain floats and tuples, not numpy: with a state of two or three numbers,
-numpy's per-call overhead would cost more than the arithmetic.
+The arithmetic is Python code generated from the observer's program
+(:func:`hpdob.observers._system.compile_python`): plain floats and tuples, no numpy (with a
+state of two or three numbers numpy's per-call overhead would cost more than the arithmetic),
+in exactly the operation order of the compiled kernel and the exported C.
 """
 
 from __future__ import annotations
@@ -15,10 +18,10 @@ import math
 
 import numpy as np
 
-from .._validation import ParameterValueError, as_real
-from ._synthesis import ObserverDesign
+from .._validation import ParameterTypeError, ParameterValueError, as_real
+from ._system import LinearObserver, as_system
 
-__all__ = ["estimate", "initial_state", "update"]
+__all__ = ["estimate", "initial_state", "outputs", "update"]
 
 _isfinite = math.isfinite
 
@@ -32,6 +35,11 @@ def read_state_vector(x, name: str = "x") -> tuple[float, float]:
                 f"of shape (2,), got an array of shape {x.shape}"
             )
         x = x.tolist()
+    elif isinstance(x, (dict, set, frozenset, str, bytes)):
+        raise ParameterTypeError(
+            f"{name} must be a measured state [theta (rad), omega (rad/s)] (a sequence of 2 "
+            f"numbers), got {x!r} of type {type(x).__name__}"
+        )
     try:
         theta, omega = x
     except (TypeError, ValueError):
@@ -48,6 +56,36 @@ def read_state_vector(x, name: str = "x") -> tuple[float, float]:
     return theta, omega
 
 
+def read_angle(theta, name: str = "theta") -> float:
+    """Return the measured angle as a float, validated finite (position-only observers)."""
+    if type(theta) is float and _isfinite(theta):
+        return theta
+    if isinstance(theta, np.ndarray) and theta.shape == (1,):
+        theta = theta[0]
+    if isinstance(theta, (tuple, list, np.ndarray)):
+        raise ParameterValueError(
+            f"{name} must be one measured angle [rad] (a float) for an observer that measures "
+            f"the angle only, got {theta!r}"
+        )
+    return as_real(theta, name, "a finite measured angle [rad]")
+
+
+def read_measurement(system: LinearObserver, value, name: str = "x") -> tuple:
+    """The measurement as a tuple of floats in ``system.measures`` order.
+
+    A state-measuring observer takes ``[theta, omega]``, a position-only one the angle alone
+    (a float).
+    """
+    if len(system.measures) == 2:
+        return read_state_vector(value, name)
+    if isinstance(value, (tuple, list)) or (isinstance(value, np.ndarray) and value.size == 2):
+        raise ParameterValueError(
+            f"{name} must be one measured angle [rad] (a float): this observer measures the "
+            f"angle only, got {value!r}"
+        )
+    return (read_angle(value, name),)
+
+
 def read_control(u, name: str = "u") -> float:
     """Return the control input as a float, validated finite."""
     if type(u) is float and _isfinite(u):
@@ -55,23 +93,27 @@ def read_control(u, name: str = "u") -> float:
     return as_real(u, name, "a finite control torque [N m]")
 
 
-def _check_state(design: ObserverDesign, state) -> None:
-    if type(state) is not tuple or len(state) != len(design._k):
+def _check_state(system: LinearObserver, state) -> None:
+    if type(state) is not tuple or len(state) != system.n_states:
+        n = system.n_states
+        size = f"order + 1 = {n}" if system.truncation_order is not None else f"{n}"
         raise ParameterValueError(
-            f"state must be a tuple of order + 1 = {len(design._k)} floats "
-            f"(from initial_state or update), got {state!r}"
+            f"state must be a tuple of {size} floats (from initial_state or update), got {state!r}"
         )
+    if not all(type(v) is float and _isfinite(v) for v in state):
+        raise ParameterValueError(f"state must hold finite floats, got {state!r}")
 
 
-def initial_state(design: ObserverDesign, x0=(0.0, 0.0), tau0: float = 0.0) -> tuple:
+def initial_state(observer, x0=(0.0, 0.0), tau0: float = 0.0) -> tuple:
     r"""State of an observer that has converged on a constant disturbance ``tau0`` at ``x0``.
 
-    :math:`\hat z_i = \tau_0 + L_i^T x_0` for every ``i`` (the disturbance history is
-    constant, so all auxiliary variables see the same :math:`\tau`).
+    :math:`s_0 = N [\theta_0, \omega_0, \tau_0]`; for the order-m family
+    :math:`\hat z_i = \tau_0 + L_i^T x_0` for every ``i`` (the disturbance history is constant,
+    so all auxiliary variables see the same :math:`\tau`).
 
     Parameters
     ----------
-    design : ObserverDesign
+    observer : LinearObserver, design or runtime observer
     x0 : sequence of 2 floats, optional
         Initial state ``[theta (rad), omega (rad/s)]``. Default ``(0, 0)``.
     tau0 : float, optional
@@ -81,72 +123,75 @@ def initial_state(design: ObserverDesign, x0=(0.0, 0.0), tau0: float = 0.0) -> t
     -------
     tuple of float
     """
+    system = as_system(observer)
     theta, omega = read_state_vector(x0, "x0")
     tau0 = as_real(tau0, "tau0", "a finite disturbance torque [N m]")
-    return tuple(float(tau0 + g[0] * theta + g[1] * omega) for g in design.gains)
+    return system.python[0](theta, omega, tau0)
 
 
-def estimate(design: ObserverDesign, state: tuple, x) -> float:
-    r"""Disturbance estimate :math:`\hat\tau_k = \hat z_{m+1,k} - L_{m+1}^T x_k` [N m].
+def estimate(observer, state: tuple, x) -> float:
+    r"""Disturbance estimate :math:`\hat\tau_k` [N m] from the state and the measurement.
 
-    Eq. (13) for the DOb, eq. (23) for the HPDOb.
+    :math:`\hat\tau_k = H_1 s_k + E_1 v_k`: eq. (13) for the DOb, eq. (23) for the HPDOb
+    (:math:`\hat z_{m+1,k} - L_{m+1}^T x_k`).
 
     Parameters
     ----------
-    design : ObserverDesign
+    observer : LinearObserver, design or runtime observer
     state : tuple of float
-        :math:`\hat z_k`.
-    x : sequence of 2 floats
-        Measured state ``[theta (rad), omega (rad/s)]`` at sample ``k``.
+        :math:`s_k`.
+    x : sequence of 2 floats, or float
+        Measurement at sample ``k``: ``[theta (rad), omega (rad/s)]`` for an observer that
+        measures the state, the angle [rad] for a position-only one.
     """
-    theta, omega = read_state_vector(x)
-    _check_state(design, state)
-    lt, lw = design._last_gain
-    return state[-1] - lt * theta - lw * omega
+    system = as_system(observer)
+    values = read_measurement(system, x)
+    _check_state(system, state)
+    return system.python[2](state, *values)
 
 
-def update(design: ObserverDesign, state: tuple, x, u) -> tuple:
-    r"""Next observer state :math:`\hat z_{k+1}` from :math:`\hat z_k`, ``x_k`` and ``u_k``.
+def outputs(observer, state: tuple, x) -> tuple:
+    r"""All outputs ``(tau_hat, [omega_hat])`` of the observer at sample ``k``.
 
-    .. math:: \hat z_{k+1} = M \hat z_k + (G A - M G) x_k + G B u_k
+    Like :func:`estimate`, with the velocity estimate [rad/s] as second entry where the
+    observer has one (``"omega_hat" in observer.system.outputs``).
+    """
+    system = as_system(observer)
+    values = read_measurement(system, x)
+    _check_state(system, state)
+    return system.python[1](state, *values)
 
-    which is eq. (11) for ``order = 0`` and eqs. (20)-(21) for ``order = 1``. ``u`` is the
-    torque actually commanded at sample ``k`` (including the disturbance compensation).
+
+def update(observer, state: tuple, x, u) -> tuple:
+    r"""Next observer state :math:`s_{k+1} = F s_k + G [v_k, u_k]`.
+
+    For the order-m family (``docs/theory.md``)
+    :math:`\hat z_{k+1} = M \hat z_k + (G A - M G) x_k + G B u_k`, which is eq. (11) for
+    ``order = 0`` and eqs. (20)-(21) for ``order = 1``. ``u`` is the torque actually commanded
+    at sample ``k`` (including the disturbance compensation).
 
     Parameters
     ----------
-    design : ObserverDesign
+    observer : LinearObserver, design or runtime observer
     state : tuple of float
-        :math:`\hat z_k`.
-    x : sequence of 2 floats
-        Measured state ``[theta (rad), omega (rad/s)]`` at sample ``k``.
+        :math:`s_k`.
+    x : sequence of 2 floats, or float
+        Measurement at sample ``k`` (see :func:`estimate`).
     u : float
         Control torque applied over sample ``k`` [N m].
 
     Returns
     -------
     tuple of float
-        :math:`\hat z_{k+1}`.
+        :math:`s_{k+1}`.
 
     Raises
     ------
-    ValueError
-        If ``x`` or ``u`` is not finite, or ``state`` has the wrong length.
+    TypeError, ValueError
+        If ``x`` or ``u`` is not finite or of the wrong kind, or ``state`` has the wrong length.
     """
-    theta, omega = read_state_vector(x)
+    system = as_system(observer)
+    values = read_measurement(system, x)
     u = read_control(u)
-    _check_state(design, state)
-    k = design._k
-    last = state[-1]
-    rows = design._rows
-    n = len(k)
-    out = [
-        state[i + 1] - k[i] * last + r[0] * theta + r[1] * omega + r[2] * u
-        for i, r in enumerate(rows[: n - 1])
-    ]
-    r = rows[-1]
-    acc = -k[-1] * last + r[0] * theta + r[1] * omega + r[2] * u
-    for p, z in zip(design._p, state, strict=True):
-        acc += p * z
-    out.append(acc)
-    return tuple(out)
+    _check_state(system, state)
+    return system.python[3](state, *values, u)

@@ -1,4 +1,4 @@
-"""The stateful runtime object for the observer sample loop."""
+"""The stateful runtime objects of the observer sample loop."""
 
 from __future__ import annotations
 
@@ -7,8 +7,9 @@ import numpy as np
 from .._validation import ParameterTypeError, ParameterValueError
 from . import _core
 from ._synthesis import ObserverDesign, design_observer
+from ._system import LinearObserver, as_system
 
-__all__ = ["DisturbanceObserver", "as_design", "check_designed_on"]
+__all__ = ["DisturbanceObserver", "Observer", "as_design", "check_designed_on"]
 
 
 def as_design(observer, name: str = "observer") -> ObserverDesign:
@@ -22,9 +23,21 @@ def as_design(observer, name: str = "observer") -> ObserverDesign:
     )
 
 
-def check_designed_on(design: ObserverDesign, nominal, Ts: float, name: str = "observer") -> None:
-    """Raise unless ``design`` was synthesised on ``nominal.discretize(Ts)`` (same J, b, Ts)."""
-    model = design.model
+def check_designed_on(system, nominal, Ts: float, name: str = "observer") -> None:
+    """Raise unless ``system`` was synthesised on ``nominal.discretize(Ts)`` (same J, b, Ts).
+
+    ``system`` is a :class:`LinearObserver` or anything with one (``.system``); an observer
+    without a nominal model (``model=None``) is checked for ``Ts`` only.
+    """
+    system = as_system(system, name)
+    model = system.model
+    if model is None:
+        if system.Ts != Ts:
+            raise ParameterValueError(
+                f"{name} must run at the loop's sampling period: its Ts={system.Ts} but the "
+                f"loop has Ts={Ts}"
+            )
+        return
     if (model.J, model.b, model.Ts) != (nominal.J, nominal.b, Ts):
         raise ParameterValueError(
             f"{name} must be designed on nominal.discretize(Ts): its model has J={model.J}, "
@@ -32,7 +45,155 @@ def check_designed_on(design: ObserverDesign, nominal, Ts: float, name: str = "o
         )
 
 
-class DisturbanceObserver:
+class Observer:
+    r"""Runtime object of any observer: its :class:`LinearObserver` and the current state.
+
+    The sample loop, in this order at every sample ``k``::
+
+        y_k = measure()                      # [theta, omega], or theta alone (position-only)
+        tau_hat = obs.estimate(y_k)          # uses the state from k-1; obs.velocity after it
+        u_k = u_outer + tau_hat              # compensate the estimated disturbance
+        apply(u_k)                           # zero-order hold over [k Ts, (k+1) Ts)
+        obs.update(y_k, u_k)                 # prepares sample k+1
+
+    Parameters
+    ----------
+    system : LinearObserver or observer-like
+        The observer (anything with ``.system``, e.g. a design, is accepted).
+    x0 : sequence of 2 floats, optional
+        ``[theta (rad), omega (rad/s)]`` of the initial reset. Default ``(0, 0)``.
+    tau0 : float, optional
+        Disturbance [N m] of the initial reset. Default 0.
+
+    Attributes
+    ----------
+    system : LinearObserver
+    state : ndarray
+        Copy of :math:`s_k`.
+
+    Notes
+    -----
+    Every method validates its arguments before it changes anything: a rejected call leaves
+    the state as it was. :func:`hpdob.estimate`, :func:`hpdob.update` and
+    :func:`hpdob.initial_state` are the same loop as pure functions.
+    """
+
+    __slots__ = ("_outputs", "_state", "_system")
+
+    def __init__(self, system, *, x0=(0.0, 0.0), tau0: float = 0.0):
+        system = as_system(system, "system")
+        state = _core.initial_state(system, x0, tau0)
+        self._system = system
+        self._state = state
+        self._outputs = None
+
+    @classmethod
+    def _with_state(cls, system: LinearObserver, state: tuple, *attrs):
+        obs = cls.__new__(cls)
+        obs._system = system
+        obs._state = state
+        obs._outputs = None
+        for name, value in attrs:
+            object.__setattr__(obs, name, value)
+        return obs
+
+    # -- read-only views -------------------------------------------------------------------
+    @property
+    def system(self) -> LinearObserver:
+        """The observer as a linear system (the protocol every consumer runs)."""
+        return self._system
+
+    @property
+    def model(self):
+        """Nominal :class:`DiscreteServoModel` the observer was designed on (or None)."""
+        return self._system.model
+
+    @property
+    def Ts(self) -> float:
+        """Sampling period [s]."""
+        return self._system.Ts
+
+    @property
+    def measures(self) -> tuple:
+        """Measured signals: ``("theta", "omega")`` or ``("theta",)``."""
+        return self._system.measures
+
+    @property
+    def state(self) -> np.ndarray:
+        r"""Copy of the state :math:`s_k`."""
+        return np.array(self._state)
+
+    @property
+    def velocity(self) -> float:
+        r"""Velocity estimate :math:`\hat\omega_k` [rad/s] of the last :meth:`estimate`.
+
+        Raises
+        ------
+        AttributeError
+            If the observer has no velocity estimate or ``estimate`` was not called since the
+            last ``update`` or ``reset``.
+        """
+        if not self._system.has_velocity:
+            raise AttributeError(
+                f"this observer has no velocity estimate (outputs: {self._system.outputs}); "
+                "position-only observers have one"
+            )
+        if self._outputs is None:
+            raise AttributeError("velocity is available after estimate() of the current sample")
+        return self._outputs[1]
+
+    # -- the sample loop -------------------------------------------------------------------
+    def estimate(self, measurement) -> float:
+        """Disturbance estimate [N m] at the current sample from the measurement.
+
+        ``measurement`` is ``[theta (rad), omega (rad/s)]`` for an observer that measures the
+        state, the angle [rad] (a float) for a position-only one. Does not change the state.
+        """
+        system = self._system
+        values = _core.read_measurement(system, measurement)
+        y = system.python[1](self._state, *values)
+        self._outputs = y
+        return y[0]
+
+    def update(self, measurement, u) -> None:
+        """Advance the state with the measurement and the applied torque ``u_k`` [N m].
+
+        A non-finite or malformed ``measurement`` or ``u`` raises and leaves the state
+        unchanged.
+        """
+        system = self._system
+        values = _core.read_measurement(system, measurement)
+        u = _core.read_control(u)
+        self._state = system.python[3](self._state, *values, u)
+        self._outputs = None
+
+    def reset(self, x0=(0.0, 0.0), tau0: float = 0.0) -> None:
+        r"""Set the state a constant disturbance ``tau0`` [N m] at ``x0`` would give.
+
+        :math:`s = N [	heta_0, \omega_0, 	au_0]`, so ``estimate`` at ``x0`` returns ``tau0``.
+        """
+        self._state = _core.initial_state(self._system, x0, tau0)
+        self._outputs = None
+
+    def to_statespace(self):
+        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``); see
+        :meth:`LinearObserver.to_statespace`."""
+        return self._system.to_statespace()
+
+    def copy(self):
+        """Independent observer with the same design and the same current state."""
+        other = self.__class__.__new__(self.__class__)
+        for cls in type(self).__mro__:
+            for slot in getattr(cls, "__slots__", ()):
+                if hasattr(self, slot):
+                    object.__setattr__(other, slot, getattr(self, slot))
+        return other
+
+    def __repr__(self) -> str:
+        return f"Observer({self._system!r})"
+
+
+class DisturbanceObserver(Observer):
     r"""Discrete disturbance observer of truncation order ``order`` with its runtime state.
 
     ``order=0`` is the conventional DOb (eqs. 9-13), ``order=1`` the HPDOb (eqs. 14-24) and
@@ -61,6 +222,8 @@ class DisturbanceObserver:
         is :math:`L_{i+1}^T`) and ``error_matrix`` are read from it.
     state : ndarray, shape (order + 1,)
         Copy of the auxiliary-variable estimate :math:`\hat z_k`.
+    system : LinearObserver
+        The observer as a linear system (what simulation, analysis and export run).
 
     Raises
     ------
@@ -97,13 +260,14 @@ class DisturbanceObserver:
     0.01
     """
 
-    __slots__ = ("_design", "_state")
+    __slots__ = ("_design",)
 
     def __init__(self, model, *, order, poles=None, bandwidth=None, gain_direction=(1.0, 1.0)):
-        self._design = design_observer(
+        design = design_observer(
             model, order=order, poles=poles, bandwidth=bandwidth, gain_direction=gain_direction
         )
-        self._state = _core.initial_state(self._design)
+        self._design = design
+        Observer.__init__(self, design.system)
 
     @classmethod
     def from_design(
@@ -114,25 +278,14 @@ class DisturbanceObserver:
             raise ParameterTypeError(
                 f"design must be an ObserverDesign, got {type(design).__name__}"
             )
-        return cls._with_state(design, _core.initial_state(design, x0, tau0))
-
-    @classmethod
-    def _with_state(cls, design: ObserverDesign, state: tuple) -> DisturbanceObserver:
-        obs = cls.__new__(cls)
-        obs._design = design
-        obs._state = state
-        return obs
+        state = _core.initial_state(design, x0, tau0)
+        return cls._with_state(design.system, state, ("_design", design))
 
     # -- the design, read-only ---------------------------------------------------------
     @property
     def design(self) -> ObserverDesign:
         """The immutable synthesis result."""
         return self._design
-
-    @property
-    def model(self):
-        """Nominal :class:`DiscreteServoModel`."""
-        return self._design.model
 
     @property
     def order(self) -> int:
@@ -164,41 +317,12 @@ class DisturbanceObserver:
         """Estimation-error matrix ``M`` (eqs. 12, 22)."""
         return self._design.error_matrix
 
-    @property
-    def state(self) -> np.ndarray:
-        r"""Copy of :math:`\hat z_k`, shape ``(order + 1,)``."""
-        return np.array(self._state)
-
-    # -- the sample loop -----------------------------------------------------------------
-    def estimate(self, x) -> float:
-        """Disturbance estimate [N m] at the current sample from the measured ``x``.
-
-        Eq. (13) (DOb) / eq. (23) (HPDOb). Does not change the state.
-        """
-        return _core.estimate(self._design, self._state, x)
-
-    def update(self, x, u) -> None:
-        """Advance the state with the measured ``x_k`` and the applied torque ``u_k`` [N m].
-
-        Eq. (11) (DOb) / eqs. (20)-(21) (HPDOb). A non-finite ``x`` or ``u`` raises
-        :class:`ValueError` and leaves the state unchanged.
-        """
-        self._state = _core.update(self._design, self._state, x, u)
-
-    def reset(self, x0=(0.0, 0.0), tau0: float = 0.0) -> None:
-        """Set the state a constant disturbance ``tau0`` [N m] at rest in ``x0`` would give.
-
-        :math:`\\hat z_i = \\tau_0 + L_i^T x_0`, so ``estimate(x0)`` returns ``tau0``.
-        """
-        self._state = _core.initial_state(self._design, x0, tau0)
-
     def to_statespace(self):
         """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
 
         Inputs ``theta, omega, u``, output ``tau_hat``, state the auxiliary variables:
         ``A = M``, ``B = [K_x, K_u]``, ``C = e_{m+1}^T``, ``D = [-L_{m+1}^T, 0]``. From a zero
-        initial state it reproduces this object after ``reset()`` sample by sample. See
-        :func:`hpdob.analysis._estimation.observer_statespace`.
+        initial state it reproduces this object after ``reset()`` sample by sample.
 
         Examples
         --------
@@ -210,10 +334,6 @@ class DisturbanceObserver:
         from ..analysis._estimation import observer_statespace
 
         return observer_statespace(self._design)
-
-    def copy(self) -> DisturbanceObserver:
-        """Independent observer with the same design and the same current state."""
-        return self._with_state(self._design, self._state)
 
     def __repr__(self) -> str:
         poles = np.array2string(np.asarray(self.poles), precision=6, separator=", ")

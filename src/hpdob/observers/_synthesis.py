@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from fractions import Fraction
 
 import numpy as np
 
@@ -35,6 +34,16 @@ from .._validation import (
     readonly,
 )
 from ..models._servo import DiscreteServoModel, ServoModel
+from ._error_dynamics import (
+    characteristic_basis,
+    characteristic_polynomial,
+    error_matrix,
+    extrapolation_weights,
+    schur_stable,
+    unit_root_polynomial,
+)
+from ._program import Program, Term
+from ._system import ErrorDynamics, LinearObserver
 
 __all__ = [
     "ObserverDesign",
@@ -50,80 +59,6 @@ MAX_ORDER = 50
 _PAIR_RTOL = 1e-9
 #: gain directions with |d^T D| <= _DEGENERATE * |d| |D| are rejected.
 _DEGENERATE = 1e-8
-
-
-def extrapolation_weights(order: int) -> np.ndarray:
-    r"""Weights :math:`p_i` with :math:`\tau_{k+1} = \sum_i p_i \tau_{k-(m+1-i)}` when
-    :math:`\Delta^{m+1}\tau_{k+1} = 0`.
-
-    :math:`p_i = (-1)^{m+1-i}\binom{m+1}{i-1}` for ``i = 1..m+1`` (``order = m``): the
-    degree-``m`` polynomial extrapolation of the last ``m+1`` samples. ``[1]`` for the DOb,
-    ``[-1, 2]`` for the HPDOb (eqs. 17-19).
-    """
-    m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
-    return np.array([(-1.0) ** (m + 1 - i) * math.comb(m + 1, i - 1) for i in range(1, m + 2)])
-
-
-def unit_root_polynomial(order: int) -> np.ndarray:
-    r"""Coefficients of :math:`(z-1)^{m+1}` (``order = m``), **ascending** powers of ``z``:
-    :math:`\binom{m+1}{j}(-1)^{m+1-j}` for ``j = 0..m+1``."""
-    n = order + 1
-    return np.array([math.comb(n, j) * (-1.0) ** (n - j) for j in range(n + 1)])
-
-
-def _companion(order: int) -> np.ndarray:
-    n = order + 1
-    C = np.zeros((n, n))
-    C[np.arange(n - 1), np.arange(1, n)] = 1.0
-    C[-1, :] += extrapolation_weights(order)
-    return C
-
-
-def error_matrix(k) -> np.ndarray:
-    r"""Estimation-error matrix :math:`M = C - k\,e_{m+1}^T` for ``k_i = L_i^T D_Dn``.
-
-    ``k`` has ``m + 1`` entries. For one entry this is ``[[1 - k1]]`` (eq. 12); for two it is
-    ``[[0, 1 - k1], [-1, 2 - k2]]`` (eq. 22).
-    """
-    k = as_real_vector(k, "k", "a sequence of scalar gains k_i = L_i^T D_Dn")
-    if k.size == 0:
-        raise ParameterValueError("k must have at least one entry, got an empty sequence")
-    M = _companion(k.size - 1)
-    M[:, -1] -= k
-    return M
-
-
-def _characteristic_basis(order: int) -> np.ndarray:
-    r"""Matrix ``Q`` with ``charpoly(M) = (z-1)^{m+1} + Q @ k`` (ascending powers of z).
-
-    Column ``j`` (1-based) holds the coefficients of
-    :math:`q_j(z) = z^{m-j}\sum_{i\le j} p_i z^{i-1}` for ``j <= m`` and :math:`q_{m+1} = z^m`;
-    derived in ``docs/theory.md``.
-    """
-    m = order
-    p = extrapolation_weights(m)
-    Q = np.zeros((m + 1, m + 1))
-    for j in range(1, m + 1):
-        for i in range(1, j + 1):
-            Q[m - j + i - 1, j - 1] += p[i - 1]
-    Q[m, m] = 1.0
-    return Q
-
-
-def characteristic_polynomial(k) -> np.ndarray:
-    r"""Coefficients (highest power first) of :math:`\det(zI - M)` for gains ``k``.
-
-    Computed from the affine formula :math:`(z-1)^{m+1} + \sum_j k_j q_j(z)`, not from
-    eigenvalues, so it is exact to rounding for repeated roots too.
-    """
-    k = as_real_vector(k, "k", "a sequence of scalar gains k_i = L_i^T D_Dn")
-    if k.size == 0:
-        raise ParameterValueError("k must have at least one entry, got an empty sequence")
-    m = k.size - 1
-    ascending = np.zeros(m + 2)
-    ascending[: m + 1] = _characteristic_basis(m) @ k
-    ascending += unit_root_polynomial(m)
-    return ascending[::-1]
 
 
 def _validate_poles(poles, order: int) -> np.ndarray:
@@ -159,37 +94,6 @@ def _validate_poles(poles, order: int) -> np.ndarray:
     if np.all(values.imag == 0.0):
         return values.real.copy()
     return values
-
-
-def _schur_stable(k: np.ndarray) -> bool:
-    r"""True if every eigenvalue of ``M = C - k e_{m+1}^T`` lies strictly inside the unit circle,
-    decided exactly for the double-precision gains ``k``.
-
-    Eigenvalues computed in floating point cannot decide this for near-defective ``M``
-    (an ``(m+1)``-fold pole moves by ~``eps^(1/(m+1))``), so the characteristic polynomial
-    :math:`(z-1)^{m+1} + \sum_j k_j q_j(z)` is built in exact rational arithmetic and tested by
-    the Schur-Cohn recursion: with :math:`|c_0| < |c_n|`, :math:`p` is stable iff
-    :math:`(c_n p(z) - c_0 z^n p(1/z)) / z` is (the Schur-Cohn reduction, as in Jury's
-    stability test for discrete-time systems). Cross-checked against ``np.roots`` in
-    ``tests/test_synthesis.py``.
-    """
-    if not np.all(np.isfinite(k)):
-        return False
-    m = k.size - 1
-    Q = _characteristic_basis(m)
-    gains = [Fraction(float(v)) for v in k]
-    c = [
-        int(base) + sum((int(Q[i, j]) * gains[j] for j in range(m + 1)), Fraction(0))
-        for i, base in enumerate(unit_root_polynomial(m)[: m + 1])
-    ]
-    c.append(Fraction(1))  # ascending coefficients of the monic degree-(m+1) polynomial
-    while len(c) > 1:
-        n = len(c) - 1
-        if abs(c[0]) >= abs(c[n]):
-            return False
-        reduced = [c[n] * c[i] - c[0] * c[n - i] for i in range(1, n + 1)]
-        c = [v / reduced[-1] for v in reduced]  # monic again: keeps the numbers small
-    return True
 
 
 def _show_k(k: np.ndarray) -> str:
@@ -230,6 +134,11 @@ class ObserverDesign:
         The observer recursion :math:`\hat z_{k+1} = M\hat z_k + K_x x_k + K_u u_k` with
         ``state_matrix = M``, ``state_input = K_x = G A - M G`` (shape (order+1, 2)) and
         ``control_input = K_u = G B`` (shape (order+1,)).
+    system : LinearObserver
+        The observer as the linear system every consumer runs (the observer protocol):
+        ``F = M``, ``G = [K_x, K_u]``, ``H = e_{m+1}^T``, ``E = [-L_{m+1}^T, 0]``,
+        ``N = [G, 1]``, with the companion structure kept in its program (unit shifts and
+        integer extrapolation weights as exact terms; see :func:`structured_program`).
     """
 
     model: DiscreteServoModel
@@ -242,11 +151,7 @@ class ObserverDesign:
     error_matrix: np.ndarray
     state_input: np.ndarray
     control_input: np.ndarray
-    # Python-float copies for the allocation-free sample loop in ``_core``.
-    _k: tuple = field(repr=False)
-    _p: tuple = field(repr=False)
-    _rows: tuple = field(repr=False)
-    _last_gain: tuple = field(repr=False)
+    system: LinearObserver = field(repr=False)
 
     @property
     def state_matrix(self) -> np.ndarray:
@@ -385,11 +290,11 @@ def design_observer(
     desired = np.real(np.poly(placed)) if placed.size else np.array([1.0])
     # desired (highest power first, monic, degree m+1) minus (z-1)^{m+1}, ascending powers.
     rhs = desired[::-1][: m + 1] - unit_root_polynomial(m)[: m + 1]
-    k = np.linalg.solve(_characteristic_basis(m), rhs)
+    k = np.linalg.solve(characteristic_basis(m), rhs)
 
     G = np.outer(k, unit / dD)
     M = error_matrix(k)
-    if not _schur_stable(k):
+    if not schur_stable(k):
         asked = f"bandwidth={g_out!r} rad/s" if g_out is not None else f"poles={_show(poles)}"
         raise ParameterValueError(
             f"{asked} cannot be realised for order {m} in double precision: with the gains "
@@ -400,11 +305,27 @@ def design_observer(
     A, B = np.asarray(model.A), np.asarray(model.B)
     Kx = G @ A - M @ G
     Ku = G @ B
-    rows = tuple((float(Kx[i, 0]), float(Kx[i, 1]), float(Ku[i])) for i in range(m + 1))
+    poles_out = readonly(placed)
+    design_info = _design_info(model, m, poles_out, g_out, d)
+    system = LinearObserver(
+        F=M,
+        G=np.column_stack([Kx, Ku]),
+        H=np.eye(m + 1)[-1:],
+        E=np.array([[-G[-1, 0], -G[-1, 1], 0.0]]),
+        N=np.column_stack([G, np.ones(m + 1)]),
+        Ts=model.Ts,
+        measures=("theta", "omega"),
+        outputs=("tau_hat",),
+        model=model,
+        name=_ORDER_NAMES.get(m, f"order-{m} DOb"),
+        program=structured_program(k, G, Kx, Ku, extrapolation_weights(m)),
+        error_dynamics=ErrorDynamics(m, poles_out, characteristic_polynomial(k)),
+        info=design_info,
+    )
     return ObserverDesign(
         model=model,
         order=m,
-        poles=readonly(placed),
+        poles=poles_out,
         bandwidth=g_out,
         gain_direction=readonly(d),
         k=readonly(k),
@@ -412,8 +333,106 @@ def design_observer(
         error_matrix=readonly(M),
         state_input=readonly(Kx),
         control_input=readonly(Ku),
-        _k=tuple(float(v) for v in k),
-        _p=tuple(float(v) for v in extrapolation_weights(m)),
-        _rows=rows,
-        _last_gain=(float(G[-1, 0]), float(G[-1, 1])),
+        system=system,
+    )
+
+
+_ORDER_NAMES = {0: "DOb (order 0)", 1: "HPDOb (order 1)"}
+
+
+def _design_info(model, m, poles, bandwidth, d) -> tuple:
+    kind = {0: "conventional DOb, paper eqs. 9-13", 1: "HPDOb, paper eqs. 14-24"}.get(
+        m, "generalised DOb, Delta^(m+1) tau = 0"
+    )
+    text = ", ".join(_fmt_complex(p) for p in poles)
+    if bandwidth is not None:
+        text += f" (bandwidth {bandwidth!r} rad/s)"
+    return (
+        ("nominal model", f"J_n = {model.J!r} kg m^2, b_n = {model.b!r} N m s/rad"),
+        ("sampling period", f"Ts = {model.Ts!r} s"),
+        ("order", f"{m} ({kind})"),
+        ("poles", text),
+        ("gain direction", f"({float(d[0])!r}, {float(d[1])!r}): L_i = k_i d / (d^T D_Dn)"),
+    )
+
+
+def _fmt_complex(p) -> str:
+    p = complex(p)
+    return repr(p.real) if p.imag == 0.0 else f"{p.real!r}{p.imag:+}j"
+
+
+def structured_program(k, G, Kx, Ku, p) -> Program:
+    r"""The order-m observer's recurrence in companion form, term by term (``docs/theory.md``).
+
+    With ``z`` the auxiliary variables (state), ``x = (theta, omega)`` and ``n = m + 1``:
+
+    - rows ``i < m``: :math:`z_{i+1} - k_i z_n + K_{x,i} x + K_{u,i} u` (the shift of the
+      disturbance history, eqs. 16 and 20 for the HPDOb);
+    - row ``n``: :math:`-k_n z_n + K_{x,n} x + K_{u,n} u + \sum_j p_j z_j` (the degree-m
+      extrapolation, eqs. 19 and 21), with the integer weights :math:`p_j` exact;
+    - the estimate :math:`z_n - L_n^T x` (eqs. 13, 23); the reset :math:`	au_0 + L_i^T x_0`.
+
+    Keeping :math:`1` and :math:`p_j` apart from :math:`k_i` (instead of the rounded entries of
+    ``M``) means every executable form runs exactly the polynomial the synthesis certified.
+    Terms whose constant is exactly zero are left out.
+    """
+    n = len(k)
+    last = n - 1
+    theta, omega, u = n, n + 1, n + 2
+
+    zero = []
+
+    def product(value, operand, name, *, negated=False):
+        value = float(value)
+        if value == 0.0:
+            if name not in zero:
+                zero.append(name)
+            return []
+        return [Term(-value if negated else value, operand, name, negated)]
+
+    def inputs(i):
+        return (
+            product(Kx[i, 0], theta, f"KX{i + 1}_THETA")
+            + product(Kx[i, 1], omega, f"KX{i + 1}_OMEGA")
+            + product(Ku[i], u, f"KU{i + 1}")
+        )
+
+    update = []
+    for i in range(n - 1):
+        terms = [Term(1.0, i + 1), *product(k[i], last, f"K{i + 1}", negated=True), *inputs(i)]
+        update.append(tuple(terms))
+    terms = [*product(k[last], last, f"K{n}", negated=True), *inputs(last)]
+    terms += [Term(float(w), j) for j, w in enumerate(p)]
+    update.append(tuple(terms))
+    output = (
+        (
+            Term(1.0, last),
+            *product(G[last, 0], theta, f"L{n}_THETA", negated=True),
+            *product(G[last, 1], omega, f"L{n}_OMEGA", negated=True),
+        ),
+    )
+    reset = tuple(
+        (
+            Term(1.0, 2),
+            *product(G[i, 0], 0, f"L{i + 1}_THETA"),
+            *product(G[i, 1], 1, f"L{i + 1}_OMEGA"),
+        )
+        for i in range(n)
+    )
+    constants = []
+    for i in range(1, n + 1):
+        constants += [
+            (f"K{i}", f"k_{i} = L_{i}^T D_Dn"),
+            (f"L{i}_THETA", f"L_{i}, theta entry [N m/rad]"),
+            (f"L{i}_OMEGA", f"L_{i}, omega entry [N m s/rad]"),
+            (f"KX{i}_THETA", f"(G A - M G)[{i - 1}][0]"),
+            (f"KX{i}_OMEGA", f"(G A - M G)[{i - 1}][1]"),
+            (f"KU{i}", f"(G B)[{i - 1}]"),
+        ]
+    return Program(
+        update=tuple(update),
+        output=output,
+        reset=reset,
+        constants=tuple(constants),
+        zero_constants=tuple(sorted(zero, key=[name for name, _ in constants].index)),
     )

@@ -1,5 +1,8 @@
 """The sampled-data loop and its simulation: controller, sensor, actuator, simulate, sweep.
 
+ServoLoop
+    The closed loop as a value (plant, nominal model, Ts, controller, observer, sensor,
+    actuator): the first argument of simulation and analysis.
 PD, Encoder, Actuator
     Outer-loop controller, sensor and actuator models.
 simulate, SimulationResult, SimulationDivergedWarning
@@ -10,6 +13,7 @@ sweep
 
 from ._controller import PD
 from ._devices import Actuator, Encoder
+from ._loop import ServoLoop
 from ._result import SimulationResult
 from ._simulate import SimulationDivergedWarning, simulate
 from ._sweep import sweep
@@ -18,6 +22,7 @@ __all__ = [
     "PD",
     "Actuator",
     "Encoder",
+    "ServoLoop",
     "SimulationDivergedWarning",
     "SimulationResult",
     "simulate",

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 from dataclasses import KW_ONLY, dataclass
 
-from .._validation import ParameterTypeError, nonnegative
+from .._validation import ParameterTypeError, check_choice, nonnegative
+
+#: Where the PD's derivative term takes the velocity from.
+VELOCITY_SOURCES = ("measured", "observer")
 
 __all__ = ["PD"]
 
@@ -29,6 +32,11 @@ class PD:
         Derivative gain [1/s], non-negative.
     feedforward : bool, optional
         Include the reference acceleration :math:`\ddot r_k`. Default True.
+    velocity : {"measured", "observer"}, optional
+        The velocity :math:`\omega_k` of the derivative term: the sensor's (``"measured"``,
+        default; with an encoder its backward difference) or the observer's estimate
+        :math:`\hat\omega_k` (``"observer"``, for position-only observers, which estimate
+        the velocity along with the disturbance).
 
     Examples
     --------
@@ -42,6 +50,7 @@ class PD:
     kd: float
     _: KW_ONLY
     feedforward: bool = True
+    velocity: str = "measured"
 
     def __post_init__(self):
         object.__setattr__(
@@ -52,6 +61,7 @@ class PD:
         )
         if not isinstance(self.feedforward, bool):
             raise ParameterTypeError(f"feedforward must be True or False, got {self.feedforward!r}")
+        check_choice(self.velocity, "velocity", VELOCITY_SOURCES)
 
     def torque(
         self,

@@ -1,128 +1,142 @@
-r"""The sampled-data closed-loop kernel: one function over arrays and floats only.
+r"""The compiled sample loop: one definition of the sample step, for every plant.
 
-Written in the subset of Python that numba compiles (:mod:`~hpdob.simulation._compiled`
-compiles it;
-:func:`run_closed_loop` also runs as plain Python, which the tests use as a cross-check).
+:func:`run_samples` is compiled by numba (``cache=True``: the machine code is cached on disk, so
+only the first run on a machine pays the compilation); ``NUMBA_DISABLE_JIT=1`` runs the same
+code as plain Python. This module is imported on the first simulation, never by
+``import hpdob``.
 
-Per sample ``k`` (``t_k = k Ts``):
+Per sample ``k`` (``t_k = k Ts``) the loop runs, for every plant:
 
 1. measure: ideal, or encoder (quantised angle with optional noise, backward-difference or
    exact velocity);
-2. estimate: :math:`\hat\tau_k = \hat z_{m+1} - L_{m+1}^T x_{m,k}` (0 without observer);
+2. estimate: the observer's outputs :math:`\hat\tau_k (, \hat\omega_k) = H s_k + E v_k`
+   (0 without observer), from its program (:class:`hpdob.observers.Program`), in exactly the
+   operation order of the Python observer and the exported C;
 3. control: :math:`u_k = J_n(\ddot r_k + k_p(r_k-\theta_{m,k}) + k_d(\dot r_k-\omega_{m,k}))
-   + \hat\tau_k`, clipped to the actuator limit;
-4. observer update with :math:`(x_{m,k}, u_k)`;
+   + \hat\tau_k` (:math:`\hat\omega_k` instead of :math:`\omega_{m,k}` if the PD uses the
+   observer's velocity), clipped to the actuator limit;
+4. observer update :math:`s_{k+1} = F s_k + G [v_k, u_k]` with the clipped :math:`u_k`;
 5. the plant receives :math:`u_{k-d}` (``d`` samples of delay; 0 before the first command);
-6. ground truth :math:`\tau_{dn,k} = u_k - b_n\omega_k - J_n\ddot\theta(t_k^+)` (eq. 3);
-7. the plant is advanced over ``[t_k, t_{k+1})`` in ``S`` sub-steps of ``h = Ts/S``: the linear
-   part exactly (ZOH over the sub-step), the Coulomb friction and the external disturbance by
-   an exponential midpoint rule. With :math:`F(\omega, t) = c\tanh(\omega/v) + \tau_{ext}(t)`
-   and :math:`t_{j+1/2}` the sub-step midpoint:
+6. ground truth (eq. 3) just after :math:`u_{k-d}` is applied:
+   :math:`\tau_{dn,k} = u_k - b_n\omega_k - J_n\ddot\theta(t_k^+)` (:func:`ground_truth`);
+7. the plant's advance over :math:`[t_k, t_{k+1})`.
 
-   .. math::
+Only the plant's part (the acceleration of step 6 and step 7) differs per plant. For plants with
+a linear part (:class:`~hpdob.ServoModel`, :class:`~hpdob.TwoMassServo`;
+``plant.linear``) the loop does it in sub-steps of ``h = Ts/S``: the linear part exactly (ZOH
+over the sub-step), the Coulomb friction and the external disturbance by an exponential
+midpoint rule. With :math:`F(\omega, t) = c\tanh(\omega/v) + \tau_{ext}(t)` and
+:math:`t_{j+1/2}` the sub-step midpoint:
 
-       x_{j+1/2} = A_{h/2} x_j + B_{h/2}\,(u - F(\omega_j, t_{j+1/2})),\qquad
-       x_{j+1} = A_h x_j + B_h\,(u - F(\omega_{j+1/2}, t_{j+1/2})),
+.. math::
 
-   second order in ``h`` for smooth forcing, and exact for disturbance steps on sub-step
-   boundaries (the canonical ones are at half samples, so any even ``S`` aligns them).
+    x_{j+1/2} = A_{h/2} x_j + B_{h/2}\,(u - F(\omega_j, t_{j+1/2})),\qquad
+    x_{j+1} = A_h x_j + B_h\,(u - F(\omega_{j+1/2}, t_{j+1/2})),
+
+second order in ``h`` for smooth forcing, and exact for disturbance steps on sub-step
+boundaries (the canonical ones are at half samples, so any even ``S`` aligns them). A plant
+advanced from Python (MuJoCo) calls :func:`run_samples` for one sample at a time, which then
+stops after step 5 and leaves steps 6-7 to the plant
+(``hpdob.simulation._python_plant``).
+
+The step is written once, inline in the loop: a per-sample call of a numba function taking
+the run's records costs more than the step itself (their arrays are reference-counted at every
+call boundary).
 """
 
 from __future__ import annotations
 
 import math
 
-import numpy as np
+import numba
 
-__all__ = ["SENSOR_ENCODER_DIFFERENCE", "SENSOR_ENCODER_EXACT", "SENSOR_IDEAL", "run_closed_loop"]
+from ._records import SENSOR_ENCODER_EXACT, SENSOR_IDEAL
 
-SENSOR_IDEAL = 0
-SENSOR_ENCODER_DIFFERENCE = 1
-SENSOR_ENCODER_EXACT = 2
+__all__ = ["ground_truth", "run_samples"]
+
+_jit = numba.njit(cache=True, nogil=True)
 
 
-def run_closed_loop(
-    n_samples,
-    substeps,
-    Ts,
-    x0,
-    A_h,
-    B_h,
-    A_half,
-    B_half,
-    J,
-    b,
-    coulomb,
-    coulomb_velocity,
-    J_n,
-    b_n,
-    kp,
-    kd,
-    feedforward,
-    r,
-    r_dot,
-    r_ddot,
-    tau_mid,
-    tau_sample,
-    sensor_mode,
-    resolution,
-    position_noise,
-    torque_limit,
-    delay,
-    has_observer,
-    k_gain,
-    p_weight,
-    Kx,
-    Ku,
-    last_gain,
-    z0,
-    divergence_limit,
-    theta,
-    omega,
-    theta_m,
-    omega_m,
-    u,
-    tau_hat,
-    tau_dn,
-):
-    """Simulate ``n_samples`` samples; fill the output arrays; return the samples completed.
+@_jit
+def ground_truth(uk, om, accel, J_n, b_n):
+    r"""Eq. (3) at :math:`t_k^+`: :math:`\tau_{dn,k} = u_k - b_n\omega_k - J_n\ddot\theta`."""
+    return uk - b_n * om - J_n * accel
 
-    A return value below ``n_samples`` means the state left ``|x| <= divergence_limit`` (or
-    became non-finite) at the end of the last completed sample. All arrays are float64; the
-    output arrays (``theta`` ... ``tau_dn``) have length ``n_samples``; ``tau_mid`` has
-    ``n_samples * substeps`` entries (disturbance at the sub-step midpoints).
+
+@_jit
+def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, out, work, limit):
+    """Run samples ``k_start <= k < k_stop``; return the number of samples completed.
+
+    With a linear plant the plant is advanced here and a return value below ``k_stop`` means
+    its state left ``|x| <= limit`` (or became non-finite) at the end of the last completed
+    sample. Otherwise one sample's steps 1-5 run (the plant's state ``work.x`` set by the
+    caller) and ``work.applied[0]`` holds the torque to apply.
     """
-    n = z0.shape[0]
-    z = z0.copy()
-    z_new = np.empty(n)
-    th = x0[0]
-    om = x0[1]
-    th_m_prev = 0.0
-    for k in range(n_samples):
+    r, r_dot, r_ddot, tau_sample, tau_mid, noise = sig
+    theta, omega, theta_m, omega_m, u, tau_hat, tau_dn, omega_hat, states = out
+    s, s_new, w, previous, x, x_next, applied_out = work
+    up_ptr, up_c, up_i = obs.update_pointer, obs.update_coefficient, obs.update_operand
+    out_ptr, out_c, out_i = obs.output_pointer, obs.output_coefficient, obs.output_operand
+    n, p = obs.n, obs.p
+    has_observer, has_velocity = obs.present, obs.q == 2
+    J_n, b_n, kp, kd = ctl.J_n, ctl.b_n, ctl.kp, ctl.kd
+    feedforward, observer_velocity = ctl.feedforward, ctl.observer_velocity
+    mode, resolution = sen.mode, sen.resolution
+    torque_limit, delay = act.torque_limit, act.delay
+    A_h, B_h, D_h = plant.A_h, plant.B_h, plant.D_h
+    A_half, B_half, D_half = plant.A_half, plant.B_half, plant.D_half
+    internal, shared, v = plant.internal, plant.shared, plant.velocity_index
+    c, c_scale, J_motor = plant.coulomb, plant.coulomb_velocity, plant.J_motor
+    nx = x.shape[0]
+    record = states.shape[0] > 0
+    for k in range(k_start, k_stop):
+        th = x[0]
+        om = x[v]
         theta[k] = th
         omega[k] = om
+        if record:
+            for i in range(nx):
+                states[k, i] = x[i]
         # 1. measurement
-        if sensor_mode == SENSOR_IDEAL:
+        if mode == SENSOR_IDEAL:
             thm = th
             omm = om
         else:
-            thm = resolution * math.floor((th + position_noise[k]) / resolution + 0.5)
-            if sensor_mode == SENSOR_ENCODER_EXACT:
+            thm = resolution * math.floor((th + noise[k]) / resolution + 0.5)
+            if mode == SENSOR_ENCODER_EXACT:
                 omm = om
             elif k == 0:
                 omm = 0.0
             else:
-                omm = (thm - th_m_prev) / Ts
-            th_m_prev = thm
+                omm = (thm - previous[0]) / Ts
+            previous[0] = thm
         theta_m[k] = thm
         omega_m[k] = omm
-        # 2. estimate
+        # 2. estimate: output rows of the observer's program, left to right
         est = 0.0
+        om_ctl = omm
         if has_observer:
-            est = z[n - 1] - last_gain[0] * thm - last_gain[1] * omm
+            for i in range(n):
+                w[i] = s[i]
+            w[n] = thm
+            if p == 2:
+                w[n + 1] = omm
+            for row in range(2 if has_velocity else 1):
+                acc = 0.0
+                start, stop = out_ptr[row], out_ptr[row + 1]
+                if start < stop:
+                    acc = out_c[start] * w[out_i[start]]
+                    for t in range(start + 1, stop):
+                        acc += out_c[t] * w[out_i[t]]
+                if row == 0:
+                    est = acc
+                else:
+                    omega_hat[k] = acc
+                    if observer_velocity:
+                        om_ctl = acc
         tau_hat[k] = est
-        # 3. control
-        acc = kp * (r[k] - thm) + kd * (r_dot[k] - omm)
+        # 3. control, limited
+        acc = kp * (r[k] - thm) + kd * (r_dot[k] - om_ctl)
         if feedforward:
             acc += r_ddot[k]
         uk = J_n * acc + est
@@ -131,35 +145,73 @@ def run_closed_loop(
         elif uk < -torque_limit:
             uk = -torque_limit
         u[k] = uk
-        # 4. observer update, z <- M z + Kx x + Ku u with M = C - k e_last^T, in exactly the
-        #    operation order of hpdob.observers._core.update (so both agree bit for bit)
+        # 4. observer update with the command really given: update rows, left to right
         if has_observer:
-            last = z[n - 1]
-            for i in range(n - 1):
-                z_new[i] = (
-                    z[i + 1] - k_gain[i] * last + Kx[i, 0] * thm + Kx[i, 1] * omm + Ku[i] * uk
-                )
-            s = -k_gain[n - 1] * last + Kx[n - 1, 0] * thm + Kx[n - 1, 1] * omm + Ku[n - 1] * uk
-            for j in range(n):
-                s += p_weight[j] * z[j]
-            z_new[n - 1] = s
+            w[n + p] = uk
             for i in range(n):
-                z[i] = z_new[i]
+                acc = 0.0
+                start, stop = up_ptr[i], up_ptr[i + 1]
+                if start < stop:
+                    acc = up_c[start] * w[up_i[start]]
+                    for t in range(start + 1, stop):
+                        acc += up_c[t] * w[up_i[t]]
+                s_new[i] = acc
+            for i in range(n):
+                s[i] = s_new[i]
         # 5. actuator delay
         applied = u[k - delay] if k >= delay else 0.0
-        # 6. ground truth (eq. 3) just after u_k is applied
-        accel = (applied - b * om - coulomb * math.tanh(om / coulomb_velocity) - tau_sample[k]) / J
-        tau_dn[k] = uk - b_n * om - J_n * accel
-        # 7. plant over [t_k, t_{k+1})
-        base = k * substeps
-        for j in range(substeps):
-            tau_e = tau_mid[base + j]
-            force = applied - coulomb * math.tanh(om / coulomb_velocity) - tau_e
-            om_half = A_half[1, 0] * th + A_half[1, 1] * om + B_half[1] * force
-            force = applied - coulomb * math.tanh(om_half / coulomb_velocity) - tau_e
-            th_next = A_h[0, 0] * th + A_h[0, 1] * om + B_h[0] * force
-            om = A_h[1, 0] * th + A_h[1, 1] * om + B_h[1] * force
-            th = th_next
-        if not (abs(th) <= divergence_limit and abs(om) <= divergence_limit):
+        if not plant.linear:
+            applied_out[0] = applied
             return k + 1
-    return n_samples
+        # 6. ground truth just after u is applied: the motor's acceleration
+        tau = tau_sample[k]
+        accel = applied
+        for i in range(nx):
+            if internal[i] != 0.0:
+                accel -= internal[i] * x[i]
+        accel -= c * math.tanh(om / c_scale)
+        if shared:
+            accel -= tau
+        tau_dn[k] = ground_truth(uk, om, accel / J_motor, J_n, b_n)
+        # 7. the plant over [t_k, t_{k+1}): exponential midpoint sub-steps
+        base = k * substeps
+        if nx == 2 and shared:  # the rigid servo, kept in registers
+            a00, a01, a10, a11 = A_h[0, 0], A_h[0, 1], A_h[1, 0], A_h[1, 1]
+            h10, h11, b0, b1, g1 = A_half[1, 0], A_half[1, 1], B_h[0], B_h[1], B_half[1]
+            for j in range(substeps):
+                tau_e = tau_mid[base + j]
+                force = applied - c * math.tanh(om / c_scale) - tau_e
+                om_half = h10 * th + h11 * om + g1 * force
+                force = applied - c * math.tanh(om_half / c_scale) - tau_e
+                th, om = a00 * th + a01 * om + b0 * force, a10 * th + a11 * om + b1 * force
+            x[0] = th
+            x[1] = om
+        else:
+            for j in range(substeps):
+                tau_e = tau_mid[base + j]
+                force = applied - c * math.tanh(x[v] / c_scale)
+                om_half = A_half[v, 0] * x[0]
+                for i in range(1, nx):
+                    om_half += A_half[v, i] * x[i]
+                if shared:
+                    om_half += B_half[v] * (force - tau_e)
+                else:
+                    om_half += B_half[v] * force
+                    om_half -= D_half[v] * tau_e
+                force = applied - c * math.tanh(om_half / c_scale)
+                for row in range(nx):
+                    acc = A_h[row, 0] * x[0]
+                    for i in range(1, nx):
+                        acc += A_h[row, i] * x[i]
+                    if shared:
+                        acc += B_h[row] * (force - tau_e)
+                    else:
+                        acc += B_h[row] * force
+                        acc -= D_h[row] * tau_e
+                    x_next[row] = acc
+                for row in range(nx):
+                    x[row] = x_next[row]
+        for i in range(nx):
+            if not abs(x[i]) <= limit:
+                return k + 1
+    return k_stop

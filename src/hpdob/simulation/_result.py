@@ -39,6 +39,9 @@ COLUMNS = {
     "tau_dn": "N m",
     "tau_ext": "N m",
 }
+#: Optional columns, present when the run has them: the observer's velocity estimate and the
+#: load side of a two-mass plant.
+OPTIONAL_COLUMNS = {"omega_hat": "rad/s", "theta_load": "rad", "omega_load": "rad/s"}
 
 
 def json_ready(value):
@@ -104,6 +107,11 @@ class SimulationResult:
         ``u - b_n omega - J_n theta_ddot(t_k+)`` [N m].
     tau_ext : ndarray
         External disturbance torque at ``t`` [N m].
+    omega_hat : ndarray or None
+        The observer's velocity estimate [rad/s] (observers that have one; else None).
+    theta_load, omega_load : ndarray or None
+        Load angle [rad] and velocity [rad/s] of a :class:`~hpdob.TwoMassServo` (else None);
+        ``theta`` and ``omega`` are the motor's.
     Ts : float
         Sampling period [s].
     label : str
@@ -130,10 +138,15 @@ class SimulationResult:
     label: str = ""
     diverged: bool = False
     message: str = "ok"
+    omega_hat: np.ndarray | None = None
+    theta_load: np.ndarray | None = None
+    omega_load: np.ndarray | None = None
 
     def __post_init__(self):
         n = len(self.t)
-        for name in COLUMNS:
+        for name in (*COLUMNS, *OPTIONAL_COLUMNS):
+            if name in OPTIONAL_COLUMNS and getattr(self, name) is None:
+                continue
             array = np.array(getattr(self, name), dtype=float)
             if array.shape != (n,):
                 raise ParameterValueError(
@@ -201,23 +214,35 @@ class SimulationResult:
         with path.open(newline="") as handle:
             reader = csv.reader(handle)
             header = next(reader, None)
-            if header != list(COLUMNS):
+            extra = [] if header is None else header[len(COLUMNS) :]
+            if (
+                header is None
+                or header[: len(COLUMNS)] != list(COLUMNS)
+                or any(name not in OPTIONAL_COLUMNS for name in extra)
+            ):
                 raise ParameterValueError(
                     f"{path} does not look like an hpdob trace file: "
-                    f"expected columns {list(COLUMNS)}, got {header}"
+                    f"expected columns {list(COLUMNS)} (then any of {list(OPTIONAL_COLUMNS)}), "
+                    f"got {header}"
                 )
             rows = [[float(v) for v in row] for row in reader]
-        data = np.array(rows, dtype=float).reshape(-1, len(COLUMNS))
+        data = np.array(rows, dtype=float).reshape(-1, len(header))
         t = data[:, 0]
         Ts = float(t[1] - t[0]) if t.size > 1 else math.nan
-        return cls(**{name: data[:, i] for i, name in enumerate(COLUMNS)}, Ts=Ts, label=label)
+        return cls(**{name: data[:, i] for i, name in enumerate(header)}, Ts=Ts, label=label)
 
     def to_pandas(self):
         """The traces as a :class:`pandas.DataFrame` (needs pandas: ``pip install pandas``)."""
         return columns_to_pandas(self._columns(), caller="SimulationResult.to_pandas()")
 
     def _columns(self) -> dict:
-        return {name: getattr(self, name) for name in COLUMNS}
+        columns = {name: getattr(self, name) for name in COLUMNS}
+        columns.update(
+            (name, getattr(self, name))
+            for name in OPTIONAL_COLUMNS
+            if getattr(self, name) is not None
+        )
+        return columns
 
     def plot(self, *, title: str | None = None):
         """Figure with position vs reference, disturbance and estimate, and estimation error.

@@ -1,4 +1,4 @@
-"""Sampled-data closed-loop simulation: continuous plant, sampled PD outer loop, DOb inner loop."""
+"""Sampled-data closed-loop simulation: continuous plant, sampled PD, observer inner loop."""
 
 from __future__ import annotations
 
@@ -15,65 +15,47 @@ from .._validation import (
     as_int,
     as_real_vector,
     positive,
-    require_instance,
 )
-from ..models._mujoco import MujocoServo
-from ..models._servo import ServoModel
-from ..observers import _core
-from ..observers._runtime import DisturbanceObserver, check_designed_on
-from ..observers._synthesis import ObserverDesign
-from ._compiled import closed_loop_kernel
-from ._controller import PD
-from ._devices import Actuator, Encoder
-from ._kernel import SENSOR_ENCODER_DIFFERENCE, SENSOR_ENCODER_EXACT, SENSOR_IDEAL
-from ._mujoco_loop import run_mujoco_loop
+from ..models._plant import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, ExactSubsteps
+from ._loop import ServoLoop, accepts_loop
+from ._records import (
+    SENSOR_ENCODER_DIFFERENCE,
+    SENSOR_ENCODER_EXACT,
+    SENSOR_IDEAL,
+    ActuatorRecord,
+    ControllerRecord,
+    LinearPlantRecord,
+    ObserverRecord,
+    Outputs,
+    SensorRecord,
+    SignalRecord,
+    Work,
+)
 from ._result import SimulationResult
 
 __all__ = [
     "DEFAULT_SUBSTEPS",
     "DIVERGENCE_LIMIT",
-    "PLANT_TYPES",
+    "MAX_PLANT_STEPS",
     "SimulationDivergedWarning",
+    "default_substeps",
+    "run_loop",
     "simulate",
 ]
 
-#: Default plant sub-steps per sample. Doubling it changes the canonical metrics by < 0.1 %
-#: (tests/test_simulate.py::test_substep_convergence).
-DEFAULT_SUBSTEPS = 8
-#: Largest ``h c / (v J)`` (sub-step times the stiffness of the Coulomb term
-#: ``c tanh(omega / v)``) of the default sub-step count; the midpoint rule is unstable above 2.
-_COULOMB_STEP = 0.5
-#: Most plant steps (samples times sub-steps) one run may take: 1e8 steps need 0.8 GB.
-MAX_PLANT_STEPS = 100_000_000
 #: A run stops when |theta| [rad] or |omega| [rad/s] exceeds this, or the state is not finite.
 DIVERGENCE_LIMIT = 1e9
-
-
-#: What ``plant=`` accepts: hpdob's own integrator, or MuJoCo.
-PLANT_TYPES = (ServoModel, MujocoServo)
 
 
 class SimulationDivergedWarning(RuntimeWarning):
     """A simulation stopped early because the closed loop diverged."""
 
 
-def default_substeps(plant: ServoModel, Ts: float) -> int:
-    """Default sub-steps per sample for ``plant``: :data:`DEFAULT_SUBSTEPS`, or more (an even
-    number) when the Coulomb friction is so stiff that ``h c / (v J)`` would exceed 0.5.
-
-    Near ``omega = 0`` the friction ``c tanh(omega / v)`` acts like a damper ``c / v``, which
-    the explicit midpoint rule only integrates accurately for ``h c / (v J) <= 0.5``
-    (``tests/test_simulate.py::test_stiff_coulomb_friction_converges``).
-    """
-    c, v, J = plant.coulomb, plant.coulomb_velocity, plant.J
-    per_sample = Ts * (c / v / J) if c > 0.0 else 0.0  # Ts times the stiffness [1/s]
-    if not per_sample <= MAX_PLANT_STEPS:  # also inf (overflow)
-        raise ParameterValueError(
-            f"plant Coulomb friction is too stiff to integrate: Ts c/(v J) = {per_sample:.3g} "
-            f"for coulomb={c!r} N m, coulomb_velocity={v!r} rad/s, J={J!r} kg m^2 would need "
-            f"more than {MAX_PLANT_STEPS:.0e} sub-steps per sample; raise coulomb_velocity"
-        )
-    return max(DEFAULT_SUBSTEPS, 2 * math.ceil(per_sample / (2.0 * _COULOMB_STEP)))
+def default_substeps(plant, Ts: float) -> int:
+    """Default sub-steps per sample of ``plant`` (see :meth:`hpdob.models.Plant.substeps`):
+    8 for the rigid servo, more (an even number) for stiff Coulomb friction
+    (``h c / (v J) <= 0.5``)."""
+    return plant.substeps(Ts, None)
 
 
 def check_run_arguments(Ts, duration, substeps=None, x0=(0.0, 0.0)):
@@ -87,16 +69,6 @@ def check_run_arguments(Ts, duration, substeps=None, x0=(0.0, 0.0)):
         )
     x0 = as_real_vector(x0, "x0", "an initial state [theta (rad), omega (rad/s)]", length=2)
     return Ts, duration, substeps, x0
-
-
-def resolve_substeps(plant, Ts: float, substeps: int | None) -> int:
-    """Plant steps per sample: ``substeps`` (checked by :func:`check_run_arguments`); by
-    default :func:`default_substeps` for a :class:`ServoModel`, ``Ts/timestep`` for a
-    :class:`MujocoServo` with its own MuJoCo time step, else :data:`DEFAULT_SUBSTEPS`."""
-    if isinstance(plant, MujocoServo):
-        substeps = plant.steps_per_sample(Ts, substeps)
-        return DEFAULT_SUBSTEPS if substeps is None else substeps
-    return default_substeps(plant, Ts) if substeps is None else substeps
 
 
 def _sample_count(Ts: float, duration: float) -> int:
@@ -164,87 +136,55 @@ def _reference(reference, t: np.ndarray):
     )
 
 
-def _observer_arrays(observer, nominal: ServoModel, Ts: float, x0):
-    if observer is None:
-        return None, np.zeros(1)
-    if isinstance(observer, DisturbanceObserver):
-        design, state = observer.design, np.array(observer.state)
-    elif isinstance(observer, ObserverDesign):
-        design = observer
-        state = np.array(_core.initial_state(design, x0, 0.0))
-    else:
-        raise ParameterTypeError(
-            "observer must be a DisturbanceObserver, an ObserverDesign or "
-            f"None, got {type(observer).__name__}"
-        )
-    check_designed_on(design, nominal, Ts)
-    return design, state
-
-
+@accepts_loop
 def simulate(
+    loop: ServoLoop,
     *,
-    plant: ServoModel | MujocoServo,
-    nominal: ServoModel,
-    Ts: float,
-    duration: float,
-    controller: PD,
-    observer=None,
     reference,
+    duration: float,
     disturbance=None,
     substeps: int | None = None,
-    sensor: Encoder | None = None,
-    actuator: Actuator | None = None,
     x0=(0.0, 0.0),
     label: str = "",
 ) -> SimulationResult:
-    r"""Simulate the sampled-data loop: continuous plant, sampled PD, DOb inner loop.
+    r"""Simulate the sampled-data loop: continuous plant, sampled PD, observer inner loop.
 
-    The plant's continuous dynamics are
+    The rigid plant's continuous dynamics are
     :math:`J\ddot\theta = u - b\omega - c\tanh(\omega/v) - \tau_{ext}(t)` with ``u`` held over
     each sample (ZOH). It is advanced in ``substeps`` sub-steps per sample: the linear part by
     its exact discretisation, the Coulomb friction and ``disturbance`` by an exponential midpoint
-    rule (see ``hpdob.simulation._kernel``). At each sample the controller and the observer see the
-    sensor's measurement, in the order: estimate, control, update (see
-    :class:`DisturbanceObserver`).
+    rule (see ``hpdob.simulation._kernel``); a :class:`~hpdob.TwoMassServo` likewise, a
+    :class:`~hpdob.MujocoServo` by MuJoCo. At each sample the controller and the observer see
+    the sensor's measurement, in the order: estimate, control, update (see
+    :class:`~hpdob.Observer`).
 
     Parameters
     ----------
-    plant : ServoModel or MujocoServo
-        The true motor: a :class:`ServoModel` (``J``, ``b``, ``coulomb``,
-        ``coulomb_velocity``) integrated by hpdob, or a :class:`MujocoServo` integrated by
-        MuJoCo (its dry friction is MuJoCo's ``frictionloss``; see docs/mujoco.md).
-    nominal : ServoModel
-        The model the controller (``J_n``) and the observer use.
-    Ts : float
-        Sampling period [s].
-    duration : float
-        Simulated time [s], a multiple of ``Ts``; samples are at ``k Ts`` for
-        ``0 <= k < duration/Ts``.
-    controller : PD
-    observer : DisturbanceObserver or ObserverDesign, optional
-        Designed on ``nominal.discretize(Ts)`` (else ValueError). A ``DisturbanceObserver``
-        starts from its current state and is not modified (the run uses a copy); an
-        ``ObserverDesign`` starts from ``initial_state(design, x0, 0)``. None: PD only.
+    loop : ServoLoop
+        Plant, nominal model, ``Ts``, controller, observer, sensor and actuator. Instead of a
+        loop, its keyword arguments (``plant=..., nominal=..., Ts=..., controller=...,
+        observer=..., sensor=..., actuator=...``) are accepted, as before.
     reference : Signal or callable
         A :class:`~hpdob.signals.Signal`, or a callable taking the array of sampling instants and
         returning ``(r, r_dot, r_ddot)`` arrays [rad, rad/s, rad/s^2].
+    duration : float
+        Simulated time [s], a multiple of ``Ts``; samples are at ``k Ts`` for
+        ``0 <= k < duration/Ts``.
     disturbance : callable, optional
         External torque [N m] as a vectorised function of time (a Signal or any callable). It
         is evaluated once per run, on two arrays: the sampling instants ``k Ts`` (recorded as
         ``tau_ext`` and used for the ground truth) and the sub-step midpoints
-        ``k Ts + (j + 1/2) Ts/substeps`` (used by the integrator). None: no disturbance.
+        ``k Ts + (j + 1/2) Ts/substeps`` (used by the integrator). On a two-mass plant it acts
+        on the load. None: no disturbance.
     substeps : int, optional
-        Plant sub-steps per sample. Default: :data:`DEFAULT_SUBSTEPS` (8), raised to an even
-        number with ``h c / (v J) <= 0.5`` for stiff Coulomb friction (:func:`default_substeps`;
-        e.g. 66 for the canonical plant with ``coulomb_velocity = 1e-3``). For a
-        :class:`MujocoServo` these are MuJoCo steps of ``Ts/substeps``; if the servo has its
-        own ``timestep``, ``substeps`` is ``Ts/timestep`` (None or that value).
-    sensor : Encoder, optional
-        Default: the ideal state.
-    actuator : Actuator, optional
-        Default: ideal (no limit, no delay).
+        Plant sub-steps per sample. Default: 8, raised to an even number with
+        ``h c / (v J) <= 0.5`` for stiff Coulomb friction (:func:`default_substeps`; e.g. 66 for
+        the canonical plant with ``coulomb_velocity = 1e-3``). For a :class:`MujocoServo` these
+        are MuJoCo steps of ``Ts/substeps``; if the servo has its own ``timestep``, ``substeps``
+        is ``Ts/timestep`` (None or that value).
     x0 : sequence of 2 floats, optional
-        Initial plant state ``[theta (rad), omega (rad/s)]``; default at rest at 0.
+        Initial motor state ``[theta (rad), omega (rad/s)]``; default at rest at 0 (a two-mass
+        plant starts with the load at the motor's angle and velocity).
     label : str, optional
         Name stored in the result.
 
@@ -262,43 +202,27 @@ def simulate(
 
     Examples
     --------
-    >>> from hpdob import PD, DisturbanceObserver, ServoModel, simulate
+    >>> from hpdob import PD, DisturbanceObserver, ServoLoop, ServoModel, simulate
     >>> from hpdob.signals import Step, SmoothStep
     >>> plant, nominal = ServoModel(3.06e-4, 5e-5), ServoModel(2.8e-4)
     >>> obs = DisturbanceObserver(nominal.discretize(1e-3), order=1, bandwidth=100.0)
-    >>> result = simulate(plant=plant, nominal=nominal, Ts=1e-3, duration=2.0,
-    ...                   controller=PD(50, 5), observer=obs,
-    ...                   reference=SmoothStep(0.2, 1.2, 1.0), disturbance=Step(1.5005, 0.05))
+    >>> loop = ServoLoop(plant=plant, nominal=nominal, Ts=1e-3, controller=PD(50, 5),
+    ...                  observer=obs)
+    >>> result = simulate(loop, duration=2.0, reference=SmoothStep(0.2, 1.2, 1.0),
+    ...                   disturbance=Step(1.5005, 0.05))
     >>> m = result.metrics(regulation=(1.2, 2.0))
     >>> print(f"{m['rms_position_error_regulation']:.4f} rad")
     0.0064 rad
     """
-    plant = require_instance(plant, PLANT_TYPES, "plant")
-    nominal = require_instance(nominal, ServoModel, "nominal")
-    Ts, duration, substeps, x0 = check_run_arguments(Ts, duration, substeps, x0)
+    Ts, duration, substeps, x0 = check_run_arguments(loop.Ts, duration, substeps, x0)
     n = _sample_count(Ts, duration)
-    controller = require_instance(controller, PD, "controller")
-    sensor = require_instance(sensor, Encoder, "sensor", optional=True)
-    actuator = require_instance(actuator, Actuator, "actuator", optional=True) or Actuator()
-    S = resolve_substeps(plant, Ts, substeps)
+    S = loop.plant.substeps(Ts, substeps)
     if not isinstance(label, str):
         raise ParameterTypeError(f"label must be a str, got {type(label).__name__}")
-    design, z0 = _observer_arrays(observer, nominal, Ts, x0)
     signals = sample_signals(reference, disturbance, Ts=Ts, n=n, substeps=S)
-    result = run_prepared(
-        plant=plant,
-        nominal=nominal,
-        controller=controller,
-        design=design,
-        z0=z0,
-        sensor=sensor,
-        actuator=actuator,
-        x0=x0,
-        signals=signals,
-        label=label,
-    )
+    result = run_loop(loop, signals, x0, label=label)
     if result.diverged:
-        warnings.warn(result.message, SimulationDivergedWarning, stacklevel=2)
+        warnings.warn(result.message, SimulationDivergedWarning, stacklevel=3)
     return result
 
 
@@ -347,109 +271,113 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
     return SampledSignals(Ts, substeps, t, r, r_dot, r_ddot, tau_sample, tau_mid)
 
 
-def run_prepared(
-    *,
-    plant: ServoModel | MujocoServo,
-    nominal: ServoModel,
-    controller: PD,
-    design,
-    z0,
-    sensor: Encoder | None,
-    actuator: Actuator,
-    x0: np.ndarray,
-    signals: SampledSignals,
-    label: str = "",
-) -> SimulationResult:
-    """Run the compiled kernel on validated inputs and pre-sampled signals (no warning).
+def _observer_record(system) -> ObserverRecord:
+    if system is None:
+        empty_i, empty_f = np.zeros(1, dtype=np.int64), np.zeros(0)
+        return ObserverRecord(False, 0, 1, 1, empty_i, empty_f, empty_i[:0], empty_i,
+                              empty_f, empty_i[:0])  # fmt: skip
+    update, output, _ = system.kernel_arrays
+    return ObserverRecord(
+        True, system.n_states, len(system.measures), len(system.outputs), *update, *output
+    )
 
-    The shared engine of :func:`simulate` and :func:`hpdob.sweep`; ``design`` is an
-    :class:`ObserverDesign` or None and ``z0`` its initial state. A :class:`MujocoServo`
-    plant runs the same loop in Python around MuJoCo (:mod:`hpdob.simulation._mujoco_loop`).
+
+def _sensor_record(sensor, n: int) -> tuple[SensorRecord, np.ndarray]:
+    if sensor is None:
+        return SensorRecord(SENSOR_IDEAL, 1.0), np.zeros(n)
+    mode = SENSOR_ENCODER_EXACT if sensor.velocity == "exact" else SENSOR_ENCODER_DIFFERENCE
+    noise = np.zeros(n)
+    if sensor.noise_std > 0:
+        seed = 0 if sensor.seed is None else sensor.seed
+        noise = sensor.noise_std * np.random.default_rng(seed).standard_normal(n)
+    return SensorRecord(mode, sensor.resolution), noise
+
+
+def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
+             observer_state=None) -> SimulationResult:  # fmt: skip
+    """Run ``loop`` on pre-sampled signals from the motor state ``x0`` (no warning).
+
+    The shared engine of :func:`simulate` and :func:`hpdob.sweep`. The plant's sampler decides
+    how it is advanced: :class:`~hpdob.models.ExactSubsteps` by the compiled kernel, any other
+    by the Python loop around the compiled sample step (MuJoCo). ``observer_state`` overrides
+    the loop's initial observer state.
     """
+    from . import _kernel  # numba is imported on the first run, not by ``import hpdob``
+
     Ts, S, t = signals.Ts, signals.substeps, signals.t
     n = t.size
-    sensor_mode, resolution, noise = SENSOR_IDEAL, 1.0, np.zeros(n)
-    if sensor is not None:
-        resolution = sensor.resolution
-        sensor_mode = (
-            SENSOR_ENCODER_EXACT if sensor.velocity == "exact" else SENSOR_ENCODER_DIFFERENCE
-        )
-        if sensor.noise_std > 0:
-            seed = 0 if sensor.seed is None else sensor.seed
-            noise = sensor.noise_std * np.random.default_rng(seed).standard_normal(n)
-
-    out = {
-        name: np.zeros(n)
-        for name in ("theta", "omega", "theta_m", "omega_m", "u", "tau_hat", "tau_dn")
-    }
+    plant, controller, system = loop.plant, loop.controller, loop.system
+    sensor, noise = _sensor_record(loop.sensor, n)
+    actuator = loop.actuator
     limit = math.inf if actuator.torque_limit is None else actuator.torque_limit
-    if isinstance(plant, MujocoServo):
-        done = run_mujoco_loop(
-            plant, n_samples=n, substeps=S, Ts=Ts, x0=x0, J_n=nominal.J, b_n=nominal.b,
-            kp=controller.kp, kd=controller.kd, feedforward=controller.feedforward,
-            r=signals.r, r_dot=signals.r_dot, r_ddot=signals.r_ddot, tau_mid=signals.tau_mid,
-            tau_sample=signals.tau_sample, sensor_mode=sensor_mode, resolution=resolution,
-            position_noise=noise, torque_limit=limit, delay=actuator.delay_samples,
-            design=design, z0=z0, divergence_limit=DIVERGENCE_LIMIT, out=out,
+    records = {
+        "ctl": ControllerRecord(
+            loop.nominal.J, loop.nominal.b, controller.kp, controller.kd,
+            controller.feedforward, controller.velocity == "observer",
+        ),
+        "sen": sensor,
+        "act": ActuatorRecord(limit, actuator.delay_samples),
+        "obs": _observer_record(system),
+        "sig": SignalRecord(signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample,
+                            signals.tau_mid, noise),
+    }  # fmt: skip
+    x = plant.initial_state(x0)
+    nx = x.size
+    out = Outputs(
+        *(np.zeros(n) for _ in range(8)),
+        np.zeros((n if nx > 2 else 0, nx)),
+    )
+    state = observer_state if observer_state is not None else loop.initial_observer_state(x0)
+    s = np.array(state if state is not None else (), dtype=float)
+    work = Work(s, s.copy(), np.zeros(s.size + 3), np.zeros(1), x, x.copy(), np.zeros(1))
+    sampler = plant.sampler(Ts, S)
+    if isinstance(sampler, ExactSubsteps):
+        record = LinearPlantRecord(
+            True, sampler.velocity_index, sampler.A_h, sampler.B_h, sampler.D_h,
+            sampler.A_half, sampler.B_half, sampler.D_half, sampler.shared, sampler.internal,
+            sampler.J_motor, sampler.coulomb, sampler.coulomb_velocity,
         )  # fmt: skip
+        done = _kernel.run_samples(
+            0, n, S, Ts, record, **records, out=out, work=work, limit=DIVERGENCE_LIMIT
+        )
+        unstable = ""
     else:
-        done = _run_kernel(plant, nominal, controller, design, z0, actuator, x0, signals,
-                           sensor_mode, resolution, noise, limit, out)  # fmt: skip
+        from ._python_plant import run_python_plant
+
+        session = sampler.start(x)
+        done = run_python_plant(session, n, S, Ts, records, out, work, DIVERGENCE_LIMIT)
+        unstable = f" or {getattr(session, 'engine', 'the plant')} flagged it unstable"
     diverged = done < n
     message = "ok"
     if diverged:
-        unstable = " or MuJoCo flagged it unstable" if isinstance(plant, MujocoServo) else ""
         message = (
             f"{label or 'simulation'} diverged: |theta| or |omega| exceeded "
             f"{DIVERGENCE_LIMIT:g} (or became non-finite{unstable}) by t = {done * Ts:.6g} s; "
             f"the result holds the {done} samples before that"
         )
     keep = slice(0, done)
+    extra = {}
+    if system is not None and system.has_velocity:
+        extra["omega_hat"] = out.omega_hat[keep]
+    if nx == 4:
+        extra["theta_load"] = out.states[keep, 2]
+        extra["omega_load"] = out.states[keep, 3]
     return SimulationResult(
         t=t[keep],
-        theta=out["theta"][keep],
-        omega=out["omega"][keep],
-        theta_measured=out["theta_m"][keep],
-        omega_measured=out["omega_m"][keep],
+        theta=out.theta[keep],
+        omega=out.omega[keep],
+        theta_measured=out.theta_m[keep],
+        omega_measured=out.omega_m[keep],
         r=signals.r[keep],
         r_dot=signals.r_dot[keep],
         r_ddot=signals.r_ddot[keep],
-        u=out["u"][keep],
-        tau_hat=out["tau_hat"][keep],
-        tau_dn=out["tau_dn"][keep],
+        u=out.u[keep],
+        tau_hat=out.tau_hat[keep],
+        tau_dn=out.tau_dn[keep],
         tau_ext=signals.tau_sample[keep],
         Ts=Ts,
         label=label,
         diverged=diverged,
         message=message,
+        **extra,
     )
-
-
-def _run_kernel(plant, nominal, controller, design, z0, actuator, x0, signals,
-                sensor_mode, resolution, noise, limit, out) -> int:  # fmt: skip
-    """The compiled kernel on a :class:`ServoModel` plant; returns the samples completed."""
-    Ts, S, n = signals.Ts, signals.substeps, signals.t.size
-    sub = plant.discretize(Ts / S)
-    half = plant.discretize(Ts / (2 * S))
-    if design is None:
-        k_gain, p_weight, Kx, Ku = np.zeros(1), np.zeros(1), np.zeros((1, 2)), np.zeros(1)
-        last = np.zeros(2)
-    else:
-        k_gain, p_weight = np.array(design._k), np.array(design._p)
-        Kx, Ku = design.state_input, design.control_input
-        last = np.array(design._last_gain)
-    # fmt: off
-    done = closed_loop_kernel()(
-        n, S, Ts, x0, sub.A, sub.B, half.A, half.B,
-        plant.J, plant.b, plant.coulomb, plant.coulomb_velocity,
-        nominal.J, nominal.b, controller.kp, controller.kd, controller.feedforward,
-        signals.r, signals.r_dot, signals.r_ddot, signals.tau_mid, signals.tau_sample,
-        sensor_mode, resolution, noise, limit, actuator.delay_samples,
-        design is not None, k_gain, p_weight, np.ascontiguousarray(Kx),
-        np.ascontiguousarray(Ku), last, np.ascontiguousarray(z0, dtype=float),
-        DIVERGENCE_LIMIT,
-        out["theta"], out["omega"], out["theta_m"], out["omega_m"], out["u"],
-        out["tau_hat"], out["tau_dn"],
-    )
-    # fmt: on
-    return done

@@ -1,9 +1,9 @@
 """Batch sweeps and Monte Carlo studies over many closed-loop scenarios.
 
-A sweep expands ``grid``/``vary`` into scenarios (:mod:`hpdob.simulation._sweep_spec`), runs them in
-chunks (local threads by default; a dask.distributed cluster on request) and returns one row
-of parameters and metrics per scenario. Traces are never kept, so memory grows with the
-number of scenarios only.
+A sweep expands ``grid``/``vary`` into scenarios (``_sweep_spec``), runs them in chunks (local
+threads by default; a dask.distributed cluster on request) and returns one row of parameters
+and metrics per scenario. Traces are never kept, so memory grows with the number of scenarios
+only.
 """
 
 from __future__ import annotations
@@ -22,40 +22,17 @@ from .._validation import (
     check_keys,
     require_instance,
 )
-from ..models._servo import ServoModel
-from ..observers._runtime import DisturbanceObserver
-from ..observers._synthesis import ObserverDesign, design_observer
+from ..observers._families import check_spec, design_from_spec, spec_of
 from ._controller import PD
-from ._devices import Actuator, Encoder
+from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
-from ._simulate import (
-    PLANT_TYPES,
-    _observer_arrays,
-    _sample_count,
-    check_run_arguments,
-    resolve_substeps,
-    run_prepared,
-    sample_signals,
-)
+from ._simulate import _sample_count, check_run_arguments, run_loop, sample_signals
 from ._sweep_spec import expand_scenarios
 
 __all__ = ["sweep"]
 
-SIMULATE_KEYS = (
-    "plant",
-    "nominal",
-    "Ts",
-    "duration",
-    "controller",
-    "observer",
-    "reference",
-    "disturbance",
-    "substeps",
-    "sensor",
-    "actuator",
-    "x0",
-)
-OBSERVER_KEYS = ("order", "poles", "bandwidth", "gain_direction")
+#: Keys of a sweep's ``base``: a ``loop`` (or the loop's keyword arguments) and the run's.
+SIMULATE_KEYS = (*LOOP_KEYS, "duration", "reference", "disturbance", "substeps", "x0", "loop")
 METRIC_COLUMNS = (
     "rms_estimation_error",
     "rms_position_error_regulation",
@@ -64,32 +41,23 @@ METRIC_COLUMNS = (
 )
 
 
-def _observer_spec(observer) -> dict | None:
-    """A dict of DisturbanceObserver keyword arguments (built per scenario)."""
+def _observer_parts(observer):
+    """``(spec, object)``: a dict spec of a known family (redesigned per scenario), or an
+    observer object used as it is."""
     if observer is None:
-        return None
-    if isinstance(observer, DisturbanceObserver):
-        observer = observer.design
-    if isinstance(observer, ObserverDesign):
-        spec = {"order": observer.order, "gain_direction": tuple(observer.gain_direction)}
-        if observer.bandwidth is not None:
-            spec["bandwidth"] = observer.bandwidth
-        else:
-            spec["poles"] = tuple(observer.poles)
-        return spec
-    if not isinstance(observer, dict):
+        return None, None
+    if isinstance(observer, dict):
+        return check_spec(observer, "observer", owner="base['observer']"), None
+    spec = spec_of(observer)
+    if spec is not None:
+        return spec, None
+    if getattr(observer, "system", None) is None:
         raise ParameterTypeError(
-            "base['observer'] must be a dict of DisturbanceObserver "
-            f"arguments ({', '.join(OBSERVER_KEYS)}), a DisturbanceObserver "
-            f"or None, got {type(observer).__name__}"
+            "base['observer'] must be a dict of DisturbanceObserver arguments (order, poles, "
+            "bandwidth, gain_direction), an observer object or None, got "
+            f"{type(observer).__name__}"
         )
-    check_keys(observer, OBSERVER_KEYS, "observer")
-    if "order" not in observer:
-        raise ParameterValueError(
-            f"base['observer'] must have the required key 'order' (keys: "
-            f"{', '.join(OBSERVER_KEYS)}), got {observer!r}"
-        )
-    return dict(observer)
+    return None, observer
 
 
 def _resolve_base(base, *, varies_Ts: bool = False) -> dict:
@@ -98,27 +66,41 @@ def _resolve_base(base, *, varies_Ts: bool = False) -> dict:
             f"base must be a dict of simulate() arguments, got {type(base).__name__}"
         )
     check_keys(base, SIMULATE_KEYS, "base")
-    missing = [
-        k
-        for k in ("plant", "nominal", "Ts", "duration", "controller", "reference")
-        if k not in base
-    ]
+    if "loop" in base:
+        loop = require_instance(base["loop"], ServoLoop, "base['loop']")
+        clash = [k for k in LOOP_KEYS if k in base]
+        if clash:
+            raise ParameterValueError(
+                f"base has a 'loop' and the loop argument {clash[0]!r}: vary the loop with "
+                f"grid paths instead, or give the loop's arguments without 'loop'"
+            )
+        keywords = loop.keywords()
+        required = ("duration", "reference")
+    else:
+        keywords = {k: base[k] for k in LOOP_KEYS if k in base}
+        required = ("plant", "nominal", "Ts", "duration", "controller", "reference")
+    missing = [k for k in required if k not in base]
     if missing:
         raise ParameterValueError(f"base is missing the required key {missing[0]!r}")
-    resolved = dict(base)
-    resolved["observer"] = _observer_spec(base.get("observer"))
-    # Shared arguments are checked here, once, so that a typo fails the call instead of
-    # every scenario (per-scenario values are checked again in run_scenario).
-    # substeps None: per scenario, the default or a MujocoServo's own
+    spec, observer = _observer_parts(keywords.pop("observer", None))
+    # The shared loop is validated here, once, so that a typo fails the call instead of
+    # every scenario (substeps None: per scenario, the default or a MujocoServo's own).
+    loop = ServoLoop(**keywords)
     Ts, duration, substeps, x0 = check_run_arguments(
-        base["Ts"], base["duration"], base.get("substeps"), base.get("x0", (0.0, 0.0))
+        loop.Ts, base["duration"], base.get("substeps"), base.get("x0", (0.0, 0.0))
     )
     if not varies_Ts:  # else checked per scenario, against that scenario's Ts
         _sample_count(Ts, duration)
-    require_instance(base.get("sensor"), Encoder, "sensor", optional=True)
-    require_instance(base.get("actuator"), Actuator, "actuator", optional=True)
-    resolved.update(Ts=Ts, duration=duration, substeps=substeps, x0=tuple(x0.tolist()))
-    return resolved
+    return {
+        "loop": loop,
+        "observer_spec": spec,
+        "observer_object": observer,
+        "duration": duration,
+        "reference": base["reference"],
+        "disturbance": base.get("disturbance"),
+        "substeps": substeps,
+        "x0": tuple(x0.tolist()),
+    }
 
 
 def _metric_windows(windows) -> dict:
@@ -136,28 +118,42 @@ def _metric_windows(windows) -> dict:
     return resolved
 
 
-def _scenario_parts(base: dict, params: dict):
-    """Validated simulate() pieces of one scenario (raises Parameter*Error on bad values)."""
+def scenario_loop(base: dict, params: dict) -> ServoLoop:
+    """The validated loop of one scenario (raises Parameter*Error on bad values)."""
 
     def sub(prefix):
         return {k[len(prefix) :]: v for k, v in params.items() if k.startswith(prefix)}
 
-    plant = require_instance(base["plant"], PLANT_TYPES, "plant").replace(**sub("plant."))
-    nominal = require_instance(base["nominal"], ServoModel, "nominal").replace(**sub("nominal."))
-    ctrl = require_instance(base["controller"], PD, "controller")
-    gains = {"kp": ctrl.kp, "kd": ctrl.kd, **sub("controller.")}
-    controller = PD(gains["kp"], gains["kd"], feedforward=ctrl.feedforward)
-    Ts = params.get("Ts", base["Ts"])
-    spec = base["observer"]
-    design = None
+    loop: ServoLoop = base["loop"]
+    changes = {}
+    if sub("plant."):
+        changes["plant"] = loop.plant.replace(**sub("plant."))
+    if sub("nominal."):
+        changes["nominal"] = loop.nominal.replace(**sub("nominal."))
+    if sub("controller."):
+        ctrl = loop.controller
+        gains = {"kp": ctrl.kp, "kd": ctrl.kd, **sub("controller.")}
+        changes["controller"] = PD(
+            gains["kp"], gains["kd"], feedforward=ctrl.feedforward, velocity=ctrl.velocity
+        )
+    if "Ts" in params:
+        changes["Ts"] = params["Ts"]
+    spec = base["observer_spec"]
     if spec is not None:
         spec = {**spec, **sub("observer.")}
         if "observer.bandwidth" in params:
             spec.pop("poles", None)
-        design = design_observer(nominal.discretize(Ts), **spec)
+        nominal = changes.get("nominal", loop.nominal)
+        Ts = changes.get("Ts", loop.Ts)
+        changes["observer"] = design_from_spec(nominal.discretize(Ts), spec)
     elif sub("observer."):
-        raise ParameterValueError("observer.* parameters need base['observer']")
-    return plant, nominal, controller, Ts, design
+        raise ParameterValueError(
+            "observer.* parameters need base['observer'] as a dict of design arguments (or a "
+            "design of a known family)"
+        )
+    elif base["observer_object"] is not None:
+        changes["observer"] = base["observer_object"]
+    return loop.replace(**changes) if changes else loop
 
 
 def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
@@ -168,30 +164,20 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
     """
     row = dict(params)
     try:
-        plant, nominal, controller, Ts, design = _scenario_parts(base, params)
-        S = resolve_substeps(plant, Ts, base["substeps"])
-        n = _sample_count(Ts, base["duration"])
-        x0 = np.array(base["x0"])  # checked once in _resolve_base, like sensor and actuator
-        key = (Ts, n, S)
+        loop = scenario_loop(base, params)
+        S = loop.plant.substeps(loop.Ts, base["substeps"])
+        n = _sample_count(loop.Ts, base["duration"])
+        x0 = np.array(base["x0"])  # checked once in _resolve_base
+        key = (loop.Ts, n, S)
         signals = None if cache is None else cache.get(key)
         if signals is None:
             signals = sample_signals(
-                base["reference"], base.get("disturbance"), Ts=Ts, n=n, substeps=S
+                base["reference"], base["disturbance"], Ts=loop.Ts, n=n, substeps=S
             )
             if cache is not None:
                 cache[key] = signals
-        design, z0 = _observer_arrays(design, nominal, Ts, x0)  # starts at x0, tau0 = 0
-        result = run_prepared(
-            plant=plant,
-            nominal=nominal,
-            controller=controller,
-            design=design,
-            z0=z0,
-            sensor=base.get("sensor"),
-            actuator=base.get("actuator") or Actuator(),
-            x0=x0,
-            signals=signals.scaled(float(params.get("disturbance_scale", 1.0))),
-        )
+        scale = float(params.get("disturbance_scale", 1.0))
+        result = run_loop(loop, signals.scaled(scale), x0)
     except (ParameterValueError, ParameterTypeError) as err:
         row.update(dict.fromkeys(METRIC_COLUMNS, math.nan), stable=False, error=str(err))
         return row
@@ -318,10 +304,14 @@ def sweep(
     Parameters
     ----------
     base : dict
-        Keyword arguments of :func:`hpdob.simulate` shared by all scenarios. ``observer`` may
-        be a dict of :class:`DisturbanceObserver` arguments (``order``, ``bandwidth`` or
-        ``poles``, ``gain_direction``), built per scenario on ``nominal.discretize(Ts)`` and
-        started at ``x0`` with ``tau0 = 0`` (an observer object is turned into such a dict).
+        What the scenarios share: ``loop`` (a :class:`~hpdob.ServoLoop`) or the loop's keyword
+        arguments (``plant``, ``nominal``, ``Ts``, ``controller``, ``observer``, ``sensor``,
+        ``actuator``), and the keyword arguments of :func:`hpdob.simulate` (``duration``,
+        ``reference``, ``disturbance``, ``substeps``, ``x0``). The observer may be a dict of
+        design arguments (``order``, ``bandwidth`` or ``poles``, ``gain_direction``), built per
+        scenario on ``nominal.discretize(Ts)`` and started at ``x0`` with ``tau0 = 0``; a
+        design of a known family is turned into such a dict, any other observer is used as
+        it is (and then ``nominal``, ``Ts`` and ``observer.*`` cannot vary).
     grid : dict, optional
         Dotted path -> list of values; the scenarios are their Cartesian product. Paths:
         ``plant.J``, ``plant.b``, ``plant.coulomb``, ``plant.coulomb_velocity`` (a
@@ -387,9 +377,9 @@ def sweep(
     scenarios = expand_scenarios(grid, vary, n, seed)
     workers, mode = _workers_and_mode(scheduler)
     # Validate the shared part once, loudly, before spending time on scenarios.
-    _scenario_parts(resolved, {})
+    scenario_loop(resolved, {})
     sample_signals(
-        resolved["reference"], resolved.get("disturbance"), Ts=resolved["Ts"], n=2, substeps=1
+        resolved["reference"], resolved["disturbance"], Ts=resolved["loop"].Ts, n=2, substeps=1
     )
     update, close = _progress_callback(progress, len(scenarios))
     try:

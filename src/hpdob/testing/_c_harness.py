@@ -97,14 +97,16 @@ def compile_c(
     return output
 
 
-def drive_source(prefix: str, dtype: str, order: int) -> str:
+def drive_source(prefix: str, dtype: str, states: int, measures=("theta", "omega")) -> str:
     """C source of ``void <prefix>_drive(...)``: run a trace through the exported observer.
 
     ``theta, omega, u`` hold ``n`` doubles, converted to the observer's type as firmware
-    would; ``tau_hat[k]`` receives the estimate at sample ``k`` and ``z[k*(order+1) + i]`` the
-    state the estimate and update of sample ``k`` started from.
+    would (``omega`` is ignored by a position-only observer); ``tau_hat[k]`` receives the
+    estimate at sample ``k`` and ``z[k*states + i]`` the state the estimate and update of
+    sample ``k`` started from.
     """
-    n = order + 1
+    args = "th, om" if len(measures) == 2 else "th"
+    unused = "" if len(measures) == 2 else "        (void)om;\n"
     return f"""\
 #include "{prefix}.h"
 
@@ -121,11 +123,11 @@ void {prefix}_drive(long n, const double *init, const double *theta, const doubl
     for (k = 0; k < n; ++k) {{
         const {dtype} th = ({dtype})theta[k];
         const {dtype} om = ({dtype})omega[k];
-        for (i = 0; i < {n}; ++i) {{
-            z[k * {n} + i] = (double)s.z[i];
+{unused}        for (i = 0; i < {states}; ++i) {{
+            z[k * {states} + i] = (double)s.z[i];
         }}
-        tau_hat[k] = (double){prefix}_estimate(&s, th, om);
-        {prefix}_update(&s, th, om, ({dtype})u[k]);
+        tau_hat[k] = (double){prefix}_estimate(&s, {args});
+        {prefix}_update(&s, {args}, ({dtype})u[k]);
     }}
 }}
 """
@@ -182,9 +184,9 @@ int main(int argc, char **argv)
 """
 
 
-def _write_drive(directory: Path, prefix: str, dtype: str, order: int) -> Path:
+def _write_drive(directory: Path, prefix: str, dtype: str, states: int, measures) -> Path:
     path = directory / f"{prefix}_drive.c"
-    path.write_text(drive_source(prefix, dtype, order))
+    path.write_text(drive_source(prefix, dtype, states, measures))
     return path
 
 
@@ -193,6 +195,18 @@ def _as_trace(theta, omega, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if len({a.shape for a in arrays}) != 1 or arrays[0].ndim != 1:
         raise ValueError("theta, omega and u must be 1-D arrays of the same length")
     return arrays[0], arrays[1], arrays[2]
+
+
+def _shape(order, observer) -> tuple[int, tuple]:
+    """``(states, measures)`` of the exported observer, from ``observer`` or ``order``."""
+    if observer is not None:
+        from ..observers._system import as_system
+
+        system = as_system(observer)
+        return system.n_states, system.measures
+    if order is None:
+        raise ValueError("give observer= or order=")
+    return order + 1, ("theta", "omega")
 
 
 class CObserver:
@@ -204,8 +218,11 @@ class CObserver:
         The files written by :func:`hpdob.export_c`.
     prefix, dtype : str
         As given to :func:`hpdob.export_c`.
-    order : int
-        The design's truncation order.
+    order : int, optional
+        The design's truncation order (an order-m observer measuring the state).
+    observer : observer-like, optional
+        The exported observer; gives the number of states and what it measures. Give
+        ``observer`` or ``order``.
     build_dir : Path
         Where the drive loop and the library are written (use a fresh directory per build:
         the dynamic loader caches libraries by path).
@@ -213,20 +230,24 @@ class CObserver:
         Compiler flags; default :data:`STRICT_FLAGS`, ``-O2`` and :data:`EXACT_FLAGS`.
     """
 
-    def __init__(self, header, source, *, prefix, dtype, order, build_dir, flags=None):
+    def __init__(
+        self, header, source, *, prefix, dtype, build_dir, order=None, observer=None, flags=None
+    ):
+        states, measures = _shape(order, observer)
         build_dir = Path(build_dir)
         build_dir.mkdir(parents=True, exist_ok=True)
         flags = (*STRICT_FLAGS, "-O2", *EXACT_FLAGS) if flags is None else tuple(flags)
-        drive = _write_drive(Path(source).parent, prefix, dtype, order)
+        drive = _write_drive(Path(source).parent, prefix, dtype, states, measures)
         self.library_path = compile_c(
             [source, drive], build_dir / f"lib{prefix}_{dtype}.so", flags=flags, shared=True
         )
-        self.order, self.dtype = order, dtype
+        self.order, self.dtype, self.states, self.measures = order, dtype, states, measures
         scalar = ctypes.c_double if dtype == "double" else ctypes.c_float
         self._scalar = scalar
+        p = len(measures)
 
         class State(ctypes.Structure):
-            _fields_ = [("z", scalar * (order + 1))]
+            _fields_ = [("z", scalar * states)]
 
         self._state = State()
         lib = ctypes.CDLL(str(self.library_path))
@@ -234,9 +255,13 @@ class CObserver:
         self._init = lib[f"{prefix}_init"]
         self._init.argtypes, self._init.restype = [pointer, scalar, scalar, scalar], None
         self._estimate = lib[f"{prefix}_estimate"]
-        self._estimate.argtypes, self._estimate.restype = [pointer, scalar, scalar], scalar
+        self._estimate.argtypes, self._estimate.restype = [pointer, *[scalar] * p], scalar
         self._update = lib[f"{prefix}_update"]
-        self._update.argtypes, self._update.restype = [pointer, scalar, scalar, scalar], None
+        self._update.argtypes, self._update.restype = [pointer, *[scalar] * (p + 1)], None
+        self._velocity = None
+        if hasattr(lib, f"{prefix}_velocity"):
+            self._velocity = lib[f"{prefix}_velocity"]
+            self._velocity.argtypes, self._velocity.restype = [pointer, *[scalar] * p], scalar
         double_p = ctypes.POINTER(ctypes.c_double)
         self._drive = lib[f"{prefix}_drive"]
         self._drive.argtypes = [ctypes.c_long, *([double_p] * 6)]
@@ -247,13 +272,19 @@ class CObserver:
         """``<prefix>_init`` on the held state (arguments rounded to the C type)."""
         self._init(self._ref, theta0, omega0, tau0)
 
-    def estimate(self, theta: float, omega: float) -> float:
-        """``<prefix>_estimate`` of the held state [N m]."""
-        return self._estimate(self._ref, theta, omega)
+    def estimate(self, *measurement: float) -> float:
+        """``<prefix>_estimate`` of the held state [N m] (``theta, omega`` or ``theta``)."""
+        return self._estimate(self._ref, *measurement)
 
-    def update(self, theta: float, omega: float, u: float) -> None:
-        """``<prefix>_update`` of the held state."""
-        self._update(self._ref, theta, omega, u)
+    def velocity(self, *measurement: float) -> float:
+        """``<prefix>_velocity`` of the held state [rad/s] (observers with a velocity)."""
+        if self._velocity is None:
+            raise AttributeError("this observer exports no velocity estimate")
+        return self._velocity(self._ref, *measurement)
+
+    def update(self, *measurement_and_u: float) -> None:
+        """``<prefix>_update`` of the held state (``theta, omega, u`` or ``theta, u``)."""
+        self._update(self._ref, *measurement_and_u)
 
     @property
     def state(self) -> tuple:
@@ -263,12 +294,13 @@ class CObserver:
     def drive(self, theta, omega, u, *, init=(0.0, 0.0, 0.0)):
         """Run a trace in C from ``<prefix>_init(*init)``; return ``(tau_hat, z)``.
 
-        ``z[k]`` is the state sample ``k`` started from, shape ``(n, order + 1)``.
+        ``z[k]`` is the state sample ``k`` started from, shape ``(n, states)``; ``omega`` is
+        ignored by a position-only observer.
         """
         theta, omega, u = _as_trace(theta, omega, u)
         n = theta.size
         start = np.ascontiguousarray(init, dtype=np.float64)
-        tau_hat, z = np.empty(n), np.empty((n, self.order + 1))
+        tau_hat, z = np.empty(n), np.empty((n, self.states))
 
         def ptr(a):
             return a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
@@ -296,7 +328,17 @@ def sanitizer_available(directory: Path) -> str | None:
 
 
 def sanitized_run(
-    source, *, prefix, dtype, order, build_dir, theta, omega, u, init=(0.0, 0.0, 0.0)
+    source,
+    *,
+    prefix,
+    dtype,
+    build_dir,
+    theta,
+    omega,
+    u,
+    order=None,
+    observer=None,
+    init=(0.0, 0.0, 0.0),
 ):
     """Build the drive loop under ASan + UBSan (``-O2``) and run a trace through it.
 
@@ -312,9 +354,10 @@ def sanitized_run(
     build_dir.mkdir(parents=True, exist_ok=True)
     theta, omega, u = _as_trace(theta, omega, u)
     n = theta.size
-    drive = _write_drive(Path(source).parent, prefix, dtype, order)
+    states, measures = _shape(order, observer)
+    drive = _write_drive(Path(source).parent, prefix, dtype, states, measures)
     main = build_dir / f"{prefix}_main.c"
-    main.write_text(_MAIN.format(prefix=prefix, n=order + 1))
+    main.write_text(_MAIN.format(prefix=prefix, n=states))
     exe = compile_c(
         [source, drive, main],
         build_dir / f"{prefix}_sanitized",
@@ -338,4 +381,4 @@ def sanitized_run(
             f"{done.stdout}{done.stderr}"
         )
     data = np.fromfile(outputs, dtype=np.float64)
-    return data[:n], data[n:].reshape(n, order + 1)
+    return data[:n], data[n:].reshape(n, states)

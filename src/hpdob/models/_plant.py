@@ -1,0 +1,160 @@
+r"""The plant protocol: what the sampled-data loop needs from a plant.
+
+A plant (:class:`Plant`) gives the loop
+
+* its **state** (``state_names``, ``initial_state(x0)`` from the motor's angle and velocity);
+* its **advance over one sample** in sub-steps (``sampler(Ts, substeps)``), as one of two
+  kinds: :class:`ExactSubsteps`, the matrices of a plant whose linear part is integrated exactly
+  over each sub-step with motor-side Coulomb friction (advanced by the compiled kernel: the
+  rigid :class:`~hpdob.ServoModel`, the :class:`~hpdob.TwoMassServo`), or an object with the
+  :class:`PlantSession` methods, advanced from Python (:class:`~hpdob.MujocoServo`);
+* where the motor's :math:`\theta, \omega` and the eq. (3) ground truth come from (the first
+  state entry and ``velocity_index``; the motor acceleration just after a command);
+* its **linear ZOH model** for the analysis views (``discretize(Ts)``: ``A, B, D, C`` with
+  :math:`x_{k+1} = A x_k + B a_k - D \tau_{ext,k}` and ``C`` the rows of the motor's
+  :math:`\theta, \omega`).
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._validation import ParameterValueError, as_int
+
+__all__ = [
+    "DEFAULT_SUBSTEPS",
+    "MAX_PLANT_STEPS",
+    "ExactSubsteps",
+    "Plant",
+    "PlantSession",
+    "coulomb_substeps",
+]
+
+#: Default plant sub-steps per sample. Doubling it changes the canonical metrics by < 0.1 %
+#: (tests/test_simulate.py::test_substep_convergence).
+DEFAULT_SUBSTEPS = 8
+#: Largest ``h c / (v J)`` (sub-step times the stiffness of the Coulomb term
+#: ``c tanh(omega / v)``) of the default sub-step count; the midpoint rule is unstable above 2.
+_COULOMB_STEP = 0.5
+#: Most plant steps (samples times sub-steps) one run may take: 1e8 steps need 0.8 GB.
+MAX_PLANT_STEPS = 100_000_000
+
+
+def coulomb_substeps(coulomb: float, velocity: float, J: float, Ts: float) -> int:
+    """Default sub-steps per sample: :data:`DEFAULT_SUBSTEPS`, or more (an even number) when
+    the Coulomb friction is so stiff that ``h c / (v J)`` would exceed 0.5.
+
+    Near ``omega = 0`` the friction ``c tanh(omega / v)`` acts like a damper ``c / v``, which
+    the explicit midpoint rule only integrates accurately for ``h c / (v J) <= 0.5``
+    (``tests/test_simulate.py::test_stiff_coulomb_friction_converges``).
+    """
+    per_sample = Ts * (coulomb / velocity / J) if coulomb > 0.0 else 0.0  # Ts * stiffness
+    if not per_sample <= MAX_PLANT_STEPS:  # also inf (overflow)
+        raise ParameterValueError(
+            f"plant Coulomb friction is too stiff to integrate: Ts c/(v J) = {per_sample:.3g} "
+            f"for coulomb={coulomb!r} N m, coulomb_velocity={velocity!r} rad/s, J={J!r} kg m^2 "
+            f"would need more than {MAX_PLANT_STEPS:.0e} sub-steps per sample; raise "
+            "coulomb_velocity"
+        )
+    return max(DEFAULT_SUBSTEPS, 2 * math.ceil(per_sample / (2.0 * _COULOMB_STEP)))
+
+
+@dataclass(frozen=True, eq=False)
+class ExactSubsteps:
+    r"""A plant advanced by the compiled kernel: exact ZOH sub-steps plus motor Coulomb friction.
+
+    Over each sub-step of ``h = Ts/S``,
+    :math:`x_{j+1} = A_h x_j + B_h (a - F_c(\omega_m)) - D_h \tau_{ext}` with
+    :math:`F_c = c \tanh(\omega_m / v)` evaluated at the exponential midpoint (``_half``: the
+    same matrices over ``h/2``). ``shared``: the external torque acts where the command does
+    (``D == B``); the forces are then summed before the product, as for the rigid servo.
+    The motor acceleration (for eq. 3) is ``(a - internal @ x - F_c - [tau_ext]) / J_motor``.
+    """
+
+    A_h: np.ndarray
+    B_h: np.ndarray
+    D_h: np.ndarray
+    A_half: np.ndarray
+    B_half: np.ndarray
+    D_half: np.ndarray
+    shared: bool
+    internal: np.ndarray
+    J_motor: float
+    coulomb: float
+    coulomb_velocity: float
+    velocity_index: int = 1
+
+
+class PlantSession(ABC):
+    """One run of a plant advanced from Python (e.g. MuJoCo), at a given state."""
+
+    @abstractmethod
+    def motor(self) -> tuple[float, float]:
+        """The motor's angle [rad] and velocity [rad/s] now."""
+
+    @abstractmethod
+    def acceleration(self, applied: float, tau: float) -> float:
+        """Motor acceleration [rad/s^2] just after ``applied`` [N m] is applied, with
+        external torque ``tau`` [N m] (for the ground truth of eq. 3)."""
+
+    @abstractmethod
+    def advance(self, applied: float, tau_mid: np.ndarray) -> None:
+        """Advance over one sample with ``applied`` held, ``tau_mid`` the external torque at
+        the midpoints of the sub-steps."""
+
+    @abstractmethod
+    def diverged(self, limit: float) -> bool:
+        """Whether the state left ``|x| <= limit`` or the plant flagged an unstable run."""
+
+    def states(self) -> np.ndarray | None:
+        """The full plant state, when it is worth recording (None: the motor's only)."""
+        return None
+
+
+class Plant(ABC):
+    """Base class of the plants the loop accepts (:class:`~hpdob.ServoModel`,
+    :class:`~hpdob.TwoMassServo`, :class:`~hpdob.MujocoServo`); see the module docstring."""
+
+    __slots__ = ()
+
+    #: Names of the state entries; the motor's angle comes first.
+    state_names: tuple = ("theta", "omega")
+    #: Index of the motor velocity in the state.
+    velocity_index: int = 1
+
+    @property
+    def motor_inertia(self) -> float:
+        """Inertia the motor's own acceleration sees [kg m^2]."""
+        return self.J
+
+    def initial_state(self, x0) -> np.ndarray:
+        """Full plant state from the motor's ``x0 = [theta (rad), omega (rad/s)]``."""
+        return np.array(x0, dtype=float)
+
+    def substeps(self, Ts: float, substeps: int | None) -> int:
+        """Plant steps per sample: ``substeps`` (checked), or this plant's default."""
+        if substeps is None:
+            return self.default_substeps(Ts)
+        return as_int(
+            substeps, "substeps", "a positive integer number of sub-steps per sample", minimum=1
+        )
+
+    def default_substeps(self, Ts: float) -> int:
+        """Default plant steps per sample."""
+        return DEFAULT_SUBSTEPS
+
+    @abstractmethod
+    def sampler(self, Ts: float, substeps: int):
+        """:class:`ExactSubsteps` (compiled kernel) or an object whose ``start(x)`` returns a
+        :class:`PlantSession` (advanced from Python)."""
+
+    def discretize(self, Ts: float):
+        """Linear ZOH model for the analysis views (``A, B, D, C``, ``state_names``)."""
+        raise ParameterValueError(
+            f"plant must have a linear model for the analysis views; a {type(self).__name__} "
+            "is simulated only"
+        )

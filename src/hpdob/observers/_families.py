@@ -1,0 +1,71 @@
+"""Observer families by name: how sweeps, scenario files and the command line build observers.
+
+A *spec* is a dict of a family's design arguments plus an optional ``type`` (default
+``"dob"``, the paper's order-m family); :func:`design_from_spec` designs it on a nominal
+model. :func:`spec_of` turns a design of a known family back into its spec, so that a sweep can
+redesign it when the nominal model, ``Ts`` or a design parameter varies.
+"""
+
+from __future__ import annotations
+
+from .._validation import ParameterTypeError, ParameterValueError, check_keys
+from ._runtime import DisturbanceObserver
+from ._synthesis import ObserverDesign, design_observer
+
+__all__ = ["FAMILIES", "design_from_spec", "spec_of"]
+
+#: type -> (design function(model, **arguments), its argument names, required ones).
+FAMILIES = {
+    "dob": (design_observer, ("order", "poles", "bandwidth", "gain_direction"), ("order",)),
+}
+
+
+def _family(spec: dict, where: str):
+    kind = spec.get("type", "dob")
+    if kind not in FAMILIES:
+        raise ParameterValueError(
+            f"{where}.type must be one of {', '.join(repr(k) for k in FAMILIES)}; got {kind!r}"
+        )
+    return kind, FAMILIES[kind]
+
+
+def check_spec(spec, where: str = "observer", *, owner: str | None = None) -> dict:
+    """``spec`` validated for its keys (not its values); returns a copy.
+
+    Unknown keys are reported as ``<where>.<key>``, a missing key against ``owner`` (default
+    ``where``).
+    """
+    owner = owner or where
+    if not isinstance(spec, dict):
+        raise ParameterTypeError(f"{owner} must be a dict of design arguments, got {spec!r}")
+    _, (_, keys, required) = _family(spec, where)
+    check_keys(spec, (*keys, "type"), where)
+    missing = [k for k in required if k not in spec]
+    if missing:
+        raise ParameterValueError(
+            f"{owner} must have the required key {missing[0]!r} (keys: {', '.join(keys)}), "
+            f"got {spec!r}"
+        )
+    return dict(spec)
+
+
+def design_from_spec(model, spec: dict, where: str = "observer"):
+    """Design the observer ``spec`` describes on the nominal discrete ``model``."""
+    spec = check_spec(spec, where)
+    _, (design, _, _) = _family(spec, where)
+    arguments = {k: v for k, v in spec.items() if k != "type"}
+    return design(model, **arguments)
+
+
+def spec_of(observer) -> dict | None:
+    """The spec of a design of a known family (None for any other observer)."""
+    if isinstance(observer, DisturbanceObserver):
+        observer = observer.design
+    if isinstance(observer, ObserverDesign):
+        spec = {"order": observer.order, "gain_direction": tuple(observer.gain_direction)}
+        if observer.bandwidth is not None:
+            spec["bandwidth"] = observer.bandwidth
+        else:
+            spec["poles"] = tuple(observer.poles)
+        return spec
+    return None

@@ -1,0 +1,250 @@
+r"""The one definition of an observer's recurrence, and the code generated from it.
+
+A :class:`Program` lists, for each row of ``[F G]``, ``[H E]`` and ``N`` of a
+:class:`~hpdob.LinearObserver`, the ordered terms ``coefficient * operand`` whose left-to-right
+sum is that row. Python code is generated from it (:func:`compile_python`), the numba kernel
+interprets its arrays (:meth:`Program.arrays`) and the C exporter prints it
+(:func:`render_sum`), so the three forms evaluate the same sums in the same order and agree bit
+for bit.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from .._validation import ParameterTypeError, ParameterValueError
+
+__all__ = ["RESET_OPERANDS", "Program", "Term", "check_program", "compile_python", "render_sum"]
+
+#: Operands of the reset rows: :math:`s_0 = N [\theta_0, \omega_0, \tau_0]`.
+RESET_OPERANDS = ("theta0", "omega0", "tau0")
+_EPS = np.finfo(float).eps
+
+
+class Term(NamedTuple):
+    """One term ``coefficient * operand`` of a :class:`Program` row.
+
+    Attributes
+    ----------
+    coefficient : float
+        The signed factor.
+    operand : int
+        Index into the row's operand vector: ``[s_0..s_{n-1}, v_0..v_p]`` for update and output
+        rows, ``[theta0, omega0, tau0]`` for reset rows.
+    constant : str or None
+        Name of the constant in generated C (``None``: the value is written inline).
+    negated : bool
+        Generated code writes ``- constant * operand`` with ``constant = -coefficient``
+        (e.g. ``- K1 * z2`` with ``K1 = k_1``). Only the printed form differs:
+        ``a - c*x`` and ``a + (-c)*x`` round identically.
+    """
+
+    coefficient: float
+    operand: int
+    constant: str | None = None
+    negated: bool = False
+
+    @property
+    def value(self) -> float:
+        """The constant as written in generated code (``-coefficient`` when negated)."""
+        return -self.coefficient if self.negated else self.coefficient
+
+
+@dataclass(frozen=True)
+class Program:
+    """Evaluation order of an observer's recurrence: the one definition every form runs.
+
+    Each row is a tuple of :class:`Term`; a row's value is the left-to-right sum of its terms
+    (0 for an empty row).
+
+    Attributes
+    ----------
+    update : tuple of rows
+        Row ``i`` gives :math:`s_{i,k+1}` from ``[s_k, v_k]``.
+    output : tuple of rows
+        Row ``j`` gives :math:`y_{j,k}` from ``[s_k, v_k]`` (never from ``u_k``).
+    reset : tuple of rows
+        Row ``i`` gives :math:`s_{i,0}` from ``[theta0, omega0, tau0]``.
+    constants : tuple of (name, description)
+        Descriptions of named constants, for comments in generated code.
+    zero_constants : tuple of str
+        Names of constants that are exactly zero and whose terms are therefore left out
+        (recorded for generated code).
+    """
+
+    update: tuple
+    output: tuple
+    reset: tuple
+    constants: tuple = ()
+    zero_constants: tuple = ()
+
+    @classmethod
+    def from_matrices(cls, F, G, H, E, N, measures) -> Program:
+        """The default program: the non-zero entries of each row in column order.
+
+        Constants are named after their matrix entry (``F1_2``, ``G1_THETA``, ``H1_2``,
+        ``E1_OMEGA``, ``N1_TAU0``, 1-based); coefficients of magnitude one are written inline.
+        """
+        n = F.shape[0]
+        inputs = [*(m.upper() for m in measures), "U"]
+
+        def row(values, label):
+            terms = []
+            for j, c in enumerate(values):
+                c = float(c)
+                if c != 0.0:
+                    terms.append(Term(c, j, None if abs(c) == 1.0 else label(j)))
+            return tuple(terms)
+
+        def label(state, data, i):
+            return lambda j: (
+                f"{state}{i + 1}_{j + 1}" if j < n else f"{data}{i + 1}_{inputs[j - n]}"
+            )
+
+        update = tuple(row(np.concatenate([F[i], G[i]]), label("F", "G", i)) for i in range(n))
+        output = tuple(
+            row(np.concatenate([H[r], E[r]]), label("H", "E", r)) for r in range(H.shape[0])
+        )
+        reset = tuple(
+            row(N[i], lambda j, i=i: f"N{i + 1}_{RESET_OPERANDS[j].upper()}") for i in range(n)
+        )
+        return cls(update=update, output=output, reset=reset)
+
+    def arrays(self):
+        """``(update, output, reset)`` as ``(pointer, coefficient, operand)`` arrays each:
+        the terms of row ``i`` are ``pointer[i]:pointer[i+1]`` (what the numba kernel reads)."""
+
+        def flat(rows):
+            pointer = np.zeros(len(rows) + 1, dtype=np.int64)
+            coefficient, operand = [], []
+            for i, terms in enumerate(rows):
+                pointer[i + 1] = pointer[i] + len(terms)
+                coefficient += [t.coefficient for t in terms]
+                operand += [t.operand for t in terms]
+            return (
+                pointer,
+                np.array(coefficient, dtype=np.float64).reshape(-1),
+                np.array(operand, dtype=np.int64).reshape(-1),
+            )
+
+        return flat(self.update), flat(self.output), flat(self.reset)
+
+    def constant_table(self) -> dict:
+        """``{name: (value, description)}`` of every named constant (each name one value)."""
+        notes = dict(self.constants)
+        table: dict = {}
+        for rows in (self.update, self.output, self.reset):
+            for terms in rows:
+                for t in terms:
+                    if t.constant is None:
+                        continue
+                    if t.constant in table and table[t.constant][0] != t.value:
+                        raise ParameterValueError(
+                            f"program constant {t.constant} has two values, "
+                            f"{table[t.constant][0]!r} and {t.value!r}"
+                        )
+                    table[t.constant] = (t.value, notes.get(t.constant, ""))
+        return table
+
+
+def check_program(program: Program, dense: dict, n: int, p: int, q: int) -> None:
+    """Raise unless ``program`` computes the dense matrices (each entry to rounding)."""
+    if not isinstance(program, Program):
+        raise ParameterTypeError(f"program must be a Program or None, got {type(program).__name__}")
+    for part, rows, width, matrix in (
+        ("update", program.update, n + p + 1, dense["update"]),
+        ("output", program.output, n + p + 1, dense["output"]),
+        ("reset", program.reset, 3, dense["reset"]),
+    ):
+        if len(rows) != matrix.shape[0]:
+            raise ParameterValueError(
+                f"program.{part} must have {matrix.shape[0]} rows, got {len(rows)}"
+            )
+        for i, terms in enumerate(rows):
+            total = np.zeros(width)
+            size = np.zeros(width)
+            for t in terms:
+                if not isinstance(t, Term) or not 0 <= t.operand < width:
+                    raise ParameterValueError(
+                        f"program.{part}[{i}] must hold Terms with operands in 0..{width - 1}, "
+                        f"got {t!r}"
+                    )
+                total[t.operand] += t.coefficient
+                size[t.operand] += abs(t.coefficient)
+            if not np.all(np.abs(total - matrix[i]) <= 4 * _EPS * size):
+                j = int(np.argmax(np.abs(total - matrix[i]) - 4 * _EPS * size))
+                raise ParameterValueError(
+                    f"program.{part}[{i}] sums to {total[j]!r} for operand {j} but the "
+                    f"matrix entry is {matrix[i, j]!r}"
+                )
+
+
+def render_sum(terms, operands, literal, *, named=True) -> str:
+    """A row of ``terms`` as an expression in ``operands`` (names), summed left to right.
+
+    ``literal(value)`` prints an inline constant. With ``named``, a term's ``constant`` name is
+    printed instead of its value (negated terms as ``- NAME * x``). Inline coefficients of
+    magnitude one are left out (``+ x``, ``- x``), which is exact, and a negative inline
+    coefficient is written ``- |c| * x``: ``a - |c|*x`` rounds exactly like ``a + c*x``.
+    """
+    if not terms:
+        return literal(0.0)
+    parts = []
+    for t in terms:
+        x = operands[t.operand]
+        if named and t.constant is not None:
+            parts.append(("-" if t.negated else "+", f"{t.constant} * {x}"))
+            continue
+        value = t.value if t.negated else t.coefficient
+        sign = "-" if t.negated else "+"
+        if value < 0:
+            sign, value = ("+" if t.negated else "-"), -value
+        parts.append((sign, x if value == 1.0 else f"{literal(value)} * {x}"))
+    first_sign, first = parts[0]
+    text = ("-" if first_sign == "-" else "") + first
+    for sign, part in parts[1:]:
+        text += f" {sign} {part}"
+    return text
+
+
+def _py_literal(value: float) -> str:
+    text = repr(float(value))
+    return f"({text})" if text.startswith("-") else text
+
+
+@functools.lru_cache(maxsize=256)
+def _compiled(source: str):
+    """The code object of generated ``source`` (the same program is compiled once)."""
+    return compile(source, "<hpdob observer program>", "exec")
+
+
+def compile_python(system):
+    """Python functions generated from ``system.program`` (no numpy; tuples of floats).
+
+    Returns ``(reset, outputs, estimate, update)`` with ``reset(theta0, omega0, tau0) -> s``,
+    ``outputs(s, *measures) -> y``, ``estimate(s, *measures) -> tau_hat`` and
+    ``update(s, *measures, u) -> s_next``; each evaluates its rows exactly as the program
+    orders them (the numba kernel and exported C do the same).
+    """
+    program = system.program
+    n = system.n_states
+    state = [f"s{i}" for i in range(n)]
+    inputs = [f"v{j}" for j in range(len(system.measures))]
+    operands = [*state, *inputs, "u"]
+    unpack = f"    ({', '.join(state)},) = s\n"
+    source = []
+    reset_rows = [render_sum(r, RESET_OPERANDS, _py_literal, named=False) for r in program.reset]
+    source.append(f"def reset(theta0, omega0, tau0):\n    return ({', '.join(reset_rows)},)\n")
+    out_rows = [render_sum(r, operands, _py_literal, named=False) for r in program.output]
+    args = ", ".join(inputs)
+    source.append(f"def outputs(s, {args}):\n{unpack}    return ({', '.join(out_rows)},)\n")
+    source.append(f"def estimate(s, {args}):\n{unpack}    return {out_rows[0]}\n")
+    upd_rows = [render_sum(r, operands, _py_literal, named=False) for r in program.update]
+    source.append(f"def update(s, {args}, u):\n{unpack}    return ({', '.join(upd_rows)},)\n")
+    namespace: dict = {}
+    exec(_compiled("\n".join(source)), namespace)  # source generated above from floats
+    return (namespace["reset"], namespace["outputs"], namespace["estimate"], namespace["update"])

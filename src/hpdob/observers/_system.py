@@ -1,0 +1,354 @@
+r"""The observer protocol: every observer is a linear discrete-time system.
+
+An observer reads, at sample ``k``, the signals it measures (``measures``: the angle
+:math:`\theta_k`, and the velocity :math:`\omega_k` for the paper's observers) and the torque
+:math:`u_k` that was applied, and returns its estimate :math:`\hat\tau_k` (and, where it has one,
+a velocity estimate :math:`\hat\omega_k`):
+
+.. math::
+
+    y_k = H s_k + E v_k, \qquad s_{k+1} = F s_k + G v_k, \qquad s_0 = N\,[\theta_0, \omega_0,
+    \tau_0]^T,
+
+with :math:`v_k = [\text{measured signals}, u_k]` and :math:`y_k = [\hat\tau_k(, \hat\omega_k)]`.
+The last column of ``E`` is zero: the estimate of sample ``k`` is computed before ``u_k`` (which
+uses it) exists. :class:`LinearObserver` holds these matrices; it is what the runtime object, the
+functional core, the compiled simulation kernel, the MuJoCo loop, :func:`hpdob.export_c` and the
+analysis functions consume. A new observer family is one design function that returns one.
+
+Every executable form is derived from one definition, the :class:`Program`: for each row of
+``[F G]``, ``[H E]`` and ``N`` an ordered list of terms ``coefficient * operand``. Python code is
+generated from it (:func:`compile_python`), the numba kernel interprets its arrays
+(:meth:`Program.arrays`) and the C exporter prints it, all summing the terms in the same order,
+so the three agree bit for bit. By default the program is read off the dense matrices (non-zero
+entries, column order). A structured family may give its own: the order-m observer keeps its
+companion form's unit shifts and integer extrapolation weights as separate exact terms instead
+of rounded sums such as :math:`p_{m+1} - k_{m+1}`.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    _show,
+    numeric_array,
+    positive,
+    readonly,
+)
+from ._program import RESET_OPERANDS, Program, Term, check_program, compile_python
+
+__all__ = [
+    "MEASUREMENTS",
+    "OUTPUTS",
+    "RESET_OPERANDS",
+    "UNITS",
+    "ErrorDynamics",
+    "LinearObserver",
+    "Program",
+    "Term",
+    "as_system",
+]
+
+#: Measured signals of the two observer kinds: ``"state"`` (angle and velocity) and
+#: ``"position"`` (angle only).
+MEASUREMENTS = {"state": ("theta", "omega"), "position": ("theta",)}
+#: Output sets an observer may have: the estimate, optionally followed by a velocity estimate.
+OUTPUTS = (("tau_hat",), ("tau_hat", "omega_hat"))
+#: Units of the signals, for messages and generated code.
+UNITS = {"theta": "rad", "omega": "rad/s", "u": "N m", "tau_hat": "N m", "omega_hat": "rad/s"}
+
+
+@dataclass(frozen=True, eq=False)
+class ErrorDynamics:
+    r"""Closed form of an observer's estimation error on its nominal plant.
+
+    .. math:: 1 - Q(z) = \frac{\tau_{dn}(z) - \hat\tau(z)}{\tau_{dn}(z)}
+              = \frac{(z-1)^{m+1}}{P(z)},\qquad P(z) = \prod_i (z - p_i),
+
+    the structure of the order-m family (``docs/analysis.md``): the error is driven by
+    :math:`\Delta^{m+1}\tau` only.
+
+    Attributes
+    ----------
+    order : int
+        Truncation order ``m``.
+    poles : ndarray
+        The roots :math:`p_i` of ``P`` (the poles that were placed).
+    polynomial : ndarray
+        ``P`` (highest power first) as the gains realise it.
+    """
+
+    order: int
+    poles: np.ndarray
+    polynomial: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "poles", readonly(np.array(np.atleast_1d(self.poles))))
+        polynomial = np.array(self.polynomial, dtype=float)
+        if polynomial.shape != (self.order + 2,) or self.poles.shape != (self.order + 1,):
+            raise ParameterValueError(
+                f"error dynamics of order {self.order} need {self.order + 1} poles and "
+                f"{self.order + 2} polynomial coefficients"
+            )
+        object.__setattr__(self, "polynomial", readonly(polynomial))
+
+
+def _matrix(value, name: str, shape: tuple) -> np.ndarray:
+    array = numeric_array(value, name, f"a real matrix of shape {shape}", dtype=float)
+    if array.ndim == 1 and len(shape) == 2 and 1 in shape:
+        array = array.reshape(shape)
+    if array.shape != shape:
+        raise ParameterValueError(f"{name} must have shape {shape}, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ParameterValueError(f"{name} must have finite entries, got {_show(array)}")
+    return readonly(array)
+
+
+@dataclass(frozen=True, eq=False)
+class LinearObserver:
+    r"""An observer as a linear discrete-time system: the protocol every observer implements.
+
+    .. math::
+
+        y_k = H s_k + E v_k,\qquad s_{k+1} = F s_k + G v_k,\qquad
+        s_0 = N\,[\theta_0,\ \omega_0,\ \tau_0]^T,
+
+    with inputs :math:`v_k = [\text{measures}\dots, u_k]` and outputs
+    :math:`y_k = [\hat\tau_k, (\hat\omega_k)]`. At every sample the loop calls ``estimate``
+    (outputs from :math:`s_k` and the measurement), computes and applies :math:`u_k`, then
+    ``update`` (:math:`s_{k+1}`). All arrays are read-only.
+
+    Parameters
+    ----------
+    F : array_like, shape (n, n)
+        State matrix.
+    G : array_like, shape (n, p + 1)
+        Input matrix; columns follow ``measures`` then ``u`` [N m].
+    H : array_like, shape (q, n)
+        Output matrix; rows follow ``outputs``.
+    E : array_like, shape (q, p + 1)
+        Feed-through; its last column (from ``u``) must be zero.
+    N : array_like, shape (n, 3)
+        Reset matrix: :math:`s_0 = N [\theta_0, \omega_0, \tau_0]` is the state of an observer
+        that has converged on a constant disturbance :math:`\tau_0` [N m] at
+        :math:`(\theta_0, \omega_0)` (what ``reset(x0, tau0)`` sets).
+    Ts : float
+        Sampling period [s].
+    measures : {("theta", "omega"), ("theta",)}
+        Measured signals, in the order of the first columns of ``G`` and ``E``.
+    outputs : {("tau_hat",), ("tau_hat", "omega_hat")}, optional
+        Output signals. Default ``("tau_hat",)``.
+    model : DiscreteServoModel, optional
+        The nominal model the observer was designed on; loops check it against their nominal
+        model and ``Ts``. None: only ``Ts`` is checked.
+    name : str, optional
+        Short description (used in messages and generated code).
+    program : Program, optional
+        Evaluation order of the recurrence; default :meth:`Program.from_matrices`. A given
+        program must sum to the matrices (each entry to rounding).
+    error_dynamics : ErrorDynamics, optional
+        Closed form of the estimation error on the nominal plant, where the family has one
+        (the order-m family: :math:`1 - Q(z) = (z-1)^{m+1}/\prod_i (z - p_i)`), used by
+        :func:`hpdob.estimation_response`. None: ``Q`` is computed from the matrices.
+    info : tuple of (str, str), optional
+        Design summary lines (key, value) for headers of generated code.
+
+    Raises
+    ------
+    TypeError, ValueError
+        Naming the argument: wrong shapes, non-finite entries, an unknown ``measures`` or
+        ``outputs``, a feed-through from ``u``, a program that does not match the matrices.
+
+    See Also
+    --------
+    hpdob.design_observer : the order-m family (``ObserverDesign.system``).
+
+    Examples
+    --------
+    The conventional DOb (eqs. 11, 13) followed by a first-order low-pass, from scratch:
+
+    >>> import numpy as np
+    >>> from hpdob import LinearObserver, ServoModel, design_observer
+    >>> model = ServoModel(2.8e-4).discretize(1e-3)
+    >>> dob = design_observer(model, order=0, bandwidth=200.0).system
+    >>> a = 0.9                                         # low-pass pole
+    >>> F = np.block([[dob.F, np.zeros((1, 1))], [(1 - a) * dob.H, np.array([[a]])]])
+    >>> G = np.vstack([dob.G, (1 - a) * dob.E])
+    >>> filtered = LinearObserver(F=F, G=G, H=[[0.0, 1.0]], E=np.zeros((1, 3)),
+    ...                           N=np.vstack([dob.N, [0.0, 0.0, 1.0]]), Ts=1e-3,
+    ...                           measures=("theta", "omega"), model=model)
+    >>> filtered.F.shape, filtered.measures
+    ((2, 2), ('theta', 'omega'))
+    """
+
+    F: np.ndarray
+    G: np.ndarray
+    H: np.ndarray
+    E: np.ndarray
+    N: np.ndarray
+    Ts: float
+    measures: tuple = ("theta", "omega")
+    outputs: tuple = ("tau_hat",)
+    model: object = None
+    name: str = "observer"
+    program: Program | None = field(default=None, repr=False)
+    error_dynamics: ErrorDynamics | None = field(default=None, repr=False)
+    info: tuple = field(default=(), repr=False)
+
+    def __post_init__(self) -> None:
+        measures = tuple(self.measures) if isinstance(self.measures, (tuple, list)) else None
+        if measures not in MEASUREMENTS.values():
+            raise ParameterValueError(
+                f"measures must be one of {list(MEASUREMENTS.values())}, got {self.measures!r}"
+            )
+        outputs = tuple(self.outputs) if isinstance(self.outputs, (tuple, list)) else None
+        if outputs not in OUTPUTS:
+            raise ParameterValueError(
+                f"outputs must be one of {list(OUTPUTS)}, got {self.outputs!r}"
+            )
+        F = numeric_array(self.F, "F", "a square real matrix", dtype=float)
+        if F.ndim != 2 or F.shape[0] != F.shape[1] or F.shape[0] == 0:
+            raise ParameterValueError(f"F must be a non-empty square matrix, got shape {F.shape}")
+        n, p, q = F.shape[0], len(measures), len(outputs)
+        F = _matrix(F, "F", (n, n))
+        G = _matrix(self.G, "G", (n, p + 1))
+        H = _matrix(self.H, "H", (q, n))
+        E = _matrix(self.E, "E", (q, p + 1))
+        N = _matrix(self.N, "N", (n, 3))
+        if np.any(E[:, -1] != 0.0):
+            raise ParameterValueError(
+                "E's last column (feed-through from u) must be zero: the estimate of sample k "
+                f"is needed to compute u_k, got {_show(E[:, -1])}"
+            )
+        Ts = positive(self.Ts, "Ts", "a positive finite sampling period [s]")
+        model = self.model
+        if model is not None:
+            from ..models._servo import DiscreteServoModel
+
+            if not isinstance(model, DiscreteServoModel):
+                raise ParameterTypeError(
+                    f"model must be a DiscreteServoModel or None, got {type(model).__name__}"
+                )
+            if model.Ts != Ts:
+                raise ParameterValueError(f"model.Ts = {model.Ts!r} must equal Ts = {Ts!r}")
+        if not isinstance(self.name, str):
+            raise ParameterTypeError(f"name must be a str, got {type(self.name).__name__}")
+        program = self.program
+        if program is None:
+            program = Program.from_matrices(F, G, H, E, N, measures)
+        else:
+            check_program(
+                program,
+                {"update": np.hstack([F, G]), "output": np.hstack([H, E]), "reset": N},
+                n,
+                p,
+                q,
+            )
+        if any(t.operand == n + p for terms in program.output for t in terms):
+            raise ParameterValueError("program.output must not use u (operand n + p)")
+        program.constant_table()  # each constant name has one value
+        if self.error_dynamics is not None and not isinstance(self.error_dynamics, ErrorDynamics):
+            raise ParameterTypeError(
+                "error_dynamics must be an ErrorDynamics or None, got "
+                f"{type(self.error_dynamics).__name__}"
+            )
+        object.__setattr__(self, "measures", measures)
+        object.__setattr__(self, "outputs", outputs)
+        for name, value in (("F", F), ("G", G), ("H", H), ("E", E), ("N", N)):
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "Ts", Ts)
+        object.__setattr__(self, "program", program)
+        object.__setattr__(self, "info", tuple(self.info))
+
+    # -- shape -----------------------------------------------------------------------------
+    @property
+    def n_states(self) -> int:
+        """Number of states ``n``."""
+        return self.F.shape[0]
+
+    @property
+    def system(self) -> LinearObserver:
+        """The observer itself (every observer-like object has ``.system``)."""
+        return self
+
+    @property
+    def input_names(self) -> tuple:
+        """``measures`` followed by ``"u"``."""
+        return (*self.measures, "u")
+
+    @property
+    def measurement(self) -> str:
+        """``"state"`` (angle and velocity measured) or ``"position"`` (angle only)."""
+        return "state" if self.measures == MEASUREMENTS["state"] else "position"
+
+    @property
+    def truncation_order(self) -> int | None:
+        """Truncation order ``m`` of the error dynamics, where the family has one."""
+        return None if self.error_dynamics is None else self.error_dynamics.order
+
+    @property
+    def has_velocity(self) -> bool:
+        """Whether the observer outputs a velocity estimate ``omega_hat``."""
+        return len(self.outputs) == 2
+
+    # -- derived ---------------------------------------------------------------------------
+    @functools.cached_property
+    def python(self):
+        """Generated Python functions ``(reset, outputs, estimate, update)`` (see
+        :func:`compile_python`)."""
+        return compile_python(self)
+
+    @functools.cached_property
+    def kernel_arrays(self):
+        """The program as arrays for the compiled kernel (:meth:`Program.arrays`)."""
+        return self.program.arrays()
+
+    def to_statespace(self):
+        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
+
+        Inputs ``measures`` and ``u``, outputs ``outputs``; see
+        :func:`hpdob.analysis._estimation.observer_statespace`.
+        """
+        from ..analysis._estimation import observer_statespace
+
+        return observer_statespace(self)
+
+    def __getstate__(self) -> dict:
+        # generated code is rebuilt on demand, not pickled (e.g. for dask workers)
+        state = dict(self.__dict__)
+        state.pop("python", None)
+        state.pop("kernel_arrays", None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+
+    def __repr__(self) -> str:
+        return (
+            f"LinearObserver(name={self.name!r}, states={self.n_states}, "
+            f"measures={self.measures}, outputs={self.outputs}, Ts={self.Ts:g})"
+        )
+
+
+def as_system(observer, name: str = "observer") -> LinearObserver:
+    """The :class:`LinearObserver` of an observer-like object.
+
+    Accepted: a :class:`LinearObserver`, or anything with a ``system`` attribute that is one
+    (designs such as :class:`~hpdob.ObserverDesign`, runtime objects such as
+    :class:`~hpdob.DisturbanceObserver`).
+    """
+    if isinstance(observer, LinearObserver):
+        return observer
+    system = getattr(observer, "system", None)
+    if isinstance(system, LinearObserver):
+        return system
+    raise ParameterTypeError(
+        f"{name} must be a DisturbanceObserver, an ObserverDesign or another observer (a "
+        f"LinearObserver, or an object whose .system is one), got {type(observer).__name__}"
+    )

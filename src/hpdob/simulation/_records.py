@@ -1,0 +1,124 @@
+"""Typed records the compiled sample loop reads (numba-compatible named tuples).
+
+Built once per run from validated, frozen values (:class:`~hpdob.ServoLoop`, the plant, the
+sampled signals); the kernel in :mod:`hpdob.simulation._kernel` only reads them, except the
+``Work`` arrays and the ``Outputs`` it fills. This module imports no numba, so building the
+records costs nothing at ``import hpdob``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = [
+    "SENSOR_ENCODER_DIFFERENCE",
+    "SENSOR_ENCODER_EXACT",
+    "SENSOR_IDEAL",
+    "ActuatorRecord",
+    "ControllerRecord",
+    "LinearPlantRecord",
+    "ObserverRecord",
+    "Outputs",
+    "SensorRecord",
+    "SignalRecord",
+    "Work",
+]
+
+SENSOR_IDEAL = 0
+SENSOR_ENCODER_DIFFERENCE = 1
+SENSOR_ENCODER_EXACT = 2
+
+
+class ControllerRecord(NamedTuple):
+    """The PD of :class:`~hpdob.PD` with the nominal model it scales by."""
+
+    J_n: float
+    b_n: float
+    kp: float
+    kd: float
+    feedforward: bool
+    observer_velocity: bool  # the PD's derivative uses the observer's omega_hat
+
+
+class SensorRecord(NamedTuple):
+    mode: int  # SENSOR_*
+    resolution: float  # rad per count (1.0 for the ideal sensor)
+
+
+class ActuatorRecord(NamedTuple):
+    torque_limit: float  # inf: no limit
+    delay: int  # samples
+
+
+class ObserverRecord(NamedTuple):
+    """An observer's program as arrays (:meth:`hpdob.observers.Program.arrays`)."""
+
+    present: bool
+    n: int  # states
+    p: int  # measured signals (1 or 2)
+    q: int  # outputs (1 or 2)
+    update_pointer: np.ndarray
+    update_coefficient: np.ndarray
+    update_operand: np.ndarray
+    output_pointer: np.ndarray
+    output_coefficient: np.ndarray
+    output_operand: np.ndarray
+
+
+class SignalRecord(NamedTuple):
+    r: np.ndarray
+    r_dot: np.ndarray
+    r_ddot: np.ndarray
+    tau_sample: np.ndarray  # external torque at the sampling instants [N m]
+    tau_mid: np.ndarray  # ... at the sub-step midpoints (n * substeps)
+    noise: np.ndarray  # position noise of the sensor [rad]
+
+
+class Outputs(NamedTuple):
+    theta: np.ndarray
+    omega: np.ndarray
+    theta_m: np.ndarray
+    omega_m: np.ndarray
+    u: np.ndarray
+    tau_hat: np.ndarray
+    tau_dn: np.ndarray
+    omega_hat: np.ndarray
+    states: np.ndarray  # (n, nx) full plant state, or (0, nx) when not recorded
+
+
+class Work(NamedTuple):
+    """Mutable state of a run, kept between calls of the kernel."""
+
+    s: np.ndarray  # observer state s_k
+    s_new: np.ndarray
+    w: np.ndarray  # operands [s_k, measurement, u_k]
+    previous: np.ndarray  # [theta_m of the previous sample]
+    x: np.ndarray  # plant state (set by the caller for a plant advanced from Python)
+    x_next: np.ndarray
+    applied: np.ndarray  # [torque the plant receives over the last sample run]
+
+
+class LinearPlantRecord(NamedTuple):
+    r"""A plant whose linear part is integrated exactly over each sub-step of ``h = Ts/S``.
+
+    :math:`x_{j+1} = A_h x_j + B_h (a - F_c(\omega_m)) - D_h \tau_{ext}` (``shared``: ``D = B``,
+    the external torque acts on the motor and the forces are summed first), with the Coulomb
+    friction :math:`F_c = c \tanh(\omega_m / v)` of the motor evaluated at the exponential
+    midpoint (``_half`` matrices: ``h/2``).
+    """
+
+    linear: bool  # False: a plant advanced from Python (the other fields are unused)
+    velocity_index: int  # index of the motor velocity in x
+    A_h: np.ndarray
+    B_h: np.ndarray
+    D_h: np.ndarray
+    A_half: np.ndarray
+    B_half: np.ndarray
+    D_half: np.ndarray
+    shared: bool
+    internal: np.ndarray  # motor acceleration = (a - internal @ x - F_c - [tau]) / J_motor
+    J_motor: float
+    coulomb: float
+    coulomb_velocity: float
