@@ -88,7 +88,7 @@ def sample_vector(values, name: str, what: str) -> np.ndarray:
     if bad.size:
         i = int(bad[0])
         raise ParameterValueError(
-            f"{name} has a non-finite sample {array[i]!r} at index {i} "
+            f"{name} has a non-finite sample {float(array[i])!r} at index {i} "
             f"({bad.size} non-finite in all); every sample of {what} must be finite"
         )
     return array

@@ -48,6 +48,10 @@ __all__ = ["METHODS", "IdentificationWarning", "identify"]
 METHODS = ("idim-ls", "idim-iv")
 #: Largest condition number (columns scaled to unit norm) of an identifiable regression.
 MAX_CONDITION = 1e6
+#: Largest variance inflation factor 1/(1 - R^2) of J, b or coulomb: above it the column is
+#: all but a combination of the others (R^2 > 0.999) and its estimate is meaningless. Measured:
+#: 5.2 for b and coulomb on EMPS, 3.1 on two superposed sines, 3.8e4 at one constant speed.
+MAX_VARIANCE_INFLATION = 1e3
 #: A loop simulation whose position differs from the log by more than this [%] makes poor
 #: instruments (the loop model is probably wrong); IDIM-IV then warns.
 MAX_LOOP_POSITION_ERROR = 10.0
@@ -61,6 +65,23 @@ def _relative_error(measured: np.ndarray, simulated: np.ndarray) -> float:
     scale = float(np.linalg.norm(measured))
     error = float(np.linalg.norm(measured - simulated))
     return 100.0 * error / scale if scale > 0 else (0.0 if error == 0 else math.inf)
+
+
+def _variance_inflation(columns: np.ndarray) -> np.ndarray:
+    """Variance inflation factor of each column given the others and a constant.
+
+    ``1 / (1 - R^2)`` of the column's regression on the other columns and a constant: the
+    diagonal of the inverse correlation matrix (inf for a constant or collinear column).
+    """
+    centred = columns - columns.mean(axis=0)
+    scale = np.linalg.norm(centred, axis=0)
+    if np.any(scale == 0.0):
+        return np.where(scale == 0.0, math.inf, 1.0)
+    correlation = (centred / scale).T @ (centred / scale)
+    try:
+        return np.diag(np.linalg.inv(correlation))
+    except np.linalg.LinAlgError:
+        return np.full(columns.shape[1], math.inf)
 
 
 def _check_excitation(theta: np.ndarray, u: np.ndarray, regression, settings) -> None:
@@ -90,6 +111,19 @@ def _check_excitation(theta: np.ndarray, u: np.ndarray, regression, settings) ->
                 "moves both ways"
             )
     X = regression.X
+    inflation = _variance_inflation(X[:, :3])
+    collinear = [PARAMETERS[j] for j in np.flatnonzero(inflation > MAX_VARIANCE_INFLATION)]
+    if collinear:
+        hint = (
+            "the speed is nearly the same in every row: log motion at several speeds"
+            if {"b", "coulomb"} <= set(collinear)
+            else "log a run with more varied motion"
+        )
+        raise ParameterValueError(
+            f"{' and '.join(collinear)} cannot be told apart in this log (variance inflation "
+            f"{', '.join(f'{v:.3g}' for v in inflation[inflation > MAX_VARIANCE_INFLATION])}, "
+            f"limit {MAX_VARIANCE_INFLATION:g}): {hint}"
+        )
     norms = np.linalg.norm(X, axis=0)
     _, singular, vt = np.linalg.svd(X / np.where(norms > 0, norms, 1.0), full_matrices=False)
     condition = singular[0] / singular[-1] if singular[-1] > 0 else math.inf
