@@ -15,6 +15,7 @@ from scipy import signal
 import hpdob
 from hpdob import Encoder, ParameterValueError, ServoModel, identify, paper
 from hpdob.identification import (
+    EMPS_FILE,
     EMPS_PUBLISHED,
     EMPS_PUBLISHED_STD,
     FeedbackLoop,
@@ -23,7 +24,6 @@ from hpdob.identification import (
     emps_loop,
     simulate_loop,
 )
-from hpdob.identification._emps import EMPS_FILE
 from hpdob.signals import Sine
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -318,7 +318,7 @@ def test_plot_labels_carry_units(emps_iv):
 
     fig = emps_iv.plot()
     labels = [ax.get_ylabel() for ax in fig.axes]
-    assert labels == ["force [N]", "residual [N]", "position [m]"]
+    assert labels == ["force [N]", "residual [N]", "position error [m]"]
     assert fig.axes[-1].get_xlabel() == "time [s]"
     plt.close(fig)
 

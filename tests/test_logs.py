@@ -9,8 +9,7 @@ import pytest
 import scipy.io
 
 from hpdob import Log, ParameterTypeError, ParameterValueError, read_log
-from hpdob.identification import emps
-from hpdob.identification._emps import EMPS_FILE
+from hpdob.identification import EMPS_FILE, emps
 
 N = 200
 TS = 1e-3

@@ -20,8 +20,8 @@ __all__ = [
 ]
 
 #: Largest relative deviation of one time step from the median step that still counts as
-#: uniform sampling. Logged clocks are often stored in single precision: the EMPS time vector
-#: deviates by up to 2.4e-5 relative.
+#: uniform sampling. Logged clocks jitter by rounding: the steps of the EMPS time vector deviate
+#: by up to 2.4e-5 relative.
 DEFAULT_TIME_TOLERANCE = 1e-3
 
 #: Units of every quantity for a rotary and a linear axis; ``None`` (axis not stated) gives

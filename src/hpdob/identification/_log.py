@@ -225,8 +225,7 @@ def read_log(
     --------
     The EMPS benchmark's measured run (shipped with hpdob; ``emps()`` does the same):
 
-    >>> from hpdob.identification import read_log
-    >>> from hpdob.identification._emps import EMPS_FILE
+    >>> from hpdob.identification import EMPS_FILE, read_log
     >>> log = read_log(EMPS_FILE, time="t", position="qm", input="vir", input_gain="gtau",
     ...                reference="qg", axis="linear")
     >>> len(log), log.Ts, round(log.input_gain, 2)

@@ -273,7 +273,8 @@ class Identification:
         return columns_to_pandas(self._columns(), caller="Identification.to_pandas()")
 
     def plot(self, *, title: str | None = None):
-        """Measured vs model torque/force, the residual and (with a loop) the simulated position.
+        """Measured vs model torque/force, the residual and (with a loop) the position error of
+        the loop simulated with the identified model.
 
         Returns
         -------
@@ -301,10 +302,9 @@ class Identification:
                    ylabel=f"residual [{u['input']}]")  # fmt: skip
         if panels == 3:
             ax = axes[2]
-            ax.plot(self.t_log, self.theta_log, color="0.35", linewidth=1.2, label="measured")
-            ax.plot(self.t_log, self.theta_simulated, "--", linewidth=1.0,
-                    label="loop simulated with the identified model")  # fmt: skip
-            style_axes(ax, xlabel="time [s]", ylabel=f"position [{u['position']}]")
-            ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, fontsize="small")
+            ax.plot(self.t_log, self.theta_log - self.theta_simulated, linewidth=0.8)
+            style_axes(ax, xlabel="time [s]", ylabel=f"position error [{u['position']}]")
+            ax.set_title("measured minus loop simulated with the identified model",
+                         fontsize="small", loc="right")  # fmt: skip
         fig.suptitle(title or f"{self.method.upper()}: relative error {self.relative_error:.2f} %")
         return fig
