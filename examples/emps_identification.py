@@ -57,7 +57,7 @@ def published_table(fits: dict) -> str:
 def settings_table(log, loop) -> str:
     """How each method's estimate moves with the filter settings on the measured data."""
     lines = [
-        "| cutoff [Hz] | decimation | IDIM-LS M, Fv, Fc | IDIM-IV M, Fv, Fc |",
+        "| cutoff [Hz] | decimation | IDIM-LS | IDIM-IV |",
         "|---:|---:|---|---|",
     ]
     for cutoff, decimation in ((50.0, 10), (100.0, 10), (200.0, 10), (100.0, 5), (200.0, 20)):
@@ -77,8 +77,7 @@ def synthetic_table() -> str:
         -0.3, 2.0, phase=math.pi / 2, offset=0.3
     )
     lines = [
-        "| encoder noise [rad] | decimation | IDIM-LS J, b, c error [%] | "
-        "IDIM-IV J, b, c error [%] |",
+        "| encoder noise [rad] | decimation | IDIM-LS J, b, c | IDIM-IV J, b, c |",
         "|---:|---:|---|---|",
     ]
     for noise in (1e-4, 1e-3):
@@ -98,7 +97,8 @@ def synthetic_table() -> str:
                 errors = [100 * (fit.J / plant.J - 1), 100 * (fit.b / plant.b - 1),
                           100 * (fit.coulomb / plant.coulomb - 1)]  # fmt: skip
                 cells.append(", ".join(f"{e:+.1f}" for e in errors))
-            lines.append(f"| {noise:g} | {decimation} | {cells[0]} | {cells[1]} |")
+            exponent = round(math.log10(noise))
+            lines.append(f"| 1e{exponent} | {decimation} | {cells[0]} | {cells[1]} |")
     return "\n".join(lines)
 
 

@@ -361,3 +361,18 @@ def test_idim_iv_warns_when_the_loop_does_not_follow_the_log(quiet_log):
             max_iterations=50,
             tolerance=1.0,
         )
+
+
+def test_example_prints_the_tables_of_the_docs(tmp_path, capsys):
+    """examples/emps_identification.py runs on public imports and writes its figure."""
+    import runpy
+
+    example = runpy.run_path(str(ROOT / "examples" / "emps_identification.py"), run_name="example")
+    example["main"](tmp_path)
+    out = capsys.readouterr().out
+    assert (tmp_path / "emps_identification.png").is_file()
+    docs = (ROOT / "docs" / "real-data.md").read_text().replace("−", "-")
+    tables = [line for line in out.splitlines() if line.startswith("|")]
+    assert len(tables) == 7 + 7 + 6  # the three tables of the page
+    for line in tables:
+        assert line in docs, line
