@@ -96,10 +96,10 @@ class Identification:
     b: float
     coulomb: float
     offset: float
-    covariance: np.ndarray
-    t: np.ndarray
-    u: np.ndarray
-    u_model: np.ndarray
+    covariance: np.ndarray = field(repr=False)
+    t: np.ndarray = field(repr=False)
+    u: np.ndarray = field(repr=False)
+    u_model: np.ndarray = field(repr=False)
     axis: str | None
     settings: Mapping
     n_samples: int
