@@ -6,9 +6,11 @@ squares, :math:`\hat\theta = (X^T X)^{-1} X^T y` (EMPS description, eq. 10).
 
 IDIM-IV replaces the regressors by instruments :math:`Z` built the same way from the
 position of the closed loop *simulated* with the previous estimate, and iterates
-:math:`\hat\theta_{i+1} = (Z_i^T X)^{-1} Z_i^T y` from the IDIM-LS estimate until the change
-is below ``tolerance`` times the parameter's size plus its standard deviation (Janot,
-Vandanjon and Gautier 2014). The simulated position carries no measurement noise and is not
+:math:`\hat\theta_{i+1} = (Z_i^T X)^{-1} Z_i^T y` from the IDIM-LS estimate until no
+parameter changes by more than ``tolerance`` (1 %) of its standard deviation (Janot,
+Vandanjon and Gautier 2014). Stick-slip makes the simulated loop depend discontinuously on the
+parameters, so the iteration settles to a small fraction of a standard deviation rather than
+to machine precision. The simulated position carries no measurement noise and is not
 fed back through the real controller, so :math:`Z` is uncorrelated with the error of the
 regression, which is what least squares lacks in closed loop: there the noise of the
 measured position enters both the regressors (through the differentiated position) and the
@@ -55,6 +57,9 @@ MAX_VARIANCE_INFLATION = 1e3
 #: A loop simulation whose position differs from the log by more than this [%] makes poor
 #: instruments (the loop model is probably wrong); IDIM-IV then warns.
 MAX_LOOP_POSITION_ERROR = 10.0
+#: ... and by more than this [%] with the IDIM-LS estimate, the loop cannot be the one that
+#: produced the log (EMPS: 0.001 %; hpdob's PD loops with Coulomb friction: below 2 %).
+MAX_LOOP_MISMATCH = 50.0
 
 
 class IdentificationWarning(RuntimeWarning):
@@ -82,6 +87,15 @@ def _variance_inflation(columns: np.ndarray) -> np.ndarray:
         return np.diag(np.linalg.inv(correlation))
     except np.linalg.LinAlgError:
         return np.full(columns.shape[1], math.inf)
+
+
+def _scaled_condition(X: np.ndarray) -> float:
+    """Condition number of ``X`` with its columns scaled to unit norm (inf if singular)."""
+    norms = np.linalg.norm(X, axis=0)
+    if np.any(norms == 0.0):
+        return math.inf
+    singular = np.linalg.svd(X / norms, compute_uv=False)
+    return singular[0] / singular[-1] if singular[-1] > 0 else math.inf
 
 
 def _check_excitation(theta: np.ndarray, u: np.ndarray, regression, settings) -> None:
@@ -138,7 +152,10 @@ def _check_excitation(theta: np.ndarray, u: np.ndarray, regression, settings) ->
 
 
 def _simulable(estimate: np.ndarray, iteration: int) -> np.ndarray:
-    """``estimate`` with negative friction set to 0, so that the loop can be simulated."""
+    """``estimate`` with negative friction set to 0, so that the loop can be simulated.
+
+    ``iteration`` (1 for the IDIM-LS estimate) names the estimate in the error for ``J <= 0``.
+    """
     if estimate[0] <= 0.0:
         source = "the IDIM-LS estimate" if iteration == 1 else f"IV iteration {iteration - 1}"
         raise ParameterValueError(
@@ -236,7 +253,8 @@ def identify(
         If the log cannot identify the model: signals of different lengths, a non-finite
         sample, time not increasing or not uniform, too few samples for the filters, no
         motion, constant input, motion in one direction only, an ill-conditioned regression;
-        or if a setting is out of range, or ``loop`` does not match the log.
+        or if a setting is out of range, or ``loop`` does not match the log (length, or a
+        simulation with the IDIM-LS estimate more than 50 % off the logged position).
     ParameterTypeError
         For arguments of the wrong type.
 
@@ -306,8 +324,26 @@ def identify(
                 loop, _simulable(estimate, iterations), Ts=Ts, theta0=theta[0],
                 velocity0=velocity0,
             )  # fmt: skip
+            mismatch = _relative_error(theta, simulated)
+            if iterations == 1 and mismatch > MAX_LOOP_MISMATCH:
+                raise ParameterValueError(
+                    "loop does not describe the controller that produced the log: simulated "
+                    f"with the IDIM-LS estimate it differs from the logged position by "
+                    f"{mismatch:.3g} % (eq. 11; limit {MAX_LOOP_MISMATCH:g} %); check its "
+                    "reference, gains, velocity filter and units"
+                )
             Z = instrument_rows(simulated, regression, settings)
-            new, covariance = _estimate(X, y, Z)
+            try:
+                if _scaled_condition(Z) > MAX_CONDITION:
+                    raise np.linalg.LinAlgError
+                new, covariance = _estimate(X, y, Z)
+            except np.linalg.LinAlgError:
+                raise ParameterValueError(
+                    "IDIM-IV: the instruments from the simulated loop are singular (the loop "
+                    f"simulated with J = {estimate[0]:.6g}, b = {estimate[1]:.6g}, coulomb = "
+                    f"{estimate[2]:.6g} barely moves or never reverses); check the loop's "
+                    "reference, gains and units"
+                ) from None
             change = np.abs(new - estimate)
             estimate = new
             if np.all(change <= tolerance * np.sqrt(np.diag(covariance))):
@@ -323,9 +359,9 @@ def identify(
                 stacklevel=2,
             )
     simulation = theta_simulated = None
-    if loop is not None:
+    if loop is not None and estimate[0] > 0.0:
         theta_simulated, u_simulated = simulate_loop(
-            loop, estimate, Ts=Ts, theta0=theta[0], velocity0=velocity0
+            loop, _simulable(estimate, 0), Ts=Ts, theta0=theta[0], velocity0=velocity0
         )
         simulation = {
             "position_error_percent": _relative_error(theta, theta_simulated),
