@@ -58,7 +58,7 @@ MAX_VARIANCE_INFLATION = 1e3
 #: instruments (the loop model is probably wrong); IDIM-IV then warns.
 MAX_LOOP_POSITION_ERROR = 10.0
 #: ... and by more than this [%] with the IDIM-LS estimate, the loop cannot be the one that
-#: produced the log (EMPS: 0.001 %; hpdob's PD loops with Coulomb friction: below 2 %).
+#: produced the log (EMPS: 0.001 %; the synthetic PD logs of the tests: 0.1-4 %).
 MAX_LOOP_MISMATCH = 50.0
 
 
