@@ -37,9 +37,12 @@ noise_gains, observer_noise_gain, noise_tradeoff
     Exact noise gains (discrete Lyapunov equation) and the accuracy/noise trade-off.
 robust_stability_map
     Closed-loop stability over inertia or friction errors and observer bandwidths.
+read_log, Log, identify, Identification
+    Real data: read a logged run (CSV, Parquet, .mat) and identify J, b, Coulomb friction and
+    offset (IDIM-LS, IDIM-IV); see :mod:`hpdob.identification`.
 """
 
-from . import paper, signals
+from . import identification, paper, signals
 from ._validation import ParameterTypeError, ParameterValueError
 from ._version import __version__
 from .analysis import (
@@ -61,6 +64,7 @@ from .analysis import (
     robust_stability_map,
 )
 from .export import export_c
+from .identification import Identification, Log, identify, read_log
 from .models import DiscreteServoModel, MujocoServo, ServoModel
 from .observers import (
     DisturbanceObserver,
@@ -93,7 +97,9 @@ __all__ = [
     "DisturbanceObserver",
     "Encoder",
     "GangOfFour",
+    "Identification",
     "LinearObserver",
+    "Log",
     "LoopMargins",
     "MujocoServo",
     "NoiseGains",
@@ -119,6 +125,8 @@ __all__ = [
     "export_c",
     "extrapolation_weights",
     "gang_of_four",
+    "identification",
+    "identify",
     "initial_state",
     "loop_margins",
     "loop_transfer",
@@ -126,6 +134,7 @@ __all__ = [
     "noise_tradeoff",
     "observer_noise_gain",
     "paper",
+    "read_log",
     "robust_stability_map",
     "signals",
     "simulate",

@@ -1,0 +1,192 @@
+"""``hpdob identify LOG``: identify J, b, Coulomb friction and offset from a logged run."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+from ._design import _integer, _number_list, _real
+from ._errors import CLIError
+
+__all__ = ["register"]
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "identify",
+        help="identify inertia, friction and offset of an axis from a logged run",
+        description="Identify u = J qdd + b qd + coulomb sign(qd) + offset from a log (CSV, "
+        "Parquet or MATLAB .mat) by the EMPS benchmark's IDIM-LS or by IDIM-IV; writes "
+        "identification.json, identification.csv and identification.png into the output "
+        "directory and prints a summary. A linear axis (m, N, kg) works like a rotary one "
+        "(rad, N m, kg m^2): --axis sets the units of the report. See docs/real-data.md.",
+    )
+    parser.add_argument("log", type=Path, nargs="?", help="log file (.csv, .parquet, .mat)")
+    parser.add_argument(
+        "--emps",
+        action="store_true",
+        help="use the EMPS benchmark's measured run shipped with hpdob (and its controller "
+        "for --method idim-iv) instead of LOG",
+    )
+    columns = parser.add_argument_group("columns of LOG")
+    columns.add_argument("--time", metavar="NAME", help="time column [s] (or give --Ts)")
+    columns.add_argument("--position", metavar="NAME", help="position column [rad or m]")
+    columns.add_argument("--input", metavar="NAME", help="input column (torque/force or command)")
+    columns.add_argument(
+        "--input-gain",
+        default="1",
+        metavar="GAIN",
+        help="factor from the input column to torque/force, or the name of a scalar variable "
+        "of a .mat file holding it (default: 1)",
+    )
+    columns.add_argument("--reference", metavar="NAME", help="reference position column")
+    columns.add_argument("--Ts", type=_real, help="sampling period [s] of a log without time")
+    columns.add_argument(
+        "--axis", choices=("rotary", "linear"), help="units of the report (default: unstated)"
+    )
+    method = parser.add_argument_group("method")
+    method.add_argument(
+        "--method",
+        choices=("idim-ls", "idim-iv"),
+        default="idim-ls",
+        help="inverse-model least squares, or instrumental variables from the simulated loop "
+        "(needs --reference, --kp, --kd) (default: %(default)s)",
+    )
+    method.add_argument("--kp", type=_real, help="loop position gain [N m/rad or N/m]")
+    method.add_argument("--kd", type=_real, help="loop velocity gain [N m s/rad or N s/m]")
+    method.add_argument(
+        "--velocity-filter",
+        type=_number_list(float),
+        default=None,
+        metavar="C0,C1,...",
+        help="the loop's velocity estimate sum c_i y_(k-i) / Ts (default: 1,-1)",
+    )
+    method.add_argument("--limit", type=_real, help="the loop's output limit [N m or N]")
+    filters = parser.add_argument_group("filters (defaults: the EMPS rules, see identify())")
+    filters.add_argument("--bandwidth", type=_real, help="closed-loop bandwidth [Hz]")
+    filters.add_argument("--cutoff", type=_real, help="Butterworth cut-off [Hz]")
+    filters.add_argument("--order", type=_integer, default=4, help="Butterworth order (4)")
+    filters.add_argument("--decimation", type=_integer, help="decimation factor")
+    filters.add_argument("--border", type=_integer, help="samples dropped at each end")
+    filters.add_argument(
+        "--min-speed", type=_real, default=0.0, help="drop rows slower than this [rad/s or m/s]"
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="output directory (default: hpdob-results/identify-<log name>)",
+    )
+    parser.add_argument("--no-plot", action="store_true", help="skip the figure")
+    parser.set_defaults(handler=_run)
+
+
+def _input_gain(text: str):
+    try:
+        value = float(text)
+    except ValueError:
+        return text  # the name of a scalar variable
+    if not math.isfinite(value):
+        raise CLIError(f"--input-gain must be a finite number or a variable name, got {text!r}")
+    return value
+
+
+def _load(args):
+    from ..identification import emps, emps_loop, read_log
+    from ..identification._loop import FeedbackLoop
+
+    if args.emps == (args.log is not None):
+        raise CLIError("give a LOG file or --emps (the shipped EMPS run), exactly one")
+    if args.emps:
+        given = [f"--{k}" for k in ("time", "position", "input", "reference") if getattr(args, k)]
+        if given:
+            raise CLIError(f"--emps uses the EMPS file's own columns; drop {', '.join(given)}")
+        log = emps()
+        return log, emps_loop(log) if args.method == "idim-iv" else None
+    for name in ("position", "input"):
+        if getattr(args, name) is None:
+            raise CLIError(f"--{name} is required: the name of the log's {name} column")
+    log = read_log(
+        args.log,
+        time=args.time,
+        position=args.position,
+        input=args.input,
+        input_gain=_input_gain(args.input_gain),
+        reference=args.reference,
+        Ts=args.Ts,
+        axis=args.axis,
+    )
+    loop = None
+    if args.method == "idim-iv":
+        missing = [f"--{k}" for k in ("reference", "kp", "kd") if getattr(args, k) is None]
+        if missing:
+            raise CLIError(
+                f"--method idim-iv needs the loop that produced the log: give {', '.join(missing)}"
+            )
+        loop = FeedbackLoop(
+            log.reference,
+            kp=args.kp,
+            kd=args.kd,
+            velocity_filter=tuple(args.velocity_filter or (1.0, -1.0)),
+            limit=args.limit,
+        )
+    return log, loop
+
+
+def _run(args: argparse.Namespace) -> int:
+    import warnings
+
+    from .._files import atomic_path
+    from ..identification import EMPS_PUBLISHED, IdentificationWarning
+
+    log, loop = _load(args)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", IdentificationWarning)
+        result = log.identify(
+            method=args.method, loop=loop, bandwidth=args.bandwidth, cutoff=args.cutoff,
+            order=args.order, decimation=args.decimation, border=args.border,
+            min_speed=args.min_speed, axis=args.axis or log.axis,
+        )  # fmt: skip
+    out = args.out or Path("hpdob-results") / f"identify-{Path(log.source).stem}"
+    out.mkdir(parents=True, exist_ok=True)
+    report = result.to_dict()
+    report["log"] = {
+        "source": log.source,
+        "names": dict(log.names),
+        "input_gain": log.input_gain,
+        "samples": len(log),
+        "Ts": log.Ts,
+    }
+    if args.emps:
+        report["published"] = dict(EMPS_PUBLISHED)
+    with atomic_path(out / "identification.json") as temporary:
+        temporary.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n")
+    result.to_csv(out / "identification.csv")
+    written = ["identification.json", "identification.csv"]
+    if not args.no_plot:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig = result.plot(title=f"{result.method.upper()} on {log.source}")
+        with atomic_path(out / "identification.png") as temporary:
+            fig.savefig(temporary, dpi=150, format="png")
+        plt.close(fig)
+        written.append("identification.png")
+    print(f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s")
+    print(result.summary())
+    if args.emps:
+        p = EMPS_PUBLISHED
+        print(
+            f"  published IDIM-LS (EMPS description, section 3.4): M {p['J']} kg, "
+            f"Fv {p['b']} N s/m, Fc {p['coulomb']} N, offset {p['offset']} N"
+        )
+    print(f"wrote {', '.join(written)} to {out}")
+    caught = [w for w in caught if issubclass(w.category, IdentificationWarning)]
+    for warning in caught:
+        print(f"warning: {warning.message}")
+    return 1 if caught else 0

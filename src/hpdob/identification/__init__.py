@@ -1,0 +1,40 @@
+"""Identification of a real axis from a logged run, and reading logs.
+
+read_log, Log
+    Read a logged run (time, position, input) from CSV, Parquet or MATLAB ``.mat`` files by
+    column name, with validation.
+identify, Identification
+    Inverse-model identification of inertia, viscous and Coulomb friction and offset:
+    ``"idim-ls"`` (the EMPS benchmark's least squares) or ``"idim-iv"`` (instrumental
+    variables from the simulated closed loop).
+FeedbackLoop
+    The controller and reference that produced a log (needed by ``"idim-iv"``).
+emps, emps_loop, EMPS_FILE, EMPS_PUBLISHED, EMPS_PUBLISHED_STD
+    The EMPS benchmark's measured run (shipped with hpdob), its controller, the shipped file
+    and the published IDIM-LS values with their standard deviations.
+
+A linear axis (m, N, kg) obeys the same equations as a rotary one (rad, N m, kg m^2); pass
+``axis="linear"`` or ``"rotary"`` for the units of reports, or leave it None.
+"""
+
+from ._emps import EMPS_FILE, EMPS_PUBLISHED, EMPS_PUBLISHED_STD, emps, emps_loop
+from ._identify import METHODS, IdentificationWarning, identify
+from ._log import Log, read_log
+from ._loop import FeedbackLoop, simulate_loop
+from ._result import Identification
+
+__all__ = [
+    "EMPS_FILE",
+    "EMPS_PUBLISHED",
+    "EMPS_PUBLISHED_STD",
+    "METHODS",
+    "FeedbackLoop",
+    "Identification",
+    "IdentificationWarning",
+    "Log",
+    "emps",
+    "emps_loop",
+    "identify",
+    "read_log",
+    "simulate_loop",
+]

@@ -1,0 +1,133 @@
+"""Checks of logged samples shared by :class:`Log` and :func:`identify`.
+
+Every message names the signal, the first offending index and what was expected.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._validation import ParameterValueError, numeric_array, positive
+
+__all__ = [
+    "DEFAULT_TIME_TOLERANCE",
+    "UNITS",
+    "check_axis",
+    "check_lengths",
+    "check_time",
+    "sample_vector",
+    "units",
+]
+
+#: Largest relative deviation of one time step from the median step that still counts as
+#: uniform sampling. Logged clocks jitter by rounding: the steps of the EMPS time vector deviate
+#: by up to 2.4e-5 relative.
+DEFAULT_TIME_TOLERANCE = 1e-3
+
+#: Units of every quantity for a rotary and a linear axis; ``None`` (axis not stated) gives
+#: neutral labels that fit both.
+UNITS = {
+    "rotary": {
+        "position": "rad",
+        "velocity": "rad/s",
+        "acceleration": "rad/s^2",
+        "input": "N m",
+        "J": "kg m^2",
+        "b": "N m s/rad",
+        "coulomb": "N m",
+        "offset": "N m",
+        "kp": "N m/rad",
+        "kd": "N m s/rad",
+    },
+    "linear": {
+        "position": "m",
+        "velocity": "m/s",
+        "acceleration": "m/s^2",
+        "input": "N",
+        "J": "kg",
+        "b": "N s/m",
+        "coulomb": "N",
+        "offset": "N",
+        "kp": "N/m",
+        "kd": "N s/m",
+    },
+}
+UNITS[None] = {key: f"{UNITS['rotary'][key]} or {UNITS['linear'][key]}" for key in UNITS["rotary"]}
+
+AXES = ("rotary", "linear")
+
+
+def check_axis(axis) -> str | None:
+    """``axis`` if it is ``"rotary"``, ``"linear"`` or None (not stated)."""
+    if axis is not None and axis not in AXES:
+        raise ParameterValueError(f"axis must be 'rotary', 'linear' or None; got {axis!r}")
+    return axis
+
+
+def units(axis) -> dict:
+    """The unit of each quantity for ``axis`` (see :data:`UNITS`)."""
+    return UNITS[check_axis(axis)]
+
+
+def sample_vector(values, name: str, what: str) -> np.ndarray:
+    """``values`` as a new 1-D float array of finite samples.
+
+    Raises
+    ------
+    ParameterTypeError
+        If ``values`` is not numeric (strings, booleans, objects).
+    ParameterValueError
+        If it is not 1-D or holds a NaN or infinite sample (the first one is named).
+    """
+    array = numeric_array(values, name, what)
+    if array.ndim == 2 and 1 in array.shape:  # a MATLAB column or row vector
+        array = array.ravel()
+    if array.ndim != 1:
+        raise ParameterValueError(f"{name} must be {what}: a 1-D sequence, got shape {array.shape}")
+    bad = np.flatnonzero(~np.isfinite(array))
+    if bad.size:
+        i = int(bad[0])
+        raise ParameterValueError(
+            f"{name} has a non-finite sample {float(array[i])!r} at index {i} "
+            f"({bad.size} non-finite in all); every sample of {what} must be finite"
+        )
+    return array
+
+
+def check_lengths(arrays: dict) -> int:
+    """The common length of ``{name: array}``; otherwise an error listing every length."""
+    lengths = {name: len(array) for name, array in arrays.items()}
+    if len(set(lengths.values())) > 1:
+        listed = ", ".join(f"{name} has {n}" for name, n in lengths.items())
+        raise ParameterValueError(f"the signals must have the same number of samples: {listed}")
+    return next(iter(lengths.values()))
+
+
+def check_time(t: np.ndarray, name: str = "t", tolerance: float = DEFAULT_TIME_TOLERANCE):
+    """Sampling period [s] of strictly increasing, uniformly spaced times ``t``.
+
+    Uniform means every step is within ``tolerance`` (relative) of the median step. The
+    period returned is the mean step ``(t[-1] - t[0]) / (n - 1)``.
+    """
+    tolerance = positive(tolerance, "time_tolerance", "a positive relative tolerance")
+    if t.size < 2:
+        raise ParameterValueError(f"{name} must hold at least 2 samples, got {t.size}")
+    steps = np.diff(t)
+    bad = np.flatnonzero(steps <= 0.0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise ParameterValueError(
+            f"{name} must increase strictly (time [s]), but {name}[{i}] = {t[i]!r} s is not "
+            f"after {name}[{i - 1}] = {t[i - 1]!r} s"
+        )
+    median = float(np.median(steps))
+    deviation = np.abs(steps - median) / median
+    worst = int(np.argmax(deviation))
+    if deviation[worst] > tolerance:
+        raise ParameterValueError(
+            f"{name} must be uniformly sampled: the step {name}[{worst + 1}] - {name}[{worst}] "
+            f"= {steps[worst]:.6g} s differs from the median step {median:.6g} s by "
+            f"{100 * deviation[worst]:.3g} % (tolerance {100 * tolerance:.3g} %); resample the "
+            "log on a uniform grid first"
+        )
+    return float((t[-1] - t[0]) / (t.size - 1))

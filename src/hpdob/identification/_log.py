@@ -1,0 +1,288 @@
+"""A logged run of one axis (time, position, input) and :func:`read_log` for CSV/Parquet/.mat."""
+
+from __future__ import annotations
+
+import types
+from collections.abc import Mapping
+from dataclasses import KW_ONLY, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .._table import columns_to_pandas
+from .._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    as_real,
+    positive,
+    readonly,
+)
+from ._checks import (
+    DEFAULT_TIME_TOLERANCE,
+    check_axis,
+    check_lengths,
+    check_time,
+    sample_vector,
+    units,
+)
+from ._readers import read_columns, scalar
+
+__all__ = ["MIN_LOG_SAMPLES", "Log", "read_log"]
+
+#: Fewest samples a :class:`Log` may hold (identification needs far more; see identify()).
+MIN_LOG_SAMPLES = 10
+
+
+@dataclass(frozen=True, eq=False)
+class Log:
+    """A logged run of one axis: sampling instants, measured position and applied input.
+
+    A rotary axis (rad, N m, kg m^2) and a linear one (m, N, kg) obey the same equations, so
+    every quantity is in the units of its axis: ``axis="rotary"``, ``"linear"`` or None
+    (not stated; labels then read e.g. "position [rad or m]").
+
+    Parameters
+    ----------
+    t : array_like
+        Sampling instants [s], strictly increasing and uniformly spaced (each step within
+        ``time_tolerance`` of the median step).
+    theta : array_like
+        Measured position [rad or m].
+    u : array_like
+        Applied torque or force [N m or N] (the controller's output times its gain).
+    reference : array_like, optional
+        Reference position [rad or m] of the loop that produced the log, if logged.
+    source : str, optional
+        Where the log came from (a file name), for reports.
+    names : mapping, optional
+        Column names the signals were read from (``time``, ``position``, ``input``,
+        ``reference``), for reports.
+    input_gain : float, optional
+        The factor the logged input column was multiplied by to give ``u``. Default 1.
+    axis : {"rotary", "linear"} or None, optional
+    time_tolerance : float, optional
+        Relative tolerance of the uniform-sampling check. Default 1e-3.
+
+    Attributes
+    ----------
+    Ts : float
+        Sampling period [s], the mean step ``(t[-1] - t[0]) / (n - 1)``.
+
+    Raises
+    ------
+    ParameterTypeError
+        If a signal is not numeric.
+    ParameterValueError
+        If the signals differ in length, hold a non-finite sample (the first is named), the
+        time is not strictly increasing or not uniform, or there are fewer than 10 samples.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hpdob.identification import Log
+    >>> log = Log(t=np.arange(100) * 1e-3, theta=np.zeros(100), u=np.ones(100), axis="linear")
+    >>> log.Ts, len(log), log.units["position"]
+    (0.001, 100, 'm')
+    """
+
+    t: np.ndarray
+    theta: np.ndarray
+    u: np.ndarray
+    _: KW_ONLY
+    reference: np.ndarray | None = None
+    source: str = ""
+    names: Mapping = field(default_factory=dict)
+    input_gain: float = 1.0
+    axis: str | None = None
+    time_tolerance: float = DEFAULT_TIME_TOLERANCE
+    Ts: float = field(init=False)
+
+    def __post_init__(self) -> None:
+        axis = check_axis(self.axis)
+        unit = units(axis)
+        signals = {
+            "t": sample_vector(self.t, "t", "times [s]"),
+            "theta": sample_vector(self.theta, "theta", f"positions [{unit['position']}]"),
+            "u": sample_vector(self.u, "u", f"inputs [{unit['input']}]"),
+        }
+        if self.reference is not None:
+            signals["reference"] = sample_vector(
+                self.reference, "reference", f"reference positions [{unit['position']}]"
+            )
+        n = check_lengths(signals)
+        if n < MIN_LOG_SAMPLES:
+            raise ParameterValueError(
+                f"a log must hold at least {MIN_LOG_SAMPLES} samples, got {n}"
+            )
+        Ts = check_time(signals["t"], "t", self.time_tolerance)
+        if not isinstance(self.source, str):
+            raise ParameterTypeError(f"source must be a str, got {type(self.source).__name__}")
+        if not isinstance(self.names, Mapping):
+            raise ParameterTypeError(
+                f"names must be a mapping of roles to column names, got {self.names!r}"
+            )
+        gain = as_real(self.input_gain, "input_gain", "a finite non-zero gain")
+        if gain == 0.0:
+            raise ParameterValueError("input_gain must be a finite non-zero gain, got 0.0")
+        for name, array in signals.items():
+            object.__setattr__(self, name, readonly(array))
+        object.__setattr__(self, "names", types.MappingProxyType(dict(self.names)))
+        object.__setattr__(self, "input_gain", gain)
+        object.__setattr__(self, "time_tolerance", float(self.time_tolerance))
+        object.__setattr__(self, "Ts", Ts)
+
+    def __len__(self) -> int:
+        return self.t.size
+
+    @property
+    def units(self) -> dict:
+        """Unit of each quantity on this log's axis (neutral "rad or m" if not stated)."""
+        return dict(units(self.axis))
+
+    def to_pandas(self):
+        """The signals as a :class:`pandas.DataFrame` (columns t, theta, u[, reference])."""
+        columns = {"t": self.t, "theta": self.theta, "u": self.u}
+        if self.reference is not None:
+            columns["reference"] = self.reference
+        return columns_to_pandas(columns, caller="Log.to_pandas()")
+
+    def identify(self, **options):
+        """:func:`hpdob.identify` on this log (``axis`` and ``time_tolerance`` carried over)."""
+        from ._identify import identify
+
+        options.setdefault("axis", self.axis)
+        options.setdefault("time_tolerance", self.time_tolerance)
+        return identify(self.t, self.theta, self.u, **options)
+
+
+def _name(value, role: str, *, optional: bool = False) -> str | None:
+    if value is None and optional:
+        return None
+    if not isinstance(value, str) or not value:
+        raise ParameterTypeError(
+            f"{role} must be the name of a column or variable of the log (a non-empty str), "
+            f"got {value!r}"
+        )
+    return value
+
+
+def read_log(
+    path,
+    *,
+    time: str | None = None,
+    position: str,
+    input: str,
+    input_gain: float | str = 1.0,
+    reference: str | None = None,
+    Ts: float | None = None,
+    axis: str | None = None,
+    time_tolerance: float = DEFAULT_TIME_TOLERANCE,
+) -> Log:
+    """Read a logged run from a CSV, Parquet or MATLAB ``.mat`` file by column names.
+
+    The format follows the file name: ``.csv``/``.txt``/``.tsv`` (a header row of column
+    names; comma, semicolon or tab separated), ``.parquet``/``.pq`` (needs pyarrow) or
+    ``.mat`` (MATLAB up to v7, read with :func:`scipy.io.loadmat`; vectors may be rows or
+    columns).
+
+    Parameters
+    ----------
+    path : str or path-like
+    time : str, optional
+        Column of the sampling instants [s]. Without one, give ``Ts``.
+    position : str
+        Column of the measured position [rad or m].
+    input : str
+        Column of the logged input; ``u = input_gain * column`` is the torque or force
+        [N m or N].
+    input_gain : float or str, optional
+        Factor from the logged input to torque/force (e.g. 35.15 N/V for a voltage command),
+        or the name of a scalar variable of the file holding it (e.g. ``"gtau"``). Default 1.
+    reference : str, optional
+        Column of the reference position [rad or m] (needed by ``method="idim-iv"``).
+    Ts : float, optional
+        Sampling period [s] of a log without a time column; samples are at ``k Ts``.
+    axis : {"rotary", "linear"} or None, optional
+        Units of the log (rad and N m, or m and N); None leaves them unstated.
+    time_tolerance : float, optional
+        Relative tolerance of the uniform-sampling check of the time column (1e-3).
+
+    Returns
+    -------
+    Log
+
+    Raises
+    ------
+    ParameterValueError
+        If the format is unknown, a column is missing (the message lists the available
+        ones), the columns differ in length, a sample is not numeric or not finite (the
+        column and first bad index are named), the time is not strictly increasing or not
+        uniform, or the log is too short.
+    ParameterTypeError
+        For arguments of the wrong type.
+
+    Examples
+    --------
+    The EMPS benchmark's measured run (shipped with hpdob; ``emps()`` does the same):
+
+    >>> from hpdob.identification import EMPS_FILE, read_log
+    >>> log = read_log(EMPS_FILE, time="t", position="qm", input="vir", input_gain="gtau",
+    ...                reference="qg", axis="linear")
+    >>> len(log), log.Ts, round(log.input_gain, 2)
+    (24841, 0.001, 35.15)
+    """
+    path = Path(path)
+    wanted = {"position": _name(position, "position"), "input": _name(input, "input")}
+    if _name(time, "time", optional=True) is not None:
+        wanted["time"] = time
+    if _name(reference, "reference", optional=True) is not None:
+        wanted["reference"] = reference
+    if isinstance(input_gain, str):
+        wanted["input_gain"] = input_gain
+    elif isinstance(input_gain, (bool, np.bool_)) or not isinstance(input_gain, (int, float)):
+        raise ParameterTypeError(
+            f"input_gain must be a number or the name of a scalar variable, got {input_gain!r}"
+        )
+    if (time is None) == (Ts is None):
+        raise ParameterValueError(
+            "give the sampling instants as time='column' or, for a log without a time "
+            f"column, the sampling period as Ts=...; got time={time!r} and Ts={Ts!r}"
+        )
+    axis = check_axis(axis)
+    data = read_columns(path, wanted)
+    if "input_gain" in wanted:
+        input_gain = scalar(data.pop("input_gain"), "input_gain", wanted.pop("input_gain"), path)
+    gain = as_real(input_gain, "input_gain", "a finite non-zero gain")
+    unit = units(axis)
+    what = {
+        "time": "times [s]",
+        "position": f"positions [{unit['position']}]",
+        "input": "logged inputs",
+        "reference": f"reference positions [{unit['position']}]",
+    }
+    signals = {
+        role: sample_vector(data[role], f"{role} column {name!r}", what[role])
+        for role, name in wanted.items()
+    }
+    check_lengths({f"{role} {wanted[role]!r}": values for role, values in signals.items()})
+    n = signals["position"].size
+    if "time" in signals:
+        t = signals["time"]
+        check_time(t, f"time column {time!r}", time_tolerance)
+    else:
+        Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
+        t = np.arange(n) * Ts
+    u = gain * signals["input"]
+    if not np.all(np.isfinite(u)):  # pragma: no cover - only for gains near the float limit
+        raise ParameterValueError(f"input_gain {gain!r} makes the input overflow")
+    return Log(
+        t=t,
+        theta=signals["position"],
+        u=u,
+        reference=signals.get("reference"),
+        source=path.name,
+        names={"time": time, "position": position, "input": input, "reference": reference},
+        input_gain=gain,
+        axis=axis,
+        time_tolerance=time_tolerance,
+    )

@@ -1,0 +1,154 @@
+"""Readers of logged tables: CSV, Parquet and MATLAB ``.mat`` files, by column name.
+
+Each reader returns ``{name: raw values}`` for the requested names and the sorted list of
+names the file holds; :func:`hpdob.identification.read_log` validates the values.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from .._validation import ParameterValueError
+
+__all__ = ["FORMATS", "read_columns", "scalar"]
+
+#: File name suffixes of each format.
+FORMATS = {
+    ".csv": "csv",
+    ".txt": "csv",
+    ".tsv": "csv",
+    ".parquet": "parquet",
+    ".pq": "parquet",
+    ".mat": "mat",
+}
+
+
+def read_columns(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
+    """Read the columns ``{role: name}`` of ``path``; the result maps each role to its values.
+
+    Raises
+    ------
+    ParameterValueError
+        For an unknown format, an unreadable file, a missing column (the message lists the
+        available ones) or a column that holds something other than numbers.
+    """
+    kind = FORMATS.get(path.suffix.lower())
+    if kind is None:
+        raise ParameterValueError(
+            f"cannot tell the format of {path.name}: the name must end in one of "
+            f"{', '.join(sorted(FORMATS))} (CSV, Parquet or MATLAB .mat)"
+        )
+    if not path.is_file():
+        raise ParameterValueError(f"log file {path} does not exist or is not a file")
+    reader = {"csv": _read_csv, "parquet": _read_parquet, "mat": _read_mat}[kind]
+    return reader(path, wanted)
+
+
+def _missing(path: Path, wanted: dict[str, str], available) -> None:
+    for role, name in wanted.items():
+        if name not in available:
+            listed = ", ".join(sorted(str(a) for a in available)) or "none"
+            raise ParameterValueError(
+                f"{role} column {name!r} is not in {path.name}; available: {listed}"
+            )
+
+
+def _read_csv(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
+    with path.open(newline="", encoding="utf-8-sig") as handle:
+        first = handle.readline()
+        delimiter = max(",;\t", key=first.count) if first.strip() else ","
+        handle.seek(0)
+        rows = csv.reader(handle, delimiter=delimiter)
+        header = [cell.strip() for cell in next(rows, [])]
+        _missing(path, wanted, header)
+        index = {role: header.index(name) for role, name in wanted.items()}
+        values: dict[str, list[float]] = {role: [] for role in wanted}
+        for line, row in enumerate(rows, start=2):
+            if not row or all(not cell.strip() for cell in row):
+                continue  # blank line
+            if len(row) != len(header):
+                raise ParameterValueError(
+                    f"{path.name} line {line} has {len(row)} fields, the header has {len(header)}"
+                )
+            for role, column in index.items():
+                values[role].append(_number(row[column], role, wanted[role], line, path))
+    return {role: np.array(v, dtype=float) for role, v in values.items()}
+
+
+def _number(cell: str, role: str, name: str, line: int, path: Path) -> float:
+    try:
+        return float(cell)
+    except ValueError:
+        sample = line - 2
+        raise ParameterValueError(
+            f"{role} column {name!r} of {path.name} is not numeric: sample {sample} "
+            f"(line {line}) holds {cell!r}"
+        ) from None
+
+
+def _read_parquet(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
+    try:
+        import pyarrow.parquet as pq
+    except ImportError as err:  # pragma: no cover - pyarrow is in the [sweep] and [test] extras
+        raise ImportError(
+            "reading Parquet logs needs pyarrow: pip install pyarrow (or hpdob[sweep])"
+        ) from err
+    try:
+        schema = pq.read_schema(path)
+    except Exception as err:  # pyarrow raises its own exception types
+        raise ParameterValueError(f"cannot read {path.name} as Parquet: {err}") from err
+    _missing(path, wanted, schema.names)
+    table = pq.read_table(path, columns=list(dict.fromkeys(wanted.values())))
+    out = {}
+    for role, name in wanted.items():
+        column = table.column(name)
+        kind = str(column.type)
+        if not (kind.startswith(("int", "uint", "float", "double", "halffloat", "decimal"))):
+            raise ParameterValueError(
+                f"{role} column {name!r} of {path.name} is not numeric: its type is {kind}"
+            )
+        out[role] = np.asarray(column.to_numpy(zero_copy_only=False), dtype=float)
+    return out
+
+
+def _read_mat(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
+    import scipy.io
+
+    try:
+        data = scipy.io.loadmat(path)
+    except NotImplementedError as err:  # MATLAB v7.3 files are HDF5
+        raise ParameterValueError(
+            f"{path.name} is a MATLAB v7.3 (HDF5) file, which scipy cannot read; save it "
+            "with save(..., '-v7') or export the signals to CSV or Parquet"
+        ) from err
+    except (ValueError, TypeError, OSError) as err:
+        raise ParameterValueError(f"cannot read {path.name} as a MATLAB file: {err}") from err
+    variables = {key: value for key, value in data.items() if not key.startswith("__")}
+    _missing(path, wanted, variables)
+    out = {}
+    for role, name in wanted.items():
+        value = variables[name]
+        if not isinstance(value, np.ndarray) or value.dtype.kind not in "iuf":
+            kind = value.dtype if isinstance(value, np.ndarray) else type(value).__name__
+            raise ParameterValueError(
+                f"{role} variable {name!r} of {path.name} is not numeric (it holds {kind})"
+            )
+        if value.ndim > 2 or (value.ndim == 2 and 1 not in value.shape):
+            raise ParameterValueError(
+                f"{role} variable {name!r} of {path.name} must be a vector, got shape {value.shape}"
+            )
+        out[role] = np.asarray(value, dtype=float).ravel()
+    return out
+
+
+def scalar(values: np.ndarray, role: str, name: str, path: Path) -> float:
+    """The single value of a scalar variable (or of a column holding one value in every row)."""
+    if values.size == 0 or np.any(values != values.flat[0]):
+        raise ParameterValueError(
+            f"{role} {name!r} of {path.name} must hold a single number, got {values.size} "
+            "different samples"
+        )
+    return float(values.flat[0])

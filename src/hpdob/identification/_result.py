@@ -1,0 +1,310 @@
+"""The result of an identification: parameters, their standard deviations, the fit."""
+
+from __future__ import annotations
+
+import json
+import math
+import types
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._files import atomic_path
+from .._table import columns_to_csv, columns_to_pandas
+from .._validation import ParameterValueError, positive, readonly
+from ._checks import units
+from ._regression import PARAMETERS
+
+__all__ = ["Identification"]
+
+#: What each parameter is called on a rotary and a linear axis (for reports).
+_LABELS = {
+    "J": ("inertia J", "mass M"),
+    "b": ("viscous friction b", "viscous friction Fv"),
+    "coulomb": ("Coulomb friction c", "Coulomb friction Fc"),
+    "offset": ("offset", "offset"),
+}
+
+
+def _json_ready(value):
+    if isinstance(value, Mapping):
+        return {str(k): _json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_ready(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _json_ready(value.tolist())
+    if isinstance(value, (np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, (float, np.floating)):
+        return float(value) if math.isfinite(value) else None
+    return value
+
+
+@dataclass(frozen=True, eq=False)
+class Identification:
+    r"""Identified rigid-axis model :math:`u = J\ddot q + b\dot q + c\,\mathrm{sign}(\dot q)
+    + \mathrm{offset}` with the fit it came from.
+
+    Made by :func:`hpdob.identify`. Units follow ``axis`` (``units`` lists them): on a linear
+    axis ``J`` is the mass [kg], ``b`` [N s/m], ``coulomb`` and ``offset`` [N].
+
+    Attributes
+    ----------
+    method : str
+        ``"idim-ls"`` or ``"idim-iv"``.
+    J, b, coulomb, offset : float
+        Inertia (or mass), viscous and Coulomb friction, and the constant offset of the
+        input (a constant load, or a bias of the torque/force measurement).
+    J_std, b_std, coulomb_std, offset_std : float
+        Standard deviations, square roots of the diagonal of ``covariance``.
+    covariance : ndarray, shape (4, 4)
+        :math:`\hat\sigma^2 (Z^T X)^{-1} Z^T Z (X^T Z)^{-1}` with
+        :math:`\hat\sigma^2 = \lVert y - X\hat\theta\rVert^2 / (N - 4)`; for least squares
+        (:math:`Z = X`) it is the usual :math:`\hat\sigma^2 (X^T X)^{-1}`.
+    t : ndarray
+        Time [s] of each regression row (the decimated samples used).
+    u : ndarray
+        Measured input after the parallel filter and decimation [N m or N].
+    u_model : ndarray
+        The model's input :math:`X\hat\theta` on the same rows.
+    axis : str or None
+        ``"rotary"``, ``"linear"`` or None (units not stated).
+    settings : mapping
+        Everything needed to repeat the identification (filters, method options).
+    n_samples : int
+        Samples of the log.
+    condition_number : float
+        Of the observation matrix ``X`` as it is (as the EMPS script reports it; it depends
+        on the units).
+    max_speed : float
+        Largest filtered speed of the log [rad/s or m/s].
+    iterations : int
+        IDIM-IV iterations (0 for IDIM-LS).
+    converged : bool
+        Whether IDIM-IV met its tolerance (always True for IDIM-LS).
+    simulation : mapping or None
+        With a loop: relative errors [%] of the loop simulated with the identified
+        parameters against the log (``position_error_percent``, ``input_error_percent``,
+        as eq. 11 of the EMPS description).
+    t_log, theta_log, theta_simulated : ndarray or None
+        With a loop: the log's time and position and the simulated position, for the plot.
+    """
+
+    method: str
+    J: float
+    b: float
+    coulomb: float
+    offset: float
+    covariance: np.ndarray = field(repr=False)
+    t: np.ndarray = field(repr=False)
+    u: np.ndarray = field(repr=False)
+    u_model: np.ndarray = field(repr=False)
+    axis: str | None
+    settings: Mapping
+    n_samples: int
+    condition_number: float
+    max_speed: float
+    iterations: int = 0
+    converged: bool = True
+    simulation: Mapping | None = None
+    t_log: np.ndarray | None = field(default=None, repr=False)
+    theta_log: np.ndarray | None = field(default=None, repr=False)
+    theta_simulated: np.ndarray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        for name in ("covariance", "t", "u", "u_model", "t_log", "theta_log", "theta_simulated"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, readonly(np.array(value, dtype=float)))
+        object.__setattr__(self, "settings", types.MappingProxyType(dict(self.settings)))
+        if self.simulation is not None:
+            object.__setattr__(self, "simulation", types.MappingProxyType(dict(self.simulation)))
+
+    # -- derived quantities ------------------------------------------------------------------
+    @property
+    def parameters(self) -> dict[str, float]:
+        """``{"J": ..., "b": ..., "coulomb": ..., "offset": ...}``."""
+        return {name: float(getattr(self, name)) for name in PARAMETERS}
+
+    @property
+    def std(self) -> dict[str, float]:
+        """Standard deviation of each parameter (same keys as :attr:`parameters`)."""
+        return dict(zip(PARAMETERS, np.sqrt(np.diag(self.covariance)).tolist(), strict=True))
+
+    @property
+    def J_std(self) -> float:
+        return self.std["J"]
+
+    @property
+    def b_std(self) -> float:
+        return self.std["b"]
+
+    @property
+    def coulomb_std(self) -> float:
+        return self.std["coulomb"]
+
+    @property
+    def offset_std(self) -> float:
+        return self.std["offset"]
+
+    @property
+    def residual(self) -> np.ndarray:
+        """``u - u_model`` [N m or N] on the regression rows."""
+        return self.u - self.u_model
+
+    @property
+    def relative_error(self) -> float:
+        """``100 ||u - u_model|| / ||u||`` [%] (EMPS description, eq. 11)."""
+        return 100.0 * float(np.linalg.norm(self.residual) / np.linalg.norm(self.u))
+
+    @property
+    def residual_std(self) -> float:
+        r""":math:`\hat\sigma = \lVert u - u_{model}\rVert / \sqrt{N - 4}` [N m or N]."""
+        return float(np.linalg.norm(self.residual) / math.sqrt(self.u.size - len(PARAMETERS)))
+
+    @property
+    def units(self) -> dict:
+        """Unit of each quantity on this axis (neutral "N m or N" if the axis is not stated)."""
+        return dict(units(self.axis))
+
+    # -- model -------------------------------------------------------------------------------
+    def model(self, *, coulomb_velocity: float | None = None):
+        """The identified model as a :class:`hpdob.ServoModel` (the offset is not part of it).
+
+        Parameters
+        ----------
+        coulomb_velocity : float, optional
+            Velocity scale [rad/s or m/s] of the model's ``tanh`` Coulomb friction (the
+            identification uses ``sign``). Default: 1 % of the log's largest speed.
+
+        Raises
+        ------
+        ParameterValueError
+            If the identified ``J`` is not positive or ``b`` or ``coulomb`` is negative
+            (a ServoModel cannot hold them; the message says which).
+        """
+        from ..models import ServoModel
+
+        for name, value in self.parameters.items():
+            if name == "offset":
+                continue
+            if value < 0.0 or (name == "J" and value == 0.0):
+                raise ParameterValueError(
+                    f"the identified {name} = {value:.6g} {self.units[name]} is "
+                    f"{'not positive' if name == 'J' else 'negative'}: no ServoModel has it; "
+                    "check the log's excitation and the identification settings"
+                )
+        if coulomb_velocity is None:
+            coulomb_velocity = 0.01 * self.max_speed if self.max_speed > 0 else 0.01
+        velocity = positive(
+            coulomb_velocity, "coulomb_velocity", "a positive finite velocity [rad/s or m/s]"
+        )
+        return ServoModel(self.J, self.b, coulomb=self.coulomb, coulomb_velocity=velocity)
+
+    # -- reports -----------------------------------------------------------------------------
+    def summary(self) -> str:
+        """A few lines of text: each parameter with its standard deviation, and the fit."""
+        u = self.units
+        linear = self.axis == "linear"
+        lines = [f"{self.method.upper()}: {self.t.size} regression rows from "
+                 f"{self.n_samples} samples (Ts = {self.settings['Ts']:g} s)"]  # fmt: skip
+        for name, value in self.parameters.items():
+            std = self.std[name]
+            relative = f"{100 * std / abs(value):.2f} %" if value else "-"
+            label = _LABELS[name][1 if linear else 0]
+            lines.append(f"  {label:<22}{value:>14.6g} +- {std:<11.4g} {u[name]:<16} ({relative})")
+        lines.append(
+            f"  relative error {self.relative_error:.3f} %, residual std "
+            f"{self.residual_std:.4g} {u['input']}, condition number {self.condition_number:.1f}"
+        )
+        if self.method == "idim-iv":
+            state = "converged" if self.converged else "NOT converged"
+            lines.append(f"  {self.iterations} IV iterations, {state}")
+        if self.simulation is not None:
+            lines.append(
+                "  loop simulated with these parameters: position error "
+                f"{self.simulation['position_error_percent']:.4g} %, input error "
+                f"{self.simulation['input_error_percent']:.4g} %"
+            )
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary: parameters, standard deviations, units, fit, settings."""
+        return _json_ready(
+            {
+                "method": self.method,
+                "axis": self.axis,
+                "parameters": self.parameters,
+                "std": self.std,
+                "units": {name: self.units[name] for name in PARAMETERS},
+                "covariance": self.covariance,
+                "relative_error_percent": self.relative_error,
+                "residual_std": self.residual_std,
+                "rows": int(self.t.size),
+                "n_samples": int(self.n_samples),
+                "condition_number": self.condition_number,
+                "max_speed": self.max_speed,
+                "iterations": self.iterations,
+                "converged": self.converged,
+                "simulation": None if self.simulation is None else dict(self.simulation),
+                "settings": dict(self.settings),
+            }
+        )
+
+    def to_json(self, path):
+        """Write :meth:`to_dict` to ``path`` as JSON (atomically)."""
+        text = json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
+        with atomic_path(path) as temporary:
+            temporary.write_text(text, encoding="utf-8")
+        return path
+
+    def _columns(self) -> dict:
+        return {"t": self.t, "u": self.u, "u_model": self.u_model, "residual": self.residual}
+
+    def to_csv(self, path):
+        """Write the fit (columns t, u, u_model, residual on the regression rows) as CSV."""
+        with atomic_path(path) as temporary:
+            columns_to_csv(self._columns(), temporary)
+        return path
+
+    def to_pandas(self):
+        """The fit as a :class:`pandas.DataFrame` (columns t, u, u_model, residual)."""
+        return columns_to_pandas(self._columns(), caller="Identification.to_pandas()")
+
+    def plot(self, *, title: str | None = None):
+        """Measured vs model torque/force, the residual and (with a loop) the position error of
+        the loop simulated with the identified model.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        import matplotlib.pyplot as plt
+
+        from .._plotting import PAPER_WIDTH, style_axes
+
+        u = self.units
+        effort = {"rotary": "torque", "linear": "force"}.get(self.axis, "torque/force")
+        panels = 3 if self.theta_simulated is not None else 2
+        fig, axes = plt.subplots(
+            panels, 1, figsize=(PAPER_WIDTH, 2.2 * panels + 0.6), sharex=True,
+            layout="constrained",
+        )  # fmt: skip
+        ax = axes[0]
+        ax.plot(self.t, self.u, color="0.35", linewidth=1.2, label="measured (filtered)")
+        ax.plot(self.t, self.u_model, "--", linewidth=1.0, label=f"model ({self.method})")
+        style_axes(ax, xlabel=None, ylabel=f"{effort} [{u['input']}]")
+        ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncol=2, fontsize="small")
+        ax = axes[1]
+        ax.plot(self.t, self.residual, linewidth=0.8)
+        style_axes(ax, xlabel=None if panels == 3 else "time [s]",
+                   ylabel=f"residual [{u['input']}]")  # fmt: skip
+        if panels == 3:
+            ax = axes[2]
+            ax.plot(self.t_log, self.theta_log - self.theta_simulated, linewidth=0.8)
+            style_axes(ax, xlabel="time [s]", ylabel=f"position error [{u['position']}]")
+            ax.set_title("measured minus loop simulated with the identified model",
+                         fontsize="small", loc="right")  # fmt: skip
+        fig.suptitle(title or f"{self.method.upper()}: relative error {self.relative_error:.2f} %")
+        return fig
