@@ -87,6 +87,15 @@ class Observer:
         self._state = state
         self._outputs = None
 
+    @staticmethod
+    def of(design, *, x0=(0.0, 0.0), tau0: float = 0.0) -> Observer:
+        """The runtime object of a design, reset at ``x0, tau0``: a
+        :class:`DisturbanceObserver` for an :class:`ObserverDesign`, a plain :class:`Observer`
+        for any other observer."""
+        if isinstance(design, ObserverDesign):
+            return DisturbanceObserver.from_design(design, x0=x0, tau0=tau0)
+        return Observer(design, x0=x0, tau0=tau0)
+
     @classmethod
     def _with_state(cls, system: LinearObserver, state: tuple, *attrs):
         obs = cls.__new__(cls)

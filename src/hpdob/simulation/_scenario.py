@@ -18,7 +18,8 @@ from .._validation import (
     check_keys,
 )
 from ..models._servo import ServoModel
-from ..observers._runtime import DisturbanceObserver
+from ..observers._families import FAMILIES, check_spec, design_from_spec
+from ..observers._runtime import Observer
 from ._controller import PD
 from ._devices import Actuator, Encoder
 from ._result import CANONICAL_WINDOWS, metric_window
@@ -212,26 +213,27 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
         spec = dict(_table(data, "observer"))
         if "poles" in spec:
             spec["poles"] = _poles(spec["poles"], "observer.poles")
-        if not build_observer:
-            # validate now, with the file's key names, but hand on the arguments
-            _build(
-                lambda **kw: DisturbanceObserver(kwargs["nominal"].discretize(kwargs["Ts"]), **kw),
-                spec,
-                "observer",
-                allowed=("order", "poles", "bandwidth", "gain_direction"),
-                required=("order",),
-            )
-            kwargs["observer"] = spec
-            return kwargs
         model = kwargs["nominal"].discretize(kwargs["Ts"])
-        kwargs["observer"] = _build(
-            lambda **kw: DisturbanceObserver(model, **kw),
-            spec,
-            "observer",
-            allowed=("order", "poles", "bandwidth", "gain_direction"),
-            required=("order",),
-        )
+        design = _observer(model, spec)  # validated now, with the file's key names
+        kwargs["observer"] = spec if not build_observer else Observer.of(design)
     return kwargs
+
+
+def _observer(model, spec: dict):
+    """The design ``spec`` (an ``[observer]`` table) describes, errors named ``observer.*``."""
+    kind = spec.get("type", "dob")
+    if kind in FAMILIES:
+        _, keys, required = FAMILIES[kind]
+        check_keys(spec, (*keys, "type"), "observer")
+        missing = [name for name in required if name not in spec]
+        if missing:
+            raise ParameterValueError(f"missing required key observer.{missing[0]}")
+    check_spec(spec, "observer")
+    try:
+        return design_from_spec(model, spec)
+    except (ParameterTypeError, ParameterValueError) as err:
+        keys = ("type", *FAMILIES[spec.get("type", "dob")][1])
+        raise _prefixed("observer", err, keys) from None
 
 
 def _read_toml(path: Path) -> dict:
