@@ -8,8 +8,9 @@ Public namespace
 ----------------
 ServoModel, DiscreteServoModel
     Servo model (eq. 1) and its exact zero-order-hold discretisation (eqs. 4-8).
-design_observer, ObserverDesign
-    Pure synthesis of an observer of any order by eigenvalue placement or bandwidth.
+design_observer, ObserverDesign, PositionObserverDesign
+    Pure synthesis of an observer of any order by eigenvalue placement or bandwidth, measuring
+    the state (the paper's) or the angle only (``measurement="position"``).
 LinearObserver
     The observer protocol: every observer as a linear discrete-time system.
 DisturbanceObserver, Observer
@@ -71,6 +72,7 @@ from .observers import (
     LinearObserver,
     Observer,
     ObserverDesign,
+    PositionObserverDesign,
     characteristic_polynomial,
     design_observer,
     error_matrix,
@@ -108,6 +110,7 @@ __all__ = [
     "ObserverDesign",
     "ParameterTypeError",
     "ParameterValueError",
+    "PositionObserverDesign",
     "ServoLoop",
     "ServoModel",
     "SimulationDivergedWarning",

@@ -3,8 +3,9 @@
 LinearObserver, Program, Term, ErrorDynamics
     The observer protocol: every observer is a linear discrete-time system (F, G, H, E, N),
     evaluated in the order of its program by Python, the compiled kernel and exported C alike.
-design_observer, ObserverDesign
-    Pure synthesis of an order-m observer (eigenvalue placement or bandwidth).
+design_observer, ObserverDesign, PositionObserverDesign
+    Pure synthesis of an order-m observer (eigenvalue placement or bandwidth), measuring the
+    state or, with ``measurement="position"``, the angle only.
 Observer, DisturbanceObserver
     Stateful runtime objects for the sample loop (``estimate`` then ``update``).
 initial_state, estimate, outputs, update
@@ -14,6 +15,7 @@ characteristic_polynomial, error_matrix, extrapolation_weights
 """
 
 from ._core import estimate, initial_state, outputs, update
+from ._position import PositionObserverDesign
 from ._runtime import DisturbanceObserver, Observer
 from ._synthesis import (
     ObserverDesign,
@@ -30,6 +32,7 @@ __all__ = [
     "LinearObserver",
     "Observer",
     "ObserverDesign",
+    "PositionObserverDesign",
     "Program",
     "Term",
     "as_system",

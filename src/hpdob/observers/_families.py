@@ -9,6 +9,7 @@ redesign it when the nominal model, ``Ts`` or a design parameter varies.
 from __future__ import annotations
 
 from .._validation import ParameterTypeError, ParameterValueError, check_keys
+from ._position import PositionObserverDesign
 from ._runtime import DisturbanceObserver
 from ._synthesis import ObserverDesign, design_observer
 
@@ -16,7 +17,11 @@ __all__ = ["FAMILIES", "design_from_spec", "spec_of"]
 
 #: type -> (design function(model, **arguments), its argument names, required ones).
 FAMILIES = {
-    "dob": (design_observer, ("order", "poles", "bandwidth", "gain_direction"), ("order",)),
+    "dob": (
+        design_observer,
+        ("order", "poles", "bandwidth", "measurement", "velocity_bandwidth", "gain_direction"),
+        ("order",),
+    ),
 }
 
 
@@ -65,6 +70,15 @@ def spec_of(observer) -> dict | None:
         spec = {"order": observer.order, "gain_direction": tuple(observer.gain_direction)}
         if observer.bandwidth is not None:
             spec["bandwidth"] = observer.bandwidth
+        else:
+            spec["poles"] = tuple(observer.poles)
+        return spec
+    if isinstance(observer, PositionObserverDesign):
+        spec = {"order": observer.order, "measurement": "position"}
+        if observer.bandwidth is not None:
+            spec["bandwidth"] = observer.bandwidth
+            if observer.velocity_bandwidth != observer.bandwidth:
+                spec["velocity_bandwidth"] = observer.velocity_bandwidth
         else:
             spec["poles"] = tuple(observer.poles)
         return spec

@@ -29,6 +29,7 @@ from .._validation import (
     _show,
     as_int,
     as_real_vector,
+    check_choice,
     numeric_array,
     positive,
     readonly,
@@ -43,7 +44,7 @@ from ._error_dynamics import (
     unit_root_polynomial,
 )
 from ._program import Program, Term
-from ._system import ErrorDynamics, LinearObserver
+from ._system import MEASUREMENTS, ErrorDynamics, LinearObserver
 
 __all__ = [
     "ObserverDesign",
@@ -61,14 +62,15 @@ _PAIR_RTOL = 1e-9
 _DEGENERATE = 1e-8
 
 
-def _validate_poles(poles, order: int) -> np.ndarray:
-    values = numeric_array(poles, "poles", f"a sequence of {order + 1} numbers", dtype=complex)
+def _validate_poles(poles, count: int, label: str, order: int) -> np.ndarray:
+    """``poles`` checked: ``count`` finite numbers inside the unit circle, complex ones in
+    conjugate pairs (``label`` names the count in messages, e.g. ``"order + 1 = 2"``)."""
+    values = numeric_array(poles, "poles", f"a sequence of {count} numbers", dtype=complex)
     if values.ndim == 0:
         values = values.reshape(1)
-    if values.ndim != 1 or values.size != order + 1:
+    if values.ndim != 1 or values.size != count:
         raise ParameterValueError(
-            f"poles must have order + 1 = {order + 1} entries for order {order}, "
-            f"got {values.size} ({poles!r})"
+            f"poles must have {label} entries for order {order}, got {values.size} ({poles!r})"
         )
     if not np.all(np.isfinite(values)):
         raise ParameterValueError(f"poles must be finite, got {poles!r}")
@@ -187,9 +189,16 @@ def design_observer(
     order: int,
     poles=None,
     bandwidth: float | None = None,
-    gain_direction=(1.0, 1.0),
-) -> ObserverDesign:
+    measurement: str = "state",
+    velocity_bandwidth: float | None = None,
+    gain_direction=None,
+):
     r"""Synthesise an observer of truncation order ``order`` by eigenvalue placement.
+
+    Two families share the disturbance model :math:`\Delta^{m+1}\tau = 0` (``tau`` held over
+    each sample, eq. 8) and the exact ZOH model: ``measurement="state"`` (default) is the
+    paper's observer, which measures angle and velocity; ``measurement="position"`` measures the
+    angle only and estimates the velocity with the disturbance (``docs/theory.md``, section 9).
 
     Parameters
     ----------
@@ -200,19 +209,30 @@ def design_observer(
         (eqs. 14-24), higher orders cancel disturbances whose samples are polynomials of
         degree ``m`` exactly.
     poles : sequence of complex, optional
-        ``order + 1`` desired eigenvalues of the error matrix, strictly inside the unit circle;
-        complex ones in conjugate pairs; repeated poles are allowed.
+        Desired eigenvalues of the error matrix, strictly inside the unit circle; complex ones
+        in conjugate pairs; repeated poles are allowed. ``order + 1`` of them for
+        ``measurement="state"``, ``order + 3`` for ``measurement="position"`` (the
+        disturbance history, angle and velocity are all estimated).
     bandwidth : float, optional
-        Observer bandwidth ``g > 0`` [rad/s]; places every pole at ``exp(-g Ts)``.
-        Exactly one of ``poles`` and ``bandwidth`` must be given.
+        Observer bandwidth ``g > 0`` [rad/s]; places every disturbance pole (``order + 1``
+        of them) at ``exp(-g Ts)``. Exactly one of ``poles`` and ``bandwidth`` must be given.
+    measurement : {"state", "position"}, optional
+        What the observer measures: angle and velocity (``"state"``, default, the paper's
+        observer) or the angle alone (``"position"``, e.g. an encoder count).
+    velocity_bandwidth : float, optional
+        ``measurement="position"`` with ``bandwidth`` only: bandwidth ``g_v > 0`` [rad/s] of
+        the two position/velocity poles, placed at ``exp(-g_v Ts)``. Default ``bandwidth``:
+        all ``order + 3`` poles at one place, which minimises the estimation error of a slow
+        disturbance at a given noise gain (``docs/analysis.md``, section 8).
     gain_direction : sequence of 2 floats, optional
-        Direction ``d`` of the gain vectors, ``L_i = k_i d / (d^T D_Dn)``. The default
-        ``(1, 1)`` is the paper's eq. (25). ``(0, 1)`` makes the estimate independent of the
-        absolute position.
+        ``measurement="state"`` only. Direction ``d`` of the gain vectors,
+        ``L_i = k_i d / (d^T D_Dn)``. The default ``(1, 1)`` is the paper's eq. (25).
+        ``(0, 1)`` makes the estimate independent of the absolute position.
 
     Returns
     -------
-    ObserverDesign
+    ObserverDesign or PositionObserverDesign
+        For ``measurement="state"`` and ``"position"`` respectively.
 
     Raises
     ------
@@ -221,8 +241,10 @@ def design_observer(
     ValueError
         If ``order < 0``, both or neither of ``poles``/``bandwidth`` are given, a pole is not
         strictly inside the unit circle or lacks its conjugate, the number of poles is not
-        ``order + 1``, ``bandwidth <= 0``, ``gain_direction`` is zero or (nearly) orthogonal
-        to ``D_Dn``, ``order > 50``, or the error matrix is not stable although the requested
+        ``order + 1`` (``order + 3`` for position-only), ``bandwidth <= 0``,
+        ``gain_direction`` is zero or (nearly) orthogonal to ``D_Dn``, ``measurement`` is not
+        one of the two, ``velocity_bandwidth`` or ``gain_direction`` is given where it does not
+        apply, ``order > 50``, or the error matrix is not stable although the requested
         poles are (high orders or repeated poles very close to 1: the gains, rounded to
         double precision, no longer place them; decided exactly by a Schur-Cohn test).
 
@@ -245,6 +267,12 @@ def design_observer(
     >>> design = design_observer(model, order=1, poles=[0.9, 0.8])
     >>> design.k     # eq. (24): [1 - 0.9*0.8, 2 - 0.9 - 0.8]
     array([0.28, 0.3 ])
+
+    Measuring the angle only (an encoder), the velocity estimated along:
+
+    >>> pos = design_observer(model, order=1, bandwidth=100.0, measurement="position")
+    >>> pos.system.measures, pos.system.outputs, pos.poles.size
+    (('theta',), ('tau_hat', 'omega_hat'), 4)
     """
     if isinstance(model, ServoModel):
         raise ParameterTypeError(
@@ -259,6 +287,25 @@ def design_observer(
             f"order must be at most {MAX_ORDER}: the extrapolation weights binom(m+1, i) of "
             f"higher orders are not exact in double precision, got {m}"
         )
+    check_choice(measurement, "measurement", MEASUREMENTS)
+    if measurement == "position":
+        if gain_direction is not None:
+            raise ParameterValueError(
+                "gain_direction applies to measurement='state' only (a position-only "
+                f"observer's gains act on the angle alone), got {gain_direction!r}"
+            )
+        from ._position import design_position_observer
+
+        return design_position_observer(
+            model, m, poles=poles, bandwidth=bandwidth, velocity_bandwidth=velocity_bandwidth
+        )
+    if velocity_bandwidth is not None:
+        raise ParameterValueError(
+            "velocity_bandwidth applies to measurement='position' only (an observer that "
+            f"measures the state has no velocity poles), got {velocity_bandwidth!r}"
+        )
+    if gain_direction is None:
+        gain_direction = (1.0, 1.0)
     if (poles is None) == (bandwidth is None):
         given = "both" if poles is not None else "neither"
         raise ParameterValueError(
@@ -270,7 +317,7 @@ def design_observer(
         placed = np.full(m + 1, math.exp(-g * model.Ts))
         g_out: float | None = g
     else:
-        placed = _validate_poles(poles, m)
+        placed = _validate_poles(poles, m + 1, f"order + 1 = {m + 1}", m)
         g_out = None
     d = as_real_vector(
         gain_direction, "gain_direction", "a direction vector (d_theta, d_omega)", length=2
