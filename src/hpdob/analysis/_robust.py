@@ -20,11 +20,13 @@ from .._validation import (
     as_grid,
     as_int,
     as_real_vector,
+    check_choice,
     nonnegative,
     positive,
 )
 from ..models._servo import ServoModel
 from ..observers._synthesis import design_observer
+from ..observers._system import MEASUREMENTS
 from ..simulation._controller import PD
 from ..simulation._devices import Encoder
 from ._linear_loop import LoopSpec, loop_matrices
@@ -44,6 +46,7 @@ class _Setting:
     gain_direction: tuple
     delay: int
     backward_difference: bool
+    measurement: str = "state"
 
     def radius(self, design, J_ratio: float, b: float) -> float:
         plant = ServoModel(J_ratio * self.nominal.J, b).discretize(self.Ts)
@@ -61,6 +64,13 @@ class _Setting:
         return float(np.abs(np.linalg.eigvals(loop_matrices(spec)[0])).max())
 
     def design(self, bandwidth: float):
+        if self.measurement == "position":
+            return design_observer(
+                self.nominal.discretize(self.Ts),
+                order=self.order,
+                bandwidth=bandwidth,
+                measurement="position",
+            )
         return design_observer(
             self.nominal.discretize(self.Ts),
             order=self.order,
@@ -93,6 +103,8 @@ class StabilityMap:
         The fixed value of the parameter that is not varied (None for the varied one).
     delay_samples : int
         Actuator delay [samples] (unknown to the observer).
+    measurement : str
+        ``"state"`` or ``"position"``: the observer family.
     """
 
     parameter: str
@@ -104,6 +116,7 @@ class StabilityMap:
     b: float | None
     delay_samples: int
     _setting: _Setting = field(repr=False, compare=False)
+    measurement: str = "state"
 
     @property
     def stable(self) -> np.ndarray:
@@ -226,6 +239,8 @@ class StabilityMap:
         cbar.set_label("slowest decay rate -ln(radius)/Ts [1/s]\n(< 0: unstable)")
         style_axes(ax, xlabel="observer bandwidth g [rad/s]", ylabel=_UNITS[self.parameter])
         name = {0: "DOb", 1: "HPDOb"}.get(self.order, f"order {self.order}")
+        if self.measurement == "position":
+            name = f"position-only {name}"
         fixed = (
             f"b = {self.b:.3g} N m s/rad"
             if self.parameter == "J_ratio"
@@ -260,6 +275,7 @@ def robust_stability_map(
     delay_samples: int = 0,
     gain_direction=(1.0, 1.0),
     sensor: Encoder | None = None,
+    measurement: str = "state",
 ) -> StabilityMap:
     r"""Closed-loop stability over a grid of model errors and observer bandwidths.
 
@@ -289,9 +305,13 @@ def robust_stability_map(
     delay_samples : int, optional
         Actuator delay [samples] the observer does not know. Default 0.
     gain_direction : sequence of 2 floats, optional
-        As for :func:`hpdob.design_observer`.
+        As for :func:`hpdob.design_observer` (observers measuring the state).
     sensor : Encoder, optional
         As for :func:`hpdob.closed_loop` (only the velocity method matters).
+    measurement : {"state", "position"}, optional
+        Observer family (:func:`hpdob.design_observer`); position-only observers are designed
+        with every pole at ``exp(-g Ts)``. Default ``"state"``. With
+        ``controller.velocity == "observer"`` the PD takes the observer's velocity estimate.
 
     Returns
     -------
@@ -364,6 +384,7 @@ def robust_stability_map(
         ),
         delay=delay,
         backward_difference=sensor is not None and sensor.velocity == "backward-difference",
+        measurement=check_choice(measurement, "measurement", MEASUREMENTS),
     )
     designs = [setting.design(float(g)) for g in bandwidths]
     values = ratios if ratio_grid else frictions
@@ -388,4 +409,5 @@ def robust_stability_map(
         b=float(frictions) if ratio_grid else None,
         delay_samples=delay,
         _setting=setting,
+        measurement=setting.measurement,
     )

@@ -109,6 +109,41 @@ def _add_common(parser: argparse.ArgumentParser, *, loop: bool = True) -> None:
     )
 
 
+def _measurements(text: str) -> list[str]:
+    items = [item.strip() for item in text.split(",") if item.strip()]
+    if not items or any(item not in ("state", "position") for item in items):
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated 'state' and/or 'position', got {text!r}"
+        )
+    return items
+
+
+def _add_measurement(parser: argparse.ArgumentParser, *, loop: bool = True) -> None:
+    parser.add_argument(
+        "--measurement",
+        choices=("state", "position"),
+        default="state",
+        help="observer family: angle and velocity measured (state) or the angle only "
+        "(position; every pole at exp(-g Ts)) (default: %(default)s)",
+    )
+    if loop:
+        parser.add_argument(
+            "--pd-velocity",
+            choices=("measured", "observer"),
+            default="measured",
+            help="velocity of the PD's D term: the sensor's or the position-only observer's "
+            "estimate (default: %(default)s)",
+        )
+
+
+def _design(args, model, order: int, bandwidth: float):
+    from ..observers._synthesis import design_observer
+
+    return design_observer(
+        model, order=order, bandwidth=bandwidth, measurement=getattr(args, "measurement", "state")
+    )
+
+
 def _add_orders(parser: argparse.ArgumentParser, default: str) -> None:
     parser.add_argument(
         "--orders",
@@ -130,6 +165,7 @@ def register(subparsers) -> None:
     bode = sub.add_parser("bode", help="estimation response Q, 1-Q and input sensitivity")
     _add_common(bode)
     _add_orders(bode, "0,1,2,3")
+    _add_measurement(bode)
     bode.add_argument("--bandwidth", type=float, default=100.0, help="[rad/s] (default 100)")
     bode.add_argument(
         "--frequency",
@@ -140,6 +176,7 @@ def register(subparsers) -> None:
     noise = sub.add_parser("noise", help="noise gains of estimate and command per order")
     _add_common(noise)
     _add_orders(noise, "0,1,2,3")
+    _add_measurement(noise)
     noise.add_argument(
         "--bandwidths",
         type=_grid,
@@ -165,13 +202,21 @@ def register(subparsers) -> None:
     )
     tradeoff.add_argument(
         "--noise",
-        choices=("velocity", "position"),
-        default="velocity",
-        help="measurement carrying the white noise (default: velocity)",
+        choices=("velocity", "position", "encoder"),
+        default=None,
+        help="measurement carrying the white noise; encoder: angle noise, differenced into "
+        "the velocity (default: velocity, encoder when position-only observers are included)",
+    )
+    tradeoff.add_argument(
+        "--measurements",
+        type=_measurements,
+        default=["state"],
+        help="observer families, e.g. state,position (default: state)",
     )
     stab = sub.add_parser("stability", help="robust stability map over model error")
     _add_common(stab)
     _add_orders(stab, "0,1")
+    _add_measurement(stab)
     stab.add_argument(
         "--parameter",
         choices=("J_ratio", "b"),
@@ -207,7 +252,7 @@ def _loop(args):
         "plant": ServoModel(args.J, args.b),
         "nominal": ServoModel(args.J_n, args.b_n),
         "Ts": args.Ts,
-        "controller": PD(args.kp, args.kd),
+        "controller": PD(args.kp, args.kd, velocity=getattr(args, "pd_velocity", "measured")),
         "actuator": Actuator(delay_samples=args.delay),
     }
 
@@ -236,11 +281,10 @@ def _bode(args) -> list[str]:
     from ..analysis._estimation import estimation_response
     from ..analysis._figures import bode_figure
     from ..analysis._sensitivity import gang_of_four, loop_margins
-    from ..observers._synthesis import design_observer
 
     loop = _loop(args)
     model = loop["nominal"].discretize(loop["Ts"])
-    designs = [design_observer(model, order=m, bandwidth=args.bandwidth) for m in args.orders]
+    designs = [_design(args, model, m, args.bandwidth) for m in args.orders]
     f = np.geomspace(0.1, 0.5 / loop["Ts"], 400)
     sens = [
         gang_of_four(**loop, observer=d).S.frequency_response(2 * np.pi * f).frdata[0, 0]
@@ -259,7 +303,12 @@ def _bode(args) -> list[str]:
         "error_abs": [],
         "S_abs": [],
     }
-    summary = {"bandwidth_rad_s": args.bandwidth, "frequency_Hz": args.frequency, "orders": {}}
+    summary = {
+        "bandwidth_rad_s": args.bandwidth,
+        "frequency_Hz": args.frequency,
+        "measurement": args.measurement,
+        "orders": {},
+    }
     for d, s in zip(designs, sens, strict=True):
         q = estimation_response(d, f)
         columns["frequency_Hz"] += f.tolist()
@@ -292,15 +341,11 @@ def _noise(args) -> list[str]:
     from .._table import columns_to_csv
     from ..analysis._figures import noise_figure
     from ..analysis._noise import noise_gains
-    from ..observers._synthesis import design_observer
 
     loop = _loop(args)
     model = loop["nominal"].discretize(loop["Ts"])
     gains = [
-        [
-            noise_gains(**loop, observer=design_observer(model, order=m, bandwidth=g))
-            for g in args.bandwidths
-        ]
+        [noise_gains(**loop, observer=_design(args, model, m, g)) for g in args.bandwidths]
         for m in args.orders
     ]
     _save(noise_figure(args.bandwidths, args.orders, gains), args.out / "noise.png", args.dpi)
@@ -324,6 +369,8 @@ def _describe(args) -> dict:
         "kp": args.kp,
         "kd": args.kd,
         "delay_samples": args.delay,
+        "measurement": args.measurement,
+        "pd_velocity": args.pd_velocity,
     }
 
 
@@ -331,30 +378,43 @@ def _tradeoff(args) -> list[str]:
     from ..analysis._tradeoff import noise_tradeoff
     from ..models._servo import ServoModel
 
+    noise = args.noise
+    if noise is None:
+        noise = "encoder" if "position" in args.measurements else "velocity"
     result = noise_tradeoff(
         nominal=ServoModel(args.J_n, args.b_n),
         Ts=args.Ts,
         frequency=args.frequency,
         bandwidths=args.bandwidths,
         orders=args.orders,
-        noise=args.noise,
+        noise=noise,
+        measurements=args.measurements,
     )
     _save(result.plot(), args.out / "tradeoff.png", args.dpi)
     result.to_csv(args.out / "tradeoff.csv")
     reference = result.orders[0]
+    first = result.measurements[0]
+
+    def key(m, kind):  # the order alone for one family (as before), else "position:1"
+        return str(m) if len(args.measurements) == 1 else f"{kind}:{m}"
+
     summary = {
         "frequency_Hz": result.frequency,
         "noise": result.noise,
         "reference_order": reference,
+        "reference_measurement": first,
         "improvement_at_equal_noise": {
-            str(m): dict(
+            key(m, kind): dict(
                 zip(
                     [f"{g:.6g}" for g in result.bandwidths],
-                    result.improvement(m, reference=reference).tolist(),
+                    result.improvement(
+                        m, reference=reference, measurement=kind, reference_measurement=first
+                    ).tolist(),
                     strict=True,
                 )
             )
-            for m in result.orders[1:]
+            for m, kind in zip(result.orders, result.measurements, strict=True)
+            if (m, kind) != (reference, first)
         },
     }
     _write_json(args.out / "tradeoff.json", summary)
@@ -387,8 +447,11 @@ def _stability(args) -> list[str]:
             Ts=args.Ts,
             controller=loop["controller"],
             delay_samples=args.delay,
+            measurement=args.measurement,
         )
         stem = f"stability_{args.parameter}_m{m}" + (f"_delay{args.delay}" if args.delay else "")
+        if args.measurement == "position":
+            stem += "_position"
         # Mark the loop's own plant at the canonical bandwidth if it lies on the map.
         point = (100.0, J_ratio if args.parameter == "J_ratio" else args.b)
         inside = (

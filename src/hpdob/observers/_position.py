@@ -357,4 +357,3 @@ def design_position_observer(
         error_matrix=readonly(F.copy()),
         system=system,
     )
-
