@@ -210,8 +210,7 @@ def _position_table(design) -> str:
         "is the only measurement",
         f"  nominal model   J_n = {model.J:.6g} kg m^2, b_n = {model.b:.6g} N m s/rad, "
         f"Ts = {model.Ts:.6g} s",
-        f"  poles           {', '.join(_fmt(p) for p in np.atleast_1d(design.poles))}"
-        + bandwidths,
+        f"  poles           {', '.join(_fmt(p) for p in np.atleast_1d(design.poles))}" + bandwidths,
         "",
         "Discrete nominal model x[k+1] = A_D x[k] + B_D u[k] - D_D tau[k]   (eq. 8)",
         *_matrix_lines("A_D", model.A),
