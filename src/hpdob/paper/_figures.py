@@ -15,6 +15,12 @@ COLORS = {
     "HPDOb-100": "tab:blue",
     "PD": "tab:red",
     "virtual-experiment": "tab:blue",
+    "virtual-experiment-position": "tab:orange",
+}
+#: Legend labels where the run name alone does not say what was run.
+LABELS = {
+    "virtual-experiment": "HPDOb-100, differenced velocity",
+    "virtual-experiment-position": "position-only order 2, 150 rad/s",
 }
 
 
@@ -23,7 +29,7 @@ def _position(ax, results, names, *, inset=True):
     ax.plot(first.t, first.r, "k--", linewidth=1.0, label="reference")
     for name in names:
         res = results[name]
-        ax.plot(res.t, res.theta, color=COLORS[name], linewidth=1.1, label=name)
+        ax.plot(res.t, res.theta, color=COLORS[name], linewidth=1.1, label=LABELS.get(name, name))
     style_axes(ax, xlabel="time [s]", ylabel=r"position $\theta$ [rad]")
     ax.legend(loc="upper left", fontsize="small", ncol=2)
     if inset:
@@ -111,24 +117,37 @@ def paper_figures(results) -> dict:
     fig.suptitle("Fig. 4: conventional DOb vs HPDOb, both at 100 rad/s (simulation)")
     figures["fig4"] = fig
 
-    # Fig. 5: the virtual experiment (a simulation standing in for the paper's hardware test).
-    ve = results["virtual-experiment"]
-    fig, (a, b) = plt.subplots(2, 1, figsize=(PAPER_WIDTH, 5.5), layout="constrained")
-    _position(a, results, ["virtual-experiment"], inset=False)
+    # Fig. 5: the virtual experiments (simulations standing in for the paper's hardware test):
+    # the HPDOb on the encoder's differenced velocity and the position-only observer.
+    runs = ["virtual-experiment", "virtual-experiment-position"]
+    ve, pos = (results[name] for name in runs)
+    fig, (a, b, c) = plt.subplots(3, 1, figsize=(PAPER_WIDTH, 8.0), layout="constrained")
+    _position(a, results, runs, inset=False)
     _letter(a, "a) Position control of the servo system")
-    b.plot(ve.t, ve.tau_ext, "k", linewidth=1.0, label=r"external $\tau_{ext}$")
-    b.plot(
-        ve.t,
-        ve.tau_hat,
-        color="tab:blue",
-        linewidth=0.8,
-        label=r"estimated nominal $\hat\tau_{dn}$ (HPDOb-100)",
-    )
+    b.plot(ve.t, ve.tau_ext, color="0.55", linewidth=0.9, label=r"external $\tau_{ext}$")
+    b.plot(ve.t, ve.tau_hat, color=COLORS[runs[0]], linewidth=0.7, alpha=0.6,
+           label=rf"$\hat\tau_{{dn}}$ {LABELS[runs[0]]}")  # fmt: skip
+    b.plot(pos.t, pos.tau_dn, "k", linewidth=0.6, label=r"nominal $\tau_{dn}$ (position-only run)")
+    b.plot(pos.t, pos.tau_hat, color=COLORS[runs[1]], linewidth=0.8,
+           label=rf"$\hat\tau_{{dn}}$ {LABELS[runs[1]]}")  # fmt: skip
     style_axes(b, xlabel="time [s]", ylabel="torque [N m]")
-    b.legend(loc="upper left", fontsize="small")
-    _letter(b, "b) External disturbance and the estimated nominal disturbance")
+    b.legend(loc="upper left", fontsize="small", ncol=2)
+    _letter(b, "b) Disturbances acting on the servo system and their estimates")
+    for name in runs:
+        res = results[name]
+        c.plot(
+            res.t,
+            res.estimation_error,
+            color=COLORS[name],
+            linewidth=0.7,
+            alpha=0.6 if name == "virtual-experiment" else 1.0,
+            label=LABELS[name],
+        )
+    style_axes(c, xlabel="time [s]", ylabel=r"$\hat\tau_{dn} - \tau_{dn}$ [N m]")
+    c.legend(loc="upper left", fontsize="small")
+    _letter(c, "c) Disturbance estimation error")
     fig.suptitle(
-        "Fig. 5: virtual experiment, a SIMULATION (16384-count encoder, "
+        "Fig. 5: virtual experiments, SIMULATIONS (16384-count encoder, "
         "0.444 N m limit, 1-sample delay)",
         fontsize="medium",
     )
