@@ -202,11 +202,13 @@ class NoiseTradeoff:
             fig, ax = plt.subplots(figsize=(PAPER_WIDTH, 4.6), layout="constrained")
         else:
             fig = ax.figure
+        colors = sorted(set(self.orders))  # one colour per order, dashed: position-only
         for i, (m, kind) in enumerate(zip(self.orders, self.measurements, strict=True)):
             line = ax.loglog(
                 values[i],
                 self.error_gain[i],
                 "--" if kind == "position" else "-",
+                color=f"C{colors.index(m) % 10}",
                 label=_row_name(m, kind),
             )[0]
             logs = np.log(self.bandwidths)
@@ -229,7 +231,7 @@ class NoiseTradeoff:
                 )
         unit = "N m/(rad/s)" if self.noise == "velocity" else "N m/rad"
         signal = "estimate" if channel == "estimate" else "command u"
-        noise = "angle noise (encoder)" if self.noise == "encoder" else f"{self.noise} noise"
+        noise = "angle noise" if self.noise == "encoder" else f"{self.noise} noise"
         style_axes(
             ax,
             xlabel=f"noise gain: RMS of {signal} per unit {noise} [{unit}]",
