@@ -8,7 +8,8 @@ of actuator delay, 0.444 N m limit; ``hpdob.paper``), with
   at 150 rad/s) with the PD on its velocity estimate;
 * variants: the PD on the differenced velocity instead, no quantisation (a 2^40-count encoder,
   to separate the quantisation's share), position-only orders 0, 1, 2 at equal bandwidths, and
-  with ``--grid`` the order/bandwidth grid the recommendation was chosen from.
+  with ``--grid`` the order/bandwidth grid the recommendation was chosen from and steady-state
+  Kalman filters of the same model (one of these pole placements each).
 
 Targets (issue 12): RMS estimation error <= 2.0e-3 N m (goal <= 1.1e-3) and RMS position error
 <= 7.1e-3 rad in both the regulation and the tracking window; position-only order 1 beats
@@ -60,6 +61,42 @@ def row(label, values):
     return values
 
 
+def kalman() -> None:
+    """Steady-state Kalman filters of the same augmented model (angle noise q^2/12, white
+    noise of intensity w on the (m+1)-th difference of the disturbance): a current-form Kalman
+    filter is the position-only observer with the poles of A_a - L c^T, so it is designed
+    here by its poles and run like the others."""
+    import math
+
+    import numpy as np
+    from scipy.linalg import solve_discrete_are
+
+    from hpdob.observers._position import augmented_model
+
+    r = (2 * math.pi / 16384) ** 2 / 12
+    print("\nSteady-state Kalman filters (est. error [N m] / worse position window [rad]):\n")
+    print("| order | w | pole magnitudes [rad/s as -ln|p|/Ts] | result |")
+    print("|---:|---:|---|---:|")
+    for m in (0, 1, 2):
+        Aa, _ = augmented_model(NOMINAL, m)
+        n = m + 3
+        c = np.zeros((n, 1))
+        c[0, 0] = 1.0
+        for w in 10.0 ** np.arange(-13.0, -5.0):
+            W = np.zeros((n, n))
+            W[-1, -1] = w
+            P = solve_discrete_are(Aa.T, c, W, np.array([[r]]))
+            L = Aa @ P @ c / (c.T @ P @ c + r)
+            poles = np.linalg.eigvals(Aa - L @ c.T)
+            obs = DisturbanceObserver(NOMINAL, order=m, poles=poles, measurement="position")
+            est, reg, trk = metrics("virtual-experiment-position", observer=obs)
+            rates = np.sort(-np.log(np.abs(poles)) / paper.TS)
+            print(
+                f"| {m} | {w:.0e} | {', '.join(f'{v:.0f}' for v in rates)} | "
+                f"{est:.2e} / {max(reg, trk):.2e} |"
+            )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--grid", action="store_true", help="also the order/bandwidth grid")
@@ -70,6 +107,10 @@ def main() -> None:
     )
     print("|---|---:|---:|---:|:---:|")
     row("HPDOb-100, ideal sensor, no delay (canonical)", metrics("HPDOb-100"))
+    row(
+        "HPDOb-100, ideal sensor, one sample of delay",
+        metrics("HPDOb-100", actuator=paper.VIRTUAL_ACTUATOR),
+    )
     row("virtual-experiment: HPDOb-100, differenced velocity", metrics("virtual-experiment"))
     best = row(
         "**virtual-experiment-position**: position-only m=2, 150 rad/s, PD on omega_hat",
@@ -101,6 +142,7 @@ def main() -> None:
         f"{max(reg, trk) <= TARGET_POSITION}"
     )
     if args.grid:
+        kalman()
         print("\nGrid (estimation error [1e-3 N m] / worse position window [1e-3 rad]):\n")
         bandwidths = (100.0, 125.0, 150.0, 175.0, 200.0, 250.0, 300.0)
         print("| order | " + " | ".join(f"{g:g}" for g in bandwidths) + " |")

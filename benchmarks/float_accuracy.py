@@ -24,9 +24,12 @@ For orders 0-3 and both directions this script drives the float export and the r
 The reference is the double export, which tests/test_export_c.py shows to be bit-identical to
 hpdob.DisturbanceObserver (it is 300 times faster here). Also printed: the largest rounding
 bound of docs/deployment.md in each window and, for scale, the double observer's own estimation
-error |tau_hat - tau| after the first second. Run with
+error |tau_hat - tau| after the first second.
 
-    python benchmarks/float_accuracy.py
+Part 3 (position-only observers): the float error and bound of the observers of
+``measurement="position"`` near theta = 0 and shifted by 100 and 1000 rad. Run with
+
+    python benchmarks/float_accuracy.py [--position-only]
 
 and copy the tables into docs/deployment.md.
 """
@@ -118,7 +121,47 @@ def bound_vs_measured(workdir: Path) -> None:
     print()
 
 
+def position_only(workdir: Path) -> None:
+    """Part 3: position-only observers (docs/theory.md section 9), every pole at 150 rad/s, on
+    the measured angle and the command of the virtual-experiment-position run (|theta| <= 2
+    rad), and on the same trace shifted by 100 and 1000 rad. Their state holds the angle."""
+    result = paper.run("virtual-experiment-position")
+    theta, u = result.theta_measured, result.u
+    print("Position-only, float vs double: largest error, largest bound [N m], ratio")
+    print(
+        "| order | theta + 0: error | bound | ratio | + 100 rad: error | bound | ratio "
+        "| + 1000 rad: error |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for order in range(3):
+        design = design_observer(MODEL, order=order, bandwidth=150.0, measurement="position")
+        c = {}
+        for dtype in ("double", "float"):
+            header, source = export_c(design, workdir / f"pos{order}{dtype}", dtype=dtype)
+            c[dtype] = CObserver(header, source, prefix="dob", dtype=dtype, observer=design,
+                                 build_dir=workdir / f"pos{order}{dtype}" / "lib")  # fmt: skip
+        cells = []
+        for offset in (0.0, 100.0, 1000.0):
+            th, init = theta + offset, (offset, 0.0, 0.0)
+            ref, _ = c["double"].drive(th, np.zeros_like(th), u, init=init)
+            single, z = c["float"].drive(th, np.zeros_like(th), u, init=init)
+            err = np.abs(single - ref)
+            cells.append(f"{err.max():.1e}")
+            if offset < 1000.0:
+                bound = export_error_bound(design, "float", th, np.zeros_like(th), u, z, init=init)
+                ratio = np.divide(err, bound, out=np.zeros_like(err), where=bound > 0)
+                cells += [f"{bound.max():.1e}", f"{ratio.max():.2f}"]
+        print(f"| {order} | " + " | ".join(cells) + " |")
+    print()
+
+
 def main() -> None:
+    import sys
+
+    with tempfile.TemporaryDirectory() as tmp:
+        position_only(Path(tmp))
+    if "--position-only" in sys.argv:
+        return
     with tempfile.TemporaryDirectory() as tmp:
         bound_vs_measured(Path(tmp))
     head = [f"{lo:g}-{hi:.0e}" for lo, hi in WINDOWS] + [f"at {o:.0e}" for o in OFFSETS]

@@ -66,6 +66,13 @@ def velocity_bandwidth_ratio() -> None:
             errors.append(math.exp(np.interp(math.log(budget), np.log(gain), np.log(err))))
         base = errors[ratios.index(1.0)]
         print(f"| {m} | " + " | ".join(f"{e / base:.3f}" for e in errors) + " |")
+    print(
+        "\nLow-frequency price of the velocity estimate, R(1)/(1 - p_v)^2, every pole at 100 rad/s:"
+    )
+    for m in range(4):
+        d = design_observer(MODEL, order=m, bandwidth=100.0, measurement="position")
+        zeros, p_v = d.system.error_dynamics.zeros, math.exp(-100.0 * paper.TS)
+        print(f"  m={m}: {abs(np.prod(1 - zeros)) / (1 - p_v) ** 2:.3g}")
 
 
 def tradeoff(out: Path) -> None:
@@ -178,6 +185,11 @@ def virtual_experiment() -> None:
         ("HPDOb-100 (state)", state, paper.CONTROLLER),
         ("position-only m=2, 150 rad/s, PD on omega_hat", design, OMEGA_HAT),
         ("position-only m=2, 150 rad/s, PD differenced", design, paper.CONTROLLER),
+        (
+            "position-only m=1, 250 rad/s, PD on omega_hat",
+            design_observer(MODEL, order=1, bandwidth=250.0, measurement="position"),
+            OMEGA_HAT,
+        ),
     ):
         lm = loop_margins(plant=PLANT, nominal=paper.NOMINAL, Ts=paper.TS, controller=ctl,
                           observer=obs)  # fmt: skip
@@ -186,19 +198,20 @@ def virtual_experiment() -> None:
             f"  {label}: delay margin {lm.delay_margin * 1e3:.2f} ms, phase margin "
             f"{lm.phase_margin:.1f} deg, inertia range {lo:.3g} - {hi:.3g}"
         )
-    smap = robust_stability_map(
-        J_ratio=np.geomspace(0.05, 20.0, 41),
-        bandwidth=[150.0],
-        order=2,
-        nominal=paper.NOMINAL,
-        Ts=paper.TS,
-        controller=OMEGA_HAT,
-        b=PLANT.b,
-        delay_samples=1,
-        measurement="position",
-    )
-    edges = ", ".join(f"{e['kind']} {e['J_ratio']:.3g}" for e in smap.boundary())
-    print(f"  with the 1-sample delay, stable J/J_n: {edges}")
+    for m, g in ((2, 150.0), (1, 250.0)):
+        smap = robust_stability_map(
+            J_ratio=np.geomspace(0.05, 40.0, 61),
+            bandwidth=[g],
+            order=m,
+            nominal=paper.NOMINAL,
+            Ts=paper.TS,
+            controller=OMEGA_HAT,
+            b=PLANT.b,
+            delay_samples=1,
+            measurement="position",
+        )
+        edges = ", ".join(f"{e['kind']} {e['J_ratio']:.3g}" for e in smap.boundary())
+        print(f"  position-only m={m}, {g:g} rad/s, 1-sample delay: stable J/J_n {edges}")
 
 
 def reduced_order(m: int, g: float) -> LinearObserver:
