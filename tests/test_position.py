@@ -274,6 +274,7 @@ def test_object_core_kernel_and_c_agree_bit_for_bit(tmp_path):
         sanitized_run,
         sanitizer_available,
     )
+    from hpdob.testing._rounding import export_error_bound
 
     design = position(2)
     kwargs = paper.scenario()
@@ -315,6 +316,14 @@ def test_object_core_kernel_and_c_agree_bit_for_bit(tmp_path):
     c.init(0.0, 0.0, 0.0)
     assert c.estimate(theta[0]) == result.tau_hat[0]
     assert c.velocity(theta[0]) == result.omega_hat[0]
+    # a float build stays within the rounding bound of docs/deployment.md
+    files = export_c(design, tmp_path / "f", prefix="pos", dtype="float")
+    single = CObserver(
+        *files, prefix="pos", dtype="float", observer=design, build_dir=tmp_path / "fl"
+    )
+    tau_f, z_f = single.drive(theta, np.zeros_like(theta), u)
+    bound = export_error_bound(design, "float", theta, np.zeros_like(theta), u, z_f)
+    assert np.all(np.abs(tau_f - result.tau_hat) <= bound)
     reason = sanitizer_available(tmp_path / "probe")
     if reason is not None:
         pytest.skip(reason)
