@@ -9,6 +9,7 @@ from outputs of the code under test.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import control
 import numpy as np
@@ -540,6 +541,16 @@ def test_sweep_toml_and_cli(tmp_path, capsys):
     assert "dob_velocity(&s, theta)" in (out / "dob.h").read_text()
     assert main(["design", "--measurement", "position", "--poles", "0.9,0.9"]) == 2
     assert "poles must have order + 3 = 4 entries" in capsys.readouterr().err
+    # simulate: the scenario file's observer switched to position-only, the PD to omega_hat
+    toml = Path(__file__).resolve().parents[1] / "examples" / "canonical_hpdob.toml"
+    argv = ["simulate", str(toml), "--measurement", "position", "--pd-velocity", "observer"]
+    assert main([*argv, "--no-plot", "--out", str(tmp_path / "sim")]) == 0
+    got = json.loads((tmp_path / "sim" / "metrics.json").read_text())["HPDOb-100"]
+    obs = DisturbanceObserver(
+        paper.NOMINAL.discretize(TS), order=1, bandwidth=100.0, measurement="position"
+    )
+    expected = paper.run("HPDOb-100", observer=obs, controller=PD_OMEGA_HAT).metrics()
+    assert got == pytest.approx(expected, rel=1e-12)
 
 
 def test_mujoco_loop_runs_the_position_only_observer():
