@@ -118,6 +118,10 @@ def _paper_form(system: LinearObserver) -> bool:
     return system.truncation_order is not None and len(system.measures) == 2
 
 
+def _state_note(system: LinearObserver) -> str:
+    return " (z_(i+1) of the paper's auxiliary variables)" if _paper_form(system) else ""
+
+
 def _header(system: LinearObserver, prefix: str, dtype: str) -> str:
     up = prefix.upper()
     n = system.n_states
@@ -284,7 +288,7 @@ def _source(system: LinearObserver, prefix: str, dtype: str) -> str:
  * Python observer and the compiled simulation kernel evaluate it (terms whose constant is
  * exactly zero are left out), so a double build reproduces the Python observer bit for bit
  * when the compiler does not contract a*b + c into fused multiply-adds.
- * z[i] here is state s_(i+1) of the observer (z_(i+1) of the paper's auxiliary variables).
+ * z[i] here is state s_(i+1) of the observer{_state_note(system)}.
  */
 #include "{prefix}.h"
 

@@ -325,7 +325,7 @@ def design_position_observer(
         ("nominal model", f"J_n = {model.J!r} kg m^2, b_n = {model.b!r} N m s/rad"),
         ("sampling period", f"Ts = {Ts!r} s"),
         ("order", f"{m} (position-only, Delta^(m+1) tau = 0, docs/theory.md section 9)"),
-        ("measures", "the angle only; the velocity is estimated (omega_hat)"),
+        ("measurement", "the angle only; the velocity is estimated (omega_hat)"),
         ("poles", text),
         ("state", "prior estimate of [theta, omega, tau_(k-m), ..., tau_k]"),
     )

@@ -253,7 +253,12 @@ def design_observer(
     The characteristic polynomial of the error matrix is affine in ``k``:
     :math:`\det(zI - M) = (z-1)^{m+1} + \sum_j k_j q_j(z)` (``docs/theory.md``), so ``k``
     follows from one triangular linear solve, which generalises eq. (24). Repeated poles
-    are placed exactly; no pole-placement routine is involved.
+    are placed exactly; no pole-placement routine is involved. For
+    ``measurement="position"`` the observer estimates the augmented state
+    ``[theta, omega, tau_(k-m), ..., tau_k]`` in current form; its characteristic polynomial
+    is affine in the gains too and is placed by a power-series division
+    (``docs/theory.md``, section 9). Both families' realised gains are certified stable by
+    the exact Schur-Cohn test.
 
     References
     ----------
