@@ -25,9 +25,9 @@ needs_cc = pytest.mark.skipif(
 def test_cli_export_matches_library(capsys, tmp_path):
     argv = [
         "export-c",
-        "--J",
+        "--J-n",
         "3.06e-4",
-        "--b",
+        "--b-n",
         "5e-5",
         "--order",
         "2",

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..paper._scenario import CONTROLLER, NOMINAL, PLANT, TS
 from ..simulation._result import json_ready
+from ._options import add_loop_arguments, add_nominal_arguments, reject_plant_arguments
 
 __all__ = ["register"]
 
@@ -80,33 +80,11 @@ def _add_common(parser: argparse.ArgumentParser, *, loop: bool = True) -> None:
     )
     title = "loop (defaults: the canonical scenario)" if loop else "nominal model (canonical)"
     group = parser.add_argument_group(title)
-    group.add_argument(
-        "--J-n", type=float, default=NOMINAL.J, help="nominal inertia [kg m^2] (%(default)s)"
-    )
-    group.add_argument(
-        "--b-n",
-        type=float,
-        default=NOMINAL.b,
-        help="nominal viscous friction [N m s/rad] (%(default)s)",
-    )
-    group.add_argument("--Ts", type=float, default=TS, help="sampling period [s] (%(default)s)")
-    if not loop:
-        return
-    group.add_argument(
-        "--J", type=float, default=PLANT.J, help="true inertia [kg m^2] (%(default)s)"
-    )
-    group.add_argument(
-        "--b", type=float, default=PLANT.b, help="true viscous friction [N m s/rad] (%(default)s)"
-    )
-    group.add_argument(
-        "--kp", type=float, default=CONTROLLER.kp, help="PD gain kp [1/s^2] (%(default)s)"
-    )
-    group.add_argument(
-        "--kd", type=float, default=CONTROLLER.kd, help="PD gain kd [1/s] (%(default)s)"
-    )
-    group.add_argument(
-        "--delay", type=int, default=0, help="actuator delay [samples] (%(default)s)"
-    )
+    add_nominal_arguments(group)
+    if loop:
+        add_loop_arguments(group)
+    else:
+        reject_plant_arguments(parser)
 
 
 def _add_orders(parser: argparse.ArgumentParser, default: str) -> None:
