@@ -22,6 +22,8 @@ ServoLoop
     The closed loop as a value: the first argument of simulate and the analysis functions.
 PD, Encoder, Actuator, simulate, SimulationResult
     Sampled-data closed-loop simulation (continuous plant, sampled PD, DOb inner loop).
+TwoMassServo
+    Motor and load coupled by a torsional spring and damper (a resonant drive), as ``plant=``.
 MujocoServo
     A servo (optionally with a pendulum link) simulated by MuJoCo, as ``plant=`` of
     ``simulate`` and ``sweep``; MuJoCo is imported only when a model is built.
@@ -65,7 +67,7 @@ from .analysis import (
 )
 from .export import export_c
 from .identification import Identification, Log, identify, read_log
-from .models import DiscreteServoModel, MujocoServo, ServoModel
+from .models import DiscreteServoModel, MujocoServo, ServoModel, TwoMassServo
 from .observers import (
     DisturbanceObserver,
     LinearObserver,
@@ -113,6 +115,7 @@ __all__ = [
     "SimulationDivergedWarning",
     "SimulationResult",
     "StabilityMap",
+    "TwoMassServo",
     "__version__",
     "characteristic_polynomial",
     "closed_loop",
