@@ -1,4 +1,8 @@
-"""Regenerate the figures and the tables of docs/analysis.md for the canonical motor.
+"""
+The analysis page's figures and tables (a command-line script)
+==============================================================
+
+Regenerate the figures and the tables of docs/analysis.md for the canonical motor::
 
     python examples/analysis_figures.py [OUT_DIR]
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["plot_result", "style_axes"]
+__all__ = ["label_points", "plot_result", "style_axes"]
 
 #: Figure width [inch] of a two-column paper's full text width and line width of traces.
 PAPER_WIDTH = 7.0
@@ -15,6 +15,59 @@ def style_axes(ax, *, xlabel: str | None, ylabel: str) -> None:
         ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.margins(x=0)
+
+
+#: Where a point's label may go, tried in this order: offset [points] and alignment.
+_LABEL_OFFSETS = (
+    ((3, 3), "left", "bottom"),
+    ((-3, -3), "right", "top"),
+    ((3, -3), "left", "top"),
+    ((-3, 3), "right", "bottom"),
+)
+
+
+def label_points(ax, points, *, fontsize="x-small") -> list:
+    """Label points without overlaps: each label takes the first free place around its point.
+
+    ``points`` is a sequence of ``(x, y, text, color)`` in data coordinates, in order of
+    priority. A label may not overlap an earlier label, a labelled point's marker, or leave
+    the axes; a label that fits nowhere is left out (its point stays marked). Positions are
+    measured after a layout pass of the figure. Returns the labels drawn.
+    """
+    fig = ax.figure
+    fig.draw_without_rendering()
+    frame = ax.get_window_extent()
+    radius = 2.0 * fig.dpi / 72.0  # half the size of a marker [pixels]
+    taken = []
+    for x, y in ((p[0], p[1]) for p in points):
+        px, py = ax.transData.transform((x, y))
+        taken.append((px - radius, py - radius, px + radius, py + radius))
+    drawn = []
+    for x, y, text, color in points:
+        for offset, ha, va in _LABEL_OFFSETS:
+            label = ax.annotate(
+                text,
+                (x, y),
+                xytext=offset,
+                textcoords="offset points",
+                ha=ha,
+                va=va,
+                fontsize=fontsize,
+                color=color,
+            )
+            box = label.get_window_extent()
+            inside = frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0
+            inside = inside and box.y1 <= frame.y1
+            free = all(
+                box.x1 <= a or b <= box.x0 or box.y1 <= c or d <= box.y0
+                for a, c, b, d in taken
+            )
+            if inside and free:
+                taken.append((box.x0, box.y0, box.x1, box.y1))
+                drawn.append(label)
+                break
+            label.remove()
+    return drawn
 
 
 def plot_result(result, *, title: str | None = None):
