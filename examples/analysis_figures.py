@@ -11,6 +11,8 @@ tables of docs/analysis.md, computed here from the library (copy them into the p
 numbers change). Takes ~15 s.
 """
 
+# sphinx_gallery_thumbnail_path = 'figures/analysis_tradeoff.png'
+
 from __future__ import annotations
 
 import math

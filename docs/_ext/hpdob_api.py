@@ -50,7 +50,7 @@ EXTRA = {
 Commands and options
 --------------------
 
-Generated from the parser of ``hpdob`` (:func:`hpdob.cli.build_parser`'s argparse tree).
+Generated from the argparse parser of the ``hpdob`` command (``hpdob.cli.build_parser()``).
 
 .. argparse::
    :module: hpdob.cli
@@ -160,7 +160,7 @@ def _data_doc(module, name: str) -> str:
         try:
             mod = importlib.import_module(candidate)
             docs = ModuleAnalyzer.for_module(candidate).find_attr_docs()
-        except Exception:  # noqa: BLE001 - a module without source: no comment
+        except Exception:  # a module without source (or that fails to import): no comment
             continue
         if getattr(mod, name, None) is obj and ("", name) in docs:
             return "\n".join(docs[("", name)]).strip()
@@ -204,8 +204,7 @@ def section_rst(modname: str, items: list[Entry]) -> str:
     ]
     if items:
         parts.append(
-            ".. autosummary::\n   :nosignatures:\n\n"
-            + "".join(f"   {e.name}\n" for e in items)
+            ".. autosummary::\n   :nosignatures:\n\n" + "".join(f"   {e.name}\n" for e in items)
         )
         parts += [_entry_rst(e) for e in items]
     parts.append(EXTRA.get(short, ""))
@@ -264,21 +263,84 @@ def generate(app) -> None:
             stale.unlink()
 
 
-def resolve_alias(app, env, node, contnode):
-    """Resolve ``hpdob.<name>[.<attr>]`` to the subpackage entry it re-exports."""
+def _homes() -> dict[str, str]:
+    """``{name: "hpdob.<subpackage>.<name>"}`` for public names documented exactly once."""
+    found: dict[str, list[str]] = {}
+    for items in entries().values():
+        for e in items:
+            found.setdefault(e.name, []).append(e.target)
+    return {name: targets[0] for name, targets in found.items() if len(targets) == 1}
+
+
+def _exists(target: str) -> bool:
+    """Whether ``target`` names something real: a dotted import path, or a name in hpdob."""
+    parts = target.lstrip(".~").split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except Exception:  # not a module (or one that cannot be imported here)
+            continue
+        try:
+            for attr in parts[i:]:
+                obj = getattr(obj, attr)
+        except AttributeError:
+            break
+        return True
+    if len(parts) == 1:
+        return parts[0] in _hpdob_names()
+    return False
+
+
+_NAMES: set[str] = set()
+
+
+def _hpdob_names() -> set[str]:
+    """Every attribute of every hpdob module and of every class defined in one."""
+    if not _NAMES:
+        package = importlib.import_module(TOP)
+        for info in pkgutil.walk_packages(package.__path__, f"{TOP}."):
+            if info.name.endswith("__main__"):
+                continue  # importing it runs the command line
+            module = importlib.import_module(info.name)
+            for name, obj in vars(module).items():
+                _NAMES.add(name)
+                if inspect.isclass(obj) and obj.__module__.startswith(TOP):
+                    _NAMES.update(vars(obj))
+    return _NAMES
+
+
+def resolve(app, env, node, contnode):
+    """Resolve the Python references autodoc and the pages leave unresolved.
+
+    1. ``hpdob.<name>[.<attr>]``: the subpackage entry the top level re-exports;
+    2. a bare public name (``ServoModel`` in a docstring of another subpackage): its entry;
+    3. a name that exists but has no entry (a private helper, another package's object):
+       plain text, no link.
+    Anything else stays a broken reference, which ``-W -n`` turns into an error.
+    """
     if node.get("refdomain") != "py":
         return None
     target = node.get("reftarget", "")
-    table = app.env.hpdob_aliases if hasattr(app.env, "hpdob_aliases") else None
-    if table is None:
-        table = app.env.hpdob_aliases = aliases()
-    for alias, real in table.items():
+    if not hasattr(env, "hpdob_tables"):
+        env.hpdob_tables = (aliases(), _homes())
+    alias_table, homes = env.hpdob_tables
+    new = None
+    for alias, real in alias_table.items():
         if target == alias or target.startswith(alias + "."):
             new = real + target[len(alias) :]
-            domain = env.domains["py"]
-            return domain.resolve_xref(
-                env, node["refdoc"], app.builder, node["reftype"], new, node, contnode
-            )
+            break
+    head, _, rest = target.partition(".")
+    if new is None and head in homes:
+        new = homes[head] + (f".{rest}" if rest else "")
+    if new is not None:
+        domain = env.domains["py"]
+        found = domain.resolve_xref(
+            env, node["refdoc"], app.builder, node["reftype"], new, node, contnode
+        )
+        if found is not None:
+            return found
+    if _exists(target):
+        return contnode
     return None
 
 
@@ -304,6 +366,6 @@ class OptionalTocTree(TocTree):
 
 def setup(app):
     app.connect("builder-inited", generate)
-    app.connect("missing-reference", resolve_alias)
+    app.connect("missing-reference", resolve)
     app.add_directive("optional-toctree", OptionalTocTree)
     return {"version": "1.0", "parallel_read_safe": True, "parallel_write_safe": True}

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["label_points", "plot_result", "style_axes"]
+__all__ = ["label_points", "legend_clear_of_data", "plot_result", "style_axes"]
 
 #: Figure width [inch] of a two-column paper's full text width and line width of traces.
 PAPER_WIDTH = 7.0
@@ -15,6 +15,22 @@ def style_axes(ax, *, xlabel: str | None, ylabel: str) -> None:
         ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.margins(x=0)
+
+
+def legend_clear_of_data(ax, *, ncol: int, pad: float = 0.03, **kwargs):
+    """Legend in one band along the top of ``ax``, the y-range raised so no data lies under it.
+
+    The band's height is measured (a layout pass of the figure), so it holds for any font
+    size and figure size; the lower y-limit is kept. Call it when the figure has all its
+    labels and titles.
+    """
+    legend = ax.legend(loc="upper left", ncol=ncol, fontsize="small", **kwargs)
+    ax.figure.draw_without_rendering()
+    box = legend.get_window_extent().transformed(ax.transAxes.inverted())
+    band = min(1.0 - box.y0 + pad, 0.6)  # fraction of the axes' height taken by the legend
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, lo + (hi - lo) / (1.0 - band))
+    return legend
 
 
 #: Where a point's label may go, tried in this order: offset [points] and alignment.
@@ -59,8 +75,7 @@ def label_points(ax, points, *, fontsize="x-small") -> list:
             inside = frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0
             inside = inside and box.y1 <= frame.y1
             free = all(
-                box.x1 <= a or b <= box.x0 or box.y1 <= c or d <= box.y0
-                for a, c, b, d in taken
+                box.x1 <= a or b <= box.x0 or box.y1 <= c or d <= box.y0 for a, c, b, d in taken
             )
             if inside and free:
                 taken.append((box.x0, box.y0, box.x1, box.y1))
@@ -80,16 +95,16 @@ def plot_result(result, *, title: str | None = None):
     ax.plot(t, result.r, "k--", linewidth=1.0, label="reference $r$")
     ax.plot(t, result.theta, linewidth=1.2, label=r"position $\theta$")
     style_axes(ax, xlabel=None, ylabel="angle [rad]")
-    ax.legend(loc="best", fontsize="small")
     ax = axes[1]
     ax.plot(t, result.tau_dn, "k", linewidth=1.0, label=r"nominal disturbance $\tau_{dn}$")
     ax.plot(t, result.tau_ext, color="0.6", linewidth=0.8, label=r"external $\tau_{ext}$")
     if abs(result.tau_hat).max(initial=0.0) > 0:
         ax.plot(t, result.tau_hat, linewidth=1.0, label=r"estimate $\hat\tau_{dn}$")
     style_axes(ax, xlabel=None, ylabel="torque [N m]")
-    ax.legend(loc="best", fontsize="small")
     ax = axes[2]
     ax.plot(t, result.estimation_error, linewidth=1.0)
     style_axes(ax, xlabel="time [s]", ylabel=r"$\hat\tau_{dn} - \tau_{dn}$ [N m]")
     fig.suptitle(title or result.label or "hpdob simulation")
+    for ax in axes[:2]:  # legends in a band above the data
+        legend_clear_of_data(ax, ncol=len(ax.get_legend_handles_labels()[1]))
     return fig

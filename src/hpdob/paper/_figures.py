@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .._plotting import PAPER_WIDTH, style_axes
+from .._plotting import PAPER_WIDTH, legend_clear_of_data, style_axes
 
 __all__ = ["paper_figures"]
 
@@ -44,21 +44,6 @@ def _position(ax, results, names, *, inset=True):
 
 def _letter(ax, text):
     ax.set_title(text, loc="left", fontsize="medium")
-
-
-def legend_clear_of_data(ax, *, ncol: int, pad: float = 0.03, **kwargs):
-    """Legend in one band along the top of ``ax``, the y-range raised so no data lies under it.
-
-    The band's height is measured (a layout pass of the figure), so it holds for any font
-    size and figure size; the lower y-limit is kept.
-    """
-    legend = ax.legend(loc="upper left", ncol=ncol, fontsize="small", **kwargs)
-    ax.figure.draw_without_rendering()
-    box = legend.get_window_extent().transformed(ax.transAxes.inverted())
-    band = min(1.0 - box.y0 + pad, 0.6)  # fraction of the axes' height taken by the legend
-    lo, hi = ax.get_ylim()
-    ax.set_ylim(lo, lo + (hi - lo) / (1.0 - band))
-    return legend
 
 
 def _error_panel(ax, results, names):
