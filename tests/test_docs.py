@@ -32,6 +32,7 @@ def code_blocks(path: Path, language: str) -> list[str]:
         ROOT / "docs" / "deployment.md",
         ROOT / "docs" / "mujoco.md",
         ROOT / "docs" / "analysis.md",
+        ROOT / "docs" / "guides" / "sample-loop.md",
     ],
     ids=str,
 )

@@ -15,6 +15,7 @@ of the project are left out (a page another branch is still writing).
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import inspect
 import pkgutil
 import posixpath
@@ -273,8 +274,14 @@ def _homes() -> dict[str, str]:
 
 
 def _exists(target: str) -> bool:
-    """Whether ``target`` names something real: a dotted import path, or a name in hpdob."""
+    """Whether ``target`` names something real: a dotted import path, or a name in hpdob.
+
+    A dotted path into a package that is not installed (an optional dependency) cannot be
+    checked and counts as real.
+    """
     parts = target.lstrip(".~").split(".")
+    if len(parts) > 1 and parts[0] != TOP and importlib.util.find_spec(parts[0]) is None:
+        return True  # another package that is not installed here (pandas without the extra)
     for i in range(len(parts), 0, -1):
         try:
             obj = importlib.import_module(".".join(parts[:i]))
