@@ -10,7 +10,6 @@ The API reference is generated at build time from each public subpackage's ``__a
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 
@@ -109,5 +108,5 @@ html_theme_options = {
     "footer_end": [],
 }
 
-# The build must not depend on the network: no intersphinx, no remote images.
-os.environ.setdefault("MPLBACKEND", "Agg")
+# The build must not depend on the network: no intersphinx, no remote images. (Math in the
+# docstrings is rendered by MathJax in the reader's browser, which fetches it when online.)
