@@ -1,4 +1,8 @@
-"""Regenerate the figures and the tables of docs/analysis.md for the canonical motor.
+"""
+The analysis page's figures and tables (a command-line script)
+==============================================================
+
+Regenerate the figures and the tables of docs/analysis.md for the canonical motor::
 
     python examples/analysis_figures.py [OUT_DIR]
 
@@ -6,6 +10,8 @@ writes analysis_*.png (100 dpi) into OUT_DIR (default docs/figures) and prints t
 tables of docs/analysis.md, computed here from the library (copy them into the page when the
 numbers change). Takes ~15 s.
 """
+
+# sphinx_gallery_thumbnail_path = 'figures/analysis_tradeoff.png'
 
 from __future__ import annotations
 

@@ -1,4 +1,6 @@
-"""Resonance: where the DOb and the HPDOb lose stability on a two-mass drive.
+"""
+Resonance: where the DOb and the HPDOb lose stability (a command-line script)
+=============================================================================
 
     python examples/two_mass_resonance.py [OUT_DIR]
 

@@ -56,7 +56,7 @@ def bode_figure(designs, frequency, *, sensitivities=None, mark_frequency=None):
     title = "Disturbance-estimation response Q (closed form)"
     if sensitivities is not None:
         title += " and the loop's input sensitivity S"
-    fig.suptitle(title)
+    fig.suptitle(title, fontsize="medium")  # fits the figure's width (it was clipped at large)
     return fig
 
 
@@ -82,5 +82,7 @@ def noise_figure(bandwidths, orders, gains):
     for ax in axes[1]:
         ax.set_xlabel("observer bandwidth g [rad/s]")
     axes[0, 0].legend(loc="best", fontsize="small")
-    fig.suptitle("Noise gains of the closed loop (exact, discrete Lyapunov equation)")
+    fig.suptitle(
+        "Noise gains of the closed loop (exact, discrete Lyapunov equation)", fontsize="medium"
+    )
     return fig

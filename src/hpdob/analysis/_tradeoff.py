@@ -116,17 +116,20 @@ class NoiseTradeoff:
         """Log-log plot of error gain against noise gain, one curve per order.
 
         Bandwidths in ``label_bandwidths`` [rad/s] within the grid are marked and labelled
-        (positions interpolated log-log along each curve). Returns the matplotlib Figure.
+        (positions interpolated log-log along each curve). Where the curves crowd together
+        (low noise) a label that would overlap another is left out; its point stays marked.
+        Returns the matplotlib Figure.
         """
         import matplotlib.pyplot as plt
 
-        from .._plotting import PAPER_WIDTH, style_axes
+        from .._plotting import PAPER_WIDTH, label_points, style_axes
 
         if ax is None:
             fig, ax = plt.subplots(figsize=(PAPER_WIDTH, 4.6), layout="constrained")
         else:
             fig = ax.figure
         names = {0: "DOb (m=0)", 1: "HPDOb (m=1)"}
+        labels = []
         for i, m in enumerate(self.orders):
             line = ax.loglog(
                 self.noise_gain[i], self.error_gain[i], label=names.get(m, f"order m={m}")
@@ -141,14 +144,7 @@ class NoiseTradeoff:
                     for values in (self.noise_gain, self.error_gain)
                 )
                 ax.plot(x, y, "o", color=line.get_color(), markersize=3.5)
-                ax.annotate(
-                    f"{g:g}",
-                    (x, y),
-                    fontsize="x-small",
-                    xytext=(3, 3),
-                    textcoords="offset points",
-                    color=line.get_color(),
-                )
+                labels.append((x, y, f"{g:g}", line.get_color()))
         unit = "N m/(rad/s)" if self.noise == "velocity" else "N m/rad"
         style_axes(
             ax,
@@ -160,6 +156,7 @@ class NoiseTradeoff:
             f"Accuracy against noise (labels: bandwidth [rad/s], Ts = {self.Ts:g} s)",
             fontsize="medium",
         )
+        label_points(ax, labels)
         return fig
 
 

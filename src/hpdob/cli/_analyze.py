@@ -105,7 +105,14 @@ def register(subparsers) -> None:
     )
     sub = parser.add_subparsers(dest="analysis", metavar="ANALYSIS", parser_class=type(parser))
     sub.required = True
-    bode = sub.add_parser("bode", help="estimation response Q, 1-Q and input sensitivity")
+    bode = sub.add_parser(
+        "bode",
+        help="estimation response Q, 1-Q and input sensitivity",
+        description="Frequency response of each order's disturbance estimation, Q = "
+        "tau_hat/tau_dn in closed form, its error 1-Q, and the input sensitivity S of the loop "
+        "(docs/analysis.md, sections 2 and 3). Writes bode.png, bode.csv and bode.json (peaks, "
+        "-3 dB frequency, error at --frequency, loop margins).",
+    )
     _add_common(bode)
     _add_orders(bode, "0,1,2,3")
     bode.add_argument("--bandwidth", type=float, default=100.0, help="[rad/s] (default 100)")
@@ -115,7 +122,14 @@ def register(subparsers) -> None:
         default=2.0,
         help="disturbance frequency to report [Hz] (default 2)",
     )
-    noise = sub.add_parser("noise", help="noise gains of estimate and command per order")
+    noise = sub.add_parser(
+        "noise",
+        help="noise gains of estimate and command per order",
+        description="Exact noise gains of the closed loop (discrete Lyapunov equation): RMS of "
+        "the estimate and of the command per unit white position or velocity noise, for each "
+        "order over the bandwidths (docs/analysis.md, section 4). Writes noise.png, noise.csv "
+        "and noise.json.",
+    )
     _add_common(noise)
     _add_orders(noise, "0,1,2,3")
     noise.add_argument(
@@ -147,7 +161,15 @@ def register(subparsers) -> None:
         default="velocity",
         help="measurement carrying the white noise (default: velocity)",
     )
-    stab = sub.add_parser("stability", help="robust stability map over model error")
+    stab = sub.add_parser(
+        "stability",
+        help="robust stability map over model error",
+        description="Closed-loop stability over a grid of true-plant inertias (J/J_n) or "
+        "viscous frictions and observer bandwidths, one map per order, with the stability "
+        "boundary refined (docs/analysis.md, section 6). Writes "
+        "stability_<parameter>_m<order>[_delay<d>].png and .csv per order and "
+        "stability.json.",
+    )
     _add_common(stab)
     _add_orders(stab, "0,1")
     stab.add_argument(
@@ -167,6 +189,14 @@ def register(subparsers) -> None:
         type=_grid,
         default=_grid("10:2000:61"),
         help="[rad/s], LO:HI:N or a list (default 10:2000:61)",
+    )
+    stab.add_argument(
+        "--bandwidth",
+        type=_positive_real,
+        default=None,
+        metavar="G",
+        help="observer bandwidth [rad/s] of your design: a star marks it at the loop's true "
+        "plant (--J/--J-n or --b) on each map (default: no mark)",
     )
     for p in (bode, noise, tradeoff, stab):
         p.set_defaults(handler=_run)
@@ -367,13 +397,16 @@ def _stability(args) -> list[str]:
             delay_samples=args.delay,
         )
         stem = f"stability_{args.parameter}_m{m}" + (f"_delay{args.delay}" if args.delay else "")
-        # Mark the loop's own plant at the canonical bandwidth if it lies on the map.
-        point = (100.0, J_ratio if args.parameter == "J_ratio" else args.b)
-        inside = (
-            smap.bandwidths.min() <= point[0] <= smap.bandwidths.max()
-            and smap.values.min() <= point[1] <= smap.values.max()
-        )
-        _save(smap.plot(mark=point if inside else None), args.out / f"{stem}.png", args.dpi)
+        # Mark the user's design (--bandwidth) at the loop's own plant if it lies on the map.
+        point = None
+        if args.bandwidth is not None:
+            point = (args.bandwidth, J_ratio if args.parameter == "J_ratio" else args.b)
+            inside = (
+                smap.bandwidths.min() <= point[0] <= smap.bandwidths.max()
+                and smap.values.min() <= point[1] <= smap.values.max()
+            )
+            point = point if inside else None
+        _save(smap.plot(mark=point), args.out / f"{stem}.png", args.dpi)
         smap.to_csv(args.out / f"{stem}.csv")
         written += [f"{stem}.png", f"{stem}.csv"]
         summary["maps"].append(

@@ -75,8 +75,8 @@ class TwoMassServo(Plant):
     --------
     >>> from hpdob import TwoMassServo
     >>> drive = TwoMassServo(J_motor=2.8e-4, J_load=2.8e-4, stiffness=20.0)
-    >>> round(drive.resonance_frequency / (2 * 3.141592653589793), 1)  # [Hz]
-    60.1
+    >>> round(drive.resonance_frequency / (2 * 3.141592653589793), 2)  # sqrt(20 * 2/2.8e-4)/(2 pi)
+    60.15
     """
 
     J_motor: float

@@ -228,11 +228,10 @@ class DisturbanceObserver(Observer):
     ----------
     design : ObserverDesign
         The immutable synthesis result; ``model``, ``order``, ``poles``, ``gains`` (row ``i``
-        is :math:`L_{i+1}^T`) and ``error_matrix`` are read from it.
-    state : ndarray, shape (order + 1,)
-        Copy of the auxiliary-variable estimate :math:`\hat z_k`.
-    system : LinearObserver
-        The observer as a linear system (what simulation, analysis and export run).
+        is :math:`L_{i+1}^T`) and ``error_matrix`` are read from it. The state (``.state``,
+        a copy of the auxiliary-variable estimate :math:`\hat z_k`) and the linear system
+        (``.system``, what simulation, analysis and export run) are those of
+        :class:`Observer`.
 
     Raises
     ------
