@@ -28,6 +28,7 @@ import numpy as np
 from hpdob import (
     Actuator,
     Encoder,
+    ServoModel,
     design_observer,
     estimation_response,
     gang_of_four,
@@ -37,13 +38,16 @@ from hpdob import (
     paper,
     robust_stability_map,
 )
-from hpdob.analysis._figures import bode_figure, noise_figure, order_name
-from hpdob.models._servo import ServoModel
+from hpdob.analysis import bode_figure, noise_figure
 
 PLANT = ServoModel(3.06e-4, 5e-5)  # the canonical motor's linear part (Coulomb friction off)
 LOOP = {"plant": PLANT, "nominal": paper.NOMINAL, "Ts": paper.TS, "controller": paper.CONTROLLER}
 ORDERS = (0, 1, 2, 3)
 DPI = 100
+
+
+def order_name(order: int) -> str:
+    return {0: "DOb (m=0)", 1: "HPDOb (m=1)"}.get(order, f"order m={order}")
 
 
 def design(order, bandwidth=100.0):

@@ -27,6 +27,10 @@ def bode_figure(designs, frequency, *, sensitivities=None, mark_frequency=None):
         Input sensitivity of each design's closed loop at ``frequency`` (a fourth panel).
     mark_frequency : float, optional
         A disturbance frequency [Hz] to mark with a vertical line.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
     import matplotlib.pyplot as plt
 
@@ -63,7 +67,19 @@ def bode_figure(designs, frequency, *, sensitivities=None, mark_frequency=None):
 def noise_figure(bandwidths, orders, gains):
     """Noise gains against bandwidth: estimate and command, position and velocity noise.
 
-    ``gains[i][j]`` is the :class:`~hpdob.NoiseGains` of ``orders[i]`` at ``bandwidths[j]``.
+    Parameters
+    ----------
+    bandwidths : sequence of float
+        Observer bandwidths [rad/s] (the horizontal axis).
+    orders : sequence of int
+        Truncation orders, one curve each.
+    gains : sequence of sequences of NoiseGains
+        ``gains[i][j]`` is the :class:`~hpdob.NoiseGains` of ``orders[i]`` at
+        ``bandwidths[j]`` (from :func:`hpdob.noise_gains`).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
     import matplotlib.pyplot as plt
 

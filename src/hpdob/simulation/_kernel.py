@@ -186,6 +186,24 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
                 th, om = a00 * th + a01 * om + b0 * force, a10 * th + a11 * om + b1 * force
             x[0] = th
             x[1] = om
+        elif nx == 4 and not shared and v == 1:  # the two-mass drive, kept in registers
+            x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
+            h0, h1, h2, h3 = A_half[1, 0], A_half[1, 1], A_half[1, 2], A_half[1, 3]
+            gb, gd = B_half[1], D_half[1]
+            for j in range(substeps):
+                tau_e = tau_mid[base + j]
+                force = applied - c * math.tanh(x1 / c_scale)
+                om_half = h0 * x0 + h1 * x1 + h2 * x2 + h3 * x3 + gb * force - gd * tau_e
+                force = applied - c * math.tanh(om_half / c_scale)
+                y0 = A_h[0, 0] * x0 + A_h[0, 1] * x1 + A_h[0, 2] * x2 + A_h[0, 3] * x3
+                y1 = A_h[1, 0] * x0 + A_h[1, 1] * x1 + A_h[1, 2] * x2 + A_h[1, 3] * x3
+                y2 = A_h[2, 0] * x0 + A_h[2, 1] * x1 + A_h[2, 2] * x2 + A_h[2, 3] * x3
+                y3 = A_h[3, 0] * x0 + A_h[3, 1] * x1 + A_h[3, 2] * x2 + A_h[3, 3] * x3
+                x0 = y0 + B_h[0] * force - D_h[0] * tau_e
+                x1 = y1 + B_h[1] * force - D_h[1] * tau_e
+                x2 = y2 + B_h[2] * force - D_h[2] * tau_e
+                x3 = y3 + B_h[3] * force - D_h[3] * tau_e
+            x[0], x[1], x[2], x[3] = x0, x1, x2, x3
         else:
             for j in range(substeps):
                 tau_e = tau_mid[base + j]
