@@ -66,7 +66,14 @@ from .analysis import (
     robust_stability_map,
 )
 from .export import export_c
-from .identification import Identification, Log, identify, read_log
+from .identification import (
+    EstimationResult,
+    Identification,
+    Log,
+    estimate_disturbance,
+    identify,
+    read_log,
+)
 from .models import DiscreteServoModel, MujocoServo, ServoModel, TwoMassServo
 from .observers import (
     DisturbanceObserver,
@@ -98,6 +105,7 @@ __all__ = [
     "DiscreteServoModel",
     "DisturbanceObserver",
     "Encoder",
+    "EstimationResult",
     "GangOfFour",
     "Identification",
     "LinearObserver",
@@ -123,6 +131,7 @@ __all__ = [
     "design_observer",
     "error_matrix",
     "estimate",
+    "estimate_disturbance",
     "estimation_response",
     "estimation_transfer",
     "export_c",
