@@ -54,7 +54,7 @@ def test_csv_log_matches_the_library(tmp_path, capsys, log):
 def test_emps_with_an_identification_file(tmp_path, capsys):
     ident = tmp_path / "ident"
     assert run(capsys, "identify", "--emps", "--out", ident, "--no-plot")[0] == 0
-    code, out, err = run(
+    code, _, err = run(
         capsys, "estimate", "--emps", "--from-identification", ident / "identification.json",
         "--order", 0, "--bandwidth", 50, "--out", tmp_path / "est", "--no-plot",
     )  # fmt: skip
@@ -94,8 +94,8 @@ def test_bad_arguments_one_line_exit_2(tmp_path, capsys, log, extra, needle):
     [
         (
             "t,q,i\n0,0,0\n0.001,0,nan\n" + "".join(f"{k / 1000},0,0\n" for k in range(2, 20)),
-            "not finite",
-        ),  # fmt: skip
+            "non-finite sample nan at index 1",
+        ),
         ("t,q\n" + "".join(f"{k / 1000},0\n" for k in range(20)), "i"),
         ("t,q,i\n" + "".join(f"{k / 1000},0,x\n" for k in range(20)), "i"),
     ],
