@@ -12,6 +12,9 @@ design_observer, ObserverDesign
     Pure synthesis of an observer of any order by eigenvalue placement or bandwidth.
 LinearObserver
     The observer protocol: every observer as a linear discrete-time system.
+ExtendedStateObserver, KalmanDisturbanceObserver
+    The observers the field compares against: ADRC's extended state observer and a Kalman
+    filter with a disturbance state.
 DisturbanceObserver, Observer
     Stateful runtime objects for the sample loop (``estimate`` then ``update``).
 initial_state, estimate, update
@@ -77,6 +80,8 @@ from .identification import (
 from .models import DiscreteServoModel, MujocoServo, ServoModel, TwoMassServo
 from .observers import (
     DisturbanceObserver,
+    ExtendedStateObserver,
+    KalmanDisturbanceObserver,
     LinearObserver,
     Observer,
     ObserverDesign,
@@ -106,8 +111,10 @@ __all__ = [
     "DisturbanceObserver",
     "Encoder",
     "EstimationResult",
+    "ExtendedStateObserver",
     "GangOfFour",
     "Identification",
+    "KalmanDisturbanceObserver",
     "LinearObserver",
     "Log",
     "LoopMargins",
