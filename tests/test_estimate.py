@@ -104,7 +104,7 @@ def test_result_table_plot_and_rms(tmp_path):
 @pytest.mark.parametrize(
     ("kwargs", "error", "pattern"),
     [
-        ({"theta": np.zeros(10), "u": np.zeros(11)}, ValueError, r"same number of samples: theta has 10, u has 11"),
+        ({"theta": np.zeros(10), "u": np.zeros(11)}, ValueError, r"theta has 10, u has 11"),
         ({"theta": [0.0, np.nan] * 5, "u": np.zeros(10)}, ValueError, r"theta.*not finite|nan"),
         ({"theta": "abc", "u": np.zeros(3)}, TypeError, r"theta"),
         (
