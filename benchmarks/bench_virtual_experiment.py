@@ -71,14 +71,13 @@ def kalman() -> None:
     import numpy as np
     from scipy.linalg import solve_discrete_are
 
-    from hpdob.observers._position import augmented_model
-
     r = (2 * math.pi / 16384) ** 2 / 12
     print("\nSteady-state Kalman filters (est. error [N m] / worse position window [rad]):\n")
     print("| order | w | pole magnitudes [rad/s as -ln|p|/Ts] | result |")
     print("|---:|---:|---|---:|")
     for m in (0, 1, 2):
-        Aa, _ = augmented_model(NOMINAL, m)
+        Aa = DisturbanceObserver(NOMINAL, order=m, bandwidth=100.0, measurement="position")
+        Aa = Aa.design.augmented_matrix  # [theta, omega, tau history] (docs/theory.md, 9)
         n = m + 3
         c = np.zeros((n, 1))
         c[0, 0] = 1.0

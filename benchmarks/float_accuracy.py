@@ -3,7 +3,7 @@ drift on a continuously rotating axis.
 
 Part 1 (bound vs. measurement): orders 0-3, gain direction (1, 1), driven by the 10^5 random
 samples of tests/test_export_c.py (same seed) and by the canonical closed-loop runs
-(hpdob.paper._scenario; orders 2 and 3 on the HPDOb-100 scenario): the largest float error, the
+(hpdob.paper; orders 2 and 3 on the HPDOb-100 scenario): the largest float error, the
 largest bound and the largest ratio error/bound over the samples.
 
 Part 2 (long runs):
@@ -42,8 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from hpdob import DisturbanceObserver, ServoModel, design_observer, export_c, paper
-from hpdob.testing._c_harness import CObserver
-from hpdob.testing._rounding import export_error_bound
+from hpdob.testing import CObserver, export_error_bound
 
 J_N, TS = 2.8e-4, 1e-3
 MODEL = ServoModel(J=J_N).discretize(TS)

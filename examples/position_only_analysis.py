@@ -1,4 +1,9 @@
-"""Regenerate the numbers and the figure of docs/analysis.md section 8 (position-only observers).
+"""
+Position-only observers: the analysis page's section 8 (a command-line script)
+==============================================================================
+
+Regenerate the numbers and the figure of docs/analysis.md section 8 (position-only
+observers)::
 
     python examples/position_only_analysis.py [OUT_DIR]
 
@@ -6,6 +11,8 @@ writes analysis_tradeoff_position.png (100 dpi) into OUT_DIR (default docs/figur
 the Markdown tables of section 8, computed here from the library (copy them into the page when
 the numbers change). Takes ~20 s.
 """
+
+# sphinx_gallery_thumbnail_path = 'figures/analysis_tradeoff_position.png'
 
 from __future__ import annotations
 
@@ -25,9 +32,11 @@ from hpdob import (
     Actuator,
     Encoder,
     LinearObserver,
+    ServoModel,
     closed_loop,
     design_observer,
     estimation_response,
+    extrapolation_weights,
     loop_margins,
     noise_gains,
     noise_tradeoff,
@@ -35,8 +44,6 @@ from hpdob import (
     paper,
     robust_stability_map,
 )
-from hpdob.models._servo import ServoModel
-from hpdob.observers._position import augmented_model
 
 MODEL = paper.NOMINAL.discretize(paper.TS)
 PLANT = ServoModel(3.06e-4, 5e-5)  # the canonical motor's linear part
@@ -223,7 +230,8 @@ def reduced_order(m: int, g: float) -> LinearObserver:
     n = m + 2
     A22 = np.zeros((n, n))
     A22[0, 0], A22[0, -1] = A[1, 1], -D[1]
-    A22[1:, 1:] = augmented_model(MODEL, m)[0][2:, 2:]  # the history's companion matrix
+    A22[1:, 1:] = np.eye(m + 1, k=1)  # the history shifts ...
+    A22[-1, 1:] = extrapolation_weights(m)  # ... and its newest sample is extrapolated
     A12 = np.zeros(n)
     A12[0], A12[-1] = A[0, 1], -D[0]
     # A22 + l A12 = A22 - (-l) A12: Ackermann on the dual places repeated poles too

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -25,9 +26,9 @@ def test_design_table(capsys):
     code, out, err = run(
         capsys,
         "design",
-        "--J",
+        "--J-n",
         "3.06e-4",
-        "--b",
+        "--b-n",
         "5e-5",
         "--Ts",
         "1e-3",
@@ -48,9 +49,9 @@ def test_design_json_matches_library(capsys):
     code, out, _ = run(
         capsys,
         "design",
-        "--J",
+        "--J-n",
         "2.8e-4",
-        "--b",
+        "--b-n",
         "0",
         "--order",
         "2",
@@ -83,17 +84,21 @@ def test_design_json_matches_library(capsys):
 def test_defaults_are_the_paper_motor(capsys):
     code, out, _ = run(capsys, "design", "--json")
     data = json.loads(out)
-    assert code == 0 and data["model"] == {"J": 3.06e-4, "b": 5e-5, "Ts": 1e-3}
+    # the paper's nominal model (section IV): J_n = 2.8e-4 kg m^2, b_n = 0, Ts = 1 ms
+    assert code == 0 and data["model"] == {"J": 2.8e-4, "b": 0.0, "Ts": 1e-3}
     assert data["order"] == 1 and data["bandwidth"] == 100.0
 
 
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (["--J", "-1"], "J must be a positive finite inertia [kg m^2], got -1.0"),
-        (["--J", "abc"], "argument --J: expected a number, got 'abc'"),
+        (["--J-n", "-1"], "J must be a positive finite inertia [kg m^2], got -1.0"),
+        (["--J-n", "abc"], "argument --J-n: expected a number, got 'abc'"),
+        (["--J-n", "nan"], "argument --J-n: expected a finite number, got 'nan'"),
+        (["--J", "3e-4"], "--J sets the true plant, and this command has none"),
+        (["--b", "0"], "the nominal model is --J-n/--b-n"),
         (["--Ts", "0"], "Ts must be a positive finite sampling period"),
-        (["--b", "-1"], "b must be a non-negative"),
+        (["--b-n", "-1"], "b must be a non-negative"),
         (["--order", "-1"], "order must be a non-negative integer"),
         (["--order", "1.5"], "argument --order: expected an integer"),
         (["--poles", "0.9"], "poles must have order + 1 = 2 entries"),
@@ -155,3 +160,41 @@ def test_unwritable_output_is_one_line_exit_2(capsys, tmp_path, argv):
     assert err.count("\n") == 1 and "Traceback" not in err
     assert err.startswith(f"hpdob {argv[0]}: error: ") and str(out) in err
     assert blocker.read_text() == "not a directory\n"
+
+
+# -- --help: a description line for every command, pages that exist -------------------------
+COMMANDS = [
+    ["reproduce"],
+    ["simulate"],
+    ["sweep"],
+    ["design"],
+    ["export-c"],
+    ["analyze"],
+    ["analyze", "bode"],
+    ["analyze", "noise"],
+    ["analyze", "tradeoff"],
+    ["analyze", "stability"],
+]
+
+
+@pytest.mark.parametrize("command", COMMANDS, ids=" ".join)
+def test_help_has_a_description_and_points_to_pages_that_exist(capsys, command):
+    with pytest.raises(SystemExit) as exit_:
+        main([*command, "--help"])
+    assert exit_.value.code == 0
+    out = capsys.readouterr().out
+    paragraphs = [p for p in out.split("\n\n") if p.strip()]
+    assert paragraphs[0].startswith("usage:")
+    description = paragraphs[1]
+    assert not description.startswith(("positional arguments", "options")), (
+        f"`hpdob {' '.join(command)} --help` has no description line"
+    )
+    root = Path(__file__).resolve().parents[1]
+    for page in re.findall(r"docs/[\w-]+\.md", " ".join(out.split())):
+        assert (root / page).exists(), f"--help points to {page}, which does not exist"
+
+
+def test_sweep_help_points_to_the_sweep_page(capsys):
+    with pytest.raises(SystemExit):
+        main(["sweep", "--help"])
+    assert "docs/sweep.md" in " ".join(capsys.readouterr().out.split())

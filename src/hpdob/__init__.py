@@ -13,6 +13,9 @@ design_observer, ObserverDesign, PositionObserverDesign
     the state (the paper's) or the angle only (``measurement="position"``).
 LinearObserver
     The observer protocol: every observer as a linear discrete-time system.
+ExtendedStateObserver, KalmanDisturbanceObserver
+    The observers the field compares against: ADRC's extended state observer and a Kalman
+    filter with a disturbance state.
 DisturbanceObserver, Observer
     Stateful runtime objects for the sample loop (``estimate`` then ``update``).
 initial_state, estimate, update
@@ -23,6 +26,8 @@ ServoLoop
     The closed loop as a value: the first argument of simulate and the analysis functions.
 PD, Encoder, Actuator, simulate, SimulationResult
     Sampled-data closed-loop simulation (continuous plant, sampled PD, DOb inner loop).
+TwoMassServo
+    Motor and load coupled by a torsional spring and damper (a resonant drive), as ``plant=``.
 MujocoServo
     A servo (optionally with a pendulum link) simulated by MuJoCo, as ``plant=`` of
     ``simulate`` and ``sweep``; MuJoCo is imported only when a model is built.
@@ -65,10 +70,19 @@ from .analysis import (
     robust_stability_map,
 )
 from .export import export_c
-from .identification import Identification, Log, identify, read_log
-from .models import DiscreteServoModel, MujocoServo, ServoModel
+from .identification import (
+    EstimationResult,
+    Identification,
+    Log,
+    estimate_disturbance,
+    identify,
+    read_log,
+)
+from .models import DiscreteServoModel, MujocoServo, ServoModel, TwoMassServo
 from .observers import (
     DisturbanceObserver,
+    ExtendedStateObserver,
+    KalmanDisturbanceObserver,
     LinearObserver,
     Observer,
     ObserverDesign,
@@ -98,8 +112,11 @@ __all__ = [
     "DiscreteServoModel",
     "DisturbanceObserver",
     "Encoder",
+    "EstimationResult",
+    "ExtendedStateObserver",
     "GangOfFour",
     "Identification",
+    "KalmanDisturbanceObserver",
     "LinearObserver",
     "Log",
     "LoopMargins",
@@ -116,6 +133,7 @@ __all__ = [
     "SimulationDivergedWarning",
     "SimulationResult",
     "StabilityMap",
+    "TwoMassServo",
     "__version__",
     "characteristic_polynomial",
     "closed_loop",
@@ -123,6 +141,7 @@ __all__ = [
     "design_observer",
     "error_matrix",
     "estimate",
+    "estimate_disturbance",
     "estimation_response",
     "estimation_transfer",
     "export_c",

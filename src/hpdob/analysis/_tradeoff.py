@@ -190,12 +190,13 @@ class NoiseTradeoff:
 
         Position-only observers are drawn dashed. Bandwidths in ``label_bandwidths`` [rad/s]
         within the grid are marked and labelled (positions interpolated log-log along each
-        curve). ``channel="command"`` plots against the command's noise gain. Returns the
-        matplotlib Figure.
+        curve). Where the curves crowd together (low noise) a label that would overlap another
+        is left out; its point stays marked. ``channel="command"`` plots against the command's
+        noise gain. Returns the matplotlib Figure.
         """
         import matplotlib.pyplot as plt
 
-        from .._plotting import PAPER_WIDTH, style_axes
+        from .._plotting import PAPER_WIDTH, label_points, style_axes
 
         values = self._values(channel)
         if ax is None:
@@ -203,6 +204,7 @@ class NoiseTradeoff:
         else:
             fig = ax.figure
         colors = sorted(set(self.orders))  # one colour per order, dashed: position-only
+        labels = []
         for i, (m, kind) in enumerate(zip(self.orders, self.measurements, strict=True)):
             line = ax.loglog(
                 values[i],
@@ -221,14 +223,7 @@ class NoiseTradeoff:
                     for array in (values, self.error_gain)
                 )
                 ax.plot(x, y, "o", color=line.get_color(), markersize=3.5)
-                ax.annotate(
-                    f"{g:g}",
-                    (x, y),
-                    fontsize="x-small",
-                    xytext=(3, 3),
-                    textcoords="offset points",
-                    color=line.get_color(),
-                )
+                labels.append((x, y, f"{g:g}", line.get_color()))
         unit = "N m/(rad/s)" if self.noise == "velocity" else "N m/rad"
         signal = "estimate" if channel == "estimate" else "command u"
         noise = "angle noise" if self.noise == "encoder" else f"{self.noise} noise"
@@ -242,6 +237,7 @@ class NoiseTradeoff:
             f"Accuracy against noise (labels: bandwidth [rad/s], Ts = {self.Ts:g} s)",
             fontsize="medium",
         )
+        label_points(ax, labels)
         return fig
 
 

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..paper._scenario import CONTROLLER, NOMINAL, PLANT, TS
 from ..simulation._result import json_ready
+from ._options import add_loop_arguments, add_nominal_arguments, reject_plant_arguments
 
 __all__ = ["register"]
 
@@ -80,33 +80,11 @@ def _add_common(parser: argparse.ArgumentParser, *, loop: bool = True) -> None:
     )
     title = "loop (defaults: the canonical scenario)" if loop else "nominal model (canonical)"
     group = parser.add_argument_group(title)
-    group.add_argument(
-        "--J-n", type=float, default=NOMINAL.J, help="nominal inertia [kg m^2] (%(default)s)"
-    )
-    group.add_argument(
-        "--b-n",
-        type=float,
-        default=NOMINAL.b,
-        help="nominal viscous friction [N m s/rad] (%(default)s)",
-    )
-    group.add_argument("--Ts", type=float, default=TS, help="sampling period [s] (%(default)s)")
-    if not loop:
-        return
-    group.add_argument(
-        "--J", type=float, default=PLANT.J, help="true inertia [kg m^2] (%(default)s)"
-    )
-    group.add_argument(
-        "--b", type=float, default=PLANT.b, help="true viscous friction [N m s/rad] (%(default)s)"
-    )
-    group.add_argument(
-        "--kp", type=float, default=CONTROLLER.kp, help="PD gain kp [1/s^2] (%(default)s)"
-    )
-    group.add_argument(
-        "--kd", type=float, default=CONTROLLER.kd, help="PD gain kd [1/s] (%(default)s)"
-    )
-    group.add_argument(
-        "--delay", type=int, default=0, help="actuator delay [samples] (%(default)s)"
-    )
+    add_nominal_arguments(group)
+    if loop:
+        add_loop_arguments(group)
+    else:
+        reject_plant_arguments(parser)
 
 
 def _measurements(text: str) -> list[str]:
@@ -162,7 +140,14 @@ def register(subparsers) -> None:
     )
     sub = parser.add_subparsers(dest="analysis", metavar="ANALYSIS", parser_class=type(parser))
     sub.required = True
-    bode = sub.add_parser("bode", help="estimation response Q, 1-Q and input sensitivity")
+    bode = sub.add_parser(
+        "bode",
+        help="estimation response Q, 1-Q and input sensitivity",
+        description="Frequency response of each order's disturbance estimation, Q = "
+        "tau_hat/tau_dn in closed form, its error 1-Q, and the input sensitivity S of the loop "
+        "(docs/analysis.md, sections 2 and 3). Writes bode.png, bode.csv and bode.json (peaks, "
+        "-3 dB frequency, error at --frequency, loop margins).",
+    )
     _add_common(bode)
     _add_orders(bode, "0,1,2,3")
     _add_measurement(bode)
@@ -173,7 +158,14 @@ def register(subparsers) -> None:
         default=2.0,
         help="disturbance frequency to report [Hz] (default 2)",
     )
-    noise = sub.add_parser("noise", help="noise gains of estimate and command per order")
+    noise = sub.add_parser(
+        "noise",
+        help="noise gains of estimate and command per order",
+        description="Exact noise gains of the closed loop (discrete Lyapunov equation): RMS of "
+        "the estimate and of the command per unit white position or velocity noise, for each "
+        "order over the bandwidths (docs/analysis.md, section 4). Writes noise.png, noise.csv "
+        "and noise.json.",
+    )
     _add_common(noise)
     _add_orders(noise, "0,1,2,3")
     _add_measurement(noise)
@@ -213,7 +205,15 @@ def register(subparsers) -> None:
         default=["state"],
         help="observer families, e.g. state,position (default: state)",
     )
-    stab = sub.add_parser("stability", help="robust stability map over model error")
+    stab = sub.add_parser(
+        "stability",
+        help="robust stability map over model error",
+        description="Closed-loop stability over a grid of true-plant inertias (J/J_n) or "
+        "viscous frictions and observer bandwidths, one map per order, with the stability "
+        "boundary refined (docs/analysis.md, section 6). Writes "
+        "stability_<parameter>_m<order>[_delay<d>].png and .csv per order and "
+        "stability.json.",
+    )
     _add_common(stab)
     _add_orders(stab, "0,1")
     _add_measurement(stab)
@@ -234,6 +234,14 @@ def register(subparsers) -> None:
         type=_grid,
         default=_grid("10:2000:61"),
         help="[rad/s], LO:HI:N or a list (default 10:2000:61)",
+    )
+    stab.add_argument(
+        "--bandwidth",
+        type=_positive_real,
+        default=None,
+        metavar="G",
+        help="observer bandwidth [rad/s] of your design: a star marks it at the loop's true "
+        "plant (--J/--J-n or --b) on each map (default: no mark)",
     )
     for p in (bode, noise, tradeoff, stab):
         p.set_defaults(handler=_run)
@@ -452,13 +460,16 @@ def _stability(args) -> list[str]:
         stem = f"stability_{args.parameter}_m{m}" + (f"_delay{args.delay}" if args.delay else "")
         if args.measurement == "position":
             stem += "_position"
-        # Mark the loop's own plant at the canonical bandwidth if it lies on the map.
-        point = (100.0, J_ratio if args.parameter == "J_ratio" else args.b)
-        inside = (
-            smap.bandwidths.min() <= point[0] <= smap.bandwidths.max()
-            and smap.values.min() <= point[1] <= smap.values.max()
-        )
-        _save(smap.plot(mark=point if inside else None), args.out / f"{stem}.png", args.dpi)
+        # Mark the user's design (--bandwidth) at the loop's own plant if it lies on the map.
+        point = None
+        if args.bandwidth is not None:
+            point = (args.bandwidth, J_ratio if args.parameter == "J_ratio" else args.b)
+            inside = (
+                smap.bandwidths.min() <= point[0] <= smap.bandwidths.max()
+                and smap.values.min() <= point[1] <= smap.values.max()
+            )
+            point = point if inside else None
+        _save(smap.plot(mark=point), args.out / f"{stem}.png", args.dpi)
         smap.to_csv(args.out / f"{stem}.csv")
         written += [f"{stem}.png", f"{stem}.csv"]
         summary["maps"].append(

@@ -9,11 +9,9 @@ import numpy as np
 
 from ..models._servo import ServoModel
 from ..observers._synthesis import design_observer
+from ._options import add_nominal_arguments, finite, reject_plant_arguments
 
 __all__ = ["register"]
-
-#: The paper's motor (Maxon EC 90 flat class) and sampling period: the command's defaults.
-PAPER_MOTOR = {"J": 3.06e-4, "b": 5e-5, "Ts": 1e-3}
 
 
 def _number_list(kind):
@@ -28,13 +26,6 @@ def _number_list(kind):
     return parse
 
 
-def _real(text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-
-
 def _integer(text: str) -> int:
     try:
         return int(text)
@@ -44,25 +35,8 @@ def _integer(text: str) -> int:
 
 def add_design_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the model and observer options shared by commands that design an observer."""
-    model = parser.add_argument_group("nominal model")
-    model.add_argument(
-        "--J",
-        type=_real,
-        default=PAPER_MOTOR["J"],
-        help="nominal inertia J_n [kg m^2] (default: %(default)s)",
-    )
-    model.add_argument(
-        "--b",
-        type=_real,
-        default=PAPER_MOTOR["b"],
-        help="nominal viscous friction b_n [N m s/rad] (default: %(default)s)",
-    )
-    model.add_argument(
-        "--Ts",
-        type=_real,
-        default=PAPER_MOTOR["Ts"],
-        help="sampling period [s] (default: %(default)s)",
-    )
+    add_nominal_arguments(parser.add_argument_group("nominal model"))
+    reject_plant_arguments(parser)
     obs = parser.add_argument_group("observer")
     obs.add_argument(
         "--order",
@@ -73,7 +47,7 @@ def add_design_arguments(parser: argparse.ArgumentParser) -> None:
     which = obs.add_mutually_exclusive_group()
     which.add_argument(
         "--bandwidth",
-        type=_real,
+        type=finite,
         default=None,
         help="bandwidth g [rad/s], all poles at exp(-g Ts) (default: 100)",
     )
@@ -93,7 +67,7 @@ def add_design_arguments(parser: argparse.ArgumentParser) -> None:
     )
     obs.add_argument(
         "--velocity-bandwidth",
-        type=_real,
+        type=finite,
         default=None,
         help="--measurement position: bandwidth of the two velocity poles [rad/s] "
         "(default: the bandwidth)",
@@ -108,7 +82,7 @@ def add_design_arguments(parser: argparse.ArgumentParser) -> None:
 
 def design_from_args(args: argparse.Namespace):
     """Build the design described by parsed ``add_design_arguments``."""
-    model = ServoModel(args.J, args.b).discretize(args.Ts)
+    model = ServoModel(args.J_n, args.b_n).discretize(args.Ts)
     bandwidth = args.bandwidth
     if bandwidth is None and args.poles is None:
         bandwidth = 100.0
@@ -128,8 +102,8 @@ def register(subparsers) -> None:
         "design",
         help="synthesise an observer and print A_D, B_D, D_D, gains, error matrix",
         description="Synthesise a disturbance observer on the exact ZOH discretisation of the "
-        "nominal servo model and print its matrices. Defaults: the paper's motor "
-        "(J = 3.06e-4 kg m^2, b = 5e-5 N m s/rad), Ts = 1 ms, HPDOb (order 1) at "
+        "nominal servo model (--J-n, --b-n) and print its matrices. Defaults: the paper's "
+        "nominal model (J_n = 2.8e-4 kg m^2, b_n = 0), Ts = 1 ms, HPDOb (order 1) at "
         "100 rad/s.",
     )
     add_design_arguments(parser)

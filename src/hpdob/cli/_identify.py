@@ -7,8 +7,9 @@ import json
 import math
 from pathlib import Path
 
-from ._design import _integer, _number_list, _real
+from ._design import _integer, _number_list
 from ._errors import CLIError
+from ._options import finite as _real
 
 __all__ = ["register"]
 

@@ -8,6 +8,10 @@ design_observer, ObserverDesign, PositionObserverDesign
     state or, with ``measurement="position"``, the angle only.
 Observer, DisturbanceObserver
     Stateful runtime objects for the sample loop (``estimate`` then ``update``).
+design_eso, ExtendedStateObserver, ESODesign
+    The linear extended state observer of ADRC (classical and generalised, two forms).
+design_kalman, KalmanDisturbanceObserver, KalmanDesign, kalman_process_noise
+    The steady-state Kalman filter with a disturbance state.
 initial_state, estimate, outputs, update
     The pure functional core of the sample loop, for any observer.
 characteristic_polynomial, error_matrix, extrapolation_weights
@@ -15,6 +19,8 @@ characteristic_polynomial, error_matrix, extrapolation_weights
 """
 
 from ._core import estimate, initial_state, outputs, update
+from ._eso import ESODesign, ExtendedStateObserver, design_eso
+from ._kalman import KalmanDesign, KalmanDisturbanceObserver, design_kalman, kalman_process_noise
 from ._position import PositionObserverDesign
 from ._runtime import DisturbanceObserver, Observer
 from ._synthesis import (
@@ -28,7 +34,11 @@ from ._system import ErrorDynamics, LinearObserver, Program, Term, as_system
 
 __all__ = [
     "DisturbanceObserver",
+    "ESODesign",
     "ErrorDynamics",
+    "ExtendedStateObserver",
+    "KalmanDesign",
+    "KalmanDisturbanceObserver",
     "LinearObserver",
     "Observer",
     "ObserverDesign",
@@ -37,11 +47,14 @@ __all__ = [
     "Term",
     "as_system",
     "characteristic_polynomial",
+    "design_eso",
+    "design_kalman",
     "design_observer",
     "error_matrix",
     "estimate",
     "extrapolation_weights",
     "initial_state",
+    "kalman_process_noise",
     "outputs",
     "update",
 ]

@@ -9,6 +9,8 @@ redesign it when the nominal model, ``Ts`` or a design parameter varies.
 from __future__ import annotations
 
 from .._validation import ParameterTypeError, ParameterValueError, check_keys
+from ._eso import ESODesign, design_eso
+from ._kalman import KalmanDesign, design_kalman
 from ._position import PositionObserverDesign
 from ._runtime import DisturbanceObserver
 from ._synthesis import ObserverDesign, design_observer
@@ -21,6 +23,12 @@ FAMILIES = {
         design_observer,
         ("order", "poles", "bandwidth", "measurement", "velocity_bandwidth", "gain_direction"),
         ("order",),
+    ),
+    "eso": (design_eso, ("bandwidth", "extended_order", "form"), ("bandwidth",)),
+    "kalman": (
+        design_kalman,
+        ("order", "position_noise_std", "process_noise_std"),
+        ("position_noise_std", "process_noise_std"),
     ),
 }
 
@@ -64,6 +72,16 @@ def design_from_spec(model, spec: dict, where: str = "observer"):
 
 def spec_of(observer) -> dict | None:
     """The spec of a design of a known family (None for any other observer)."""
+    design = getattr(observer, "design", None)
+    if isinstance(design, (ObserverDesign, PositionObserverDesign, ESODesign, KalmanDesign)):
+        observer = design
+    if isinstance(observer, ESODesign):
+        return {"type": "eso", "bandwidth": observer.bandwidth,
+                "extended_order": observer.extended_order, "form": observer.form}  # fmt: skip
+    if isinstance(observer, KalmanDesign):
+        return {"type": "kalman", "order": observer.order,
+                "position_noise_std": observer.position_noise_std,
+                "process_noise_std": observer.process_noise_std}  # fmt: skip
     if isinstance(observer, DisturbanceObserver):
         observer = observer.design
     if isinstance(observer, ObserverDesign):

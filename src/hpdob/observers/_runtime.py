@@ -243,13 +243,11 @@ class DisturbanceObserver(Observer):
     ----------
     design : ObserverDesign or PositionObserverDesign
         The immutable synthesis result; ``model``, ``order``, ``poles``, ``gains`` and
-        ``error_matrix`` are read from it.
-    state : ndarray, shape (order + 1,) or (order + 3,)
-        Copy of the state: the auxiliary-variable estimate :math:`\hat z_k`, or for a
-        position-only observer the prior estimate of :math:`[\theta, \omega,
-        \tau_{k-m}, \dots, \tau_k]`.
-    system : LinearObserver
-        The observer as a linear system (what simulation, analysis and export run).
+        ``error_matrix`` are read from it. The state (``.state``, a copy of the
+        auxiliary-variable estimate :math:`\hat z_k`, or for a position-only observer the prior
+        estimate of :math:`[\theta, \omega, \tau_{k-m}, \dots, \tau_k]`) and the linear
+        system (``.system``, what simulation, analysis and export run) are those of
+        :class:`Observer`.
 
     Raises
     ------

@@ -15,6 +15,8 @@ __all__ = ["DISTRIBUTIONS", "PATHS", "expand_scenarios"]
 PATHS = (
     "plant.J", "plant.b", "plant.coulomb", "plant.coulomb_velocity",
     "plant.link_mass", "plant.link_length",
+    "plant.J_motor", "plant.J_load", "plant.stiffness", "plant.damping",
+    "plant.b_motor", "plant.b_load",
     "nominal.J", "nominal.b",
     "observer.order", "observer.bandwidth", "observer.velocity_bandwidth",
     "observer.measurement",
