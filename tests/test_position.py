@@ -548,6 +548,30 @@ def test_sweep_toml_and_cli(tmp_path, capsys):
     assert got == pytest.approx(expected, rel=1e-12)
 
 
+def test_estimate_cli_runs_a_position_only_observer_over_a_log(tmp_path, capsys):
+    """``hpdob estimate --measurement position``: the observer run offline over an encoder
+    log reproduces the closed loop's own estimate (the log of virtual-experiment-position)."""
+    import json
+
+    from hpdob.cli import main
+
+    result = paper.run("virtual-experiment-position", duration=2.0)
+    rows = ["t,q,u"] + [f"{t!r},{q!r},{u!r}" for t, q, u in
+                        zip(result.t.tolist(), result.theta_measured.tolist(),
+                            result.u.tolist(), strict=True)]  # fmt: skip
+    (tmp_path / "log.csv").write_text("\n".join(rows) + "\n")
+    argv = ["estimate", str(tmp_path / "log.csv"), "--time", "t", "--position", "q", "--input",
+            "u", "--J-n", "2.8e-4", "--order", "2", "--bandwidth", "150", "--measurement",
+            "position", "--out", str(tmp_path / "out"), "--no-plot"]  # fmt: skip
+    assert main(argv) == 0
+    table = np.genfromtxt(tmp_path / "out" / "estimate.csv", delimiter=",", names=True)
+    np.testing.assert_allclose(table["tau_hat"], result.tau_hat, rtol=1e-12, atol=1e-15)
+    report = json.loads((tmp_path / "out" / "estimate.json").read_text())
+    assert report["observer"]["measurement"] == "position"
+    assert main([*argv, "--gain-direction", "0,1"]) == 2
+    assert "--gain-direction applies to --measurement state only" in capsys.readouterr().err
+
+
 def test_mujoco_loop_runs_the_position_only_observer():
     pytest.importorskip("mujoco")
     from hpdob import MujocoServo

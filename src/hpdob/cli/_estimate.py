@@ -62,9 +62,23 @@ def register(subparsers) -> None:
     choice.add_argument("--bandwidth", type=finite, help="bandwidth [rad/s] (default: 100)")
     choice.add_argument("--poles", type=_number_list(complex), help="comma-separated poles")
     obs.add_argument(
+        "--measurement",
+        choices=("state", "position"),
+        default="state",
+        help="the observer family: the paper's, which measures the velocity too (here the log's "
+        "differenced position), or the position-only one (default: %(default)s)",
+    )
+    obs.add_argument(
+        "--velocity-bandwidth",
+        type=finite,
+        default=None,
+        help="--measurement position: bandwidth of the velocity poles [rad/s] (default: the "
+        "bandwidth)",
+    )
+    obs.add_argument(
         "--gain-direction",
         type=_number_list(float),
-        default=[1.0, 1.0],
+        default=None,
         help="gain direction d of the state-measuring family (default: 1,1)",
     )
     parser.add_argument(
@@ -132,7 +146,13 @@ def _run(args: argparse.Namespace) -> int:
 
     log = _log(args)
     nominal, origin = _nominal(args)
-    spec = {"order": args.order, "gain_direction": args.gain_direction}
+    spec = {"order": args.order, "measurement": args.measurement}
+    if args.measurement == "state":
+        spec["gain_direction"] = [1.0, 1.0] if args.gain_direction is None else args.gain_direction
+    elif args.gain_direction is not None:
+        raise CLIError("--gain-direction applies to --measurement state only")
+    if args.velocity_bandwidth is not None:
+        spec["velocity_bandwidth"] = args.velocity_bandwidth
     if args.poles is not None:
         spec["poles"] = args.poles
     else:
