@@ -52,6 +52,7 @@ from . import identification, paper, signals
 from ._validation import ParameterTypeError, ParameterValueError
 from ._version import __version__
 from .analysis import (
+    Comparison,
     GangOfFour,
     LoopMargins,
     NoiseGains,
@@ -59,6 +60,7 @@ from .analysis import (
     StabilityMap,
     closed_loop,
     closed_loop_poles,
+    compare_observers,
     estimation_response,
     estimation_transfer,
     gang_of_four,
@@ -109,6 +111,7 @@ from .simulation import (
 __all__ = [
     "PD",
     "Actuator",
+    "Comparison",
     "DiscreteServoModel",
     "DisturbanceObserver",
     "Encoder",
@@ -138,6 +141,7 @@ __all__ = [
     "characteristic_polynomial",
     "closed_loop",
     "closed_loop_poles",
+    "compare_observers",
     "design_observer",
     "error_matrix",
     "estimate",

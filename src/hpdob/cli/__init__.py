@@ -15,6 +15,7 @@ from .._validation import ParameterTypeError, ParameterValueError
 from .._version import __version__
 from . import (
     _analyze,
+    _compare,
     _design,
     _estimate,
     _export_c,
@@ -36,6 +37,7 @@ _COMMANDS = (
     _analyze,
     _identify,
     _estimate,
+    _compare,
 )
 
 
