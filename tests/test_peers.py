@@ -306,3 +306,20 @@ def test_scenario_files_and_the_command_line(tmp_path, capsys):
     capsys.readouterr()
     assert main(["design", "--type", "kalman"]) == 2
     assert "needs --position-noise-std" in capsys.readouterr().err
+
+
+def test_peers_run_on_a_mujoco_plant():
+    """The MuJoCo loop runs the peers through the same compiled sample step: on the frictionless
+    servo it agrees with hpdob's own exact integrator (RK4 at 8 steps per sample)."""
+    pytest.importorskip("mujoco")
+    from hpdob import MujocoServo
+
+    model = paper.NOMINAL.discretize(TS)
+    eso = design_eso(model, bandwidth=120.0, extended_order=1)
+    kwargs = {**paper.scenario(), "duration": 2.0, "plant": paper.PLANT.replace(coulomb=0.0)}
+    exact = simulate(**kwargs, observer=eso, substeps=8)
+    mujoco = simulate(**{**kwargs, "plant": MujocoServo(paper.PLANT.J, paper.PLANT.b)},
+                      observer=eso, substeps=8)  # fmt: skip
+    np.testing.assert_allclose(mujoco.tau_hat, exact.tau_hat, rtol=0,
+                               atol=1e-6 * np.abs(exact.tau_hat).max())  # fmt: skip
+    assert mujoco.omega_hat is not None
