@@ -107,6 +107,7 @@ from .simulation import (
     simulate,
     sweep,
 )
+from .tuning import TuningResult, tune
 
 __all__ = [
     "PD",
@@ -136,6 +137,7 @@ __all__ = [
     "SimulationDivergedWarning",
     "SimulationResult",
     "StabilityMap",
+    "TuningResult",
     "TwoMassServo",
     "__version__",
     "characteristic_polynomial",
@@ -165,5 +167,7 @@ __all__ = [
     "signals",
     "simulate",
     "sweep",
+    "tune",
+    "tuning",
     "update",
 ]
