@@ -33,6 +33,7 @@ def code_blocks(path: Path, language: str) -> list[str]:
         ROOT / "docs" / "mujoco.md",
         ROOT / "docs" / "analysis.md",
         ROOT / "docs" / "real-data.md",
+        ROOT / "docs" / "tuning.md",
         ROOT / "docs" / "guides" / "sample-loop.md",
     ],
     ids=str,

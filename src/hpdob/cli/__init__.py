@@ -23,6 +23,7 @@ from . import (
     _reproduce,
     _simulate,
     _sweep,
+    _tune,
 )
 from ._errors import CLIError
 
@@ -38,6 +39,7 @@ _COMMANDS = (
     _identify,
     _estimate,
     _compare,
+    _tune,
 )
 
 

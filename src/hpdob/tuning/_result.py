@@ -48,6 +48,9 @@ class TuningResult:
         and ``delay_margin`` [s].
     settings : dict
         The arguments the search ran with.
+    scenario : dict
+        The verification run (``reference``, ``disturbance``, ``duration``: keyword arguments
+        of :func:`hpdob.simulate`).
     notes : tuple of str
         What was left out and why.
     """
@@ -57,6 +60,7 @@ class TuningResult:
     verification: list = field(repr=False)
     settings: dict = field(repr=False)
     notes: tuple = ()
+    scenario: dict = field(default_factory=dict, repr=False)
 
     @property
     def design(self):
@@ -87,7 +91,7 @@ class TuningResult:
         return columns_to_pandas(columns, caller="TuningResult.table")
 
     def pareto(self):
-        """The Pareto front of (accuracy, noise) among the qualified candidates, simulated."""
+        """The Pareto front of (accuracy, noise) among the qualified candidates."""
         frame = self.table
         return frame[frame["pareto"]].reset_index(drop=True)
 
@@ -102,8 +106,7 @@ class TuningResult:
             f"{qualified} robustly stable over J/J_n in [{s['J_range'][0]:g}, "
             f"{s['J_range'][1]:g}] with {s['delay_samples']} + 1 samples of delay"
             + ("" if s["noise_limit"] is None else f" and within {s['noise_limit']:g} N m noise")
-            + f"; {sum(row['pareto'] for row in self.rows)} on the accuracy/noise Pareto front "
-            "simulated",
+            + "; all of these simulated at the centre of the set",
             f"  accuracy |1 - Q| {r['accuracy']:.3g}; sensor noise in the estimate "
             f"{r['tau_noise']:.3g} N m, in u {r['u_noise']:.3g} N m RMS",
             f"  worst spectral radius {r['radius']:.5f} (with one more sample of delay "
@@ -170,7 +173,10 @@ class TuningResult:
         ax.set_yscale("log")
         ax.set_xlabel("sensor noise in the estimate [N m RMS]")
         ax.set_ylabel("estimation error $|1-Q|$ [-]")
-        ax.set_title("candidates (filled: robustly stable)", fontsize="medium")
+        band = self.settings["frequencies_Hz"]
+        at = f"{band[0]:g} Hz" if len(band) == 1 else f"{band[0]:g}-{band[-1]:g} Hz (RMS)"
+        ax.set_title(f"candidates at {at}; filled: robustly stable; star: best in simulation",
+                     fontsize="medium")  # fmt: skip
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="x-small", ncols=1)
         return fig
