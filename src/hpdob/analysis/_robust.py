@@ -27,11 +27,14 @@ from ..models._servo import ServoModel
 from ..observers._synthesis import design_observer
 from ..simulation._controller import PD
 from ..simulation._devices import Encoder
-from ._linear_loop import LoopSpec, loop_matrices
+from ._linear_loop import MAX_DELAY_SAMPLES, LoopSpec, loop_matrices
 
 __all__ = ["StabilityMap", "robust_stability_map"]
 
 PARAMETERS = ("J_ratio", "b")
+#: Most grid points (values x bandwidths) of one map: each costs a closed-loop eigenvalue
+#: problem, so larger maps are refused up front rather than run for hours.
+MAX_MAP_POINTS = 1_000_000
 _UNITS = {"J_ratio": "true/nominal inertia J/J_n [-]", "b": "true viscous friction b [N m s/rad]"}
 
 
@@ -334,7 +337,11 @@ def robust_stability_map(
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
     m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
     delay = as_int(
-        delay_samples, "delay_samples", "a non-negative integer number of samples", minimum=0
+        delay_samples,
+        "delay_samples",
+        "a non-negative integer number of samples (each adds a state to the linear loop)",
+        minimum=0,
+        maximum=MAX_DELAY_SAMPLES,
     )
     ratios, ratio_grid = _grid_or_scalar(
         J_ratio, "J_ratio", "positive true/nominal inertia ratios J/J_n", allow_zero=False
@@ -365,12 +372,24 @@ def robust_stability_map(
         delay=delay,
         backward_difference=sensor is not None and sensor.velocity == "backward-difference",
     )
-    designs = [setting.design(float(g)) for g in bandwidths]
     values = ratios if ratio_grid else frictions
+    if values.size * bandwidths.size > MAX_MAP_POINTS:
+        raise ParameterValueError(
+            f"the map has {values.size} x {bandwidths.size} = {values.size * bandwidths.size:.3g} "
+            f"points; at most {MAX_MAP_POINTS} are supported (use coarser grids)"
+        )
+    designs = [setting.design(float(g)) for g in bandwidths]
     # Validate every plant before computing (ServoModel checks finiteness of J and b).
     for v in values:
         J_r, b_r = (float(v), float(frictions)) if ratio_grid else (float(ratios), float(v))
-        ServoModel(J_r * nominal.J, b_r).discretize(Ts)
+        try:
+            ServoModel(J_r * nominal.J, b_r).discretize(Ts)
+        except ParameterValueError as err:
+            name = "J_ratio" if ratio_grid else "b"
+            raise ParameterValueError(
+                f"{name} entry {float(v)!r} gives a true plant ServoModel(J={J_r * nominal.J!r}, "
+                f"b={b_r!r}) that cannot be discretised at Ts={Ts!r}: {err}"
+            ) from None
     rho = np.empty((values.size, bandwidths.size))
     for i, v in enumerate(values):
         J_r, b_r = (float(v), float(frictions)) if ratio_grid else (float(ratios), float(v))

@@ -94,7 +94,17 @@ def _call(function, t: np.ndarray, name: str):
 
 def _as_samples(values, t: np.ndarray, name: str) -> np.ndarray:
     try:
-        values = np.asarray(values, dtype=float)
+        raw = np.asarray(values)
+    except (TypeError, ValueError):
+        raw = None
+    if raw is not None and raw.dtype.kind == "c":  # a cast would drop the imaginary part
+        raise ParameterValueError(
+            f"{name} must be real-valued, got complex values of dtype {raw.dtype.name}"
+        )
+    try:
+        values = np.asarray(raw if raw is not None else values, dtype=float)
+    except OverflowError:  # an object array holding an int beyond the float range
+        raise ParameterValueError(f"{name} has a value beyond the float range") from None
     except (TypeError, ValueError):
         raise ParameterValueError(
             f"{name} must be an array of numbers, got {type(values).__name__}"

@@ -11,7 +11,8 @@ from __future__ import annotations
 import math
 import os
 import sys
-from concurrent.futures import ThreadPoolExecutor, as_completed
+import threading
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
 import numpy as np
 
@@ -188,10 +189,23 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
     return row
 
 
-def run_chunk(base: dict, chunk: list) -> list:
-    """Rows of ``chunk``, a list of ``(index, params)``; runs anywhere (local or a worker)."""
+class SweepCancelled(Exception):
+    """Raised inside a local chunk when the sweep was cancelled (e.g. by Ctrl-C)."""
+
+
+def run_chunk(base: dict, chunk: list, stop: threading.Event | None = None) -> list:
+    """Rows of ``chunk``, a list of ``(index, params)``; runs anywhere (local or a worker).
+
+    ``stop`` (local runs): checked before every scenario, so a cancelled sweep ends within one
+    scenario instead of one chunk.
+    """
     cache: dict = {}
-    return [{"scenario": index, **run_scenario(base, params, cache)} for index, params in chunk]
+    rows = []
+    for index, params in chunk:
+        if stop is not None and stop.is_set():
+            raise SweepCancelled
+        rows.append({"scenario": index, **run_scenario(base, params, cache)})
+    return rows
 
 
 def _chunks(scenarios: list, workers: int) -> list:
@@ -199,6 +213,15 @@ def _chunks(scenarios: list, workers: int) -> list:
     indexed = list(enumerate(scenarios))
     size = max(1, min(64, math.ceil(len(indexed) / (8 * max(workers, 1)))))
     return [indexed[i : i + size] for i in range(0, len(indexed), size)]
+
+
+def _check_progress(progress):
+    if progress is None or isinstance(progress, (bool, np.bool_)) or callable(progress):
+        return progress
+    raise ParameterTypeError(
+        f"progress must be None, True, False or a callable progress(done, total), got "
+        f"{progress!r} of type {type(progress).__name__}"
+    )
 
 
 def _progress_callback(progress, total: int):
@@ -222,13 +245,39 @@ def _progress_callback(progress, total: int):
 
 
 def _run_local(base, chunks, workers, update) -> list:
+    """Run the chunks on ``workers`` threads (the kernel releases the GIL).
+
+    Chunks are submitted lazily, at most two per worker in flight, so that an interrupt
+    (KeyboardInterrupt in the main thread) or a failure leaves little to cancel: pending
+    chunks are cancelled, running ones stop before their next scenario, and the call returns
+    (re-raising) without waiting for the rest of the sweep.
+    """
     rows = []
-    with ThreadPoolExecutor(max_workers=workers) as pool:  # the kernel releases the GIL
-        futures = [pool.submit(run_chunk, base, chunk) for chunk in chunks]
-        for future in as_completed(futures):
-            chunk_rows = future.result()
-            rows.extend(chunk_rows)
-            update(len(chunk_rows))
+    stop = threading.Event()
+    pending = iter(chunks)
+    pool = ThreadPoolExecutor(max_workers=workers)
+    running = set()
+    try:
+        for chunk in pending:
+            running.add(pool.submit(run_chunk, base, chunk, stop))
+            if len(running) >= 2 * workers:
+                break
+        while running:
+            done, running = wait(running, return_when=FIRST_COMPLETED)
+            for future in done:
+                chunk_rows = future.result()
+                rows.extend(chunk_rows)
+                update(len(chunk_rows))
+                chunk = next(pending, None)
+                if chunk is not None:
+                    running.add(pool.submit(run_chunk, base, chunk, stop))
+    except BaseException:
+        stop.set()
+        for future in running:
+            future.cancel()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
     return rows
 
 
@@ -250,10 +299,14 @@ def _run_dask(base, scenarios, scheduler, update) -> list:
         # pure=False: never reuse results across sweeps; retries also covers transient failures.
         futures = [client.submit(run_chunk, base, chunk, pure=False, retries=3) for chunk in chunks]
         rows = []
-        for future in dask_completed(futures):
-            chunk_rows = future.result()
-            rows.extend(chunk_rows)
-            update(len(chunk_rows))
+        try:
+            for future in dask_completed(futures):
+                chunk_rows = future.result()
+                rows.extend(chunk_rows)
+                update(len(chunk_rows))
+        except BaseException:  # an interrupt or a failure: nothing more may run for us
+            client.cancel(futures)
+            raise
         return rows
     finally:
         if own:
@@ -376,6 +429,7 @@ def sweep(
     resolved["metric_windows"] = _metric_windows(metric_windows)
     scenarios = expand_scenarios(grid, vary, n, seed)
     workers, mode = _workers_and_mode(scheduler)
+    progress = _check_progress(progress)
     # Validate the shared part once, loudly, before spending time on scenarios.
     scenario_loop(resolved, {})
     sample_signals(
