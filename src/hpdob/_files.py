@@ -193,7 +193,8 @@ class OutputSet:
                     with contextlib.suppress(FileNotFoundError):
                         (self.directory / name).unlink()
                 for target in order:
-                    os.replace(self._staged.pop(target), target)
+                    os.replace(self._staged[target], target)
+                    del self._staged[target]  # only now: a failed rename is cleaned up
             finally:
                 self.discard()
         return order

@@ -16,11 +16,22 @@ from pathlib import Path
 import numpy as np
 
 from ..simulation._result import json_ready
-from ._options import add_loop_arguments, add_nominal_arguments, reject_plant_arguments
+from ._errors import CLIError
+from ._options import (
+    add_loop_arguments,
+    add_nominal_arguments,
+    finite,
+    output_path,
+    reject_plant_arguments,
+)
 
 __all__ = ["register"]
 
 ANALYSES = ("bode", "noise", "tradeoff", "stability")
+#: Highest --dpi, and most pixels along either side of a figure: beyond them matplotlib's
+#: renderer runs out of memory (std::bad_alloc) instead of failing cleanly.
+MAX_DPI = 1200
+MAX_PIXELS = 16384
 
 
 def _grid(text: str) -> list[float]:
@@ -43,14 +54,16 @@ def _grid(text: str) -> list[float]:
         ) from None
 
 
-def _positive_real(text: str) -> float:
-    """A finite number > 0 (e.g. ``--dpi``)."""
+def _dpi(text: str) -> float:
+    """A resolution [dots per inch]: a finite number in (0, MAX_DPI]."""
     try:
         value = float(text)
     except ValueError:
         value = math.nan
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+    if not (math.isfinite(value) and 0 < value <= MAX_DPI):
+        raise argparse.ArgumentTypeError(
+            f"expected a positive resolution of at most {MAX_DPI} dots per inch, got {text!r}"
+        )
     return value
 
 
@@ -67,16 +80,16 @@ def _add_common(parser: argparse.ArgumentParser, *, loop: bool = True) -> None:
     """Output options and the model/loop options (``loop=False``: the nominal model only)."""
     parser.add_argument(
         "--out",
-        type=Path,
+        type=output_path,
         default=Path("hpdob-analysis"),
         metavar="DIR",
         help="output directory (default: %(default)s)",
     )
     parser.add_argument(
         "--dpi",
-        type=_positive_real,
+        type=_dpi,
         default=150.0,
-        help="figure resolution [dots per inch] (default: %(default)s)",
+        help=f"figure resolution [dots per inch], at most {MAX_DPI} (default: %(default)s)",
     )
     title = "loop (defaults: the canonical scenario)" if loop else "nominal model (canonical)"
     group = parser.add_argument_group(title)
@@ -108,10 +121,10 @@ def register(subparsers) -> None:
     bode = sub.add_parser("bode", help="estimation response Q, 1-Q and input sensitivity")
     _add_common(bode)
     _add_orders(bode, "0,1,2,3")
-    bode.add_argument("--bandwidth", type=float, default=100.0, help="[rad/s] (default 100)")
+    bode.add_argument("--bandwidth", type=finite, default=100.0, help="[rad/s] (default 100)")
     bode.add_argument(
         "--frequency",
-        type=float,
+        type=finite,
         default=2.0,
         help="disturbance frequency to report [Hz] (default 2)",
     )
@@ -139,7 +152,7 @@ def register(subparsers) -> None:
         help="[rad/s], LO:HI:N or a list (default 10:3000:61)",
     )
     tradeoff.add_argument(
-        "--frequency", type=float, default=2.0, help="disturbance frequency [Hz] (default 2)"
+        "--frequency", type=finite, default=2.0, help="disturbance frequency [Hz] (default 2)"
     )
     tradeoff.add_argument(
         "--noise",
@@ -172,8 +185,8 @@ def register(subparsers) -> None:
         p.set_defaults(handler=_run)
 
 
-def _write_json(path: Path, data: dict) -> None:
-    path.write_text(json.dumps(json_ready(data), indent=2, allow_nan=False) + "\n")
+def _write_json(files, name: str, data: dict) -> None:
+    files.write_text(name, json.dumps(json_ready(data), indent=2, allow_nan=False) + "\n")
 
 
 def _loop(args):
@@ -190,26 +203,56 @@ def _loop(args):
     }
 
 
-def _save(fig, path: Path, dpi: float) -> None:
+def _save(fig, files, name: str, dpi: float) -> None:
     import matplotlib.pyplot as plt
 
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    try:
+        width, height = fig.get_size_inches() * dpi
+        if max(width, height) > MAX_PIXELS:
+            raise CLIError(
+                f"--dpi {dpi:g} makes {name} {width:.0f} x {height:.0f} pixels; at most "
+                f"{MAX_PIXELS} pixels per side are supported"
+            )
+        try:
+            files.save_figure(name, fig, dpi=dpi)
+        except (OverflowError, ValueError) as err:  # e.g. log axes over ~300 decades
+            raise CLIError(
+                f"cannot draw {name} (the grids may span too many decades): "
+                f"{type(err).__name__}: {err}"
+            ) from None
+    finally:
+        plt.close(fig)
+
+
+#: The summary JSON of each analysis: renamed last, so it marks a complete set of outputs.
+MARKERS = {
+    "bode": "bode.json",
+    "noise": "noise.json",
+    "tradeoff": "tradeoff.json",
+    "stability": "stability.json",
+}
 
 
 def _run(args: argparse.Namespace) -> int:
     import matplotlib
 
+    from .._files import staged_outputs
+
     matplotlib.use("Agg")
-    args.out.mkdir(parents=True, exist_ok=True)
-    written = {"bode": _bode, "noise": _noise, "tradeoff": _tradeoff, "stability": _stability}[
-        args.analysis
-    ](args)
+    # Every output is staged and renamed only when all are complete (the JSON last): a bad
+    # value found late (e.g. an order that cannot be designed) leaves the previous outputs.
+    with staged_outputs(args.out, markers=[MARKERS[args.analysis]]) as files:
+        written = {
+            "bode": _bode,
+            "noise": _noise,
+            "tradeoff": _tradeoff,
+            "stability": _stability,
+        }[args.analysis](args, files)
     print(f"wrote {', '.join(written)} to {args.out}")
     return 0
 
 
-def _bode(args) -> list[str]:
+def _bode(args, files) -> list[str]:
     from .._table import columns_to_csv
     from ..analysis._estimation import estimation_response
     from ..analysis._figures import bode_figure
@@ -226,7 +269,8 @@ def _bode(args) -> list[str]:
     ]
     _save(
         bode_figure(designs, f, sensitivities=sens, mark_frequency=args.frequency),
-        args.out / "bode.png",
+        files,
+        "bode.png",
         args.dpi,
     )
     columns = {
@@ -261,12 +305,12 @@ def _bode(args) -> list[str]:
                 "inertia_factor_range": list(margins.inertia_factor_range),
             },
         }
-    columns_to_csv(columns, args.out / "bode.csv")
-    _write_json(args.out / "bode.json", summary)
+    columns_to_csv(columns, files.path("bode.csv"))
+    _write_json(files, "bode.json", summary)
     return ["bode.png", "bode.csv", "bode.json"]
 
 
-def _noise(args) -> list[str]:
+def _noise(args, files) -> list[str]:
     from .._table import columns_to_csv
     from ..analysis._figures import noise_figure
     from ..analysis._noise import noise_gains
@@ -281,14 +325,14 @@ def _noise(args) -> list[str]:
         ]
         for m in args.orders
     ]
-    _save(noise_figure(args.bandwidths, args.orders, gains), args.out / "noise.png", args.dpi)
+    _save(noise_figure(args.bandwidths, args.orders, gains), files, "noise.png", args.dpi)
     rows = [
         {"order": m, "bandwidth_rad_s": g, **gain.to_dict()}
         for m, row in zip(args.orders, gains, strict=True)
         for g, gain in zip(args.bandwidths, row, strict=True)
     ]
-    columns_to_csv({k: [r[k] for r in rows] for k in rows[0]}, args.out / "noise.csv")
-    _write_json(args.out / "noise.json", {"loop": _describe(args), "gains": rows})
+    columns_to_csv({k: [r[k] for r in rows] for k in rows[0]}, files.path("noise.csv"))
+    _write_json(files, "noise.json", {"loop": _describe(args), "gains": rows})
     return ["noise.png", "noise.csv", "noise.json"]
 
 
@@ -305,7 +349,7 @@ def _describe(args) -> dict:
     }
 
 
-def _tradeoff(args) -> list[str]:
+def _tradeoff(args, files) -> list[str]:
     from ..analysis._tradeoff import noise_tradeoff
     from ..models._servo import ServoModel
 
@@ -317,8 +361,8 @@ def _tradeoff(args) -> list[str]:
         orders=args.orders,
         noise=args.noise,
     )
-    _save(result.plot(), args.out / "tradeoff.png", args.dpi)
-    result.to_csv(args.out / "tradeoff.csv")
+    _save(result.plot(), files, "tradeoff.png", args.dpi)
+    result.to_csv(files.path("tradeoff.csv"))
     reference = result.orders[0]
     summary = {
         "frequency_Hz": result.frequency,
@@ -335,11 +379,11 @@ def _tradeoff(args) -> list[str]:
             for m in result.orders[1:]
         },
     }
-    _write_json(args.out / "tradeoff.json", summary)
+    _write_json(files, "tradeoff.json", summary)
     return ["tradeoff.png", "tradeoff.csv", "tradeoff.json"]
 
 
-def _stability(args) -> list[str]:
+def _stability(args, files) -> list[str]:
     from ..analysis._robust import robust_stability_map
     from ..models._servo import ServoModel
 
@@ -373,8 +417,8 @@ def _stability(args) -> list[str]:
             smap.bandwidths.min() <= point[0] <= smap.bandwidths.max()
             and smap.values.min() <= point[1] <= smap.values.max()
         )
-        _save(smap.plot(mark=point if inside else None), args.out / f"{stem}.png", args.dpi)
-        smap.to_csv(args.out / f"{stem}.csv")
+        _save(smap.plot(mark=point if inside else None), files, f"{stem}.png", args.dpi)
+        smap.to_csv(files.path(f"{stem}.csv"))
         written += [f"{stem}.png", f"{stem}.csv"]
         summary["maps"].append(
             {
@@ -385,5 +429,5 @@ def _stability(args) -> list[str]:
                 "boundary": smap.boundary(),
             }
         )
-    _write_json(args.out / "stability.json", summary)
+    _write_json(files, "stability.json", summary)
     return [*written, "stability.json"]

@@ -13,6 +13,7 @@ from ._options import add_nominal_arguments, finite, reject_plant_arguments
 
 __all__ = ["register"]
 
+
 def _number_list(kind):
     def parse(text: str):
         try:
