@@ -43,6 +43,7 @@ from ._error_dynamics import (
     unit_root_polynomial,
 )
 from ._program import Program, Term
+from ._realised import realised_poles
 from ._system import ErrorDynamics, LinearObserver
 
 __all__ = [
@@ -59,6 +60,9 @@ MAX_ORDER = 50
 _PAIR_RTOL = 1e-9
 #: gain directions with |d^T D| <= _DEGENERATE * |d| |D| are rejected.
 _DEGENERATE = 1e-8
+#: Default ``pole_tolerance``: every realised pole lies within this fraction of its requested
+#: pole's distance to the unit circle, ``|realised - p| <= 0.05 (1 - |p|)``.
+POLE_TOLERANCE = 0.05
 
 
 def _validate_poles(poles, order: int) -> np.ndarray:
@@ -97,7 +101,7 @@ def _validate_poles(poles, order: int) -> np.ndarray:
 
 
 def _show_k(k: np.ndarray) -> str:
-    return np.array2string(np.asarray(k), threshold=6, precision=6)
+    return np.array2string(np.asarray(k), threshold=6, precision=6, max_line_width=1_000_000)
 
 
 def _fmt_pole(p: complex) -> str:
@@ -139,6 +143,12 @@ class ObserverDesign:
         ``F = M``, ``G = [K_x, K_u]``, ``H = e_{m+1}^T``, ``E = [-L_{m+1}^T, 0]``,
         ``N = [G, 1]``, with the companion structure kept in its program (unit shifts and
         integer extrapolation weights as exact terms; see :func:`structured_program`).
+    realised_poles : ndarray, shape (order + 1,)
+        The eigenvalues of ``M`` that the gains ``k``, rounded to double precision, really
+        place, paired with ``poles`` entry by entry (float if all real, else complex). A
+        repeated pole splits into a small ring (by up to ``~eps^(1/(m+1))``); the design is
+        refused when a realised pole is further from its requested one than
+        ``pole_tolerance (1 - |p|)`` (see :func:`design_observer`).
     """
 
     model: DiscreteServoModel
@@ -152,6 +162,7 @@ class ObserverDesign:
     state_input: np.ndarray
     control_input: np.ndarray
     system: LinearObserver = field(repr=False)
+    realised_poles: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def state_matrix(self) -> np.ndarray:
@@ -188,6 +199,7 @@ def design_observer(
     poles=None,
     bandwidth: float | None = None,
     gain_direction=(1.0, 1.0),
+    pole_tolerance: float | None = POLE_TOLERANCE,
 ) -> ObserverDesign:
     r"""Synthesise an observer of truncation order ``order`` by eigenvalue placement.
 
@@ -209,6 +221,13 @@ def design_observer(
         Direction ``d`` of the gain vectors, ``L_i = k_i d / (d^T D_Dn)``. The default
         ``(1, 1)`` is the paper's eq. (25). ``(0, 1)`` makes the estimate independent of the
         absolute position.
+    pole_tolerance : float or None, optional
+        Largest accepted distance of a realised pole (an eigenvalue of ``M`` with the gains
+        rounded to doubles, :attr:`ObserverDesign.realised_poles`) from its requested pole,
+        as a fraction of the requested pole's distance to the unit circle:
+        ``|realised - p| <= pole_tolerance * (1 - |p|)``. Default 0.05 (then the realised
+        bandwidth ``-ln|z|/Ts`` is within about 5% of the requested one). None accepts any
+        stable design.
 
     Returns
     -------
@@ -224,7 +243,9 @@ def design_observer(
         ``order + 1``, ``bandwidth <= 0``, ``gain_direction`` is zero or (nearly) orthogonal
         to ``D_Dn``, ``order > 50``, or the error matrix is not stable although the requested
         poles are (high orders or repeated poles very close to 1: the gains, rounded to
-        double precision, no longer place them; decided exactly by a Schur-Cohn test).
+        double precision, no longer place them; decided exactly by a Schur-Cohn test), or a
+        realised pole is off by more than ``pole_tolerance`` (e.g. order 10 at 100 rad/s and
+        ``Ts = 1 ms``: requested 0.9048, realised up to 0.9548).
 
     Notes
     -----
@@ -302,6 +323,8 @@ def design_observer(
             f"has |z| >= 1, exact Schur-Cohn test); high orders and repeated poles near 1 are "
             f"too ill-conditioned. Use a lower order, a higher bandwidth or distinct poles"
         )
+    asked = f"bandwidth={g_out!r} rad/s" if g_out is not None else f"poles={_show(poles)}"
+    realised = realised_poles(k, placed, pole_tolerance, POLE_TOLERANCE, asked)
     A, B = np.asarray(model.A), np.asarray(model.B)
     Kx = G @ A - M @ G
     Ku = G @ B
@@ -334,6 +357,7 @@ def design_observer(
         state_input=readonly(Kx),
         control_input=readonly(Ku),
         system=system,
+        realised_poles=readonly(realised),
     )
 
 
