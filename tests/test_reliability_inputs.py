@@ -236,3 +236,56 @@ def test_labels_that_cannot_name_a_file(label):
 def test_public_names_unchanged_by_the_fixes():
     assert hpdob.design_observer is design_observer
     assert SmoothStep(0.0, 1.0, 2.0)(np.array([1.0]))[0] == 2.0
+
+
+# -- the audit of the surfaces on main (benchmarks/reliability_audit.py) ----------------------
+LOG_HEADER = "t,qm,vir\n"
+
+
+def _log_text(n=20):
+    return LOG_HEADER + "".join(f"{k * 1e-3!r},{0.001 * k!r},{0.5!r}\n" for k in range(n))
+
+
+@pytest.mark.parametrize(
+    ("payload", "pattern"),
+    [
+        (_log_text().replace("qm", "q\xe9").encode("latin-1"), r"^log\.csv is not UTF-8 text"),
+        (_log_text().encode("utf-16"), r"^log\.csv is not UTF-8 text \(byte 0 is b'\\xff'\)"),
+        (bytes(range(256)) * 40, r"^log\.csv is not UTF-8 text"),
+        (
+            (LOG_HEADER + "1" * 200_000 + ",0,0\n").encode(),
+            r"^cannot read log\.csv as CSV: field larger than field limit",
+        ),
+    ],
+    ids=["latin-1", "UTF-16", "binary", "200k-character field"],
+)
+def test_unreadable_csv_logs_are_one_line_errors(tmp_path, payload, pattern):
+    from hpdob.identification import read_log
+
+    path = tmp_path / "log.csv"
+    path.write_bytes(payload)
+    with pytest.raises(ValueError, match=pattern) as info:
+        read_log(path, time="t", position="qm", input="vir")
+    assert "\n" not in str(info.value)
+
+
+def test_corrupt_parquet_message_is_one_line(tmp_path):
+    from hpdob.identification import read_log
+
+    path = tmp_path / "log.parquet"
+    path.write_bytes(b"PAR1" + bytes(500) + b"PAR1")
+    with pytest.raises(ValueError, match=r"^cannot read log\.parquet as Parquet: ") as info:
+        read_log(path, time="t", position="qm", input="vir")
+    assert "\n" not in str(info.value)
+
+
+def test_sample_count_beyond_the_float_range():
+    with pytest.raises(ValueError, match=r"^duration/Ts = 1e\+308 s / 0\.001 s = inf samples"):
+        simulate(**_loop(), duration=1e308, reference=Step(0.0, 1.0))
+
+
+@pytest.mark.parametrize(("J", "Ts"), [(2.8e-4, 1e-320), (1e308, 1e-3)])
+def test_gains_that_overflow_are_refused(J, Ts):
+    model = ServoModel(J).discretize(Ts)
+    with pytest.raises(ValueError, match=r"^the gains L_i = k_i d / \(d\^T D_Dn\) overflow"):
+        design_observer(model, order=1, bandwidth=100.0)

@@ -313,7 +313,14 @@ def design_observer(
     rhs = desired[::-1][: m + 1] - unit_root_polynomial(m)[: m + 1]
     k = np.linalg.solve(characteristic_basis(m), rhs)
 
-    G = np.outer(k, unit / dD)
+    with np.errstate(over="ignore", invalid="ignore"):  # checked below: a tiny d^T D_Dn
+        G = np.outer(k, unit / dD)
+    if not np.all(np.isfinite(G)):
+        raise ParameterValueError(
+            f"the gains L_i = k_i d / (d^T D_Dn) overflow: D_Dn = {D.tolist()} is too small "
+            f"(J_n={model.J!r} kg m^2, Ts={model.Ts!r} s); use SI units with J_n and Ts of a "
+            f"realistic scale"
+        )
     M = error_matrix(k)
     if not schur_stable(k):
         asked = f"bandwidth={g_out!r} rad/s" if g_out is not None else f"poles={_show(poles)}"

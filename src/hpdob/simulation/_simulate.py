@@ -72,7 +72,13 @@ def check_run_arguments(Ts, duration, substeps=None, x0=(0.0, 0.0)):
 
 
 def _sample_count(Ts: float, duration: float) -> int:
-    n = round(duration / Ts)
+    ratio = duration / Ts
+    if not ratio <= MAX_PLANT_STEPS:  # also inf: duration/Ts beyond the float range
+        raise ParameterValueError(
+            f"duration/Ts = {duration!r} s / {Ts!r} s = {ratio:.3g} samples exceeds the limit "
+            f"of {MAX_PLANT_STEPS:.0e} per run; shorten duration or raise Ts"
+        )
+    n = round(ratio)
     if n < 1 or abs(n * Ts - duration) > 1e-9 * duration:
         raise ParameterValueError(
             f"duration must be a positive multiple of Ts={Ts!r} s, got "
