@@ -102,11 +102,11 @@ def realised_roots(k: np.ndarray, centers, multiplicities) -> list[np.ndarray]:
 
 def _nearest_roots(s: np.ndarray, n: int) -> np.ndarray:
     """The ``n`` roots of ``sum_j s_j w^j`` (ascending) closest to 0."""
-    size = np.abs(s)
-    if not np.any(size[:n]):  # w^n divides the polynomial: an exact n-fold root at 0
+    coefficients = s.tolist()
+    size = [abs(c) for c in coefficients]
+    if not any(size[:n]):  # w^n divides the polynomial: an exact n-fold root at 0
         return np.zeros(n, dtype=complex)
-    logs = np.full(s.size, -math.inf)
-    logs[size > 0] = np.log(size[size > 0])
+    logs = [math.log(a) if a > 0 else -math.inf for a in size]
     # Newton-polygon estimate of the cluster radius (balances s_0 .. s_n), in logarithms so
     # that neither tiny nor huge coefficients overflow.
     if size[n] > 0:
@@ -115,10 +115,12 @@ def _nearest_roots(s: np.ndarray, n: int) -> np.ndarray:
         log_rho = 0.0
     # w = rho v: coefficients s_j rho^j, normalised to a largest modulus of 1; terms below
     # 1e-200 only carry roots far from the cluster (|v| >> 1) and are dropped.
-    exponents = logs + np.arange(s.size) * log_rho
-    phases = np.where(size > 0, np.exp(1j * np.angle(s)), 0.0)  # no division: s may be tiny
-    scaled = phases * np.exp(exponents - exponents.max())
-    scaled[np.abs(scaled) < 1e-200] = 0.0
+    exponents = [x + j * log_rho for j, x in enumerate(logs)]
+    top = max(exponents)
+    scaled = [
+        c / a * math.exp(x - top) if a > 0 and x - top > -460.0 else 0.0  # e^-460 ~ 1e-200
+        for c, a, x in zip(coefficients, size, exponents, strict=True)
+    ]
     roots = math.exp(log_rho) * np.roots(scaled[::-1])
     return roots[np.argsort(np.abs(roots), kind="stable")[:n]]
 
@@ -126,6 +128,8 @@ def _nearest_roots(s: np.ndarray, n: int) -> np.ndarray:
 def _clusters(placed: np.ndarray, tolerance: float) -> list[list[int]]:
     """Indices of the requested poles grouped into clusters: poles closer than the tolerance
     radius of either are solved together (their realised roots cannot be told apart)."""
+    if np.all(placed == placed[0]):  # one repeated pole (every bandwidth design)
+        return [list(range(placed.size))]
     radius = tolerance * (1.0 - np.abs(placed))
     groups: list[list[int]] = []
     for i, p in enumerate(placed):
@@ -141,8 +145,6 @@ def realised_poles(k, placed, pole_tolerance, default: float, asked: str) -> np.
     (float if all real); a ParameterValueError if one is further from its requested pole than
     ``pole_tolerance (1 - |p|)`` (``asked`` describes the request in the message; None:
     no check, clusters grouped with ``default``)."""
-    import scipy.optimize
-
     m = len(placed) - 1
     if pole_tolerance is None:
         tolerance = None
@@ -153,6 +155,11 @@ def realised_poles(k, placed, pole_tolerance, default: float, asked: str) -> np.
     found = realised_roots(k, centers, [len(g) for g in groups])
     realised = np.empty(m + 1, dtype=complex)
     for group, roots in zip(groups, found, strict=True):
+        if np.all(placed[group] == placed[group[0]]):  # a repeated pole: any pairing is one
+            realised[group] = roots
+            continue
+        import scipy.optimize
+
         cost = np.abs(np.subtract.outer(placed[group], roots))
         rows, cols = scipy.optimize.linear_sum_assignment(cost)
         realised[np.asarray(group)[rows]] = roots[cols]
