@@ -327,3 +327,21 @@ def test_wildly_diverging_scenarios_are_flagged_without_warnings():
     # (pytest turns warnings into errors) and the row must still be flagged.
     rows = sweep(base(1.0), grid={"controller.kd": [1e12, 1e300]}, progress=False)
     assert not rows["stable"].any()
+
+
+def test_scenarios_that_share_a_design_design_it_once(monkeypatch):
+    import hpdob.simulation._sweep as sweep_module
+
+    calls = []
+    real = sweep_module.design_from_spec
+
+    def counted(model, spec):
+        calls.append(spec)
+        return real(model, spec)
+
+    monkeypatch.setattr(sweep_module, "design_from_spec", counted)
+    grid = {"plant.J": list(np.linspace(2e-4, 4e-4, 100))}
+    rows = sweep(base(0.2), grid=grid, scheduler=1, progress=False)
+    assert rows["stable"].all()
+    # one check up front, then one design per chunk (one worker: 8 chunks of 13 scenarios)
+    assert len(calls) == 1 + 8

@@ -119,8 +119,29 @@ def _metric_windows(windows) -> dict:
     return resolved
 
 
-def scenario_loop(base: dict, params: dict) -> ServoLoop:
-    """The validated loop of one scenario (raises Parameter*Error on bad values)."""
+def _frozen(value):
+    """``value`` as a hashable key (lists and arrays become tuples), or None if it is not."""
+    if isinstance(value, dict):
+        items = tuple((k, _frozen(v)) for k, v in sorted(value.items(), key=lambda kv: str(kv[0])))
+        return None if any(v is None for _, v in items) else items
+    if isinstance(value, (list, tuple, np.ndarray)):
+        items = tuple(
+            _frozen(v) for v in (value.tolist() if isinstance(value, np.ndarray) else value)
+        )
+        return None if any(v is None for v in items) else items
+    try:
+        hash(value)
+    except TypeError:
+        return None
+    return (type(value).__name__, value)
+
+
+def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoLoop:
+    """The validated loop of one scenario (raises Parameter*Error on bad values).
+
+    ``cache`` (a dict) keeps the observer designs of a chunk: scenarios that vary only the
+    plant, the gains or the disturbance share one design (designs are immutable).
+    """
 
     def sub(prefix):
         return {k[len(prefix) :]: v for k, v in params.items() if k.startswith(prefix)}
@@ -146,7 +167,14 @@ def scenario_loop(base: dict, params: dict) -> ServoLoop:
             spec.pop("poles", None)
         nominal = changes.get("nominal", loop.nominal)
         Ts = changes.get("Ts", loop.Ts)
-        changes["observer"] = design_from_spec(nominal.discretize(Ts), spec)
+        key = _frozen(spec)
+        key = None if key is None or cache is None else ("design", nominal, Ts, key)
+        design = None if key is None else cache.get(key)
+        if design is None:
+            design = design_from_spec(nominal.discretize(Ts), spec)
+            if key is not None:
+                cache[key] = design
+        changes["observer"] = design
     elif sub("observer."):
         raise ParameterValueError(
             "observer.* parameters need base['observer'] as a dict of design arguments (or a "
@@ -165,7 +193,7 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
     """
     row = dict(params)
     try:
-        loop = scenario_loop(base, params)
+        loop = scenario_loop(base, params, cache)
         S = loop.plant.substeps(loop.Ts, base["substeps"])
         n = _sample_count(loop.Ts, base["duration"])
         x0 = np.array(base["x0"])  # checked once in _resolve_base
