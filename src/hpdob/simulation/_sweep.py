@@ -167,8 +167,8 @@ def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoL
             spec.pop("poles", None)
         nominal = changes.get("nominal", loop.nominal)
         Ts = changes.get("Ts", loop.Ts)
-        key = _frozen(spec)
-        key = None if key is None or cache is None else ("design", nominal, Ts, key)
+        key = _frozen({"spec": spec, "nominal": nominal, "Ts": Ts})
+        key = None if key is None or cache is None else ("design", key)
         design = None if key is None else cache.get(key)
         if design is None:
             design = design_from_spec(nominal.discretize(Ts), spec)
