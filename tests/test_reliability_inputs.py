@@ -289,3 +289,32 @@ def test_gains_that_overflow_are_refused(J, Ts):
     model = ServoModel(J).discretize(Ts)
     with pytest.raises(ValueError, match=r"^the gains L_i = k_i d / \(d\^T D_Dn\) overflow"):
         design_observer(model, order=1, bandwidth=100.0)
+
+
+@pytest.mark.parametrize(
+    ("payload", "pattern"),
+    [
+        ("Ts = 1e-3\n".encode("utf-16"), r"is not UTF-8 text \(it looks like UTF-16; byte 0"),
+        ("# caf\xe9\nTs = 1e-3\n".encode("latin-1"), r"is not UTF-8 text \(byte 5 is b'\\xe9'\)"),
+        (("x = " + "{a = " * 500 + "1" + "}" * 500 + "\n").encode(), r"nests tables or arrays"),
+    ],
+    ids=["UTF-16", "Latin-1", "500 nested inline tables"],
+)
+def test_unreadable_scenario_files(tmp_path, payload, pattern):
+    from hpdob.simulation._scenario import load_scenario
+
+    path = tmp_path / "s.toml"
+    path.write_bytes(payload)
+    with pytest.raises(ValueError, match=pattern) as info:
+        load_scenario(path)
+    assert "\n" not in str(info.value)
+
+
+def test_cli_stability_map_with_a_subnormal_ratio(capsys, tmp_path):
+    from hpdob.cli import main
+
+    argv = ["analyze", "stability", "--b", "0", "--values", "1e-310,1", "--out", str(tmp_path)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hpdob analyze: error: J_ratio entry 1e-310 gives a true plant")
+    assert err.count("\n") == 1 and list(tmp_path.iterdir()) == []
