@@ -23,7 +23,7 @@ import tempfile
 from pathlib import Path
 
 from hpdob import ServoModel, design_observer, export_c
-from hpdob.testing._c_harness import STRICT_FLAGS, compile_c, find_compiler
+from hpdob.testing import STRICT_FLAGS, compile_c, find_compiler
 
 DRIVER = r"""
 #define _POSIX_C_SOURCE 199309L

@@ -2,7 +2,7 @@
 
 The canonical scenario family (10 s at 1 kHz, default sub-steps, Coulomb friction): orders
 0 and 1 x 25 bandwidths x 4 true inertias = 200 scenarios, 2 million samples per sweep.
-Target (issue 5): >= 1.5 million simulated samples per second on the 2-core machine.
+Target (issue 11): >= 3 million simulated samples per second on 2 workers (2-core machine).
 
     python benchmarks/bench_sweep.py
 """

@@ -3,7 +3,7 @@ drift on a continuously rotating axis.
 
 Part 1 (bound vs. measurement): orders 0-3, gain direction (1, 1), driven by the 10^5 random
 samples of tests/test_export_c.py (same seed) and by the canonical closed-loop runs
-(hpdob.paper._scenario; orders 2 and 3 on the HPDOb-100 scenario): the largest float error, the
+(hpdob.paper; orders 2 and 3 on the HPDOb-100 scenario): the largest float error, the
 largest bound and the largest ratio error/bound over the samples.
 
 Part 2 (long runs):
@@ -24,9 +24,12 @@ For orders 0-3 and both directions this script drives the float export and the r
 The reference is the double export, which tests/test_export_c.py shows to be bit-identical to
 hpdob.DisturbanceObserver (it is 300 times faster here). Also printed: the largest rounding
 bound of docs/deployment.md in each window and, for scale, the double observer's own estimation
-error |tau_hat - tau| after the first second. Run with
+error |tau_hat - tau| after the first second.
 
-    python benchmarks/float_accuracy.py
+Part 3 (position-only observers): the float error and bound of the observers of
+``measurement="position"`` near theta = 0 and shifted by 100 and 1000 rad. Run with
+
+    python benchmarks/float_accuracy.py [--position-only]
 
 and copy the tables into docs/deployment.md.
 """
@@ -39,8 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from hpdob import DisturbanceObserver, ServoModel, design_observer, export_c, paper
-from hpdob.testing._c_harness import CObserver
-from hpdob.testing._rounding import export_error_bound
+from hpdob.testing import CObserver, export_error_bound
 
 J_N, TS = 2.8e-4, 1e-3
 MODEL = ServoModel(J=J_N).discretize(TS)
@@ -118,7 +120,47 @@ def bound_vs_measured(workdir: Path) -> None:
     print()
 
 
+def position_only(workdir: Path) -> None:
+    """Part 3: position-only observers (docs/theory.md section 9), every pole at 150 rad/s, on
+    the measured angle and the command of the virtual-experiment-position run (|theta| <= 2
+    rad), and on the same trace shifted by 100 and 1000 rad. Their state holds the angle."""
+    result = paper.run("virtual-experiment-position")
+    theta, u = result.theta_measured, result.u
+    print("Position-only, float vs double: largest error, largest bound [N m], ratio")
+    print(
+        "| order | theta + 0: error | bound | ratio | + 100 rad: error | bound | ratio "
+        "| + 1000 rad: error |"
+    )
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    for order in range(3):
+        design = design_observer(MODEL, order=order, bandwidth=150.0, measurement="position")
+        c = {}
+        for dtype in ("double", "float"):
+            header, source = export_c(design, workdir / f"pos{order}{dtype}", dtype=dtype)
+            c[dtype] = CObserver(header, source, prefix="dob", dtype=dtype, observer=design,
+                                 build_dir=workdir / f"pos{order}{dtype}" / "lib")  # fmt: skip
+        cells = []
+        for offset in (0.0, 100.0, 1000.0):
+            th, init = theta + offset, (offset, 0.0, 0.0)
+            ref, _ = c["double"].drive(th, np.zeros_like(th), u, init=init)
+            single, z = c["float"].drive(th, np.zeros_like(th), u, init=init)
+            err = np.abs(single - ref)
+            cells.append(f"{err.max():.1e}")
+            if offset < 1000.0:
+                bound = export_error_bound(design, "float", th, np.zeros_like(th), u, z, init=init)
+                ratio = np.divide(err, bound, out=np.zeros_like(err), where=bound > 0)
+                cells += [f"{bound.max():.1e}", f"{ratio.max():.2f}"]
+        print(f"| {order} | " + " | ".join(cells) + " |")
+    print()
+
+
 def main() -> None:
+    import sys
+
+    with tempfile.TemporaryDirectory() as tmp:
+        position_only(Path(tmp))
+    if "--position-only" in sys.argv:
+        return
     with tempfile.TemporaryDirectory() as tmp:
         bound_vs_measured(Path(tmp))
     head = [f"{lo:g}-{hi:.0e}" for lo, hi in WINDOWS] + [f"at {o:.0e}" for o in OFFSETS]

@@ -1,4 +1,8 @@
-"""Regenerate the figures and the tables of docs/analysis.md for the canonical motor.
+"""
+The analysis page's figures and tables (a command-line script)
+==============================================================
+
+Regenerate the figures and the tables of docs/analysis.md for the canonical motor::
 
     python examples/analysis_figures.py [OUT_DIR]
 
@@ -6,6 +10,8 @@ writes analysis_*.png (100 dpi) into OUT_DIR (default docs/figures) and prints t
 tables of docs/analysis.md, computed here from the library (copy them into the page when the
 numbers change). Takes ~15 s.
 """
+
+# sphinx_gallery_thumbnail_path = 'figures/analysis_tradeoff.png'
 
 from __future__ import annotations
 
@@ -22,6 +28,7 @@ import numpy as np
 from hpdob import (
     Actuator,
     Encoder,
+    ServoModel,
     design_observer,
     estimation_response,
     gang_of_four,
@@ -31,13 +38,16 @@ from hpdob import (
     paper,
     robust_stability_map,
 )
-from hpdob.analysis._figures import bode_figure, noise_figure, order_name
-from hpdob.models._servo import ServoModel
+from hpdob.analysis import bode_figure, noise_figure
 
 PLANT = ServoModel(3.06e-4, 5e-5)  # the canonical motor's linear part (Coulomb friction off)
 LOOP = {"plant": PLANT, "nominal": paper.NOMINAL, "Ts": paper.TS, "controller": paper.CONTROLLER}
 ORDERS = (0, 1, 2, 3)
 DPI = 100
+
+
+def order_name(order: int) -> str:
+    return {0: "DOb (m=0)", 1: "HPDOb (m=1)"}.get(order, f"order m={order}")
 
 
 def design(order, bandwidth=100.0):

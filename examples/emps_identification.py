@@ -1,4 +1,8 @@
-"""Identify the EMPS benchmark's axis with IDIM-LS and IDIM-IV, and compare both on noisy logs.
+"""
+Identifying the EMPS axis from measured data (a command-line script)
+====================================================================
+
+Identify the EMPS benchmark's axis with IDIM-LS and IDIM-IV, and compare both on noisy logs.
 
     python examples/emps_identification.py [OUT_DIR]
 

@@ -1,4 +1,6 @@
-"""A servo lifting a pendulum, simulated by MuJoCo: DOb vs HPDOb at equal bandwidth.
+"""
+A servo lifting a pendulum, simulated by MuJoCo: DOb vs HPDOb at equal bandwidth
+================================================================================
 
 The canonical motor (J = 3.06e-4 kg m^2, b = 5e-5 N m s/rad) carries a 20 g point mass on a
 10 cm link, hanging down at theta = 0, so gravity is a position-dependent load m g L sin(theta)
@@ -6,7 +8,7 @@ of up to 0.0196 N m. The PD loop with feed-forward follows the canonical referen
 step to 1 rad, then a cosine between 1 and 2 rad from t = 4 s); the nominal model is the rigid
 body (J + m L^2, b), so the nominal disturbance is exactly the gravity torque, which MuJoCo
 reports as ``qfrc_bias``. The figure shows the position, the gravity torque with both
-estimates, and the estimation errors.
+estimates, and the estimation errors. To run it::
 
     pip install 'hpdob[mujoco]'
     python examples/mujoco_pendulum.py                      # writes mujoco_pendulum.png
@@ -84,7 +86,7 @@ def figure(plant: MujocoServo, results: dict, bandwidth: float):
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument("--duration", type=float, default=8.0, help="simulated time [s]")
     parser.add_argument("--bandwidth", type=float, default=100.0, help="observer [rad/s]")
     parser.add_argument("--out", default="mujoco_pendulum.png", help="PNG file to write")

@@ -59,13 +59,15 @@ def reference_loop(
             thm = q * math.floor((th + noise[k]) / q + 0.5)
             omm = om if sensor.velocity == "exact" else 0.0 if prev is None else (thm - prev) / Ts
             prev = thm
-        tau_hat = obs.estimate((thm, omm)) if obs is not None else 0.0
+        measured = (thm, omm) if obs is None or len(obs.measures) == 2 else thm
+        tau_hat = obs.estimate(measured) if obs is not None else 0.0
+        om_ctl = obs.velocity if controller.velocity == "observer" else omm
         u = controller.torque(
-            J_n=nominal.J, r=r, r_dot=rd, r_ddot=rdd, theta=thm, omega=omm, tau_hat=tau_hat
+            J_n=nominal.J, r=r, r_dot=rd, r_ddot=rdd, theta=thm, omega=om_ctl, tau_hat=tau_hat
         )
         u = min(max(u, -limit), limit)
         if obs is not None:
-            obs.update((thm, omm), u)
+            obs.update(measured, u)
         commands.append(u)
         applied = commands[k - delay] if k >= delay else 0.0
         d_now = float(tau_ext(np.array([t]))[0])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -183,3 +184,41 @@ def test_unexpected_errors_are_one_line_too(capsys, monkeypatch):
         "hpdob design: internal error: RuntimeError: first line second line (please report it; "
         "set HPDOB_TRACEBACK=1 for the traceback)\n"
     )
+
+
+# -- --help: a description line for every command, pages that exist -------------------------
+COMMANDS = [
+    ["reproduce"],
+    ["simulate"],
+    ["sweep"],
+    ["design"],
+    ["export-c"],
+    ["analyze"],
+    ["analyze", "bode"],
+    ["analyze", "noise"],
+    ["analyze", "tradeoff"],
+    ["analyze", "stability"],
+]
+
+
+@pytest.mark.parametrize("command", COMMANDS, ids=" ".join)
+def test_help_has_a_description_and_points_to_pages_that_exist(capsys, command):
+    with pytest.raises(SystemExit) as exit_:
+        main([*command, "--help"])
+    assert exit_.value.code == 0
+    out = capsys.readouterr().out
+    paragraphs = [p for p in out.split("\n\n") if p.strip()]
+    assert paragraphs[0].startswith("usage:")
+    description = paragraphs[1]
+    assert not description.startswith(("positional arguments", "options")), (
+        f"`hpdob {' '.join(command)} --help` has no description line"
+    )
+    root = Path(__file__).resolve().parents[1]
+    for page in re.findall(r"docs/[\w-]+\.md", " ".join(out.split())):
+        assert (root / page).exists(), f"--help points to {page}, which does not exist"
+
+
+def test_sweep_help_points_to_the_sweep_page(capsys):
+    with pytest.raises(SystemExit):
+        main(["sweep", "--help"])
+    assert "docs/sweep.md" in " ".join(capsys.readouterr().out.split())

@@ -87,3 +87,37 @@ def test_c_example_builds_and_runs(tmp_path, dtype):
     assert f"order 1 observer in {dtype}" in done.stdout
     assert "with the observer" in done.stdout
     assert (example / "dob.h").exists() and (example / "main").exists()
+
+
+def _example_without_hpdob_on_path(tmp_path, *, venv: bool):
+    """A copy of examples/c two levels below a fake repository, optionally with its .venv."""
+    repo = tmp_path / "repo"
+    example = repo / "examples" / "c"
+    shutil.copytree(
+        ROOT / "examples" / "c", example, ignore=shutil.ignore_patterns("main", "dob.*", "*.args")
+    )
+    if venv:  # the repository's venv, not activated: its hpdob runs this interpreter
+        script = repo / ".venv" / "bin" / "hpdob"
+        script.parent.mkdir(parents=True)
+        script.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m hpdob "$@"\n')
+        script.chmod(0o755)
+    path = "/usr/bin:/bin"
+    assert shutil.which("hpdob", path=path) is None, "an hpdob outside any venv"
+    return example, {"PATH": path, "HOME": str(tmp_path)}
+
+
+@needs_cc
+@pytest.mark.skipif(shutil.which("make") is None, reason="make is not installed")
+def test_c_example_finds_the_repositorys_venv_without_activating_it(tmp_path):
+    example, env = _example_without_hpdob_on_path(tmp_path, venv=True)
+    done = subprocess.run(["make"], cwd=example, env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "with the observer" in done.stdout and (example / "dob.h").exists()
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="make is not installed")
+def test_c_example_falls_back_to_python_m_hpdob(tmp_path):
+    example, env = _example_without_hpdob_on_path(tmp_path, venv=False)
+    done = subprocess.run(["make", "-n"], cwd=example, env=env, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "python3 -m hpdob export-c" in done.stdout

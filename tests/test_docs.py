@@ -33,6 +33,7 @@ def code_blocks(path: Path, language: str) -> list[str]:
         ROOT / "docs" / "mujoco.md",
         ROOT / "docs" / "analysis.md",
         ROOT / "docs" / "real-data.md",
+        ROOT / "docs" / "guides" / "sample-loop.md",
     ],
     ids=str,
 )
@@ -42,6 +43,30 @@ def test_python_blocks_run(path):
     namespace: dict = {}
     for block in code_blocks(path, "python"):
         exec(compile(block, str(path), "exec"), namespace)
+
+
+PRIVATE_IMPORT = re.compile(
+    r"^\s*(?:from\s+hpdob(?:\.\w+)*\.(_\w+)\s+import|import\s+hpdob(?:\.\w+)*\.(_\w+))",
+    re.M,
+)
+
+
+def test_docs_examples_and_benchmarks_use_public_names_only():
+    """hpdob's public namespaces are what users get: the material they copy from must not
+    import a private module (``hpdob._x`` or ``hpdob.sub._x``)."""
+    paths = [
+        ROOT / "README.md",
+        *(ROOT / "docs").rglob("*.md"),
+        *(ROOT / "examples").glob("*.py"),
+        *(ROOT / "benchmarks").glob("*.py"),
+    ]
+    offenders = []
+    for path in paths:
+        if "_build" in path.parts or "auto_examples" in path.parts:
+            continue
+        for match in PRIVATE_IMPORT.finditer(path.read_text()):
+            offenders.append(f"{path.relative_to(ROOT)}: {match.group(0).strip()}")
+    assert offenders == []
 
 
 def test_readme_quick_start_is_short():

@@ -145,5 +145,7 @@ def test_pd_only_has_no_estimate_noise_and_unstable_loop_is_refused():
             controller=PDC,
             observer=observer(1),
         )
-    with pytest.raises(ParameterValueError, match="noise must be one of 'position', 'velocity'"):
-        observer_noise_gain(observer(1), noise="encoder")
+    with pytest.raises(
+        ParameterValueError, match="noise must be one of 'velocity', 'position', 'encoder'"
+    ):
+        observer_noise_gain(observer(1), noise="acceleration")

@@ -318,3 +318,15 @@ def test_cli_stability_map_with_a_subnormal_ratio(capsys, tmp_path):
     err = capsys.readouterr().err
     assert err.startswith("hpdob analyze: error: J_ratio entry 1e-310 gives a true plant")
     assert err.count("\n") == 1 and list(tmp_path.iterdir()) == []
+
+
+def test_overflowing_signals_are_reported_by_time_without_warnings():
+    from hpdob.signals import Constant
+
+    with pytest.raises(ValueError, match=r"^disturbance is not finite at t = 0\.0 s"):
+        simulate(
+            **_loop(), duration=0.01, reference=Step(0.0, 1.0),
+            disturbance=Constant(1e308) + Constant(1e308),
+        )  # fmt: skip
+    with pytest.raises(ValueError, match=r"^frequency must be a positive frequency \[Hz\] whose"):
+        Sine(1.0, 1e308)

@@ -38,6 +38,14 @@ def test_canonical_example_is_the_canonical_run():
     np.testing.assert_array_equal(from_file.tau_hat, built_in.tau_hat)
 
 
+def test_position_only_example_is_the_built_in_run():
+    from_file = simulate(**load_scenario(ROOT / "examples" / "virtual_experiment_position.toml"))
+    built_in = paper.run("virtual-experiment-position")
+    np.testing.assert_array_equal(from_file.theta, built_in.theta)
+    np.testing.assert_array_equal(from_file.tau_hat, built_in.tau_hat)
+    np.testing.assert_array_equal(from_file.omega_hat, built_in.omega_hat)
+
+
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
 def test_examples_run_from_the_command_line(path, tmp_path, capsys):
     code = main(["simulate", str(path), "--out", str(tmp_path)])

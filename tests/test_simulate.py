@@ -38,8 +38,10 @@ def assert_traces_close(result, expected, rtol):
 @pytest.mark.parametrize("name", list(paper.RUNS))
 def test_agrees_with_reference_loop(canonical_results, name):
     kwargs = paper.scenario()
-    if name == "virtual-experiment":
+    if name in paper.VIRTUAL_RUNS:
         kwargs.update(sensor=paper.VIRTUAL_SENSOR, actuator=paper.VIRTUAL_ACTUATOR)
+    if name == "virtual-experiment-position":  # the PD on the observer's velocity
+        kwargs.update(controller=paper.VIRTUAL_POSITION_CONTROLLER)
     expected = reference_loop(**kwargs, observer=paper.observer(name), substeps=DEFAULT_SUBSTEPS)
     assert_traces_close(canonical_results[name], expected, rtol=1e-12)
 
@@ -61,21 +63,22 @@ def test_agrees_with_reference_loop_noise_delay_saturation():
 def test_substep_convergence(canonical_results):
     """Doubling the default sub-steps changes every canonical metric by less than 0.1 %.
 
-    The virtual experiment is left out: its encoder quantiser blocks the feedback of
-    sub-count deviations, so any perturbation (even rounding) moves its noise-dominated
-    metrics by ~0.5 %; it is covered by test_virtual_experiment_metrics_are_robust.
+    The virtual experiments are left out: their encoder quantiser blocks the feedback of
+    sub-count deviations, so any perturbation (even rounding) moves their noise-dominated
+    metrics by ~0.5 %; they are covered by test_virtual_experiment_metrics_are_robust.
     """
     for name, coarse in canonical_results.items():
-        if name == "virtual-experiment":
+        if name in paper.VIRTUAL_RUNS:
             continue
         fine = paper.run(name, substeps=2 * DEFAULT_SUBSTEPS)
         for metric, value in coarse.metrics().items():
             assert fine.metrics()[metric] == pytest.approx(value, rel=1e-3), (name, metric)
 
 
-def test_virtual_experiment_metrics_are_robust(canonical_results):
-    coarse = canonical_results["virtual-experiment"].metrics()
-    fine = paper.run("virtual-experiment", substeps=2 * DEFAULT_SUBSTEPS).metrics()
+@pytest.mark.parametrize("name", paper.VIRTUAL_RUNS)
+def test_virtual_experiment_metrics_are_robust(canonical_results, name):
+    coarse = canonical_results[name].metrics()
+    fine = paper.run(name, substeps=2 * DEFAULT_SUBSTEPS).metrics()
     for metric, value in coarse.items():
         assert fine[metric] == pytest.approx(value, rel=2e-2), metric
 

@@ -132,7 +132,8 @@ def test_bad_arguments(kwargs, exc, pattern):
             {"observer": {"bandwidth": 100.0}},
             ValueError,
             r"^base\['observer'\] must have the required key 'order' \(keys: order, poles, "
-            r"bandwidth, gain_direction\), got \{'bandwidth': 100.0\}",
+            r"bandwidth, measurement, velocity_bandwidth, gain_direction\), got "
+            r"\{'bandwidth': 100.0\}",
         ),
         ({"controller": None}, TypeError, r"^controller must be a PD"),
         ({"reference": 3.0}, TypeError, r"^reference must be a Signal"),

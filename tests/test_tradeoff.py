@@ -96,6 +96,7 @@ def test_error_at_noise_and_improvement(table):
 def test_outputs(table, tmp_path):
     frame = table.to_pandas()
     assert list(frame.columns) == [
+        "measurement",
         "order",
         "bandwidth_rad_s",
         "frequency_Hz",
@@ -106,7 +107,7 @@ def test_outputs(table, tmp_path):
     path = table.to_csv(tmp_path / "tradeoff.csv")
     lines = path.read_text().splitlines()
     assert lines[0] == ",".join(frame.columns) and len(lines) == 37
-    assert float(lines[5].split(",")[3]) == table.error_gain[0, 4]  # lossless
+    assert float(lines[5].split(",")[4]) == table.error_gain[0, 4]  # lossless
     import matplotlib
 
     matplotlib.use("Agg")

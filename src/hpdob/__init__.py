@@ -8,10 +8,14 @@ Public namespace
 ----------------
 ServoModel, DiscreteServoModel
     Servo model (eq. 1) and its exact zero-order-hold discretisation (eqs. 4-8).
-design_observer, ObserverDesign
-    Pure synthesis of an observer of any order by eigenvalue placement or bandwidth.
+design_observer, ObserverDesign, PositionObserverDesign
+    Pure synthesis of an observer of any order by eigenvalue placement or bandwidth, measuring
+    the state (the paper's) or the angle only (``measurement="position"``).
 LinearObserver
     The observer protocol: every observer as a linear discrete-time system.
+ExtendedStateObserver, KalmanDisturbanceObserver
+    The observers the field compares against: ADRC's extended state observer and a Kalman
+    filter with a disturbance state.
 DisturbanceObserver, Observer
     Stateful runtime objects for the sample loop (``estimate`` then ``update``).
 initial_state, estimate, update
@@ -22,6 +26,8 @@ ServoLoop
     The closed loop as a value: the first argument of simulate and the analysis functions.
 PD, Encoder, Actuator, simulate, SimulationResult
     Sampled-data closed-loop simulation (continuous plant, sampled PD, DOb inner loop).
+TwoMassServo
+    Motor and load coupled by a torsional spring and damper (a resonant drive), as ``plant=``.
 MujocoServo
     A servo (optionally with a pendulum link) simulated by MuJoCo, as ``plant=`` of
     ``simulate`` and ``sweep``; MuJoCo is imported only when a model is built.
@@ -64,13 +70,23 @@ from .analysis import (
     robust_stability_map,
 )
 from .export import export_c
-from .identification import Identification, Log, identify, read_log
-from .models import DiscreteServoModel, MujocoServo, ServoModel
+from .identification import (
+    EstimationResult,
+    Identification,
+    Log,
+    estimate_disturbance,
+    identify,
+    read_log,
+)
+from .models import DiscreteServoModel, MujocoServo, ServoModel, TwoMassServo
 from .observers import (
     DisturbanceObserver,
+    ExtendedStateObserver,
+    KalmanDisturbanceObserver,
     LinearObserver,
     Observer,
     ObserverDesign,
+    PositionObserverDesign,
     characteristic_polynomial,
     design_observer,
     error_matrix,
@@ -96,8 +112,11 @@ __all__ = [
     "DiscreteServoModel",
     "DisturbanceObserver",
     "Encoder",
+    "EstimationResult",
+    "ExtendedStateObserver",
     "GangOfFour",
     "Identification",
+    "KalmanDisturbanceObserver",
     "LinearObserver",
     "Log",
     "LoopMargins",
@@ -108,11 +127,13 @@ __all__ = [
     "ObserverDesign",
     "ParameterTypeError",
     "ParameterValueError",
+    "PositionObserverDesign",
     "ServoLoop",
     "ServoModel",
     "SimulationDivergedWarning",
     "SimulationResult",
     "StabilityMap",
+    "TwoMassServo",
     "__version__",
     "characteristic_polynomial",
     "closed_loop",
@@ -120,6 +141,7 @@ __all__ = [
     "design_observer",
     "error_matrix",
     "estimate",
+    "estimate_disturbance",
     "estimation_response",
     "estimation_transfer",
     "export_c",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["plot_result", "style_axes"]
+__all__ = ["label_points", "legend_clear_of_data", "plot_result", "style_axes"]
 
 #: Figure width [inch] of a two-column paper's full text width and line width of traces.
 PAPER_WIDTH = 7.0
@@ -17,6 +17,74 @@ def style_axes(ax, *, xlabel: str | None, ylabel: str) -> None:
     ax.margins(x=0)
 
 
+def legend_clear_of_data(ax, *, ncol: int, pad: float = 0.03, **kwargs):
+    """Legend in one band along the top of ``ax``, the y-range raised so no data lies under it.
+
+    The band's height is measured (a layout pass of the figure), so it holds for any font
+    size and figure size; the lower y-limit is kept. Call it when the figure has all its
+    labels and titles.
+    """
+    legend = ax.legend(loc="upper left", ncol=ncol, fontsize="small", **kwargs)
+    ax.figure.draw_without_rendering()
+    box = legend.get_window_extent().transformed(ax.transAxes.inverted())
+    band = min(1.0 - box.y0 + pad, 0.6)  # fraction of the axes' height taken by the legend
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, lo + (hi - lo) / (1.0 - band))
+    return legend
+
+
+#: Where a point's label may go, tried in this order: offset [points] and alignment.
+_LABEL_OFFSETS = (
+    ((3, 3), "left", "bottom"),
+    ((-3, -3), "right", "top"),
+    ((3, -3), "left", "top"),
+    ((-3, 3), "right", "bottom"),
+)
+
+
+def label_points(ax, points, *, fontsize="x-small") -> list:
+    """Label points without overlaps: each label takes the first free place around its point.
+
+    ``points`` is a sequence of ``(x, y, text, color)`` in data coordinates, in order of
+    priority. A label may not overlap an earlier label, a labelled point's marker, or leave
+    the axes; a label that fits nowhere is left out (its point stays marked). Positions are
+    measured after a layout pass of the figure. Returns the labels drawn.
+    """
+    fig = ax.figure
+    fig.draw_without_rendering()
+    frame = ax.get_window_extent()
+    radius = 2.0 * fig.dpi / 72.0  # half the size of a marker [pixels]
+    taken = []
+    for x, y in ((p[0], p[1]) for p in points):
+        px, py = ax.transData.transform((x, y))
+        taken.append((px - radius, py - radius, px + radius, py + radius))
+    drawn = []
+    for x, y, text, color in points:
+        for offset, ha, va in _LABEL_OFFSETS:
+            label = ax.annotate(
+                text,
+                (x, y),
+                xytext=offset,
+                textcoords="offset points",
+                ha=ha,
+                va=va,
+                fontsize=fontsize,
+                color=color,
+            )
+            box = label.get_window_extent()
+            inside = frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0
+            inside = inside and box.y1 <= frame.y1
+            free = all(
+                box.x1 <= a or b <= box.x0 or box.y1 <= c or d <= box.y0 for a, c, b, d in taken
+            )
+            if inside and free:
+                taken.append((box.x0, box.y0, box.x1, box.y1))
+                drawn.append(label)
+                break
+            label.remove()
+    return drawn
+
+
 def plot_result(result, *, title: str | None = None):
     """Three stacked panels: position vs reference, disturbances, estimation error."""
     import matplotlib.pyplot as plt
@@ -27,16 +95,16 @@ def plot_result(result, *, title: str | None = None):
     ax.plot(t, result.r, "k--", linewidth=1.0, label="reference $r$")
     ax.plot(t, result.theta, linewidth=1.2, label=r"position $\theta$")
     style_axes(ax, xlabel=None, ylabel="angle [rad]")
-    ax.legend(loc="best", fontsize="small")
     ax = axes[1]
     ax.plot(t, result.tau_dn, "k", linewidth=1.0, label=r"nominal disturbance $\tau_{dn}$")
     ax.plot(t, result.tau_ext, color="0.6", linewidth=0.8, label=r"external $\tau_{ext}$")
     if abs(result.tau_hat).max(initial=0.0) > 0:
         ax.plot(t, result.tau_hat, linewidth=1.0, label=r"estimate $\hat\tau_{dn}$")
     style_axes(ax, xlabel=None, ylabel="torque [N m]")
-    ax.legend(loc="best", fontsize="small")
     ax = axes[2]
     ax.plot(t, result.estimation_error, linewidth=1.0)
     style_axes(ax, xlabel="time [s]", ylabel=r"$\hat\tau_{dn} - \tau_{dn}$ [N m]")
     fig.suptitle(title or result.label or "hpdob simulation")
+    for ax in axes[:2]:  # legends in a band above the data
+        legend_clear_of_data(ax, ncol=len(ax.get_legend_handles_labels()[1]))
     return fig

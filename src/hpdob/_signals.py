@@ -219,11 +219,13 @@ class Sine(Signal):
 
     def __post_init__(self):
         object.__setattr__(self, "amplitude", as_real(self.amplitude, "amplitude"))
-        object.__setattr__(
-            self,
-            "frequency",
-            positive(self.frequency, "frequency", "a positive finite frequency [Hz]"),
-        )
+        frequency = positive(self.frequency, "frequency", "a positive finite frequency [Hz]")
+        if not math.isfinite(2.0 * math.pi * frequency):
+            raise ParameterValueError(
+                f"frequency must be a positive frequency [Hz] whose 2 pi frequency [rad/s] is "
+                f"finite, got {frequency!r}"
+            )
+        object.__setattr__(self, "frequency", frequency)
         object.__setattr__(self, "start", as_real(self.start, "start", "a finite time [s]"))
         object.__setattr__(self, "phase", as_real(self.phase, "phase", "a finite phase [rad]"))
         object.__setattr__(self, "offset", as_real(self.offset, "offset"))

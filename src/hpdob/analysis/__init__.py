@@ -8,10 +8,13 @@ noise_gains, observer_noise_gain, noise_tradeoff
     Exact noise gains (discrete Lyapunov equation) and the accuracy/noise trade-off.
 robust_stability_map
     Closed-loop stability over inertia or friction errors and observer bandwidths.
+bode_figure, noise_figure
+    The figures of docs/analysis.md: estimation response and noise gains against bandwidth.
 """
 
 from ._closed_loop import closed_loop, closed_loop_poles
 from ._estimation import estimation_response, estimation_transfer
+from ._figures import bode_figure, noise_figure
 from ._noise import NoiseGains, noise_gains, observer_noise_gain
 from ._robust import StabilityMap, robust_stability_map
 from ._sensitivity import GangOfFour, LoopMargins, gang_of_four, loop_margins, loop_transfer
@@ -23,6 +26,7 @@ __all__ = [
     "NoiseGains",
     "NoiseTradeoff",
     "StabilityMap",
+    "bode_figure",
     "closed_loop",
     "closed_loop_poles",
     "estimation_response",
@@ -30,6 +34,7 @@ __all__ = [
     "gang_of_four",
     "loop_margins",
     "loop_transfer",
+    "noise_figure",
     "noise_gains",
     "noise_tradeoff",
     "observer_noise_gain",

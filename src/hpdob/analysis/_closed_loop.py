@@ -91,7 +91,7 @@ def closed_loop_poles(loop: ServoLoop) -> np.ndarray:
     """Eigenvalues of the linear closed loop of :func:`closed_loop` (same arguments).
 
     The loop is asymptotically stable when every eigenvalue lies strictly inside the unit
-    circle (see :func:`spectral_radius`).
+    circle (spectral radius below 1, as mapped by :func:`robust_stability_map`).
 
     Parameters
     ----------

@@ -197,7 +197,9 @@ def estimation_transfer(observer, *, error: bool = False):
     if dynamics is not None:
         P = np.asarray(dynamics.polynomial)
         E = unit_root_polynomial(dynamics.order)[::-1]
-        num = E if error else (P - E)[1:]  # the leading z^{m+1} cancels: Q is strictly proper
+        if dynamics.zeros.size:
+            E = np.convolve(E, np.real(np.poly(dynamics.zeros)))
+        num = E if error else (P - E)[1:]  # the leading z^n cancels: Q is strictly proper
         return control.tf(num, P, system.Ts, inputs=["tau_dn"], outputs=[output])
     A, B, C, D = _generic_statespace(system)
     Q = control.ss2tf(control.ss(A, B, C, D, system.Ts)).minreal(tol=1e-9)
@@ -252,6 +254,8 @@ def estimation_response(observer, frequency, *, error: bool = False) -> np.ndarr
         ratio = (z - 1.0) ** (dynamics.order + 1)
         for pole in dynamics.poles:
             ratio = ratio / (z - pole)
+        for zero in dynamics.zeros:
+            ratio = ratio * (z - zero)
         return ratio if error else 1.0 - ratio
     A, B, C, _ = _generic_statespace(system)
     eye = np.eye(A.shape[0])

@@ -27,6 +27,10 @@ def bode_figure(designs, frequency, *, sensitivities=None, mark_frequency=None):
         Input sensitivity of each design's closed loop at ``frequency`` (a fourth panel).
     mark_frequency : float, optional
         A disturbance frequency [Hz] to mark with a vertical line.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
     import matplotlib.pyplot as plt
 
@@ -56,14 +60,26 @@ def bode_figure(designs, frequency, *, sensitivities=None, mark_frequency=None):
     title = "Disturbance-estimation response Q (closed form)"
     if sensitivities is not None:
         title += " and the loop's input sensitivity S"
-    fig.suptitle(title)
+    fig.suptitle(title, fontsize="medium")  # fits the figure's width (it was clipped at large)
     return fig
 
 
 def noise_figure(bandwidths, orders, gains):
     """Noise gains against bandwidth: estimate and command, position and velocity noise.
 
-    ``gains[i][j]`` is the :class:`~hpdob.NoiseGains` of ``orders[i]`` at ``bandwidths[j]``.
+    Parameters
+    ----------
+    bandwidths : sequence of float
+        Observer bandwidths [rad/s] (the horizontal axis).
+    orders : sequence of int
+        Truncation orders, one curve each.
+    gains : sequence of sequences of NoiseGains
+        ``gains[i][j]`` is the :class:`~hpdob.NoiseGains` of ``orders[i]`` at
+        ``bandwidths[j]`` (from :func:`hpdob.noise_gains`).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
     import matplotlib.pyplot as plt
 
@@ -82,5 +98,7 @@ def noise_figure(bandwidths, orders, gains):
     for ax in axes[1]:
         ax.set_xlabel("observer bandwidth g [rad/s]")
     axes[0, 0].legend(loc="best", fontsize="small")
-    fig.suptitle("Noise gains of the closed loop (exact, discrete Lyapunov equation)")
+    fig.suptitle(
+        "Noise gains of the closed loop (exact, discrete Lyapunov equation)", fontsize="medium"
+    )
     return fig

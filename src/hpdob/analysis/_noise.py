@@ -31,6 +31,9 @@ __all__ = ["NoiseGains", "noise_gains", "observer_noise_gain"]
 
 #: Noise channels: measurement noise on position [rad] or on velocity [rad/s].
 CHANNELS = ("position", "velocity")
+#: Noise channels of :func:`observer_noise_gain`: also angle noise reaching a differenced
+#: velocity (``"encoder"``).
+OBSERVER_CHANNELS = ("velocity", "position", "encoder")
 
 
 def h2_gains(A, B, C, D) -> np.ndarray:
@@ -168,14 +171,21 @@ def observer_noise_gain(observer, *, noise: str = "velocity") -> float:
     The H2 norm of the observer's transfer function from ``theta`` (``noise="position"``,
     [N m/rad]) or ``omega`` (``noise="velocity"``, [N m/(rad/s)]) to ``tau_hat``. It is the
     estimate's noise gain in any closed loop on the nominal plant (:func:`noise_gains`), and it
-    depends on the observer only.
+    depends on the observer only. ``noise="encoder"`` [N m/rad] is white noise on the angle
+    that also reaches the velocity through a backward difference,
+    :math:`\omega_{m,k} = (\theta_{m,k} - \theta_{m,k-1})/T_s` (an
+    ``Encoder(velocity="backward-difference")``): the one noise source that observers
+    measuring the state and position-only observers share, for comparing them. For a
+    position-only observer it equals ``"position"``. An encoder's quantisation step ``q``
+    acts as white noise of standard deviation :math:`q/\sqrt{12}` while the shaft moves
+    (``docs/analysis.md``, section 8).
 
     Parameters
     ----------
     observer : LinearObserver, design or runtime observer
-    noise : {"velocity", "position"}, optional
+    noise : {"velocity", "position", "encoder"}, optional
         Which measurement carries the noise. Default ``"velocity"``; a position-only observer
-        has the ``"position"`` channel only.
+        has the ``"position"`` (= ``"encoder"``) channel only.
 
     Returns
     -------
@@ -193,19 +203,33 @@ def observer_noise_gain(observer, *, noise: str = "velocity") -> float:
     >>> dob, hpdob = (design_observer(model, order=m, bandwidth=100.0) for m in (0, 1))
     >>> observer_noise_gain(hpdob) > observer_noise_gain(dob)    # at equal bandwidth
     True
+    >>> pos = design_observer(model, order=1, bandwidth=100.0, measurement="position")
+    >>> encoder = [observer_noise_gain(o, noise="encoder") for o in (hpdob, pos)]
+    >>> bool(encoder[1] < encoder[0] / 10)        # same angle noise, far less in the estimate
+    True
     """
     system = as_system(observer)
-    check_choice(noise, "noise", CHANNELS)
-    j = CHANNELS.index(noise)
-    if j >= len(system.measures):
+    check_choice(noise, "noise", OBSERVER_CHANNELS)
+    p = len(system.measures)
+    if noise == "velocity" and p == 1:
         raise ParameterValueError(
-            f"noise must be 'position' for an observer that measures the angle only, got {noise!r}"
+            "noise must be 'position' or 'encoder' for an observer that measures the angle only, "
+            f"got {noise!r}"
         )
     A, B, C, D = observer_matrices(system)
     radius = float(np.abs(np.linalg.eigvals(A)).max()) if system.error_dynamics is None else 0.0
-    if not radius < 1.0:  # the order-m family is stable by construction (exact Schur-Cohn test)
+    if not radius < 1.0:  # the order-m families are stable by construction (exact Schur-Cohn)
         raise ParameterValueError(
             f"the observer must be asymptotically stable for a finite noise gain, got spectral "
             f"radius {radius:.6g} >= 1"
         )
+    if noise == "encoder" and p == 2:
+        # state [s, n_{k-1}]: theta = n_k, omega = (n_k - n_{k-1}) / Ts
+        Ts, n = system.Ts, A.shape[0]
+        A = np.block([[A, -B[:, [1]] / Ts], [np.zeros((1, n)), np.zeros((1, 1))]])
+        B = np.vstack([B[:, [0]] + B[:, [1]] / Ts, [[1.0]]])
+        C = np.hstack([C[:1], -D[:1, [1]] / Ts])
+        D = D[:1, [0]] + D[:1, [1]] / Ts
+        return float(h2_gains(A, B, C, D)[0])
+    j = 0 if noise in ("position", "encoder") else 1
     return float(h2_gains(A, B[:, [j]], C[:1], D[:1, [j]])[0])

@@ -20,11 +20,13 @@ from .._validation import (
     as_grid,
     as_int,
     as_real_vector,
+    check_choice,
     nonnegative,
     positive,
 )
 from ..models._servo import ServoModel
 from ..observers._synthesis import design_observer
+from ..observers._system import MEASUREMENTS
 from ..simulation._controller import PD
 from ..simulation._devices import Encoder
 from ._linear_loop import MAX_DELAY_SAMPLES, LoopSpec, loop_matrices
@@ -47,6 +49,7 @@ class _Setting:
     gain_direction: tuple
     delay: int
     backward_difference: bool
+    measurement: str = "state"
 
     def radius(self, design, J_ratio: float, b: float) -> float:
         plant = ServoModel(J_ratio * self.nominal.J, b).discretize(self.Ts)
@@ -64,6 +67,13 @@ class _Setting:
         return float(np.abs(np.linalg.eigvals(loop_matrices(spec)[0])).max())
 
     def design(self, bandwidth: float):
+        if self.measurement == "position":
+            return design_observer(
+                self.nominal.discretize(self.Ts),
+                order=self.order,
+                bandwidth=bandwidth,
+                measurement="position",
+            )
         return design_observer(
             self.nominal.discretize(self.Ts),
             order=self.order,
@@ -96,6 +106,8 @@ class StabilityMap:
         The fixed value of the parameter that is not varied (None for the varied one).
     delay_samples : int
         Actuator delay [samples] (unknown to the observer).
+    measurement : str
+        ``"state"`` or ``"position"``: the observer family.
     """
 
     parameter: str
@@ -107,6 +119,7 @@ class StabilityMap:
     b: float | None
     delay_samples: int
     _setting: _Setting = field(repr=False, compare=False)
+    measurement: str = "state"
 
     @property
     def stable(self) -> np.ndarray:
@@ -181,17 +194,23 @@ class StabilityMap:
         """Write the long-format table of :meth:`to_pandas` to ``path`` (no pandas needed)."""
         return columns_to_csv(self._columns(), path)
 
-    def plot(self, ax=None, *, mark=None):
+    def plot(self, ax=None, *, mark=None, mark_label: str | None = None):
         r"""Heat-map of the closed loop's slowest decay rate with the stability boundary drawn.
 
         Colour: :math:`-\ln(\rho)/T_s` [1/s] for spectral radius :math:`\rho` (blue decays,
-        red grows, symmetric-log scale); black line: :math:`\rho = 1`.
+        red grows, symmetric-log scale); black line: :math:`\rho = 1`. The legend above the
+        map names the boundary and the marked design. Log axes spanning less than a decade
+        (e.g. ``J/J_n`` within +-30 %) get evenly spaced, labelled ticks.
 
         Parameters
         ----------
         ax : matplotlib Axes, optional
         mark : tuple of float, optional
-            ``(bandwidth, value)`` of a design point to mark (e.g. the canonical one).
+            ``(bandwidth, value)`` of a design to mark with a star: your observer bandwidth
+            [rad/s] and your plant's value of the varied parameter. Default: no mark.
+        mark_label : str, optional
+            Its legend entry. Default: ``"design: g = <bandwidth> rad/s, <parameter> =
+            <value>"``.
 
         Returns
         -------
@@ -199,11 +218,12 @@ class StabilityMap:
         """
         import matplotlib.pyplot as plt
         from matplotlib.colors import SymLogNorm
+        from matplotlib.lines import Line2D
 
         from .._plotting import PAPER_WIDTH, style_axes
 
         if ax is None:
-            fig, ax = plt.subplots(figsize=(PAPER_WIDTH * 0.62, 3.6), layout="constrained")
+            fig, ax = plt.subplots(figsize=(PAPER_WIDTH * 0.62, 3.9), layout="constrained")
         else:
             fig = ax.figure
         rho = self.spectral_radius
@@ -218,25 +238,76 @@ class StabilityMap:
             cmap="RdBu",
             norm=SymLogNorm(linthresh=1.0, vmin=-top, vmax=top),
         )
+        handles = []
         if rho.shape[0] > 1 and rho.shape[1] > 1 and rho.min() < 1.0 < rho.max():
             ax.contour(self.bandwidths, self.values, rho, levels=[1.0], colors="k", linewidths=1.4)
+            handles.append(
+                Line2D([], [], color="k", linewidth=1.4, label="stability boundary (radius = 1)")
+            )
         ax.set_xscale("log")
+        _log_ticks(ax.xaxis, self.bandwidths)
         if self.parameter == "J_ratio" or np.all(self.values > 0):
             ax.set_yscale("log")
+            _log_ticks(ax.yaxis, self.values)
         if mark is not None:
-            ax.plot(*mark, marker="*", color="gold", markeredgecolor="k", markersize=11)
+            g, value = (float(v) for v in mark)
+            style = {"marker": "*", "color": "gold", "markeredgecolor": "k", "markersize": 11}
+            ax.plot(g, value, linestyle="none", **style)
+            name = "J/J_n" if self.parameter == "J_ratio" else "b"
+            label = mark_label or f"design: g = {g:g} rad/s, {name} = {value:.3g}"
+            handles.append(Line2D([], [], linestyle="none", label=label, **style))
         cbar = fig.colorbar(mesh, ax=ax)
         cbar.set_label("slowest decay rate -ln(radius)/Ts [1/s]\n(< 0: unstable)")
         style_axes(ax, xlabel="observer bandwidth g [rad/s]", ylabel=_UNITS[self.parameter])
         name = {0: "DOb", 1: "HPDOb"}.get(self.order, f"order {self.order}")
+        if self.measurement == "position":
+            name = f"position-only {name}"
         fixed = (
             f"b = {self.b:.3g} N m s/rad"
             if self.parameter == "J_ratio"
             else f"J/J_n = {self.J_ratio:.3g}"
         )
-        delay = f", {self.delay_samples}-sample delay" if self.delay_samples else ""
-        ax.set_title(f"{name} (m={self.order}), {fixed}{delay}", fontsize="medium")
+        # The delay on a line of its own: the title must fit the map's width.
+        delay = f"\n{self.delay_samples}-sample actuator delay" if self.delay_samples else ""
+        pad = 6.0  # [points] matplotlib's default title pad
+        if handles:  # above the map (it has no free space), between the map and its title
+            legend = ax.legend(
+                handles=handles,
+                loc="lower left",
+                bbox_to_anchor=(0.0, 1.0),
+                fontsize="small",
+                frameon=False,
+                borderaxespad=0.2,
+                handlelength=1.6,
+            )
+            fig.draw_without_rendering()
+            pad += legend.get_window_extent().height * 72.0 / fig.dpi
+        ax.set_title(f"{name} (m={self.order}), {fixed}{delay}", fontsize="medium", pad=pad)
         return fig
+
+
+def _log_ticks(axis, values) -> None:
+    """Labelled ticks on a log axis of any span: plain numbers, several per decade if needed.
+
+    Less than a decade (where matplotlib's log ticks leave the axis unlabelled or nearly so):
+    evenly spaced ticks; up to 1.5 decades: 1, 2, 5 per decade; up to three: 1, 3 per decade;
+    more: one per decade.
+    """
+    from matplotlib import ticker
+
+    lo, hi = float(np.min(values)), float(np.max(values))
+    decades = np.log10(hi / lo) if lo > 0 and hi > lo else 0.0
+    if decades < 1.0:
+        axis.set_major_locator(ticker.MaxNLocator(nbins=8, steps=[1, 2, 2.5, 5, 10]))
+        axis.set_minor_locator(ticker.NullLocator())
+    elif decades <= 1.5:
+        axis.set_major_locator(ticker.LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
+    elif decades <= 3.0:
+        axis.set_major_locator(ticker.LogLocator(base=10.0, subs=(1.0, 3.0)))
+    else:
+        axis.set_major_locator(ticker.LogLocator(base=10.0))
+    axis.set_major_formatter(ticker.StrMethodFormatter("{x:g}"))
+    axis.set_minor_formatter(ticker.NullFormatter())
 
 
 def _grid_or_scalar(value, name: str, what: str, *, allow_zero: bool):
@@ -263,6 +334,7 @@ def robust_stability_map(
     delay_samples: int = 0,
     gain_direction=(1.0, 1.0),
     sensor: Encoder | None = None,
+    measurement: str = "state",
 ) -> StabilityMap:
     r"""Closed-loop stability over a grid of model errors and observer bandwidths.
 
@@ -292,9 +364,13 @@ def robust_stability_map(
     delay_samples : int, optional
         Actuator delay [samples] the observer does not know. Default 0.
     gain_direction : sequence of 2 floats, optional
-        As for :func:`hpdob.design_observer`.
+        As for :func:`hpdob.design_observer` (observers measuring the state).
     sensor : Encoder, optional
         As for :func:`hpdob.closed_loop` (only the velocity method matters).
+    measurement : {"state", "position"}, optional
+        Observer family (:func:`hpdob.design_observer`); position-only observers are designed
+        with every pole at ``exp(-g Ts)``. Default ``"state"``. With
+        ``controller.velocity == "observer"`` the PD takes the observer's velocity estimate.
 
     Returns
     -------
@@ -371,6 +447,7 @@ def robust_stability_map(
         ),
         delay=delay,
         backward_difference=sensor is not None and sensor.velocity == "backward-difference",
+        measurement=check_choice(measurement, "measurement", MEASUREMENTS),
     )
     values = ratios if ratio_grid else frictions
     if values.size * bandwidths.size > MAX_MAP_POINTS:
@@ -407,4 +484,5 @@ def robust_stability_map(
         b=float(frictions) if ratio_grid else None,
         delay_samples=delay,
         _setting=setting,
+        measurement=setting.measurement,
     )

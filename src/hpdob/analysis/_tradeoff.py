@@ -1,8 +1,9 @@
-r"""The accuracy/noise trade-off of observers of different orders and bandwidths.
+r"""The accuracy/noise trade-off of observers of different orders, families and bandwidths.
 
-For each order ``m`` and bandwidth ``g``: the steady-state estimation-error amplitude for a
-sinusoidal nominal disturbance of frequency ``f`` (per unit amplitude, :math:`|1 - Q|` at
-``f``, closed form) against the estimate's noise gain (:func:`observer_noise_gain`, exact).
+For each order ``m``, family (measuring the state, or the angle only) and bandwidth ``g``: the
+steady-state estimation-error amplitude for a sinusoidal nominal disturbance of frequency ``f``
+(per unit amplitude, :math:`|1 - Q|` at ``f``, closed form) against the estimate's noise gain
+(:func:`observer_noise_gain`, exact).
 Both are properties of the observer on its nominal model: they do not depend on the outer
 controller.
 """
@@ -10,7 +11,7 @@ controller.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -23,38 +24,51 @@ from .._validation import (
     check_choice,
     positive,
     readonly,
+    require_instance,
 )
 from ..models._servo import ServoModel
 from ..observers._synthesis import design_observer
+from ..observers._system import MEASUREMENTS
+from ..simulation._controller import PD
+from ..simulation._devices import Encoder
 from ._estimation import estimation_response
-from ._noise import CHANNELS, observer_noise_gain
+from ._noise import OBSERVER_CHANNELS, noise_gains, observer_noise_gain
 
 __all__ = ["NoiseTradeoff", "noise_tradeoff"]
 
 
 @dataclass(frozen=True, eq=False)
 class NoiseTradeoff:
-    """Estimation error against noise gain for several orders and bandwidths.
+    """Estimation error against noise gain for several orders, families and bandwidths.
 
-    Built by :func:`noise_tradeoff`. Arrays are read-only; row ``i`` belongs to
-    ``orders[i]``, column ``j`` to ``bandwidths[j]``.
+    Built by :func:`noise_tradeoff`. Arrays are read-only; row ``i`` belongs to ``orders[i]``
+    of the family ``measurements[i]``, column ``j`` to ``bandwidths[j]``.
 
     Attributes
     ----------
     orders : tuple of int
+        Truncation order of each row.
+    measurements : tuple of str
+        Family of each row: ``"state"`` (the paper's observers) or ``"position"``
+        (position-only, velocity bandwidth equal to the bandwidth).
     bandwidths : ndarray
         Observer bandwidths [rad/s].
     frequency : float
         Disturbance frequency [Hz].
     noise : str
-        ``"velocity"`` or ``"position"``: the measurement that carries the noise.
+        ``"velocity"``, ``"position"`` or ``"encoder"``: the measurement noise (see
+        :func:`hpdob.observer_noise_gain`).
     Ts : float
         Sampling period [s].
-    error_gain : ndarray, shape (len(orders), len(bandwidths))
+    error_gain : ndarray, shape (rows, len(bandwidths))
         Steady-state estimation-error amplitude per unit disturbance amplitude,
         :math:`|1 - Q(e^{j 2 \\pi f T_s})|`.
-    noise_gain : ndarray, shape (len(orders), len(bandwidths))
+    noise_gain : ndarray, shape (rows, len(bandwidths))
         RMS of the estimate per unit white noise [N m/(rad/s)] or [N m/rad].
+    u_noise_gain : ndarray or None, shape (rows, len(bandwidths))
+        With a ``controller``: RMS of the command ``u`` per unit white noise in the nominal
+        closed loop [N m/(rad/s)] or [N m/rad] (NaN where that loop is unstable, as a
+        differenced velocity makes it at high bandwidths); None otherwise.
     """
 
     orders: tuple
@@ -64,35 +78,84 @@ class NoiseTradeoff:
     Ts: float
     error_gain: np.ndarray = field(repr=False)
     noise_gain: np.ndarray = field(repr=False)
+    measurements: tuple = ()
+    u_noise_gain: np.ndarray | None = field(default=None, repr=False)
 
-    def _row(self, order) -> int:
+    def __post_init__(self) -> None:
+        if not self.measurements:
+            object.__setattr__(self, "measurements", ("state",) * len(self.orders))
+
+    def _row(self, order, measurement=None) -> int:
         m = as_int(order, "order", "one of the computed orders")
-        if m not in self.orders:
-            raise ParameterValueError(f"order must be one of {list(self.orders)}, got {m}")
-        return self.orders.index(m)
+        rows = [
+            i
+            for i, (mi, kind) in enumerate(zip(self.orders, self.measurements, strict=True))
+            if mi == m and measurement in (None, kind)
+        ]
+        if not rows:
+            if measurement is not None:
+                check_choice(measurement, "measurement", sorted(set(self.measurements)))
+            listed = sorted(set(self.orders))
+            raise ParameterValueError(f"order must be one of {listed}, got {m}")
+        if len(rows) > 1:
+            raise ParameterValueError(
+                f"order {m} is computed for both measurements {list(self.measurements)}: give "
+                "measurement='state' or 'position'"
+            )
+        return rows[0]
 
-    def error_at_noise(self, order: int, noise_gain) -> np.ndarray:
+    def _values(self, channel: str) -> np.ndarray:
+        check_choice(channel, "channel", ("estimate", "command"))
+        if channel == "estimate":
+            return self.noise_gain
+        if self.u_noise_gain is None:
+            raise ParameterValueError(
+                "channel='command' needs the command's noise gains: call noise_tradeoff with "
+                "controller=PD(...)"
+            )
+        return self.u_noise_gain
+
+    def error_at_noise(
+        self, order: int, noise_gain, *, measurement=None, channel="estimate"
+    ) -> np.ndarray:
         """Error gain of ``order`` at the given noise gain(s), log-log interpolated.
 
+        ``channel="command"`` interpolates at noise gains of the command ``u`` instead of the
+        estimate. ``measurement`` picks the family where the table holds an order for both.
         NaN outside the range of noise gains its bandwidths cover.
         """
-        i = self._row(order)
+        i = self._row(order, measurement)
+        values = self._values(channel)
         target = np.atleast_1d(np.asarray(noise_gain, dtype=float))
-        order = np.argsort(self.noise_gain[i])
-        x, y = np.log(self.noise_gain[i][order]), np.log(self.error_gain[i][order])
+        keep = np.isfinite(values[i])  # NaN: no stationary noise (an unstable loop)
+        order = np.argsort(values[i][keep])
+        x, y = np.log(values[i][keep][order]), np.log(self.error_gain[i][keep][order])
         out = np.full(target.shape, np.nan)
         ok = (target > 0) & np.isfinite(target)
         out[ok] = np.exp(np.interp(np.log(target[ok]), x, y, left=np.nan, right=np.nan))
         return out
 
-    def improvement(self, order: int, *, reference: int = 0) -> np.ndarray:
+    def improvement(
+        self,
+        order: int,
+        *,
+        reference: int = 0,
+        measurement=None,
+        reference_measurement=None,
+        channel="estimate",
+    ) -> np.ndarray:
         """Error of ``reference`` divided by the error of ``order`` at the same noise gain.
 
         One value per bandwidth of ``reference`` (> 1: ``order`` is more accurate for the same
-        noise); NaN where ``order``'s bandwidths do not reach that noise gain.
+        noise); NaN where ``order``'s bandwidths do not reach that noise gain. ``measurement``
+        and ``reference_measurement`` pick the families, ``channel`` the noise compared
+        (``"estimate"`` or ``"command"``).
         """
-        r = self._row(reference)
-        return self.error_gain[r] / self.error_at_noise(order, self.noise_gain[r])
+        r = self._row(reference, reference_measurement)
+        values = self._values(channel)
+        return self.error_gain[r] / self.error_at_noise(
+            order, values[r], measurement=measurement, channel=channel
+        )
 
     def to_pandas(self):
         """Long-format ``pandas.DataFrame``: one row per order and bandwidth."""
@@ -100,36 +163,55 @@ class NoiseTradeoff:
 
     def _columns(self) -> dict:
         n = len(self.bandwidths)
-        return {
+        columns = {
+            "measurement": np.repeat(np.array(self.measurements), n),
             "order": np.repeat(np.array(self.orders), n),
             "bandwidth_rad_s": np.tile(self.bandwidths, len(self.orders)),
             "frequency_Hz": np.full(n * len(self.orders), self.frequency),
             "error_gain": self.error_gain.ravel(),
             f"noise_gain_{self.noise}": self.noise_gain.ravel(),
         }
+        if self.u_noise_gain is not None:
+            columns[f"u_noise_gain_{self.noise}"] = self.u_noise_gain.ravel()
+        return columns
 
     def to_csv(self, path):
         """Write the long-format table of :meth:`to_pandas` to ``path`` (no pandas needed)."""
         return columns_to_csv(self._columns(), path)
 
-    def plot(self, ax=None, *, label_bandwidths=(25.0, 50.0, 100.0, 200.0, 400.0, 800.0)):
-        """Log-log plot of error gain against noise gain, one curve per order.
+    def plot(
+        self,
+        ax=None,
+        *,
+        label_bandwidths=(25.0, 50.0, 100.0, 200.0, 400.0, 800.0),
+        channel="estimate",
+    ):
+        """Log-log plot of error gain against noise gain, one curve per order and family.
 
-        Bandwidths in ``label_bandwidths`` [rad/s] within the grid are marked and labelled
-        (positions interpolated log-log along each curve). Returns the matplotlib Figure.
+        Position-only observers are drawn dashed. Bandwidths in ``label_bandwidths`` [rad/s]
+        within the grid are marked and labelled (positions interpolated log-log along each
+        curve). Where the curves crowd together (low noise) a label that would overlap another
+        is left out; its point stays marked. ``channel="command"`` plots against the command's
+        noise gain. Returns the matplotlib Figure.
         """
         import matplotlib.pyplot as plt
 
-        from .._plotting import PAPER_WIDTH, style_axes
+        from .._plotting import PAPER_WIDTH, label_points, style_axes
 
+        values = self._values(channel)
         if ax is None:
             fig, ax = plt.subplots(figsize=(PAPER_WIDTH, 4.6), layout="constrained")
         else:
             fig = ax.figure
-        names = {0: "DOb (m=0)", 1: "HPDOb (m=1)"}
-        for i, m in enumerate(self.orders):
+        colors = sorted(set(self.orders))  # one colour per order, dashed: position-only
+        labels = []
+        for i, (m, kind) in enumerate(zip(self.orders, self.measurements, strict=True)):
             line = ax.loglog(
-                self.noise_gain[i], self.error_gain[i], label=names.get(m, f"order m={m}")
+                values[i],
+                self.error_gain[i],
+                "--" if kind == "position" else "-",
+                color=f"C{colors.index(m) % 10}",
+                label=_row_name(m, kind),
             )[0]
             logs = np.log(self.bandwidths)
             order = np.argsort(logs)
@@ -137,30 +219,47 @@ class NoiseTradeoff:
                 if not self.bandwidths.min() <= g <= self.bandwidths.max():
                     continue
                 x, y = (
-                    np.exp(np.interp(math.log(g), logs[order], np.log(values[i][order])))
-                    for values in (self.noise_gain, self.error_gain)
+                    np.exp(np.interp(math.log(g), logs[order], np.log(array[i][order])))
+                    for array in (values, self.error_gain)
                 )
                 ax.plot(x, y, "o", color=line.get_color(), markersize=3.5)
-                ax.annotate(
-                    f"{g:g}",
-                    (x, y),
-                    fontsize="x-small",
-                    xytext=(3, 3),
-                    textcoords="offset points",
-                    color=line.get_color(),
-                )
+                labels.append((x, y, f"{g:g}", line.get_color()))
         unit = "N m/(rad/s)" if self.noise == "velocity" else "N m/rad"
+        signal = "estimate" if channel == "estimate" else "command u"
+        noise = "angle noise" if self.noise == "encoder" else f"{self.noise} noise"
         style_axes(
             ax,
-            xlabel=f"noise gain: RMS of estimate per unit {self.noise} noise [{unit}]",
+            xlabel=f"noise gain: RMS of {signal} per unit {noise} [{unit}]",
             ylabel=f"estimation error per unit\ndisturbance at {self.frequency:g} Hz [-]",
         )
-        ax.legend(loc="best", fontsize="small")
+        ax.legend(loc="best", fontsize="small", ncol=2 if len(self.orders) > 4 else 1)
         ax.set_title(
             f"Accuracy against noise (labels: bandwidth [rad/s], Ts = {self.Ts:g} s)",
             fontsize="medium",
         )
+        label_points(ax, labels)
         return fig
+
+
+def _row_name(m: int, kind: str) -> str:
+    name = {0: "DOb (m=0)", 1: "HPDOb (m=1)"}.get(m, f"order m={m}")
+    return f"position-only {name}" if kind == "position" else name
+
+
+def _u_noise_gain(design, nominal, Ts, controller, noise) -> float:
+    """RMS of ``u`` per unit white noise in the nominal closed loop (see noise_tradeoff)."""
+    position_only = design.system.measurement == "position"
+    if not position_only and controller.velocity == "observer":
+        controller = replace(controller, velocity="measured")
+    encoder = Encoder(2**20, velocity="backward-difference") if noise == "encoder" else None
+    try:
+        gains = noise_gains(
+            plant=nominal, nominal=nominal, Ts=Ts, controller=controller, observer=design,
+            sensor=encoder,
+        )  # fmt: skip
+    except ParameterValueError:  # the loop is unstable: no stationary noise
+        return math.nan
+    return gains.u_velocity if noise == "velocity" else gains.u_position
 
 
 def noise_tradeoff(
@@ -172,6 +271,8 @@ def noise_tradeoff(
     orders=(0, 1, 2, 3),
     noise: str = "velocity",
     gain_direction=(1.0, 1.0),
+    measurements=("state",),
+    controller: PD | None = None,
 ) -> NoiseTradeoff:
     r"""Estimation error for a sinusoidal disturbance against noise gain, per order and bandwidth.
 
@@ -184,14 +285,24 @@ def noise_tradeoff(
     frequency : float
         Disturbance frequency [Hz], positive and below the Nyquist frequency ``1/(2 Ts)``.
     bandwidths : array_like
-        Observer bandwidths [rad/s], positive (all poles at ``exp(-g Ts)``).
+        Observer bandwidths [rad/s], positive (all poles at ``exp(-g Ts)``; for position-only
+        observers the velocity poles too).
     orders : sequence of int, optional
         Truncation orders, default ``(0, 1, 2, 3)``.
-    noise : {"velocity", "position"}, optional
-        Measurement carrying the white noise. Default ``"velocity"``: with an encoder the
-        differenced velocity carries noise ``sqrt(2)/Ts`` times the angle's, so it dominates.
+    noise : {"velocity", "position", "encoder"}, optional
+        Measurement noise (:func:`hpdob.observer_noise_gain`). Default ``"velocity"``: with an
+        encoder the differenced velocity carries noise ``sqrt(2)/Ts`` times the angle's, so it
+        dominates. ``"encoder"`` (angle noise, also differenced into the velocity) compares
+        both families on the same sensor.
     gain_direction : sequence of 2 floats, optional
-        As for :func:`hpdob.design_observer`.
+        As for :func:`hpdob.design_observer` (observers measuring the state).
+    measurements : sequence of {"state", "position"}, optional
+        Observer families; rows are every family with every order. Default ``("state",)``.
+    controller : PD, optional
+        Also compute the command's noise gain in the nominal closed loop (plant = nominal,
+        no delay): its D term takes the velocity from the sensor (differenced from the angle for
+        ``noise="encoder"``), or for position-only observers from their estimate when
+        ``controller.velocity == "observer"``.
 
     Returns
     -------
@@ -201,12 +312,13 @@ def noise_tradeoff(
     ------
     TypeError, ValueError
         For arguments of the wrong type or value (empty grids, non-positive bandwidths, a
-        frequency at or above Nyquist, ...), naming the parameter.
+        frequency at or above Nyquist, a velocity noise for position-only observers, ...),
+        naming the parameter.
 
     References
     ----------
     The accuracy/noise trade-off of higher-order DObs named in the paper's introduction;
-    ``docs/analysis.md``, section 5 (the numbers for the canonical motor).
+    ``docs/analysis.md``, sections 5 and 8 (the numbers for the canonical motor).
 
     Examples
     --------
@@ -217,6 +329,11 @@ def noise_tradeoff(
     (2, 4)
     >>> bool(t.improvement(1)[2] > 1)   # HPDOb beats a 200 rad/s DOb at its noise gain
     True
+    >>> both = noise_tradeoff(nominal=ServoModel(2.8e-4), Ts=1e-3, frequency=2.0,
+    ...                       bandwidths=[50.0, 100.0, 200.0, 400.0], orders=(1,),
+    ...                       noise="encoder", measurements=("state", "position"))
+    >>> both.measurements
+    ('state', 'position')
     """
     if not isinstance(nominal, ServoModel):
         raise ParameterTypeError(f"nominal must be a ServoModel, got {type(nominal).__name__}")
@@ -236,26 +353,50 @@ def noise_tradeoff(
         raise ParameterValueError("orders must hold at least one truncation order, got []")
     if len(set(ms)) != len(ms):
         raise ParameterValueError(f"orders must not repeat, got {list(ms)}")
-    check_choice(noise, "noise", CHANNELS)
+    check_choice(noise, "noise", OBSERVER_CHANNELS)
+    if isinstance(measurements, (str, bytes)) or not hasattr(measurements, "__iter__"):
+        raise ParameterTypeError(
+            f"measurements must be a sequence of 'state' and/or 'position', got {measurements!r}"
+        )
+    kinds = tuple(check_choice(k, "measurements", MEASUREMENTS) for k in measurements)
+    if not kinds or len(set(kinds)) != len(kinds):
+        raise ParameterValueError(
+            f"measurements must hold 'state' and/or 'position' once each, got {list(kinds)}"
+        )
+    if "position" in kinds and noise == "velocity":
+        raise ParameterValueError(
+            "noise must be 'position' or 'encoder' when measurements include 'position' (a "
+            "position-only observer measures no velocity), got 'velocity'"
+        )
+    require_instance(controller, PD, "controller", optional=True)
     model = nominal.discretize(Ts)
-    err = np.empty((len(ms), grid.size))
-    gain = np.empty((len(ms), grid.size))
-    for i, m in enumerate(ms):
+    rows = [(m, kind) for kind in kinds for m in ms]
+    err = np.empty((len(rows), grid.size))
+    gain = np.empty((len(rows), grid.size))
+    u_gain = None if controller is None else np.empty((len(rows), grid.size))
+    for i, (m, kind) in enumerate(rows):
         for j, g in enumerate(grid):
-            design = design_observer(model, order=m, bandwidth=g, gain_direction=gain_direction)
+            if kind == "state":
+                design = design_observer(model, order=m, bandwidth=g, gain_direction=gain_direction)
+            else:
+                design = design_observer(model, order=m, bandwidth=g, measurement="position")
             err[i, j] = abs(estimation_response(design, f, error=True)[0])
             gain[i, j] = observer_noise_gain(design, noise=noise)
+            if u_gain is not None:
+                u_gain[i, j] = _u_noise_gain(design, nominal, Ts, controller, noise)
     if np.any(gain <= 0.0):
         raise ParameterValueError(
             f"noise={noise!r} does not reach the estimate for gain_direction="
             f"{list(gain_direction)} (noise gain 0): choose the other noise channel"
         )
     return NoiseTradeoff(
-        orders=ms,
+        orders=tuple(m for m, _ in rows),
         bandwidths=readonly(grid),
         frequency=f,
         noise=noise,
         Ts=Ts,
         error_gain=readonly(err),
         noise_gain=readonly(gain),
+        measurements=tuple(kind for _, kind in rows),
+        u_noise_gain=None if u_gain is None else readonly(u_gain),
     )

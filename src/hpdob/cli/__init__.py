@@ -15,12 +15,30 @@ import sys
 
 from .._validation import ParameterTypeError, ParameterValueError
 from .._version import __version__
-from . import _analyze, _design, _export_c, _identify, _reproduce, _simulate, _sweep
+from . import (
+    _analyze,
+    _design,
+    _estimate,
+    _export_c,
+    _identify,
+    _reproduce,
+    _simulate,
+    _sweep,
+)
 from ._errors import CLIError
 
 __all__ = ["CLIError", "main"]
 
-_COMMANDS = (_reproduce, _simulate, _sweep, _design, _export_c, _analyze, _identify)
+_COMMANDS = (
+    _reproduce,
+    _simulate,
+    _sweep,
+    _design,
+    _export_c,
+    _analyze,
+    _identify,
+    _estimate,
+)
 
 
 class _Parser(argparse.ArgumentParser):

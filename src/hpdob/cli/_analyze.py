@@ -8,15 +8,12 @@ b = 5e-5 N m s/rad; nominal J_n = 2.8e-4 kg m^2, b_n = 0; Ts = 1 ms; PD(50, 5).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
-from ..simulation._result import json_ready
-from ._errors import CLIError
 from ._options import (
     add_loop_arguments,
     add_nominal_arguments,
@@ -24,14 +21,11 @@ from ._options import (
     output_path,
     reject_plant_arguments,
 )
+from ._outputs import MAX_DPI, dpi_argument, save_figure, write_json
 
 __all__ = ["register"]
 
 ANALYSES = ("bode", "noise", "tradeoff", "stability")
-#: Highest --dpi, and most pixels along either side of a figure: beyond them matplotlib's
-#: renderer runs out of memory (std::bad_alloc) instead of failing cleanly.
-MAX_DPI = 1200
-MAX_PIXELS = 16384
 
 
 def _grid(text: str) -> list[float]:
@@ -54,16 +48,14 @@ def _grid(text: str) -> list[float]:
         ) from None
 
 
-def _dpi(text: str) -> float:
-    """A resolution [dots per inch]: a finite number in (0, MAX_DPI]."""
+def _positive_real(text: str) -> float:
+    """A finite number > 0 (e.g. ``--bandwidth`` of ``stability``)."""
     try:
         value = float(text)
     except ValueError:
         value = math.nan
-    if not (math.isfinite(value) and 0 < value <= MAX_DPI):
-        raise argparse.ArgumentTypeError(
-            f"expected a positive resolution of at most {MAX_DPI} dots per inch, got {text!r}"
-        )
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
     return value
 
 
@@ -87,7 +79,7 @@ def _add_common(parser: argparse.ArgumentParser, *, loop: bool = True) -> None:
     )
     parser.add_argument(
         "--dpi",
-        type=_dpi,
+        type=dpi_argument,
         default=150.0,
         help=f"figure resolution [dots per inch], at most {MAX_DPI} (default: %(default)s)",
     )
@@ -98,6 +90,41 @@ def _add_common(parser: argparse.ArgumentParser, *, loop: bool = True) -> None:
         add_loop_arguments(group)
     else:
         reject_plant_arguments(parser)
+
+
+def _measurements(text: str) -> list[str]:
+    items = [item.strip() for item in text.split(",") if item.strip()]
+    if not items or any(item not in ("state", "position") for item in items):
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated 'state' and/or 'position', got {text!r}"
+        )
+    return items
+
+
+def _add_measurement(parser: argparse.ArgumentParser, *, loop: bool = True) -> None:
+    parser.add_argument(
+        "--measurement",
+        choices=("state", "position"),
+        default="state",
+        help="observer family: angle and velocity measured (state) or the angle only "
+        "(position; every pole at exp(-g Ts)) (default: %(default)s)",
+    )
+    if loop:
+        parser.add_argument(
+            "--pd-velocity",
+            choices=("measured", "observer"),
+            default="measured",
+            help="velocity of the PD's D term: the sensor's or the position-only observer's "
+            "estimate (default: %(default)s)",
+        )
+
+
+def _design(args, model, order: int, bandwidth: float):
+    from ..observers._synthesis import design_observer
+
+    return design_observer(
+        model, order=order, bandwidth=bandwidth, measurement=getattr(args, "measurement", "state")
+    )
 
 
 def _add_orders(parser: argparse.ArgumentParser, default: str) -> None:
@@ -118,9 +145,17 @@ def register(subparsers) -> None:
     )
     sub = parser.add_subparsers(dest="analysis", metavar="ANALYSIS", parser_class=type(parser))
     sub.required = True
-    bode = sub.add_parser("bode", help="estimation response Q, 1-Q and input sensitivity")
+    bode = sub.add_parser(
+        "bode",
+        help="estimation response Q, 1-Q and input sensitivity",
+        description="Frequency response of each order's disturbance estimation, Q = "
+        "tau_hat/tau_dn in closed form, its error 1-Q, and the input sensitivity S of the loop "
+        "(docs/analysis.md, sections 2 and 3). Writes bode.png, bode.csv and bode.json (peaks, "
+        "-3 dB frequency, error at --frequency, loop margins).",
+    )
     _add_common(bode)
     _add_orders(bode, "0,1,2,3")
+    _add_measurement(bode)
     bode.add_argument("--bandwidth", type=finite, default=100.0, help="[rad/s] (default 100)")
     bode.add_argument(
         "--frequency",
@@ -128,9 +163,17 @@ def register(subparsers) -> None:
         default=2.0,
         help="disturbance frequency to report [Hz] (default 2)",
     )
-    noise = sub.add_parser("noise", help="noise gains of estimate and command per order")
+    noise = sub.add_parser(
+        "noise",
+        help="noise gains of estimate and command per order",
+        description="Exact noise gains of the closed loop (discrete Lyapunov equation): RMS of "
+        "the estimate and of the command per unit white position or velocity noise, for each "
+        "order over the bandwidths (docs/analysis.md, section 4). Writes noise.png, noise.csv "
+        "and noise.json.",
+    )
     _add_common(noise)
     _add_orders(noise, "0,1,2,3")
+    _add_measurement(noise)
     noise.add_argument(
         "--bandwidths",
         type=_grid,
@@ -156,13 +199,29 @@ def register(subparsers) -> None:
     )
     tradeoff.add_argument(
         "--noise",
-        choices=("velocity", "position"),
-        default="velocity",
-        help="measurement carrying the white noise (default: velocity)",
+        choices=("velocity", "position", "encoder"),
+        default=None,
+        help="measurement carrying the white noise; encoder: angle noise, differenced into "
+        "the velocity (default: velocity, encoder when position-only observers are included)",
     )
-    stab = sub.add_parser("stability", help="robust stability map over model error")
+    tradeoff.add_argument(
+        "--measurements",
+        type=_measurements,
+        default=["state"],
+        help="observer families, e.g. state,position (default: state)",
+    )
+    stab = sub.add_parser(
+        "stability",
+        help="robust stability map over model error",
+        description="Closed-loop stability over a grid of true-plant inertias (J/J_n) or "
+        "viscous frictions and observer bandwidths, one map per order, with the stability "
+        "boundary refined (docs/analysis.md, section 6). Writes "
+        "stability_<parameter>_m<order>[_delay<d>].png and .csv per order and "
+        "stability.json.",
+    )
     _add_common(stab)
     _add_orders(stab, "0,1")
+    _add_measurement(stab)
     stab.add_argument(
         "--parameter",
         choices=("J_ratio", "b"),
@@ -181,12 +240,16 @@ def register(subparsers) -> None:
         default=_grid("10:2000:61"),
         help="[rad/s], LO:HI:N or a list (default 10:2000:61)",
     )
+    stab.add_argument(
+        "--bandwidth",
+        type=_positive_real,
+        default=None,
+        metavar="G",
+        help="observer bandwidth [rad/s] of your design: a star marks it at the loop's true "
+        "plant (--J/--J-n or --b) on each map (default: no mark)",
+    )
     for p in (bode, noise, tradeoff, stab):
         p.set_defaults(handler=_run)
-
-
-def _write_json(files, name: str, data: dict) -> None:
-    files.write_text(name, json.dumps(json_ready(data), indent=2, allow_nan=False) + "\n")
 
 
 def _loop(args):
@@ -198,30 +261,9 @@ def _loop(args):
         "plant": ServoModel(args.J, args.b),
         "nominal": ServoModel(args.J_n, args.b_n),
         "Ts": args.Ts,
-        "controller": PD(args.kp, args.kd),
+        "controller": PD(args.kp, args.kd, velocity=getattr(args, "pd_velocity", "measured")),
         "actuator": Actuator(delay_samples=args.delay),
     }
-
-
-def _save(fig, files, name: str, dpi: float) -> None:
-    import matplotlib.pyplot as plt
-
-    try:
-        width, height = fig.get_size_inches() * dpi
-        if max(width, height) > MAX_PIXELS:
-            raise CLIError(
-                f"--dpi {dpi:g} makes {name} {width:.0f} x {height:.0f} pixels; at most "
-                f"{MAX_PIXELS} pixels per side are supported"
-            )
-        try:
-            files.save_figure(name, fig, dpi=dpi)
-        except (OverflowError, ValueError) as err:  # e.g. log axes over ~300 decades
-            raise CLIError(
-                f"cannot draw {name} (the grids may span too many decades): "
-                f"{type(err).__name__}: {err}"
-            ) from None
-    finally:
-        plt.close(fig)
 
 
 #: The summary JSON of each analysis: renamed last, so it marks a complete set of outputs.
@@ -257,17 +299,16 @@ def _bode(args, files) -> list[str]:
     from ..analysis._estimation import estimation_response
     from ..analysis._figures import bode_figure
     from ..analysis._sensitivity import gang_of_four, loop_margins
-    from ..observers._synthesis import design_observer
 
     loop = _loop(args)
     model = loop["nominal"].discretize(loop["Ts"])
-    designs = [design_observer(model, order=m, bandwidth=args.bandwidth) for m in args.orders]
+    designs = [_design(args, model, m, args.bandwidth) for m in args.orders]
     f = np.geomspace(0.1, 0.5 / loop["Ts"], 400)
     sens = [
         gang_of_four(**loop, observer=d).S.frequency_response(2 * np.pi * f).frdata[0, 0]
         for d in designs
     ]
-    _save(
+    save_figure(
         bode_figure(designs, f, sensitivities=sens, mark_frequency=args.frequency),
         files,
         "bode.png",
@@ -281,7 +322,12 @@ def _bode(args, files) -> list[str]:
         "error_abs": [],
         "S_abs": [],
     }
-    summary = {"bandwidth_rad_s": args.bandwidth, "frequency_Hz": args.frequency, "orders": {}}
+    summary = {
+        "bandwidth_rad_s": args.bandwidth,
+        "frequency_Hz": args.frequency,
+        "measurement": args.measurement,
+        "orders": {},
+    }
     for d, s in zip(designs, sens, strict=True):
         q = estimation_response(d, f)
         columns["frequency_Hz"] += f.tolist()
@@ -306,7 +352,7 @@ def _bode(args, files) -> list[str]:
             },
         }
     columns_to_csv(columns, files.path("bode.csv"))
-    _write_json(files, "bode.json", summary)
+    write_json(files, "bode.json", summary)
     return ["bode.png", "bode.csv", "bode.json"]
 
 
@@ -314,25 +360,21 @@ def _noise(args, files) -> list[str]:
     from .._table import columns_to_csv
     from ..analysis._figures import noise_figure
     from ..analysis._noise import noise_gains
-    from ..observers._synthesis import design_observer
 
     loop = _loop(args)
     model = loop["nominal"].discretize(loop["Ts"])
     gains = [
-        [
-            noise_gains(**loop, observer=design_observer(model, order=m, bandwidth=g))
-            for g in args.bandwidths
-        ]
+        [noise_gains(**loop, observer=_design(args, model, m, g)) for g in args.bandwidths]
         for m in args.orders
     ]
-    _save(noise_figure(args.bandwidths, args.orders, gains), files, "noise.png", args.dpi)
+    save_figure(noise_figure(args.bandwidths, args.orders, gains), files, "noise.png", args.dpi)
     rows = [
         {"order": m, "bandwidth_rad_s": g, **gain.to_dict()}
         for m, row in zip(args.orders, gains, strict=True)
         for g, gain in zip(args.bandwidths, row, strict=True)
     ]
     columns_to_csv({k: [r[k] for r in rows] for k in rows[0]}, files.path("noise.csv"))
-    _write_json(files, "noise.json", {"loop": _describe(args), "gains": rows})
+    write_json(files, "noise.json", {"loop": _describe(args), "gains": rows})
     return ["noise.png", "noise.csv", "noise.json"]
 
 
@@ -346,6 +388,8 @@ def _describe(args) -> dict:
         "kp": args.kp,
         "kd": args.kd,
         "delay_samples": args.delay,
+        "measurement": args.measurement,
+        "pd_velocity": args.pd_velocity,
     }
 
 
@@ -353,33 +397,46 @@ def _tradeoff(args, files) -> list[str]:
     from ..analysis._tradeoff import noise_tradeoff
     from ..models._servo import ServoModel
 
+    noise = args.noise
+    if noise is None:
+        noise = "encoder" if "position" in args.measurements else "velocity"
     result = noise_tradeoff(
         nominal=ServoModel(args.J_n, args.b_n),
         Ts=args.Ts,
         frequency=args.frequency,
         bandwidths=args.bandwidths,
         orders=args.orders,
-        noise=args.noise,
+        noise=noise,
+        measurements=args.measurements,
     )
-    _save(result.plot(), files, "tradeoff.png", args.dpi)
+    save_figure(result.plot(), files, "tradeoff.png", args.dpi)
     result.to_csv(files.path("tradeoff.csv"))
     reference = result.orders[0]
+    first = result.measurements[0]
+
+    def key(m, kind):  # the order alone for one family (as before), else "position:1"
+        return str(m) if len(args.measurements) == 1 else f"{kind}:{m}"
+
     summary = {
         "frequency_Hz": result.frequency,
         "noise": result.noise,
         "reference_order": reference,
+        "reference_measurement": first,
         "improvement_at_equal_noise": {
-            str(m): dict(
+            key(m, kind): dict(
                 zip(
                     [f"{g:.6g}" for g in result.bandwidths],
-                    result.improvement(m, reference=reference).tolist(),
+                    result.improvement(
+                        m, reference=reference, measurement=kind, reference_measurement=first
+                    ).tolist(),
                     strict=True,
                 )
             )
-            for m in result.orders[1:]
+            for m, kind in zip(result.orders, result.measurements, strict=True)
+            if (m, kind) != (reference, first)
         },
     }
-    _write_json(files, "tradeoff.json", summary)
+    write_json(files, "tradeoff.json", summary)
     return ["tradeoff.png", "tradeoff.csv", "tradeoff.json"]
 
 
@@ -409,15 +466,21 @@ def _stability(args, files) -> list[str]:
             Ts=args.Ts,
             controller=loop["controller"],
             delay_samples=args.delay,
+            measurement=args.measurement,
         )
         stem = f"stability_{args.parameter}_m{m}" + (f"_delay{args.delay}" if args.delay else "")
-        # Mark the loop's own plant at the canonical bandwidth if it lies on the map.
-        point = (100.0, J_ratio if args.parameter == "J_ratio" else args.b)
-        inside = (
-            smap.bandwidths.min() <= point[0] <= smap.bandwidths.max()
-            and smap.values.min() <= point[1] <= smap.values.max()
-        )
-        _save(smap.plot(mark=point if inside else None), files, f"{stem}.png", args.dpi)
+        if args.measurement == "position":
+            stem += "_position"
+        # Mark the user's design (--bandwidth) at the loop's own plant if it lies on the map.
+        point = None
+        if args.bandwidth is not None:
+            point = (args.bandwidth, J_ratio if args.parameter == "J_ratio" else args.b)
+            inside = (
+                smap.bandwidths.min() <= point[0] <= smap.bandwidths.max()
+                and smap.values.min() <= point[1] <= smap.values.max()
+            )
+            point = point if inside else None
+        save_figure(smap.plot(mark=point), files, f"{stem}.png", args.dpi)
         smap.to_csv(files.path(f"{stem}.csv"))
         written += [f"{stem}.png", f"{stem}.csv"]
         summary["maps"].append(
@@ -429,5 +492,5 @@ def _stability(args, files) -> list[str]:
                 "boundary": smap.boundary(),
             }
         )
-    _write_json(files, "stability.json", summary)
+    write_json(files, "stability.json", summary)
     return [*written, "stability.json"]

@@ -55,18 +55,33 @@ def add_design_arguments(parser: argparse.ArgumentParser) -> None:
         "--poles",
         type=_number_list(complex),
         default=None,
-        help="order+1 comma-separated poles, e.g. 0.9,0.9 or 0.9+0.1j,0.9-0.1j",
+        help="order+1 comma-separated poles (order+3 with --measurement position), "
+        "e.g. 0.9,0.9 or 0.9+0.1j,0.9-0.1j",
+    )
+    obs.add_argument(
+        "--measurement",
+        choices=("state", "position"),
+        default="state",
+        help="what the observer measures: angle and velocity (state, the paper's) or the "
+        "angle only (position; the velocity is estimated) (default: %(default)s)",
+    )
+    obs.add_argument(
+        "--velocity-bandwidth",
+        type=finite,
+        default=None,
+        help="--measurement position: bandwidth of the two velocity poles [rad/s] "
+        "(default: the bandwidth)",
     )
     obs.add_argument(
         "--gain-direction",
         type=_number_list(float),
-        default=[1.0, 1.0],
-        help="gain direction d, e.g. 1,1 (eq. 25) or 0,1 (default: 1,1)",
+        default=None,
+        help="--measurement state: gain direction d, e.g. 1,1 (eq. 25) or 0,1 (default: 1,1)",
     )
 
 
 def design_from_args(args: argparse.Namespace):
-    """Build the :class:`ObserverDesign` described by parsed ``add_design_arguments``."""
+    """Build the design described by parsed ``add_design_arguments``."""
     model = ServoModel(args.J_n, args.b_n).discretize(args.Ts)
     bandwidth = args.bandwidth
     if bandwidth is None and args.poles is None:
@@ -76,6 +91,8 @@ def design_from_args(args: argparse.Namespace):
         order=args.order,
         poles=args.poles,
         bandwidth=bandwidth,
+        measurement=args.measurement,
+        velocity_bandwidth=args.velocity_bandwidth,
         gain_direction=args.gain_direction,
     )
 
@@ -101,6 +118,23 @@ def _complex_json(values) -> list:
 def design_summary(design) -> dict:
     """JSON-ready dictionary describing ``design`` (used by ``--json``)."""
     model = design.model
+    if design.system.measurement == "position":
+        return {
+            "model": {"J": model.J, "b": model.b, "Ts": model.Ts},
+            "measurement": "position",
+            "order": design.order,
+            "poles": _complex_json(design.poles),
+            "bandwidth": design.bandwidth,
+            "velocity_bandwidth": design.velocity_bandwidth,
+            "A_D": model.A.tolist(),
+            "B_D": model.B.tolist(),
+            "D_D": model.D.tolist(),
+            "augmented_matrix": design.augmented_matrix.tolist(),
+            "gains": design.gains.tolist(),
+            "predictor_gains": design.predictor_gains.tolist(),
+            "error_matrix": design.error_matrix.tolist(),
+            "eigenvalues": _complex_json(np.linalg.eigvals(design.error_matrix)),
+        }
     return {
         "model": {"J": model.J, "b": model.b, "Ts": model.Ts},
         "order": design.order,
@@ -136,8 +170,45 @@ def _matrix_lines(name: str, matrix) -> list[str]:
     return lines
 
 
+def _position_table(design) -> str:
+    model = design.model
+    bandwidths = ""
+    if design.bandwidth is not None:
+        bandwidths = (
+            f"   (bandwidth {design.bandwidth:.6g} rad/s, velocity bandwidth "
+            f"{design.velocity_bandwidth:.6g} rad/s)"
+        )
+    kind = {0: "DOb", 1: "HPDOb"}.get(design.order, "generalised DOb")
+    lines = [
+        f"Position-only disturbance observer: order {design.order} ({kind}), the angle "
+        "is the only measurement",
+        f"  nominal model   J_n = {model.J:.6g} kg m^2, b_n = {model.b:.6g} N m s/rad, "
+        f"Ts = {model.Ts:.6g} s",
+        f"  poles           {', '.join(_fmt(p) for p in np.atleast_1d(design.poles))}" + bandwidths,
+        "",
+        "Discrete nominal model x[k+1] = A_D x[k] + B_D u[k] - D_D tau[k]   (eq. 8)",
+        *_matrix_lines("A_D", model.A),
+        *_matrix_lines("B_D^T", model.B),
+        *_matrix_lines("D_D^T", model.D),
+        "",
+        "Augmented state xi = [theta, omega, tau_(k-m), ..., tau_k]   (docs/theory.md, sec. 9)",
+        *_matrix_lines("A_a", design.augmented_matrix),
+        "",
+        "Gains: xi_hat = s + K (theta - s_1),  s[k+1] = (A_a - L c^T) s + L theta + B_a u",
+        *_matrix_lines("K^T", design.gains),
+        *_matrix_lines("L^T", design.predictor_gains),
+        "",
+        "Estimation-error matrix A_a - L c^T",
+        *_matrix_lines("F", design.error_matrix),
+        "  eigenvalues   " + ", ".join(_fmt(v) for v in np.linalg.eigvals(design.error_matrix)),
+    ]
+    return "\n".join(lines)
+
+
 def design_table(design) -> str:
     """Human-readable table of ``design`` (the default output of ``hpdob design``)."""
+    if design.system.measurement == "position":
+        return _position_table(design)
     model = design.model
     kind = {0: "conventional DOb", 1: "HPDOb"}.get(design.order, "generalised DOb")
     lines = [

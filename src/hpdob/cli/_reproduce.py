@@ -16,8 +16,9 @@ def register(subparsers) -> None:
         "reproduce",
         help="run the paper's scenario and write Figs. 2-5, traces and metrics",
         description="Simulate the canonical scenario (the paper's section IV): PD, DOb-50, "
-        "DOb-100, DOb-200, HPDOb-100 and a virtual experiment (a simulation with "
-        "encoder, torque limit and delay). Writes fig2-fig5 (PNG and PDF), "
+        "DOb-100, DOb-200, HPDOb-100 and two virtual experiments (simulations with "
+        "encoder, torque limit and delay: the HPDOb on the differenced velocity, and the "
+        "recommended position-only observer). Writes fig2-fig5 (PNG and PDF), "
         "traces/<run>.csv and metrics.json, and prints a summary table.",
     )
     parser.add_argument(

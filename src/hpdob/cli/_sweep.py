@@ -19,7 +19,7 @@ def register(subparsers) -> None:
         "sweep",
         help="run a grid / Monte Carlo sweep described in a TOML file",
         description="Run the scenarios of a sweep spec (a scenario as for `hpdob simulate` plus "
-        "a [sweep] table with grid, vary, n, seed; see docs/performance.md and "
+        "a [sweep] table with grid, vary, n, seed; see docs/sweep.md and "
         "examples/sweep_bandwidth.toml) and write one row per scenario.",
     )
     parser.add_argument("spec", type=Path, help="sweep spec (.toml)")

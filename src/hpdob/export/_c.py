@@ -130,6 +130,16 @@ def _signature(system: LinearObserver, dtype: str, *, with_u: bool) -> str:
     return ", ".join(names)
 
 
+def _paper_form(system: LinearObserver) -> bool:
+    """Whether ``system`` is the paper's auxiliary-variable observer (order m, measuring the
+    state): the comments then cite its equations."""
+    return system.truncation_order is not None and len(system.measures) == 2
+
+
+def _state_note(system: LinearObserver) -> str:
+    return " (z_(i+1) of the paper's auxiliary variables)" if _paper_form(system) else ""
+
+
 def _header(system: LinearObserver, prefix: str, dtype: str, guard: bool = False) -> str:
     up = prefix.upper()
     n = system.n_states
@@ -146,11 +156,7 @@ def _header(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
     width = max(len(key) for key, _ in info) + 1
     design = "\n".join(f" *   {key:<{width}}{value}" for key, value in info)
     args = ", ".join(system.measures)
-    est_note = (
-        "disturbance [N m], eq. 13/23"
-        if system.truncation_order is not None
-        else ("disturbance [N m]")
-    )
+    est_note = "disturbance [N m], eq. 13/23" if _paper_form(system) else "disturbance [N m]"
     measure_note = "angle [rad], velocity [rad/s]" if len(system.measures) == 2 else "angle [rad]"
     steps = [
         (f"{args} = measure();", measure_note),
@@ -165,8 +171,9 @@ def _header(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
     loop = "\n".join(f" *   {code:<{step_width}}{note}" for code, note in steps)
     order = ""
     if system.truncation_order is not None:
+        holds = " (the state holds m + 1 values)" if _paper_form(system) else ""
         order = (
-            f"/** Truncation order m of the observer (the state holds m + 1 values). */\n"
+            f"/** Truncation order m of the observer{holds}. */\n"
             f"#define {up}_ORDER {system.truncation_order}\n"
         )
     meas_doc = ", ".join(f"{m} [{UNITS[m]}]" for m in system.measures)
@@ -308,7 +315,7 @@ def _source(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
         " * Recursion (docs/theory.md, paper eqs. 11/13 for order 0, 20/21/23 for order 1):\n"
         " *   z_{k+1} = M z_k + (G A - M G) x_k + G B u_k,   "
         "tau_hat_k = z_{m+1,k} - L_{m+1}^T x_k.\n"
-        if system.truncation_order is not None
+        if _paper_form(system)
         else " * Recursion: s_{k+1} = F s_k + G [y_k; u_k], outputs H s_k + E [y_k; u_k].\n"
     )
     return f"""\
@@ -320,7 +327,7 @@ def _source(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
  * Python observer and the compiled simulation kernel evaluate it (terms whose constant is
  * exactly zero are left out), so a double build reproduces the Python observer bit for bit
  * when the compiler does not contract a*b + c into fused multiply-adds.
- * z[i] here is state s_(i+1) of the observer (z_(i+1) of the paper's auxiliary variables).
+ * z[i] here is state s_(i+1) of the observer{_state_note(system)}.
  */
 #include "{prefix}.h"
 

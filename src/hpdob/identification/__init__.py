@@ -7,6 +7,8 @@ identify, Identification
     Inverse-model identification of inertia, viscous and Coulomb friction and offset:
     ``"idim-ls"`` (the EMPS benchmark's least squares) or ``"idim-iv"`` (instrumental
     variables from the simulated closed loop).
+estimate_disturbance, EstimationResult
+    Any observer run offline over a logged run (compiled), its estimates and velocity.
 FeedbackLoop
     The controller and reference that produced a log (needed by ``"idim-iv"``).
 emps, emps_loop, EMPS_FILE, EMPS_PUBLISHED, EMPS_PUBLISHED_STD
@@ -18,6 +20,7 @@ A linear axis (m, N, kg) obeys the same equations as a rotary one (rad, N m, kg 
 """
 
 from ._emps import EMPS_FILE, EMPS_PUBLISHED, EMPS_PUBLISHED_STD, emps, emps_loop
+from ._estimate import EstimationResult, estimate_disturbance
 from ._identify import METHODS, IdentificationWarning, identify
 from ._log import Log, read_log
 from ._loop import FeedbackLoop, simulate_loop
@@ -28,12 +31,14 @@ __all__ = [
     "EMPS_PUBLISHED",
     "EMPS_PUBLISHED_STD",
     "METHODS",
+    "EstimationResult",
     "FeedbackLoop",
     "Identification",
     "IdentificationWarning",
     "Log",
     "emps",
     "emps_loop",
+    "estimate_disturbance",
     "identify",
     "read_log",
     "simulate_loop",

@@ -4,6 +4,8 @@ Plant, ExactSubsteps, PlantSession
     The plant protocol: what the sampled-data loop needs from a plant.
 ServoModel, DiscreteServoModel
     Rigid single-axis servo (eq. 1) and its exact zero-order-hold discretisation (eqs. 4-8).
+TwoMassServo, DiscreteTwoMassServo
+    Motor and load coupled by a torsional spring and damper, and its exact ZOH discretisation.
 MujocoServo
     A servo (optionally with a pendulum link) simulated by MuJoCo, usable as ``plant=``.
 """
@@ -11,12 +13,15 @@ MujocoServo
 from ._mujoco import MujocoServo
 from ._plant import ExactSubsteps, Plant, PlantSession
 from ._servo import DiscreteServoModel, ServoModel
+from ._two_mass import DiscreteTwoMassServo, TwoMassServo
 
 __all__ = [
     "DiscreteServoModel",
+    "DiscreteTwoMassServo",
     "ExactSubsteps",
     "MujocoServo",
     "Plant",
     "PlantSession",
     "ServoModel",
+    "TwoMassServo",
 ]

@@ -3,10 +3,15 @@
 LinearObserver, Program, Term, ErrorDynamics
     The observer protocol: every observer is a linear discrete-time system (F, G, H, E, N),
     evaluated in the order of its program by Python, the compiled kernel and exported C alike.
-design_observer, ObserverDesign
-    Pure synthesis of an order-m observer (eigenvalue placement or bandwidth).
+design_observer, ObserverDesign, PositionObserverDesign
+    Pure synthesis of an order-m observer (eigenvalue placement or bandwidth), measuring the
+    state or, with ``measurement="position"``, the angle only.
 Observer, DisturbanceObserver
     Stateful runtime objects for the sample loop (``estimate`` then ``update``).
+design_eso, ExtendedStateObserver, ESODesign
+    The linear extended state observer of ADRC (classical and generalised, two forms).
+design_kalman, KalmanDisturbanceObserver, KalmanDesign, kalman_process_noise
+    The steady-state Kalman filter with a disturbance state.
 initial_state, estimate, outputs, update
     The pure functional core of the sample loop, for any observer.
 characteristic_polynomial, error_matrix, extrapolation_weights
@@ -14,6 +19,9 @@ characteristic_polynomial, error_matrix, extrapolation_weights
 """
 
 from ._core import estimate, initial_state, outputs, update
+from ._eso import ESODesign, ExtendedStateObserver, design_eso
+from ._kalman import KalmanDesign, KalmanDisturbanceObserver, design_kalman, kalman_process_noise
+from ._position import PositionObserverDesign
 from ._runtime import DisturbanceObserver, Observer
 from ._synthesis import (
     ObserverDesign,
@@ -26,19 +34,27 @@ from ._system import ErrorDynamics, LinearObserver, Program, Term, as_system
 
 __all__ = [
     "DisturbanceObserver",
+    "ESODesign",
     "ErrorDynamics",
+    "ExtendedStateObserver",
+    "KalmanDesign",
+    "KalmanDisturbanceObserver",
     "LinearObserver",
     "Observer",
     "ObserverDesign",
+    "PositionObserverDesign",
     "Program",
     "Term",
     "as_system",
     "characteristic_polynomial",
+    "design_eso",
+    "design_kalman",
     "design_observer",
     "error_matrix",
     "estimate",
     "extrapolation_weights",
     "initial_state",
+    "kalman_process_noise",
     "outputs",
     "update",
 ]

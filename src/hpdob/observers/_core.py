@@ -77,6 +77,14 @@ def read_measurement(system: LinearObserver, value, name: str = "x") -> tuple:
     (a float).
     """
     if len(system.measures) == 2:
+        if isinstance(value, (int, float, np.floating, np.integer)) or (
+            isinstance(value, np.ndarray) and value.ndim == 0
+        ):
+            raise ParameterValueError(
+                f"{name} must be a measured state [theta (rad), omega (rad/s)]: this observer "
+                f"measures angle and velocity, got the single number {value!r} (a position-only "
+                "observer takes the angle alone: design_observer(..., measurement='position'))"
+            )
         return read_state_vector(value, name)
     if isinstance(value, (tuple, list)) or (isinstance(value, np.ndarray) and value.size == 2):
         raise ParameterValueError(
@@ -96,7 +104,8 @@ def read_control(u, name: str = "u") -> float:
 def _check_state(system: LinearObserver, state) -> None:
     if type(state) is not tuple or len(state) != system.n_states:
         n = system.n_states
-        size = f"order + 1 = {n}" if system.truncation_order is not None else f"{n}"
+        m = system.truncation_order
+        size = f"order + 1 = {n}" if m is not None and n == m + 1 else f"{n}"
         raise ParameterValueError(
             f"state must be a tuple of {size} floats (from initial_state or update), got {state!r}"
         )

@@ -21,6 +21,7 @@ __all__ = [
     "characteristic_polynomial",
     "error_matrix",
     "extrapolation_weights",
+    "schur_cohn_stable",
     "schur_stable",
     "unit_root_polynomial",
 ]
@@ -107,9 +108,7 @@ def schur_stable(k: np.ndarray) -> bool:
     Eigenvalues computed in floating point cannot decide this for near-defective ``M``
     (an ``(m+1)``-fold pole moves by ~``eps^(1/(m+1))``), so the characteristic polynomial
     :math:`(z-1)^{m+1} + \sum_j k_j q_j(z)` is built in exact rational arithmetic and tested by
-    the Schur-Cohn recursion: with :math:`|c_0| < |c_n|`, :math:`p` is stable iff
-    :math:`(c_n p(z) - c_0 z^n p(1/z)) / z` is (the Schur-Cohn reduction, as in Jury's
-    stability test for discrete-time systems). Cross-checked against ``np.roots`` in
+    :func:`schur_cohn_stable`. Cross-checked against ``np.roots`` in
     ``tests/test_synthesis.py``.
     """
     if not np.all(np.isfinite(k)):
@@ -122,6 +121,19 @@ def schur_stable(k: np.ndarray) -> bool:
         for i, base in enumerate(unit_root_polynomial(m)[: m + 1])
     ]
     c.append(Fraction(1))  # ascending coefficients of the monic degree-(m+1) polynomial
+    return schur_cohn_stable(c)
+
+
+def schur_cohn_stable(coefficients) -> bool:
+    r"""True if every root of the polynomial lies strictly inside the unit circle (exact).
+
+    ``coefficients`` are the polynomial's coefficients in **ascending** powers of ``z`` as
+    exact rationals (:class:`fractions.Fraction` or ``int``), the last one non-zero. The
+    Schur-Cohn recursion: with :math:`|c_0| < |c_n|`, :math:`p` is stable iff
+    :math:`(c_n p(z) - c_0 z^n p(1/z)) / z` is (the Schur-Cohn reduction, as in Jury's
+    stability test for discrete-time systems); every step is exact.
+    """
+    c = [Fraction(v) for v in coefficients]
     while len(c) > 1:
         n = len(c) - 1
         if abs(c[0]) >= abs(c[n]):

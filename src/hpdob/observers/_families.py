@@ -9,6 +9,9 @@ redesign it when the nominal model, ``Ts`` or a design parameter varies.
 from __future__ import annotations
 
 from .._validation import ParameterTypeError, ParameterValueError, check_keys
+from ._eso import ESODesign, design_eso
+from ._kalman import KalmanDesign, design_kalman
+from ._position import PositionObserverDesign
 from ._runtime import DisturbanceObserver
 from ._synthesis import ObserverDesign, design_observer
 
@@ -16,7 +19,17 @@ __all__ = ["FAMILIES", "design_from_spec", "spec_of"]
 
 #: type -> (design function(model, **arguments), its argument names, required ones).
 FAMILIES = {
-    "dob": (design_observer, ("order", "poles", "bandwidth", "gain_direction"), ("order",)),
+    "dob": (
+        design_observer,
+        ("order", "poles", "bandwidth", "measurement", "velocity_bandwidth", "gain_direction"),
+        ("order",),
+    ),
+    "eso": (design_eso, ("bandwidth", "extended_order", "form"), ("bandwidth",)),
+    "kalman": (
+        design_kalman,
+        ("order", "position_noise_std", "process_noise_std"),
+        ("position_noise_std", "process_noise_std"),
+    ),
 }
 
 
@@ -59,12 +72,31 @@ def design_from_spec(model, spec: dict, where: str = "observer"):
 
 def spec_of(observer) -> dict | None:
     """The spec of a design of a known family (None for any other observer)."""
+    design = getattr(observer, "design", None)
+    if isinstance(design, (ObserverDesign, PositionObserverDesign, ESODesign, KalmanDesign)):
+        observer = design
+    if isinstance(observer, ESODesign):
+        return {"type": "eso", "bandwidth": observer.bandwidth,
+                "extended_order": observer.extended_order, "form": observer.form}  # fmt: skip
+    if isinstance(observer, KalmanDesign):
+        return {"type": "kalman", "order": observer.order,
+                "position_noise_std": observer.position_noise_std,
+                "process_noise_std": observer.process_noise_std}  # fmt: skip
     if isinstance(observer, DisturbanceObserver):
         observer = observer.design
     if isinstance(observer, ObserverDesign):
         spec = {"order": observer.order, "gain_direction": tuple(observer.gain_direction)}
         if observer.bandwidth is not None:
             spec["bandwidth"] = observer.bandwidth
+        else:
+            spec["poles"] = tuple(observer.poles)
+        return spec
+    if isinstance(observer, PositionObserverDesign):
+        spec = {"order": observer.order, "measurement": "position"}
+        if observer.bandwidth is not None:
+            spec["bandwidth"] = observer.bandwidth
+            if observer.velocity_bandwidth != observer.bandwidth:
+                spec["velocity_bandwidth"] = observer.velocity_bandwidth
         else:
             spec["poles"] = tuple(observer.poles)
         return spec

@@ -6,17 +6,23 @@ import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError
 from . import _core
+from ._position import PositionObserverDesign
 from ._synthesis import ObserverDesign, design_observer
 from ._system import LinearObserver, as_system
 
 __all__ = ["DisturbanceObserver", "Observer", "as_design", "check_designed_on"]
 
 
-def as_design(observer, name: str = "observer") -> ObserverDesign:
-    """Return the :class:`ObserverDesign` of a ``DisturbanceObserver`` or a design itself."""
+#: The design types of the order-m families (what :func:`hpdob.design_observer` returns).
+DESIGNS = (ObserverDesign, PositionObserverDesign)
+
+
+def as_design(observer, name: str = "observer"):
+    """Return the design (:class:`ObserverDesign` or :class:`PositionObserverDesign`) of a
+    ``DisturbanceObserver``, or a design itself."""
     if isinstance(observer, DisturbanceObserver):
         return observer.design
-    if isinstance(observer, ObserverDesign):
+    if isinstance(observer, DESIGNS):
         return observer
     raise ParameterTypeError(
         f"{name} must be a DisturbanceObserver or an ObserverDesign, got {type(observer).__name__}"
@@ -90,9 +96,9 @@ class Observer:
     @staticmethod
     def of(design, *, x0=(0.0, 0.0), tau0: float = 0.0) -> Observer:
         """The runtime object of a design, reset at ``x0, tau0``: a
-        :class:`DisturbanceObserver` for an :class:`ObserverDesign`, a plain :class:`Observer`
-        for any other observer."""
-        if isinstance(design, ObserverDesign):
+        :class:`DisturbanceObserver` for a design of the order-m families
+        (:func:`hpdob.design_observer`), a plain :class:`Observer` for any other observer."""
+        if isinstance(design, DESIGNS):
             return DisturbanceObserver.from_design(design, x0=x0, tau0=tau0)
         return Observer(design, x0=x0, tau0=tau0)
 
@@ -207,6 +213,9 @@ class DisturbanceObserver(Observer):
 
     ``order=0`` is the conventional DOb (eqs. 9-13), ``order=1`` the HPDOb (eqs. 14-24) and
     ``order >= 2`` the generalisation with disturbance model :math:`\Delta^{m+1}\tau = 0`.
+    With ``measurement="position"`` the observer measures the angle only and estimates the
+    velocity along with the disturbance (``docs/theory.md``, section 9): ``estimate`` and
+    ``update`` then take the angle (a float) and :attr:`velocity` gives :math:`\hat\omega_k`.
 
     Parameters
     ----------
@@ -215,24 +224,30 @@ class DisturbanceObserver(Observer):
     order : int
         Truncation order ``m >= 0``.
     poles : sequence of complex, optional
-        ``order + 1`` eigenvalues of the error matrix, strictly inside the unit circle,
-        complex ones in conjugate pairs, repeats allowed.
+        Eigenvalues of the error matrix, strictly inside the unit circle, complex ones in
+        conjugate pairs, repeats allowed: ``order + 1`` of them (``order + 3`` for
+        ``measurement="position"``).
     bandwidth : float, optional
-        Bandwidth ``g > 0`` [rad/s]: all poles at ``exp(-g Ts)``. Give exactly one of
-        ``poles`` and ``bandwidth``.
+        Bandwidth ``g > 0`` [rad/s]: all disturbance poles at ``exp(-g Ts)``. Give exactly one
+        of ``poles`` and ``bandwidth``.
+    measurement : {"state", "position"}, optional
+        Angle and velocity measured (default, the paper's observer) or the angle only.
+    velocity_bandwidth : float, optional
+        Position-only with ``bandwidth``: the two velocity poles at ``exp(-g_v Ts)``; default
+        ``bandwidth``.
     gain_direction : sequence of 2 floats, optional
-        Direction ``d`` of the gains, ``L_i = k_i d / (d^T D_Dn)``; default ``(1, 1)`` is
-        eq. (25).
+        Measured state only: direction ``d`` of the gains, ``L_i = k_i d / (d^T D_Dn)``;
+        default ``(1, 1)`` is eq. (25).
 
     Attributes
     ----------
-    design : ObserverDesign
-        The immutable synthesis result; ``model``, ``order``, ``poles``, ``gains`` (row ``i``
-        is :math:`L_{i+1}^T`) and ``error_matrix`` are read from it.
-    state : ndarray, shape (order + 1,)
-        Copy of the auxiliary-variable estimate :math:`\hat z_k`.
-    system : LinearObserver
-        The observer as a linear system (what simulation, analysis and export run).
+    design : ObserverDesign or PositionObserverDesign
+        The immutable synthesis result; ``model``, ``order``, ``poles``, ``gains`` and
+        ``error_matrix`` are read from it. The state (``.state``, a copy of the
+        auxiliary-variable estimate :math:`\hat z_k`, or for a position-only observer the prior
+        estimate of :math:`[\theta, \omega, \tau_{k-m}, \dots, \tau_k]`) and the linear
+        system (``.system``, what simulation, analysis and export run) are those of
+        :class:`Observer`.
 
     Raises
     ------
@@ -271,19 +286,34 @@ class DisturbanceObserver(Observer):
 
     __slots__ = ("_design",)
 
-    def __init__(self, model, *, order, poles=None, bandwidth=None, gain_direction=(1.0, 1.0)):
+    def __init__(
+        self,
+        model,
+        *,
+        order,
+        poles=None,
+        bandwidth=None,
+        measurement="state",
+        velocity_bandwidth=None,
+        gain_direction=None,
+    ):
         design = design_observer(
-            model, order=order, poles=poles, bandwidth=bandwidth, gain_direction=gain_direction
+            model,
+            order=order,
+            poles=poles,
+            bandwidth=bandwidth,
+            measurement=measurement,
+            velocity_bandwidth=velocity_bandwidth,
+            gain_direction=gain_direction,
         )
         self._design = design
         Observer.__init__(self, design.system)
 
     @classmethod
-    def from_design(
-        cls, design: ObserverDesign, *, x0=(0.0, 0.0), tau0: float = 0.0
-    ) -> DisturbanceObserver:
-        """Runtime observer for an existing :class:`ObserverDesign`, reset at ``x0, tau0``."""
-        if not isinstance(design, ObserverDesign):
+    def from_design(cls, design, *, x0=(0.0, 0.0), tau0: float = 0.0) -> DisturbanceObserver:
+        """Runtime observer for an existing design (:class:`ObserverDesign` or
+        :class:`PositionObserverDesign`), reset at ``x0, tau0``."""
+        if not isinstance(design, DESIGNS):
             raise ParameterTypeError(
                 f"design must be an ObserverDesign, got {type(design).__name__}"
             )
@@ -292,9 +322,14 @@ class DisturbanceObserver(Observer):
 
     # -- the design, read-only ---------------------------------------------------------
     @property
-    def design(self) -> ObserverDesign:
+    def design(self):
         """The immutable synthesis result."""
         return self._design
+
+    @property
+    def measurement(self) -> str:
+        """``"state"`` (angle and velocity measured) or ``"position"`` (angle only)."""
+        return self._system.measurement
 
     @property
     def order(self) -> int:
@@ -312,26 +347,36 @@ class DisturbanceObserver(Observer):
         return self._design.bandwidth
 
     @property
-    def gain_direction(self) -> np.ndarray:
-        """Direction ``d`` of the gain vectors."""
+    def velocity_bandwidth(self) -> float | None:
+        """Bandwidth [rad/s] of the velocity poles of a position-only observer designed by
+        bandwidth, else ``None``."""
+        return getattr(self._design, "velocity_bandwidth", None)
+
+    @property
+    def gain_direction(self) -> np.ndarray | None:
+        """Direction ``d`` of the gain vectors (None for a position-only observer)."""
         return self._design.gain_direction
 
     @property
     def gains(self) -> np.ndarray:
-        r"""Gains, shape ``(order + 1, 2)``; row ``i`` is :math:`L_{i+1}^T`."""
+        r"""Gains: shape ``(order + 1, 2)``, row ``i`` is :math:`L_{i+1}^T`; for a
+        position-only observer the current-form gain ``K``, shape ``(order + 3,)``."""
         return self._design.gains
 
     @property
     def error_matrix(self) -> np.ndarray:
-        """Estimation-error matrix ``M`` (eqs. 12, 22)."""
+        """Estimation-error matrix: ``M`` (eqs. 12, 22), or :math:`A_a - L c^T` for a
+        position-only observer."""
         return self._design.error_matrix
 
     def to_statespace(self):
         """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
 
         Inputs ``theta, omega, u``, output ``tau_hat``, state the auxiliary variables:
-        ``A = M``, ``B = [K_x, K_u]``, ``C = e_{m+1}^T``, ``D = [-L_{m+1}^T, 0]``. From a zero
-        initial state it reproduces this object after ``reset()`` sample by sample.
+        ``A = M``, ``B = [K_x, K_u]``, ``C = e_{m+1}^T``, ``D = [-L_{m+1}^T, 0]``; for a
+        position-only observer inputs ``theta, u``, outputs ``tau_hat, omega_hat`` and
+        ``A, B, C, D = F, G, H, E`` of its system. From a zero initial state it reproduces
+        this object after ``reset()`` sample by sample.
 
         Examples
         --------
@@ -346,7 +391,8 @@ class DisturbanceObserver(Observer):
 
     def __repr__(self) -> str:
         poles = np.array2string(np.asarray(self.poles), precision=6, separator=", ")
+        kind = ", measurement='position'" if self.measurement == "position" else ""
         return (
-            f"DisturbanceObserver(order={self.order}, poles={poles}, "
+            f"DisturbanceObserver(order={self.order}{kind}, poles={poles}, "
             f"Ts={self.model.Ts:g}, J_n={self.model.J:g}, b_n={self.model.b:g})"
         )

@@ -29,6 +29,7 @@ from .._validation import (
     _show,
     as_int,
     as_real_vector,
+    check_choice,
     numeric_array,
     positive,
     readonly,
@@ -43,8 +44,8 @@ from ._error_dynamics import (
     unit_root_polynomial,
 )
 from ._program import Program, Term
-from ._realised import realised_poles
-from ._system import ErrorDynamics, LinearObserver
+from ._realised import POLE_TOLERANCE, finite_gains, position_tolerance, realised_poles
+from ._system import MEASUREMENTS, ErrorDynamics, LinearObserver
 
 __all__ = [
     "ObserverDesign",
@@ -60,19 +61,17 @@ MAX_ORDER = 50
 _PAIR_RTOL = 1e-9
 #: gain directions with |d^T D| <= _DEGENERATE * |d| |D| are rejected.
 _DEGENERATE = 1e-8
-#: Default ``pole_tolerance``: every realised pole lies within this fraction of its requested
-#: pole's distance to the unit circle, ``|realised - p| <= 0.05 (1 - |p|)``.
-POLE_TOLERANCE = 0.05
 
 
-def _validate_poles(poles, order: int) -> np.ndarray:
-    values = numeric_array(poles, "poles", f"a sequence of {order + 1} numbers", dtype=complex)
+def _validate_poles(poles, count: int, label: str, order: int) -> np.ndarray:
+    """``poles`` checked: ``count`` finite numbers inside the unit circle, complex ones in
+    conjugate pairs (``label`` names the count in messages, e.g. ``"order + 1 = 2"``)."""
+    values = numeric_array(poles, "poles", f"a sequence of {count} numbers", dtype=complex)
     if values.ndim == 0:
         values = values.reshape(1)
-    if values.ndim != 1 or values.size != order + 1:
+    if values.ndim != 1 or values.size != count:
         raise ParameterValueError(
-            f"poles must have order + 1 = {order + 1} entries for order {order}, "
-            f"got {values.size} ({poles!r})"
+            f"poles must have {label} entries for order {order}, got {values.size} ({poles!r})"
         )
     if not np.all(np.isfinite(values)):
         raise ParameterValueError(f"poles must be finite, got {poles!r}")
@@ -144,11 +143,7 @@ class ObserverDesign:
         ``N = [G, 1]``, with the companion structure kept in its program (unit shifts and
         integer extrapolation weights as exact terms; see :func:`structured_program`).
     realised_poles : ndarray, shape (order + 1,)
-        The eigenvalues of ``M`` that the gains ``k``, rounded to double precision, really
-        place, paired with ``poles`` entry by entry (float if all real, else complex). A
-        repeated pole splits into a small ring (by up to ``~eps^(1/(m+1))``); the design is
-        refused when a realised pole is further from its requested one than
-        ``pole_tolerance (1 - |p|)`` (see :func:`design_observer`).
+        The poles the gains rounded to doubles really place, paired with ``poles``.
     """
 
     model: DiscreteServoModel
@@ -198,10 +193,17 @@ def design_observer(
     order: int,
     poles=None,
     bandwidth: float | None = None,
-    gain_direction=(1.0, 1.0),
+    measurement: str = "state",
+    velocity_bandwidth: float | None = None,
+    gain_direction=None,
     pole_tolerance: float | None = POLE_TOLERANCE,
-) -> ObserverDesign:
+):
     r"""Synthesise an observer of truncation order ``order`` by eigenvalue placement.
+
+    Two families share the disturbance model :math:`\Delta^{m+1}\tau = 0` (``tau`` held over
+    each sample, eq. 8) and the exact ZOH model: ``measurement="state"`` (default) is the
+    paper's observer, which measures angle and velocity; ``measurement="position"`` measures the
+    angle only and estimates the velocity with the disturbance (``docs/theory.md``, section 9).
 
     Parameters
     ----------
@@ -212,26 +214,32 @@ def design_observer(
         (eqs. 14-24), higher orders cancel disturbances whose samples are polynomials of
         degree ``m`` exactly.
     poles : sequence of complex, optional
-        ``order + 1`` desired eigenvalues of the error matrix, strictly inside the unit circle;
-        complex ones in conjugate pairs; repeated poles are allowed.
+        Desired eigenvalues of the error matrix, strictly inside the unit circle; complex ones
+        in conjugate pairs; repeated poles are allowed. ``order + 1`` of them for
+        ``measurement="state"``, ``order + 3`` for ``measurement="position"`` (the
+        disturbance history, angle and velocity are all estimated).
     bandwidth : float, optional
-        Observer bandwidth ``g > 0`` [rad/s]; places every pole at ``exp(-g Ts)``.
-        Exactly one of ``poles`` and ``bandwidth`` must be given.
+        Observer bandwidth ``g > 0`` [rad/s]; places every disturbance pole (``order + 1``
+        of them) at ``exp(-g Ts)``. Exactly one of ``poles`` and ``bandwidth`` must be given.
+    measurement : {"state", "position"}, optional
+        What the observer measures: angle and velocity (``"state"``, default, the paper's
+        observer) or the angle alone (``"position"``, e.g. an encoder count).
+    velocity_bandwidth : float, optional
+        ``measurement="position"`` with ``bandwidth`` only: bandwidth ``g_v > 0`` [rad/s] of
+        the two position/velocity poles, placed at ``exp(-g_v Ts)``. Default ``bandwidth``:
+        all ``order + 3`` poles at one place, which minimises the estimation error of a slow
+        disturbance at a given noise gain (``docs/analysis.md``, section 8).
     gain_direction : sequence of 2 floats, optional
-        Direction ``d`` of the gain vectors, ``L_i = k_i d / (d^T D_Dn)``. The default
-        ``(1, 1)`` is the paper's eq. (25). ``(0, 1)`` makes the estimate independent of the
-        absolute position.
+        ``measurement="state"`` only. Direction ``d`` of the gain vectors,
+        ``L_i = k_i d / (d^T D_Dn)``. The default ``(1, 1)`` is the paper's eq. (25).
+        ``(0, 1)`` makes the estimate independent of the absolute position.
     pole_tolerance : float or None, optional
-        Largest accepted distance of a realised pole (an eigenvalue of ``M`` with the gains
-        rounded to doubles, :attr:`ObserverDesign.realised_poles`) from its requested pole,
-        as a fraction of the requested pole's distance to the unit circle:
-        ``|realised - p| <= pole_tolerance * (1 - |p|)``. Default 0.05 (then the realised
-        bandwidth ``-ln|z|/Ts`` is within about 5% of the requested one). None accepts any
-        stable design.
+        State only: refuse realised poles beyond ``pole_tolerance (1 - |p|)`` (0.05; None: off).
 
     Returns
     -------
-    ObserverDesign
+    ObserverDesign or PositionObserverDesign
+        For ``measurement="state"`` and ``"position"`` respectively.
 
     Raises
     ------
@@ -240,19 +248,25 @@ def design_observer(
     ValueError
         If ``order < 0``, both or neither of ``poles``/``bandwidth`` are given, a pole is not
         strictly inside the unit circle or lacks its conjugate, the number of poles is not
-        ``order + 1``, ``bandwidth <= 0``, ``gain_direction`` is zero or (nearly) orthogonal
-        to ``D_Dn``, ``order > 50``, or the error matrix is not stable although the requested
+        ``order + 1`` (``order + 3`` for position-only), ``bandwidth <= 0``,
+        ``gain_direction`` is zero or (nearly) orthogonal to ``D_Dn``, ``measurement`` is not
+        one of the two, ``velocity_bandwidth`` or ``gain_direction`` is given where it does not
+        apply, ``order > 50``, or the error matrix is not stable although the requested
         poles are (high orders or repeated poles very close to 1: the gains, rounded to
         double precision, no longer place them; decided exactly by a Schur-Cohn test), or a
-        realised pole is off by more than ``pole_tolerance`` (e.g. order 10 at 100 rad/s and
-        ``Ts = 1 ms``: requested 0.9048, realised up to 0.9548).
+        realised pole is off by more than ``pole_tolerance``.
 
     Notes
     -----
     The characteristic polynomial of the error matrix is affine in ``k``:
     :math:`\det(zI - M) = (z-1)^{m+1} + \sum_j k_j q_j(z)` (``docs/theory.md``), so ``k``
     follows from one triangular linear solve, which generalises eq. (24). Repeated poles
-    are placed exactly; no pole-placement routine is involved.
+    are placed exactly; no pole-placement routine is involved. For
+    ``measurement="position"`` the observer estimates the augmented state
+    ``[theta, omega, tau_(k-m), ..., tau_k]`` in current form; its characteristic polynomial
+    is affine in the gains too and is placed by a power-series division
+    (``docs/theory.md``, section 9). Both families' realised gains are certified stable by
+    the exact Schur-Cohn test.
 
     References
     ----------
@@ -266,6 +280,12 @@ def design_observer(
     >>> design = design_observer(model, order=1, poles=[0.9, 0.8])
     >>> design.k     # eq. (24): [1 - 0.9*0.8, 2 - 0.9 - 0.8]
     array([0.28, 0.3 ])
+
+    Measuring the angle only (an encoder), the velocity estimated along:
+
+    >>> pos = design_observer(model, order=1, bandwidth=100.0, measurement="position")
+    >>> pos.system.measures, pos.system.outputs, pos.poles.size
+    (('theta',), ('tau_hat', 'omega_hat'), 4)
     """
     if isinstance(model, ServoModel):
         raise ParameterTypeError(
@@ -280,6 +300,26 @@ def design_observer(
             f"order must be at most {MAX_ORDER}: the extrapolation weights binom(m+1, i) of "
             f"higher orders are not exact in double precision, got {m}"
         )
+    check_choice(measurement, "measurement", MEASUREMENTS)
+    if measurement == "position":
+        position_tolerance(pole_tolerance)
+        if gain_direction is not None:
+            raise ParameterValueError(
+                "gain_direction applies to measurement='state' only (a position-only "
+                f"observer's gains act on the angle alone), got {gain_direction!r}"
+            )
+        from ._position import design_position_observer
+
+        return design_position_observer(
+            model, m, poles=poles, bandwidth=bandwidth, velocity_bandwidth=velocity_bandwidth
+        )
+    if velocity_bandwidth is not None:
+        raise ParameterValueError(
+            "velocity_bandwidth applies to measurement='position' only (an observer that "
+            f"measures the state has no velocity poles), got {velocity_bandwidth!r}"
+        )
+    if gain_direction is None:
+        gain_direction = (1.0, 1.0)
     if (poles is None) == (bandwidth is None):
         given = "both" if poles is not None else "neither"
         raise ParameterValueError(
@@ -291,7 +331,7 @@ def design_observer(
         placed = np.full(m + 1, math.exp(-g * model.Ts))
         g_out: float | None = g
     else:
-        placed = _validate_poles(poles, m)
+        placed = _validate_poles(poles, m + 1, f"order + 1 = {m + 1}", m)
         g_out = None
     d = as_real_vector(
         gain_direction, "gain_direction", "a direction vector (d_theta, d_omega)", length=2
@@ -313,14 +353,7 @@ def design_observer(
     rhs = desired[::-1][: m + 1] - unit_root_polynomial(m)[: m + 1]
     k = np.linalg.solve(characteristic_basis(m), rhs)
 
-    with np.errstate(over="ignore", invalid="ignore"):  # checked below: a tiny d^T D_Dn
-        G = np.outer(k, unit / dD)
-    if not np.all(np.isfinite(G)):
-        raise ParameterValueError(
-            f"the gains L_i = k_i d / (d^T D_Dn) overflow: D_Dn = {D.tolist()} is too small "
-            f"(J_n={model.J!r} kg m^2, Ts={model.Ts!r} s); use SI units with J_n and Ts of a "
-            f"realistic scale"
-        )
+    G = finite_gains(k, unit, dD, model)
     M = error_matrix(k)
     if not schur_stable(k):
         asked = f"bandwidth={g_out!r} rad/s" if g_out is not None else f"poles={_show(poles)}"
@@ -330,8 +363,6 @@ def design_observer(
             f"has |z| >= 1, exact Schur-Cohn test); high orders and repeated poles near 1 are "
             f"too ill-conditioned. Use a lower order, a higher bandwidth or distinct poles"
         )
-    asked = f"bandwidth={g_out!r} rad/s" if g_out is not None else f"poles={_show(poles)}"
-    realised = realised_poles(k, placed, pole_tolerance, POLE_TOLERANCE, asked)
     A, B = np.asarray(model.A), np.asarray(model.B)
     Kx = G @ A - M @ G
     Ku = G @ B
@@ -364,7 +395,7 @@ def design_observer(
         state_input=readonly(Kx),
         control_input=readonly(Ku),
         system=system,
-        realised_poles=readonly(realised),
+        realised_poles=readonly(realised_poles(k, placed, pole_tolerance, g_out, poles)),
     )
 
 

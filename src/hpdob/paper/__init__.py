@@ -8,8 +8,9 @@ reproduce(out_dir)
     All runs, Figs. 2-5, traces and ``metrics.json``.
 PLANT, NOMINAL, TS, DURATION, CONTROLLER, REFERENCE, DISTURBANCE
     The ingredients of :func:`scenario`.
-VIRTUAL_SENSOR, VIRTUAL_ACTUATOR
-    Encoder and actuator of the virtual experiment standing in for the paper's Fig. 5.
+VIRTUAL_SENSOR, VIRTUAL_ACTUATOR, VIRTUAL_RUNS, VIRTUAL_POSITION_CONTROLLER
+    Encoder and actuator of the virtual experiments standing in for the paper's Fig. 5, the
+    runs that use them, and the PD (on the observer's velocity) of the position-only one.
 """
 
 from ._figures import paper_figures as figures
@@ -24,6 +25,8 @@ from ._scenario import (
     RUNS,
     TS,
     VIRTUAL_ACTUATOR,
+    VIRTUAL_POSITION_CONTROLLER,
+    VIRTUAL_RUNS,
     VIRTUAL_SENSOR,
     observer,
     run,
@@ -40,6 +43,8 @@ __all__ = [
     "RUNS",
     "TS",
     "VIRTUAL_ACTUATOR",
+    "VIRTUAL_POSITION_CONTROLLER",
+    "VIRTUAL_RUNS",
     "VIRTUAL_SENSOR",
     "figures",
     "observer",

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
-from .._plotting import PAPER_WIDTH, style_axes
+from .._plotting import PAPER_WIDTH, legend_clear_of_data, style_axes
 
 __all__ = ["paper_figures"]
 
 #: Zoom window [s] of the insets: the disturbance step and the start of the sine.
 ZOOM = (1.3, 3.2)
+#: The disturbance step of the canonical scenario [s] and the transient after it [s] that the
+#: estimation-error panels leave off scale (each observer's error is back within its
+#: steady-state range 50 ms after the step, for every canonical run).
+STEP_TIME, TRANSIENT = 1.5005, 0.05
 COLORS = {
     "DOb-50": "tab:orange",
     "DOb-100": "tab:green",
@@ -15,6 +19,12 @@ COLORS = {
     "HPDOb-100": "tab:blue",
     "PD": "tab:red",
     "virtual-experiment": "tab:blue",
+    "virtual-experiment-position": "tab:orange",
+}
+#: Legend labels where the run name alone does not say what was run.
+LABELS = {
+    "virtual-experiment": "HPDOb-100, differenced velocity",
+    "virtual-experiment-position": "position-only order 2, 150 rad/s",
 }
 
 
@@ -23,7 +33,7 @@ def _position(ax, results, names, *, inset=True):
     ax.plot(first.t, first.r, "k--", linewidth=1.0, label="reference")
     for name in names:
         res = results[name]
-        ax.plot(res.t, res.theta, color=COLORS[name], linewidth=1.1, label=name)
+        ax.plot(res.t, res.theta, color=COLORS[name], linewidth=1.1, label=LABELS.get(name, name))
     style_axes(ax, xlabel="time [s]", ylabel=r"position $\theta$ [rad]")
     ax.legend(loc="upper left", fontsize="small", ncol=2)
     if inset:
@@ -40,6 +50,51 @@ def _position(ax, results, names, *, inset=True):
 
 def _letter(ax, text):
     ax.set_title(text, loc="left", fontsize="medium")
+
+
+def _error_panel(ax, results, names):
+    """Estimation errors with the y-range of the steady state; the step's spike off scale.
+
+    At the 1.5 s disturbance step every observer's error spikes to several times its
+    steady-state error for a few samples; a y-range that includes the spike squashes the
+    rest. The range is set by the error outside ``[STEP_TIME, STEP_TIME + TRANSIENT]``; the
+    traces are cut at that range (so nothing runs into the legend band above it), a
+    triangle marks where a spike leaves it, and the largest peak is printed above the panel.
+    """
+    from matplotlib.patches import Rectangle
+    from matplotlib.transforms import blended_transform_factory
+
+    lo, hi, lines = 0.0, 0.0, []
+    for name in names:
+        res = results[name]
+        e = res.estimation_error
+        lines += ax.plot(res.t, e, color=COLORS[name], linewidth=0.9, label=LABELS.get(name, name))
+        steady = (res.t < STEP_TIME) | (res.t > STEP_TIME + TRANSIENT)
+        lo, hi = min(lo, float(e[steady].min())), max(hi, float(e[steady].max()))
+    margin = 0.08 * (hi - lo)
+    lo, hi = lo - margin, hi + margin
+    ax.set_ylim(lo, hi)
+    span = blended_transform_factory(ax.transAxes, ax.transData)
+    peaks = []
+    for name, line in zip(names, lines, strict=True):
+        line.set_clip_path(Rectangle((0.0, lo), 1.0, hi - lo, transform=span))
+        res = results[name]
+        e = res.estimation_error
+        for k, edge, marker in ((int(e.argmin()), lo, "v"), (int(e.argmax()), hi, "^")):
+            if lo <= e[k] <= hi:
+                continue
+            ax.plot(res.t[k], edge, marker=marker, color=COLORS[name], markersize=6, clip_on=False)
+            peaks.append((abs(float(e[k])), float(e[k]), name))
+    if peaks:
+        _, value, name = max(peaks)
+        number = f"{value:.3f}".replace("-", "\N{MINUS SIGN}")
+        ax.set_title(
+            f"y-range clipped: at the {STEP_TIME:.1f} s step the error reaches {number} N m "
+            f"({name})",
+            loc="right",
+            fontsize="x-small",
+        )
+    style_axes(ax, xlabel="time [s]", ylabel=r"$\hat\tau_{dn} - \tau_{dn}$ [N m]")
 
 
 def paper_figures(results) -> dict:
@@ -64,8 +119,8 @@ def paper_figures(results) -> dict:
         label=r"nominal $\tau_{dn}$ (incl. friction, inertia error)",
     )
     style_axes(b, xlabel="time [s]", ylabel="torque [N m]")
-    b.legend(loc="upper left", fontsize="small")
     _letter(b, "b) Disturbances acting on the servo system")
+    bands = [(b, 2)]
     fig.suptitle("Fig. 2: position control using a PD controller (simulation)")
     figures["fig2"] = fig
 
@@ -86,14 +141,10 @@ def paper_figures(results) -> dict:
             label=rf"$\hat\tau_{{dn}}$ {name}",
         )
     style_axes(b, xlabel="time [s]", ylabel="torque [N m]")
-    b.legend(loc="upper left", fontsize="small", ncol=2)
     _letter(b, "b) Disturbances acting on the servo system and their estimates")
-    for name in dobs:
-        res = results[name]
-        c.plot(res.t, res.estimation_error, color=COLORS[name], linewidth=0.9, label=name)
-    style_axes(c, xlabel="time [s]", ylabel=r"$\hat\tau_{dn} - \tau_{dn}$ [N m]")
-    c.legend(loc="upper left", fontsize="small", ncol=3)
+    _error_panel(c, results, dobs)
     _letter(c, "c) Disturbance estimation error")
+    bands += [(b, len(dobs) + 1), (c, len(dobs))]
     fig.suptitle("Fig. 3: PD controller and conventional DObs (simulation)")
     figures["fig3"] = fig
 
@@ -102,35 +153,37 @@ def paper_figures(results) -> dict:
     fig, (a, b) = plt.subplots(2, 1, figsize=(PAPER_WIDTH, 5.5), layout="constrained")
     _position(a, results, pair)
     _letter(a, "a) Position control of the servo system")
-    for name in pair:
-        res = results[name]
-        b.plot(res.t, res.estimation_error, color=COLORS[name], linewidth=0.9, label=name)
-    style_axes(b, xlabel="time [s]", ylabel=r"$\hat\tau_{dn} - \tau_{dn}$ [N m]")
-    b.legend(loc="upper left", fontsize="small")
+    _error_panel(b, results, pair)
     _letter(b, "b) Disturbance estimation error")
+    bands.append((b, len(pair)))
     fig.suptitle("Fig. 4: conventional DOb vs HPDOb, both at 100 rad/s (simulation)")
     figures["fig4"] = fig
 
-    # Fig. 5: the virtual experiment (a simulation standing in for the paper's hardware test).
-    ve = results["virtual-experiment"]
-    fig, (a, b) = plt.subplots(2, 1, figsize=(PAPER_WIDTH, 5.5), layout="constrained")
-    _position(a, results, ["virtual-experiment"], inset=False)
+    # Fig. 5: the virtual experiments (simulations standing in for the paper's hardware test):
+    # the HPDOb on the encoder's differenced velocity and the position-only observer.
+    runs = ["virtual-experiment", "virtual-experiment-position"]
+    ve, pos = (results[name] for name in runs)
+    fig, (a, b, c) = plt.subplots(3, 1, figsize=(PAPER_WIDTH, 8.0), layout="constrained")
+    _position(a, results, runs, inset=False)
     _letter(a, "a) Position control of the servo system")
-    b.plot(ve.t, ve.tau_ext, "k", linewidth=1.0, label=r"external $\tau_{ext}$")
-    b.plot(
-        ve.t,
-        ve.tau_hat,
-        color="tab:blue",
-        linewidth=0.8,
-        label=r"estimated nominal $\hat\tau_{dn}$ (HPDOb-100)",
-    )
+    b.plot(ve.t, ve.tau_ext, color="0.55", linewidth=0.9, label=r"external $\tau_{ext}$")
+    b.plot(ve.t, ve.tau_hat, color=COLORS[runs[0]], linewidth=0.7, alpha=0.6,
+           label=rf"$\hat\tau_{{dn}}$ {LABELS[runs[0]]}")  # fmt: skip
+    b.plot(pos.t, pos.tau_dn, "k", linewidth=0.6, label=r"nominal $\tau_{dn}$ (position-only run)")
+    b.plot(pos.t, pos.tau_hat, color=COLORS[runs[1]], linewidth=0.8,
+           label=rf"$\hat\tau_{{dn}}$ {LABELS[runs[1]]}")  # fmt: skip
     style_axes(b, xlabel="time [s]", ylabel="torque [N m]")
-    b.legend(loc="upper left", fontsize="small")
-    _letter(b, "b) External disturbance and the estimated nominal disturbance")
+    _letter(b, "b) Disturbances acting on the servo system and their estimates")
+    _error_panel(c, results, runs)
+    _letter(c, "c) Estimation error")  # short: the clipping note shares the line
     fig.suptitle(
-        "Fig. 5: virtual experiment, a SIMULATION (16384-count encoder, "
+        "Fig. 5: virtual experiments, SIMULATIONS (16384-count encoder, "
         "0.444 N m limit, 1-sample delay)",
         fontsize="medium",
     )
+    bands += [(a, 2), (b, 2), (c, len(runs))]
     figures["fig5"] = fig
+    # The legend bands are measured when each figure has all its labels and titles.
+    for ax, ncol in bands:
+        legend_clear_of_data(ax, ncol=ncol)
     return figures

@@ -20,10 +20,11 @@ METRIC_UNITS = {
 def summary_table(metrics: dict) -> str:
     """Fixed-width table of ``{run: metrics}``."""
     names = list(METRIC_UNITS)
-    header = f"{'run':<20}" + "".join(f"{n + ' [' + METRIC_UNITS[n] + ']':>36}" for n in names)
+    width = max(20, *(len(name) + 1 for name in metrics))
+    header = f"{'run':<{width}}" + "".join(f"{n + ' [' + METRIC_UNITS[n] + ']':>36}" for n in names)
     lines = [header, "-" * len(header)]
     for name, values in metrics.items():
-        lines.append(f"{name:<20}" + "".join(f"{values[n]:>36.4e}" for n in names))
+        lines.append(f"{name:<{width}}" + "".join(f"{values[n]:>36.4e}" for n in names))
     return "\n".join(lines)
 
 
@@ -31,10 +32,10 @@ def reproduce(out_dir="hpdob-results", *, figures: bool = True) -> dict:
     """Run the canonical runs and write figures, traces and metrics into ``out_dir``.
 
     Writes ``fig2.png`` ... ``fig5.png`` (and ``.pdf``), ``traces/<run>.csv`` and
-    ``metrics.json`` ``{"PD": {...}, "DOb-50": {...}, ..., "virtual-experiment": {...}}``.
-    The files are written to temporary names and renamed when all are complete,
-    ``metrics.json`` last: a failed or interrupted call leaves the previous complete set, or
-    files without ``metrics.json`` (``docs/reliability.md``).
+    ``metrics.json`` ``{"PD": {...}, "DOb-50": {...}, ..., "virtual-experiment": {...},
+    "virtual-experiment-position": {...}}``. The files are written to temporary names and
+    renamed when all are complete, ``metrics.json`` last: a failed or interrupted call leaves
+    the previous complete set, or files without ``metrics.json`` (``docs/reliability.md``).
 
     Returns
     -------

@@ -2,7 +2,8 @@
 
 True plant J = 3.06e-4 kg m^2 (Maxon EC 90 flat class), b = 5e-5 N m s/rad, Coulomb friction
 0.01 N m (tanh scale 0.01 rad/s); nominal model J_n = 2.8e-4 kg m^2, b_n = 0; Ts = 1 ms;
-10 s; PD(kp=50, kd=5) with feed-forward; ideal sensor and actuator; zero initial state.
+10 s; PD(kp=50, kd=5) with feed-forward; ideal sensor and actuator; zero initial state
+(the virtual experiments: a 16384-count encoder, 0.444 N m limit and one sample of delay).
 Reference: quintic step 0 -> 1 rad over 0.2-1.2 s, hold, then 1 + 0.5 (1 - cos(pi (t - 4)))
 from t = 4 s. External disturbance: 0.05 N m step at t = 1.5005 s plus
 0.02 sin(4 pi (t - 2.5005)) N m from t = 2.5005 s.
@@ -22,17 +23,26 @@ from ..simulation._simulate import simulate
 
 __all__ = [
     "RUNS",
+    "VIRTUAL_POSITION_CONTROLLER",
+    "VIRTUAL_RUNS",
     "observer",
     "run",
     "scenario",
 ]
 
+#: The true plant: J = 3.06e-4 kg m^2, b = 5e-5 N m s/rad, Coulomb friction 0.01 N m.
 PLANT = ServoModel(J=3.06e-4, b=5e-5, coulomb=0.01, coulomb_velocity=0.01)
+#: The nominal model of controller and observer: J_n = 2.8e-4 kg m^2, b_n = 0.
 NOMINAL = ServoModel(J=2.8e-4, b=0.0)
+#: Sampling period [s].
 TS = 1e-3  # s
+#: Simulated time [s].
 DURATION = 10.0  # s
+#: PD controller (kp [1/s^2], kd [1/s]) with feed-forward of the reference acceleration.
 CONTROLLER = PD(kp=50.0, kd=5.0, feedforward=True)
+#: Reference [rad]: quintic step 0 -> 1 rad over 0.2-1.2 s, then 1 + 0.5 (1 - cos(pi (t - 4))).
 REFERENCE = SmoothStep(0.2, 1.2, 1.0) + Sine(-0.5, 0.5, start=4.0, phase=math.pi / 2, offset=0.5)
+#: External torque [N m]: 0.05 N m step at 1.5005 s plus 0.02 sin(4 pi (t - 2.5005)) from 2.5005 s.
 DISTURBANCE = Step(1.5005, 0.05) + Sine(0.02, 2.0, start=2.5005)
 
 #: Encoder and actuator of the virtual experiment standing in for the paper's Fig. 5 (a
@@ -40,8 +50,14 @@ DISTURBANCE = Step(1.5005, 0.05) + Sine(0.02, 2.0, start=2.5005)
 #: EC 90 flat class's nominal torque as limit (0.444 N m), one sample of transport delay.
 VIRTUAL_SENSOR = Encoder(16384, velocity="backward-difference")
 VIRTUAL_ACTUATOR = Actuator(torque_limit=0.444, delay_samples=1)
+#: The PD of ``virtual-experiment-position``: its D term takes the observer's velocity
+#: estimate instead of the encoder's backward difference (docs/simulation.md).
+VIRTUAL_POSITION_CONTROLLER = PD(kp=50.0, kd=5.0, feedforward=True, velocity="observer")
 
-#: Observer of each canonical run (None: PD only); gain direction (1, 1).
+#: Observer of each canonical run (None: PD only); the paper's observers with gain direction
+#: (1, 1). ``virtual-experiment`` is the paper's HPDOb-100 on the encoder (differenced
+#: velocity); ``virtual-experiment-position`` the position-only observer recommended for it
+#: (order 2, every pole at 150 rad/s, docs/analysis.md section 8) with the PD on its velocity.
 RUNS = {
     "PD": None,
     "DOb-50": {"order": 0, "bandwidth": 50.0},
@@ -49,7 +65,10 @@ RUNS = {
     "DOb-200": {"order": 0, "bandwidth": 200.0},
     "HPDOb-100": {"order": 1, "bandwidth": 100.0},
     "virtual-experiment": {"order": 1, "bandwidth": 100.0},
+    "virtual-experiment-position": {"order": 2, "bandwidth": 150.0, "measurement": "position"},
 }
+#: The runs on the virtual experiment's encoder and actuator.
+VIRTUAL_RUNS = ("virtual-experiment", "virtual-experiment-position")
 
 
 def scenario() -> dict:
@@ -71,7 +90,7 @@ def observer(name: str) -> DisturbanceObserver | None:
     spec = RUNS[name]
     if spec is None:
         return None
-    obs = DisturbanceObserver(NOMINAL.discretize(TS), gain_direction=(1.0, 1.0), **spec)
+    obs = DisturbanceObserver(NOMINAL.discretize(TS), **spec)  # gain direction (1, 1)
     obs.reset(x0=(0.0, 0.0), tau0=0.0)
     return obs
 
@@ -83,8 +102,10 @@ def run(name: str, **overrides):
     """
     kwargs = scenario()
     kwargs["observer"] = observer(name)
-    if name == "virtual-experiment":
+    if name in VIRTUAL_RUNS:
         kwargs["sensor"], kwargs["actuator"] = VIRTUAL_SENSOR, VIRTUAL_ACTUATOR
+    if name == "virtual-experiment-position":
+        kwargs["controller"] = VIRTUAL_POSITION_CONTROLLER
     kwargs["label"] = name
     kwargs.update(overrides)
     return simulate(**kwargs)

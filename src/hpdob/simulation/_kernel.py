@@ -39,6 +39,9 @@ advanced from Python (MuJoCo) calls :func:`run_samples` for one sample at a time
 stops after step 5 and leaves steps 6-7 to the plant
 (``hpdob.simulation._python_plant``).
 
+:func:`run_observer` runs an observer alone over a logged run (offline estimation) with the
+same program rows (:func:`program_row`) as steps 2 and 4.
+
 The step is written once, inline in the loop: a per-sample call of a numba function taking
 the run's records costs more than the step itself (their arrays are reference-counted at every
 call boundary).
@@ -49,12 +52,26 @@ from __future__ import annotations
 import math
 
 import numba
+import numpy as np
 
 from ._records import SENSOR_ENCODER_EXACT, SENSOR_IDEAL
 
-__all__ = ["ground_truth", "run_samples"]
+__all__ = ["ground_truth", "program_row", "run_observer", "run_samples"]
 
 _jit = numba.njit(cache=True, nogil=True)
+
+
+@_jit
+def program_row(pointer, coefficient, operand, w, row):
+    """Row ``row`` of an observer's program: the left-to-right sum of
+    ``coefficient[t] * w[operand[t]]`` over its terms (0 for an empty row)."""
+    start, stop = pointer[row], pointer[row + 1]
+    if start == stop:
+        return 0.0
+    acc = coefficient[start] * w[operand[start]]
+    for t in range(start + 1, stop):
+        acc += coefficient[t] * w[operand[t]]
+    return acc
 
 
 @_jit
@@ -121,19 +138,12 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
             w[n] = thm
             if p == 2:
                 w[n + 1] = omm
-            for row in range(2 if has_velocity else 1):
-                acc = 0.0
-                start, stop = out_ptr[row], out_ptr[row + 1]
-                if start < stop:
-                    acc = out_c[start] * w[out_i[start]]
-                    for t in range(start + 1, stop):
-                        acc += out_c[t] * w[out_i[t]]
-                if row == 0:
-                    est = acc
-                else:
-                    omega_hat[k] = acc
-                    if observer_velocity:
-                        om_ctl = acc
+            est = program_row(out_ptr, out_c, out_i, w, 0)
+            if has_velocity:
+                om_hat = program_row(out_ptr, out_c, out_i, w, 1)
+                omega_hat[k] = om_hat
+                if observer_velocity:
+                    om_ctl = om_hat
         tau_hat[k] = est
         # 3. control, limited
         acc = kp * (r[k] - thm) + kd * (r_dot[k] - om_ctl)
@@ -149,13 +159,7 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
         if has_observer:
             w[n + p] = uk
             for i in range(n):
-                acc = 0.0
-                start, stop = up_ptr[i], up_ptr[i + 1]
-                if start < stop:
-                    acc = up_c[start] * w[up_i[start]]
-                    for t in range(start + 1, stop):
-                        acc += up_c[t] * w[up_i[t]]
-                s_new[i] = acc
+                s_new[i] = program_row(up_ptr, up_c, up_i, w, i)
             for i in range(n):
                 s[i] = s_new[i]
         # 5. actuator delay
@@ -186,6 +190,24 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
                 th, om = a00 * th + a01 * om + b0 * force, a10 * th + a11 * om + b1 * force
             x[0] = th
             x[1] = om
+        elif nx == 4 and not shared and v == 1:  # the two-mass drive, kept in registers
+            x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
+            h0, h1, h2, h3 = A_half[1, 0], A_half[1, 1], A_half[1, 2], A_half[1, 3]
+            gb, gd = B_half[1], D_half[1]
+            for j in range(substeps):
+                tau_e = tau_mid[base + j]
+                force = applied - c * math.tanh(x1 / c_scale)
+                om_half = h0 * x0 + h1 * x1 + h2 * x2 + h3 * x3 + gb * force - gd * tau_e
+                force = applied - c * math.tanh(om_half / c_scale)
+                y0 = A_h[0, 0] * x0 + A_h[0, 1] * x1 + A_h[0, 2] * x2 + A_h[0, 3] * x3
+                y1 = A_h[1, 0] * x0 + A_h[1, 1] * x1 + A_h[1, 2] * x2 + A_h[1, 3] * x3
+                y2 = A_h[2, 0] * x0 + A_h[2, 1] * x1 + A_h[2, 2] * x2 + A_h[2, 3] * x3
+                y3 = A_h[3, 0] * x0 + A_h[3, 1] * x1 + A_h[3, 2] * x2 + A_h[3, 3] * x3
+                x0 = y0 + B_h[0] * force - D_h[0] * tau_e
+                x1 = y1 + B_h[1] * force - D_h[1] * tau_e
+                x2 = y2 + B_h[2] * force - D_h[2] * tau_e
+                x3 = y3 + B_h[3] * force - D_h[3] * tau_e
+            x[0], x[1], x[2], x[3] = x0, x1, x2, x3
         else:
             for j in range(substeps):
                 tau_e = tau_mid[base + j]
@@ -215,3 +237,32 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
             if not abs(x[i]) <= limit:
                 return k + 1
     return k_stop
+
+
+@_jit
+def run_observer(up_ptr, up_c, up_i, out_ptr, out_c, out_i, measurements, u, s0, q):
+    """An observer alone over a log: its outputs ``(n, q)`` at every sample.
+
+    Per sample: the outputs from the state and the measurement (output rows), then the update
+    with the measurement and ``u[k]`` (update rows) -- the same program rows as the closed
+    loop's steps 2 and 4, in the same order.
+    """
+    n_samples, p = measurements.shape
+    n = s0.shape[0]
+    s = s0.copy()
+    s_new = s0.copy()
+    w = np.zeros(n + p + 1)
+    y = np.zeros((n_samples, q))
+    for k in range(n_samples):
+        for i in range(n):
+            w[i] = s[i]
+        for j in range(p):
+            w[n + j] = measurements[k, j]
+        for row in range(q):
+            y[k, row] = program_row(out_ptr, out_c, out_i, w, row)
+        w[n + p] = u[k]
+        for i in range(n):
+            s_new[i] = program_row(up_ptr, up_c, up_i, w, i)
+        for i in range(n):
+            s[i] = s_new[i]
+    return y

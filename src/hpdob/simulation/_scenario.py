@@ -18,6 +18,7 @@ from .._validation import (
     check_keys,
 )
 from ..models._servo import ServoModel
+from ..models._two_mass import TwoMassServo
 from ..observers._families import FAMILIES, check_spec, design_from_spec
 from ..observers._runtime import Observer
 from ._controller import PD
@@ -191,7 +192,7 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
                 f"label must be a str, got {data['label']!r} of type {type(data['label']).__name__}"
             )
         kwargs["label"] = data["label"]
-    kwargs["plant"] = _build(ServoModel, _table(data, "plant"), "plant")
+    kwargs["plant"] = _plant(_table(data, "plant"))
     kwargs["nominal"] = _build(ServoModel, _table(data, "nominal"), "nominal")
     kwargs["controller"] = _build(PD, _table(data, "controller"), "controller")
     kwargs["reference"] = _signal_sum(data["reference"], "reference")
@@ -234,6 +235,20 @@ def _observer(model, spec: dict):
     except (ParameterTypeError, ParameterValueError) as err:
         keys = ("type", *FAMILIES[spec.get("type", "dob")][1])
         raise _prefixed("observer", err, keys) from None
+
+
+#: ``[plant] type = ...`` -> the plant class (default ``"rigid"``).
+PLANT_TYPES = {"rigid": ServoModel, "two-mass": TwoMassServo}
+
+
+def _plant(table: dict):
+    fields = dict(table)
+    kind = fields.pop("type", "rigid")
+    if kind not in PLANT_TYPES:
+        raise ParameterValueError(
+            f"plant.type must be one of {', '.join(repr(k) for k in PLANT_TYPES)}; got {kind!r}"
+        )
+    return _build(PLANT_TYPES[kind], fields, "plant")
 
 
 def _read_toml(path: Path) -> dict:

@@ -89,7 +89,10 @@ def _sample_count(Ts: float, duration: float) -> int:
 
 def _call(function, t: np.ndarray, name: str):
     try:
-        return function(t)
+        # floating-point overflow shows up as a non-finite sample, reported with its time by
+        # _as_samples: numpy's RuntimeWarning on top of that would only add lines
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return function(t)
     except (ParameterValueError, ParameterTypeError):
         raise
     except Exception as err:
@@ -375,9 +378,10 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     extra = {}
     if system is not None and system.has_velocity:
         extra["omega_hat"] = out.omega_hat[keep]
-    if nx == 4:
-        extra["theta_load"] = out.states[keep, 2]
-        extra["omega_load"] = out.states[keep, 3]
+    names = plant.state_names
+    for name in ("theta_load", "omega_load"):
+        if name in names and out.states.shape[0]:
+            extra[name] = out.states[keep, names.index(name)]
     return SimulationResult(
         t=t[keep],
         theta=out.theta[keep],

@@ -55,7 +55,8 @@ def _observer_parts(observer):
     if getattr(observer, "system", None) is None:
         raise ParameterTypeError(
             "base['observer'] must be a dict of DisturbanceObserver arguments (order, poles, "
-            "bandwidth, gain_direction), an observer object or None, got "
+            "bandwidth, measurement, velocity_bandwidth, gain_direction), an observer object or "
+            "None, got "
             f"{type(observer).__name__}"
         )
     return None, observer
@@ -165,6 +166,17 @@ def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoL
         spec = {**spec, **sub("observer.")}
         if "observer.bandwidth" in params:
             spec.pop("poles", None)
+        if "observer.measurement" in params:
+            # the other family's design arguments do not apply (poles differ in number)
+            other = "gain_direction" if spec["measurement"] == "position" else "velocity_bandwidth"
+            spec.pop(other, None)
+            if "poles" in spec and spec["measurement"] != base["observer_spec"].get(
+                "measurement", "state"
+            ):
+                raise ParameterValueError(
+                    "observer.measurement can vary only for an observer designed by bandwidth "
+                    f"(the number of poles differs between the families), got poles={spec['poles']}"
+                )
         nominal = changes.get("nominal", loop.nominal)
         Ts = changes.get("Ts", loop.Ts)
         key = _frozen({"spec": spec, "nominal": nominal, "Ts": Ts})
@@ -389,7 +401,8 @@ def sweep(
         arguments (``plant``, ``nominal``, ``Ts``, ``controller``, ``observer``, ``sensor``,
         ``actuator``), and the keyword arguments of :func:`hpdob.simulate` (``duration``,
         ``reference``, ``disturbance``, ``substeps``, ``x0``). The observer may be a dict of
-        design arguments (``order``, ``bandwidth`` or ``poles``, ``gain_direction``), built per
+        design arguments (``order``, ``bandwidth`` or ``poles``, ``measurement``,
+        ``velocity_bandwidth``, ``gain_direction``; see :func:`hpdob.design_observer`), built per
         scenario on ``nominal.discretize(Ts)`` and started at ``x0`` with ``tau0 = 0``; a
         design of a known family is turned into such a dict, any other observer is used as
         it is (and then ``nominal``, ``Ts`` and ``observer.*`` cannot vary).
@@ -398,8 +411,11 @@ def sweep(
         ``plant.J``, ``plant.b``, ``plant.coulomb``, ``plant.coulomb_velocity`` (a
         :class:`ServoModel` plant), ``plant.link_mass``, ``plant.link_length`` (a
         :class:`MujocoServo` plant), ``nominal.J``,
-        ``nominal.b``, ``observer.order``, ``observer.bandwidth``, ``controller.kp``,
-        ``controller.kd``, ``Ts``, ``disturbance_scale`` (multiplies the disturbance).
+        ``nominal.b``, ``observer.order``, ``observer.bandwidth``,
+        ``observer.velocity_bandwidth``, ``observer.measurement`` (``"state"`` or
+        ``"position"``; the other family's ``gain_direction`` or ``velocity_bandwidth`` is
+        dropped), ``controller.kp``, ``controller.kd``, ``Ts``, ``disturbance_scale``
+        (multiplies the disturbance).
     vary : dict, optional
         Path -> ``("uniform", low, high)``, ``("normal", mean, std)`` or
         ``("loguniform", low, high)``; ``n`` draws per grid point.

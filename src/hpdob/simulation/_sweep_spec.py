@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from .._validation import ParameterTypeError, ParameterValueError, as_int, as_real
+from .._validation import ParameterTypeError, ParameterValueError, as_int, as_real, check_choice
 
 __all__ = ["DISTRIBUTIONS", "MAX_SCENARIOS", "PATHS", "expand_scenarios"]
 
@@ -18,8 +18,11 @@ MAX_SCENARIOS = 1_000_000
 PATHS = (
     "plant.J", "plant.b", "plant.coulomb", "plant.coulomb_velocity",
     "plant.link_mass", "plant.link_length",
+    "plant.J_motor", "plant.J_load", "plant.stiffness", "plant.damping",
+    "plant.b_motor", "plant.b_load",
     "nominal.J", "nominal.b",
-    "observer.order", "observer.bandwidth",
+    "observer.order", "observer.bandwidth", "observer.velocity_bandwidth",
+    "observer.measurement",
     "controller.kp", "controller.kd",
     "Ts", "disturbance_scale",
 )  # fmt: skip
@@ -50,12 +53,15 @@ def _grid_values(path: str, values) -> list:
             as_int(v, f"grid[{path!r}] entry", "a non-negative integer order", minimum=0)
             for v in values
         ]
+    if path == "observer.measurement":
+        return [check_choice(v, f"grid[{path!r}] entry", ("state", "position")) for v in values]
     return [as_real(v, f"grid[{path!r}] entry", "a finite number") for v in values]
 
 
 def _draw(path: str, spec, n: int, rng: np.random.Generator) -> np.ndarray:
-    if path == "observer.order":
-        raise ParameterValueError("vary cannot draw 'observer.order' (an integer): put it in grid")
+    if path in ("observer.order", "observer.measurement"):
+        kind = "an integer" if path == "observer.order" else "a name"
+        raise ParameterValueError(f"vary cannot draw {path!r} ({kind}): put it in grid")
     if not isinstance(spec, (tuple, list)) or len(spec) != 3 or spec[0] not in DISTRIBUTIONS:
         listed = "; ".join(f"({name!r}, {args})" for name, args in DISTRIBUTIONS.items())
         raise ParameterValueError(f"vary[{path!r}] must be one of {listed}; got {spec!r}")

@@ -1,0 +1,238 @@
+r"""Offline estimation: any observer run over a logged run, compiled."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._table import columns_to_csv, columns_to_pandas
+from .._validation import ParameterTypeError, ParameterValueError, as_real, readonly
+from ..observers._core import initial_state
+from ..observers._runtime import Observer
+from ..observers._system import as_system
+from ._checks import check_lengths, check_time, sample_vector
+
+__all__ = ["EstimationResult", "estimate_disturbance"]
+
+
+@dataclass(frozen=True, eq=False)
+class EstimationResult:
+    r"""An observer's estimates over a logged run (see :func:`estimate_disturbance`).
+
+    Attributes
+    ----------
+    t : ndarray
+        Sampling instants [s].
+    theta : ndarray
+        Measured position [rad or m].
+    omega : ndarray or None
+        The velocity [rad/s or m/s] the observer was given (the log's, or the backward
+        difference of ``theta``); None for a position-only observer.
+    u : ndarray
+        Applied torque or force [N m or N].
+    tau_hat : ndarray
+        Estimate of the nominal disturbance :math:`\hat\tau_k` [N m or N] at every sample.
+    omega_hat : ndarray or None
+        The observer's velocity estimate, where it has one.
+    Ts : float
+        Sampling period [s].
+    label : str
+        Name of the observer (for plots and tables).
+    """
+
+    t: np.ndarray
+    theta: np.ndarray
+    omega: np.ndarray | None
+    u: np.ndarray
+    tau_hat: np.ndarray
+    omega_hat: np.ndarray | None
+    Ts: float
+    label: str = ""
+
+    def __len__(self) -> int:
+        return self.t.size
+
+    def _columns(self) -> dict:
+        columns = {"t": self.t, "theta": self.theta}
+        if self.omega is not None:
+            columns["omega"] = self.omega
+        columns.update(u=self.u, tau_hat=self.tau_hat)
+        if self.omega_hat is not None:
+            columns["omega_hat"] = self.omega_hat
+        return columns
+
+    def rms_error(self, reference, *, start: float = 0.0) -> float:
+        """RMS of ``tau_hat - reference`` [N m or N] over ``t >= start`` [s] (e.g. a friction
+        model evaluated on the log, after the observer's transient)."""
+        reference = np.asarray(reference, dtype=float)
+        if reference.shape != self.tau_hat.shape:
+            raise ParameterValueError(
+                f"reference must have shape {self.tau_hat.shape} like tau_hat, got "
+                f"{reference.shape}"
+            )
+        start = as_real(start, "start", "a finite time [s]")
+        keep = self.t >= start
+        if not keep.any():
+            raise ParameterValueError(
+                f"start = {start!r} s leaves no sample (t ends at {self.t[-1]!r} s)"
+            )
+        return float(np.sqrt(np.mean((self.tau_hat[keep] - reference[keep]) ** 2)))
+
+    def to_pandas(self):
+        """The signals as a :class:`pandas.DataFrame`."""
+        return columns_to_pandas(self._columns(), caller="EstimationResult.to_pandas()")
+
+    def to_csv(self, path):
+        """Write the signals to ``path`` as CSV (header row, full precision), atomically."""
+        from .._files import atomic_path
+
+        with atomic_path(path) as temporary:
+            columns_to_csv(self._columns(), temporary)
+        return path
+
+    def plot(self, *, reference=None, reference_label: str = "reference", title=None):
+        """Figure: position, and the estimate (with an optional reference such as a friction
+        model evaluated on the log).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        import matplotlib.pyplot as plt
+
+        from .._plotting import PAPER_WIDTH, style_axes
+
+        fig, (top, bottom) = plt.subplots(
+            2, 1, figsize=(PAPER_WIDTH, 4.6), sharex=True, layout="constrained"
+        )
+        top.plot(self.t, self.theta, color="tab:blue", linewidth=1.0)
+        style_axes(top, xlabel=None, ylabel="position [rad or m]")
+        if reference is not None:
+            bottom.plot(self.t, reference, color="0.4", linewidth=1.0, label=reference_label)
+        bottom.plot(self.t, self.tau_hat, color="tab:red", linewidth=0.8,
+                    label=rf"$\hat\tau$ ({self.label or 'observer'})")  # fmt: skip
+        style_axes(bottom, xlabel="time [s]", ylabel="disturbance [N m or N]")
+        bottom.legend(loc="upper center", bbox_to_anchor=(0.5, -0.28), ncols=2, fontsize="small")
+        if title:
+            fig.suptitle(title, fontsize="medium")
+        return fig
+
+
+def _velocity(theta: np.ndarray, Ts: float) -> np.ndarray:
+    """Backward difference of ``theta``; the first sample's velocity is 0 (at rest before the
+    log starts), as the encoder model of :class:`hpdob.Encoder`."""
+    omega = np.empty_like(theta)
+    omega[0] = 0.0
+    omega[1:] = np.diff(theta) / Ts
+    return omega
+
+
+def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float = 0.0):
+    r"""Run an observer of any family over a logged run; return its estimates.
+
+    At every sample ``k`` the observer gives its estimate from the measurement, then is
+    updated with the measurement and the logged input ``u_k`` (the torque that was applied),
+    exactly as in the sample loop; the loop runs compiled (numba), evaluating the observer's
+    program in the same order as the runtime object, which it reproduces bit for bit.
+
+    Parameters
+    ----------
+    observer : LinearObserver, design or runtime observer
+        Designed on the nominal model of the logged axis (e.g. ``identify(...).model()``) at the
+        log's sampling period. A runtime object starts from its current state (and is not
+        changed); otherwise the observer starts at rest at the first sample:
+        ``initial_state(observer, (theta[0], omega[0]), tau0)``.
+    theta : array_like
+        Measured position [rad or m], one entry per sample.
+    u : array_like
+        Applied torque or force [N m or N], same length.
+    omega : array_like, optional
+        Measured velocity for an observer that measures the state. Without it, such an observer
+        gets the backward difference of ``theta``, with 0 at the first sample (at rest before
+        the log starts). Not accepted by a position-only observer.
+    t : array_like, optional
+        Sampling instants [s]; they must be uniform with the observer's ``Ts``. Default
+        ``k Ts``.
+    tau0 : float, optional
+        Initial disturbance of the reset [N m or N]. Default 0.
+
+    Returns
+    -------
+    EstimationResult
+
+    Raises
+    ------
+    TypeError, ValueError
+        For a wrong observer, signals of different lengths or with non-finite samples,
+        non-uniform time, a time step other than the observer's ``Ts``, or ``omega`` given to a
+        position-only observer.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hpdob import ServoModel, design_observer, estimate_disturbance
+    >>> model = ServoModel(2.8e-4).discretize(1e-3)
+    >>> theta, u = np.zeros(500), np.full(500, 0.02)  # holding still against 0.02 N m
+    >>> result = estimate_disturbance(design_observer(model, order=1, bandwidth=100.0),
+    ...                               theta=theta, u=u)
+    >>> round(float(result.tau_hat[-1]), 9)
+    0.02
+    """
+    from ..simulation._kernel import run_observer
+
+    system = as_system(observer)
+    theta = sample_vector(theta, "theta", "measured positions [rad or m]")
+    u = sample_vector(u, "u", "applied torques or forces [N m or N]")
+    signals = {"theta": theta, "u": u}
+    position_only = len(system.measures) == 1
+    if omega is not None:
+        if position_only:
+            raise ParameterValueError(
+                "omega must be None for an observer that measures the position only "
+                f"(measures {system.measures}); it estimates the velocity itself"
+            )
+        signals["omega"] = sample_vector(omega, "omega", "measured velocities [rad/s or m/s]")
+    n = check_lengths(signals)
+    Ts = system.Ts
+    if t is not None:
+        t = sample_vector(t, "t", "sampling instants [s]")
+        check_lengths({**signals, "t": t})
+        if n > 1:
+            step = check_time(t, "t", 1e-3)
+            if not math.isclose(step, Ts, rel_tol=1e-6):
+                raise ParameterValueError(
+                    f"t must advance by the observer's sampling period Ts = {Ts!r} s, got a "
+                    f"step of {step!r} s"
+                )
+    else:
+        t = np.arange(n) * Ts
+    tau0 = as_real(tau0, "tau0", "a finite initial disturbance [N m or N]")
+    if position_only:
+        velocity = None
+        measurements = theta[:, None]
+    else:
+        velocity = signals["omega"] if omega is not None else _velocity(theta, Ts)
+        measurements = np.column_stack([theta, velocity])
+    if isinstance(observer, Observer):
+        s0 = observer.state
+    else:
+        omega0 = 0.0 if velocity is None else float(velocity[0])
+        s0 = np.array(initial_state(system, (float(theta[0]), omega0), tau0))
+    update, output, _ = system.kernel_arrays
+    y = run_observer(*update, *output, np.ascontiguousarray(measurements), u, s0,
+                     len(system.outputs))  # fmt: skip
+    label = getattr(observer, "label", "") or system.name
+    if not isinstance(label, str):
+        raise ParameterTypeError(f"the observer's label must be a str, got {label!r}")
+    return EstimationResult(
+        t=readonly(np.array(t, dtype=float)),
+        theta=readonly(theta),
+        omega=None if velocity is None else readonly(np.array(velocity)),
+        u=readonly(u),
+        tau_hat=readonly(y[:, 0].copy()),
+        omega_hat=readonly(y[:, 1].copy()) if y.shape[1] > 1 else None,
+        Ts=Ts,
+        label=label,
+    )

@@ -1,0 +1,141 @@
+"""Offline estimation: estimate_disturbance runs any observer over a log, compiled, and agrees
+with the runtime object and with the closed loop that produced the log."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hpdob import (
+    Encoder,
+    LinearObserver,
+    Observer,
+    estimate_disturbance,
+    paper,
+    simulate,
+)
+
+MODEL = paper.NOMINAL.discretize(paper.TS)
+
+
+def runtime_trace(observer, theta, omega, u):
+    obs = observer.copy() if isinstance(observer, Observer) else Observer(observer)
+    out = []
+    for k in range(theta.size):
+        y = (theta[k], omega[k]) if omega is not None else theta[k]
+        out.append(obs.estimate(y))
+        obs.update(y, u[k])
+    return np.array(out)
+
+
+@pytest.mark.parametrize("name", ["DOb-100", "HPDOb-100"])
+def test_reproduces_the_closed_loops_estimate_bit_for_bit(name):
+    """The observer inside simulate saw (theta_measured, omega_measured, u): run offline on
+    those, it gives the same estimate, sample by sample."""
+    run = paper.run(name, duration=3.0)
+    result = estimate_disturbance(
+        paper.observer(name), theta=run.theta_measured, omega=run.omega_measured, u=run.u
+    )
+    assert np.array_equal(result.tau_hat, run.tau_hat)
+    assert np.array_equal(result.t, run.t) and result.omega_hat is None
+
+
+def test_backward_difference_is_the_encoders():
+    """Without omega, a state observer gets the backward difference of theta with 0 at the
+    first sample: the velocity hpdob's Encoder gives the loop, so the estimate is the loop's."""
+    run = paper.run("virtual-experiment", duration=2.0)
+    result = estimate_disturbance(paper.observer("HPDOb-100"), theta=run.theta_measured, u=run.u)
+    assert np.array_equal(result.omega, run.omega_measured)
+    assert np.array_equal(result.tau_hat, run.tau_hat)
+
+
+def test_agrees_with_the_runtime_object_from_its_state(rng):
+    obs = paper.observer("HPDOb-100")
+    obs.update((0.1, 2.0), 0.05)  # not at rest: the offline run starts from this state
+    theta = np.cumsum(rng.normal(scale=1e-3, size=800))
+    u = rng.normal(scale=0.05, size=800)
+    before = obs.state
+    result = estimate_disturbance(obs, theta=theta, u=u)
+    assert np.array_equal(obs.state, before)  # the runtime object is not changed
+    assert np.array_equal(result.tau_hat, runtime_trace(obs, theta, result.omega, u))
+
+
+def test_position_only_observer_and_its_velocity(rng):
+    """A position-only observer of the protocol (written here: a DOb on a differenced angle
+    would need omega, so take the plain position-measuring tracking filter x = [theta, omega,
+    tau] with fixed gains) returns tau_hat and omega_hat."""
+    Ts, J = paper.TS, paper.NOMINAL.J
+    A = np.array([[1.0, Ts, -(Ts**2) / (2 * J)], [0.0, 1.0, -Ts / J], [0.0, 0.0, 1.0]])
+    B = np.array([Ts**2 / (2 * J), Ts / J, 0.0])
+    L = np.array([0.6, 80.0, -0.02])  # a stable predictor gain for this model
+    F = A - np.outer(L, [1.0, 0.0, 0.0])
+    assert np.abs(np.linalg.eigvals(F)).max() < 1
+    system = LinearObserver(
+        F=F, G=np.column_stack([L, B]), H=np.eye(3)[[2, 1]], E=np.zeros((2, 2)),
+        N=np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]]), Ts=Ts, measures=("theta",),
+        outputs=("tau_hat", "omega_hat"), model=MODEL,
+    )  # fmt: skip
+    theta = np.cumsum(rng.normal(scale=1e-3, size=600))
+    u = rng.normal(scale=0.05, size=600)
+    result = estimate_disturbance(system, theta=theta, u=u)
+    obs = Observer(system, x0=(theta[0], 0.0))  # the offline run starts at rest at theta[0]
+    for k in range(theta.size):
+        assert result.tau_hat[k] == obs.estimate(theta[k])
+        assert result.omega_hat[k] == obs.velocity
+        obs.update(theta[k], u[k])
+    assert result.omega is None
+    with pytest.raises(ValueError, match="omega must be None for an observer that measures the"):
+        estimate_disturbance(system, theta=theta, u=u, omega=np.zeros(600))
+
+
+def test_result_table_plot_and_rms(tmp_path):
+    run = paper.run("DOb-100", duration=1.0)
+    result = estimate_disturbance(paper.observer("DOb-100"), theta=run.theta, u=run.u,
+                                  t=run.t, omega=run.omega)  # fmt: skip
+    frame = result.to_pandas()
+    assert list(frame.columns) == ["t", "theta", "omega", "u", "tau_hat"]
+    path = result.to_csv(tmp_path / "estimate.csv")
+    assert path.read_text().splitlines()[0] == "t,theta,omega,u,tau_hat"
+    assert result.rms_error(result.tau_hat) == 0.0
+    fig = result.plot(reference=run.tau_dn, reference_label=r"$\tau_{dn}$")
+    assert fig.axes[1].get_ylabel() == "disturbance [N m or N]"
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "pattern"),
+    [
+        ({"theta": np.zeros(10), "u": np.zeros(11)}, ValueError, r"theta has 10, u has 11"),
+        ({"theta": [0.0, np.nan] * 5, "u": np.zeros(10)}, ValueError, r"theta.*not finite|nan"),
+        ({"theta": "abc", "u": np.zeros(3)}, TypeError, r"theta"),
+        (
+            {"theta": np.zeros(10), "u": np.zeros(10), "t": np.arange(10) * 2e-3},
+            ValueError,
+            r"t must advance by the observer's sampling period Ts = 0.001 s",
+        ),
+        (
+            {"theta": np.zeros(10), "u": np.zeros(10), "t": np.r_[0.0, np.cumsum(np.ones(9))]},
+            ValueError,
+            r"t must advance by",
+        ),
+    ],
+)
+def test_bad_logs_are_named(kwargs, error, pattern):
+    with pytest.raises(error, match=pattern):
+        estimate_disturbance(paper.observer("DOb-100"), **kwargs)
+
+
+def test_bad_observer():
+    with pytest.raises(TypeError, match="observer must be a DisturbanceObserver, an Observ"):
+        estimate_disturbance("dob", theta=np.zeros(10), u=np.zeros(10))
+
+
+def test_encoder_log_from_a_simulation_runs_through_read_log(tmp_path):
+    from hpdob import read_log
+
+    kwargs = {**paper.scenario(), "duration": 2.0}
+    run = simulate(**kwargs, observer=paper.observer("HPDOb-100"), sensor=Encoder(16384))
+    path = tmp_path / "log.csv"
+    run.to_csv(path)
+    log = read_log(path, time="t", position="theta_measured", input="u")
+    result = estimate_disturbance(paper.observer("HPDOb-100"), theta=log.theta, u=log.u, t=log.t)
+    assert np.array_equal(result.tau_hat, run.tau_hat)
