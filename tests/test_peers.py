@@ -280,3 +280,46 @@ def test_export_c_matches_python(tmp_path, rng):
 def test_bad_inputs_name_the_parameter(call, error, pattern):
     with pytest.raises(error, match=pattern):
         call()
+
+
+def test_scenario_files_and_the_command_line(tmp_path, capsys):
+    from hpdob.cli import main
+    from hpdob.simulation._scenario import scenario_from_dict
+
+    data = {
+        "Ts": 1e-3, "duration": 0.5, "plant": {"J": 3.06e-4}, "nominal": {"J": 2.8e-4},
+        "controller": {"kp": 50.0, "kd": 5.0},
+        "reference": {"type": "step", "time": 0.1, "amplitude": 1.0},
+        "observer": {"type": "eso", "bandwidth": 150.0, "extended_order": 1},
+    }  # fmt: skip
+    kwargs = scenario_from_dict(data)
+    assert isinstance(kwargs["observer"], ExtendedStateObserver)
+    assert not simulate(**kwargs).diverged
+    data["observer"] = {"type": "kalman", "position_noise_std": 1e-4}
+    with pytest.raises(ValueError, match=r"missing required key observer\.process_noise_std"):
+        scenario_from_dict(data)
+    assert main(["design", "--type", "eso", "--extended-order", "1", "--bandwidth", "150"]) == 0
+    assert "generalised ESO (m=1), current form" in capsys.readouterr().out
+    assert main(["export-c", "--type", "kalman", "--position-noise-std", "1.1e-4",
+                 "--out", str(tmp_path)]) == 0  # fmt: skip
+    assert "tau_hat" in (tmp_path / "dob.h").read_text()
+    capsys.readouterr()
+    assert main(["design", "--type", "kalman"]) == 2
+    assert "needs --position-noise-std" in capsys.readouterr().err
+
+
+def test_peers_run_on_a_mujoco_plant():
+    """The MuJoCo loop runs the peers through the same compiled sample step: on the frictionless
+    servo it agrees with hpdob's own exact integrator (RK4 at 8 steps per sample)."""
+    pytest.importorskip("mujoco")
+    from hpdob import MujocoServo
+
+    model = paper.NOMINAL.discretize(TS)
+    eso = design_eso(model, bandwidth=120.0, extended_order=1)
+    kwargs = {**paper.scenario(), "duration": 2.0, "plant": paper.PLANT.replace(coulomb=0.0)}
+    exact = simulate(**kwargs, observer=eso, substeps=8)
+    mujoco = simulate(**{**kwargs, "plant": MujocoServo(paper.PLANT.J, paper.PLANT.b)},
+                      observer=eso, substeps=8)  # fmt: skip
+    np.testing.assert_allclose(mujoco.tau_hat, exact.tau_hat, rtol=0,
+                               atol=1e-6 * np.abs(exact.tau_hat).max())  # fmt: skip
+    assert mujoco.omega_hat is not None

@@ -52,6 +52,7 @@ from . import identification, paper, signals
 from ._validation import ParameterTypeError, ParameterValueError
 from ._version import __version__
 from .analysis import (
+    Comparison,
     GangOfFour,
     LoopMargins,
     NoiseGains,
@@ -59,6 +60,7 @@ from .analysis import (
     StabilityMap,
     closed_loop,
     closed_loop_poles,
+    compare_observers,
     estimation_response,
     estimation_transfer,
     gang_of_four,
@@ -105,10 +107,12 @@ from .simulation import (
     simulate,
     sweep,
 )
+from .tuning import TuningResult, tune
 
 __all__ = [
     "PD",
     "Actuator",
+    "Comparison",
     "DiscreteServoModel",
     "DisturbanceObserver",
     "Encoder",
@@ -133,11 +137,13 @@ __all__ = [
     "SimulationDivergedWarning",
     "SimulationResult",
     "StabilityMap",
+    "TuningResult",
     "TwoMassServo",
     "__version__",
     "characteristic_polynomial",
     "closed_loop",
     "closed_loop_poles",
+    "compare_observers",
     "design_observer",
     "error_matrix",
     "estimate",
@@ -161,5 +167,7 @@ __all__ = [
     "signals",
     "simulate",
     "sweep",
+    "tune",
+    "tuning",
     "update",
 ]

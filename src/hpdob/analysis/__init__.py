@@ -8,11 +8,14 @@ noise_gains, observer_noise_gain, noise_tradeoff
     Exact noise gains (discrete Lyapunov equation) and the accuracy/noise trade-off.
 robust_stability_map
     Closed-loop stability over inertia or friction errors and observer bandwidths.
+compare_observers, Comparison
+    The paper's observers, their position-only versions, ESO and Kalman at equal noise.
 bode_figure, noise_figure
     The figures of docs/analysis.md: estimation response and noise gains against bandwidth.
 """
 
 from ._closed_loop import closed_loop, closed_loop_poles
+from ._comparison import Comparison, compare_observers
 from ._estimation import estimation_response, estimation_transfer
 from ._figures import bode_figure, noise_figure
 from ._noise import NoiseGains, noise_gains, observer_noise_gain
@@ -21,6 +24,7 @@ from ._sensitivity import GangOfFour, LoopMargins, gang_of_four, loop_margins, l
 from ._tradeoff import NoiseTradeoff, noise_tradeoff
 
 __all__ = [
+    "Comparison",
     "GangOfFour",
     "LoopMargins",
     "NoiseGains",
@@ -29,6 +33,7 @@ __all__ = [
     "bode_figure",
     "closed_loop",
     "closed_loop_poles",
+    "compare_observers",
     "estimation_response",
     "estimation_transfer",
     "gang_of_four",

@@ -25,7 +25,7 @@ from .._validation import (
     positive,
 )
 from ..models._servo import ServoModel
-from ..observers._synthesis import design_observer
+from ..observers._families import design_at_bandwidth
 from ..observers._system import MEASUREMENTS
 from ..simulation._controller import PD
 from ..simulation._devices import Encoder
@@ -45,11 +45,9 @@ class _Setting:
     nominal: ServoModel
     Ts: float
     controller: PD
-    order: int
-    gain_direction: tuple
+    spec: dict  # the observer family and its arguments but the bandwidth
     delay: int
     backward_difference: bool
-    measurement: str = "state"
 
     def radius(self, design, J_ratio: float, b: float) -> float:
         plant = ServoModel(J_ratio * self.nominal.J, b).discretize(self.Ts)
@@ -67,19 +65,21 @@ class _Setting:
         return float(np.abs(np.linalg.eigvals(loop_matrices(spec)[0])).max())
 
     def design(self, bandwidth: float):
-        if self.measurement == "position":
-            return design_observer(
-                self.nominal.discretize(self.Ts),
-                order=self.order,
-                bandwidth=bandwidth,
-                measurement="position",
-            )
-        return design_observer(
-            self.nominal.discretize(self.Ts),
-            order=self.order,
-            bandwidth=bandwidth,
-            gain_direction=self.gain_direction,
-        )
+        return design_at_bandwidth(self.nominal.discretize(self.Ts), self.spec, bandwidth)
+
+    @property
+    def name(self) -> str:
+        spec = self.spec
+        kind = spec.get("type", "dob")
+        if kind == "eso":
+            m = spec.get("extended_order", 0)
+            return f"ESO (m={m}, {spec.get('form', 'current')})"
+        if kind == "kalman":
+            return f"Kalman (m={spec.get('order', 0)})"
+        m = spec.get("order")
+        name = {0: "DOb", 1: "HPDOb"}.get(m, f"order {m}")
+        position = ", position-only" if spec.get("measurement") == "position" else ""
+        return f"{name} (m={m}{position})"
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,7 +107,9 @@ class StabilityMap:
     delay_samples : int
         Actuator delay [samples] (unknown to the observer).
     measurement : str
-        ``"state"`` or ``"position"``: the observer family.
+        ``"state"`` or ``"position"``: what the observer measures.
+    observer : dict
+        The observer family and its design arguments but the bandwidth.
     """
 
     parameter: str
@@ -120,6 +122,7 @@ class StabilityMap:
     delay_samples: int
     _setting: _Setting = field(repr=False, compare=False)
     measurement: str = "state"
+    observer: dict = field(default_factory=dict, repr=False)
 
     @property
     def stable(self) -> np.ndarray:
@@ -259,7 +262,7 @@ class StabilityMap:
         cbar = fig.colorbar(mesh, ax=ax)
         cbar.set_label("slowest decay rate -ln(radius)/Ts [1/s]\n(< 0: unstable)")
         style_axes(ax, xlabel="observer bandwidth g [rad/s]", ylabel=_UNITS[self.parameter])
-        name = {0: "DOb", 1: "HPDOb"}.get(self.order, f"order {self.order}")
+        name = self._setting.name
         if self.measurement == "position":
             name = f"position-only {name}"
         fixed = (
@@ -282,7 +285,7 @@ class StabilityMap:
             )
             fig.draw_without_rendering()
             pad += legend.get_window_extent().height * 72.0 / fig.dpi
-        ax.set_title(f"{name} (m={self.order}), {fixed}{delay}", fontsize="medium", pad=pad)
+        ax.set_title(f"{name}, {fixed}{delay}", fontsize="medium", pad=pad)
         return fig
 
 
@@ -326,7 +329,7 @@ def robust_stability_map(
     *,
     J_ratio=1.0,
     bandwidth,
-    order: int,
+    order: int | None = None,
     nominal: ServoModel,
     Ts: float,
     controller: PD,
@@ -335,6 +338,7 @@ def robust_stability_map(
     gain_direction=(1.0, 1.0),
     sensor: Encoder | None = None,
     measurement: str = "state",
+    observer: dict | None = None,
 ) -> StabilityMap:
     r"""Closed-loop stability over a grid of model errors and observer bandwidths.
 
@@ -351,8 +355,9 @@ def robust_stability_map(
         increasing. Default 1.
     bandwidth : array_like
         Observer bandwidths [rad/s], positive and strictly increasing (the horizontal axis).
-    order : int
-        Observer truncation order ``m >= 0``.
+    order : int, optional
+        Truncation order ``m >= 0`` of the paper's family (:func:`hpdob.design_observer`);
+        give ``order`` or ``observer``.
     nominal : ServoModel
         Nominal model (``J_n``, ``b_n``) of controller and observer.
     Ts : float
@@ -371,6 +376,11 @@ def robust_stability_map(
         Observer family (:func:`hpdob.design_observer`); position-only observers are designed
         with every pole at ``exp(-g Ts)``. Default ``"state"``. With
         ``controller.velocity == "observer"`` the PD takes the observer's velocity estimate.
+    observer : dict, optional
+        Any family instead of ``order``: a spec such as ``{"type": "eso", "extended_order":
+        1}`` or ``{"type": "kalman", "order": 0, "position_noise_std": 1e-4}``, designed at
+        every bandwidth (the Kalman observer's process noise chosen for that bandwidth by
+        :func:`hpdob.observers.kalman_process_noise`).
 
     Returns
     -------
@@ -411,7 +421,27 @@ def robust_stability_map(
     if sensor is not None and not isinstance(sensor, Encoder):
         raise ParameterTypeError(f"sensor must be an Encoder or None, got {type(sensor).__name__}")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
-    m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
+    if (order is None) == (observer is None):
+        raise ParameterValueError(
+            "give exactly one of order (the paper's family) and observer (a family spec), got "
+            + ("both" if order is not None else "neither")
+        )
+    if observer is None:
+        m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
+        spec = {"order": m, "measurement": check_choice(measurement, "measurement", MEASUREMENTS)}
+        if spec["measurement"] == "state":
+            spec["gain_direction"] = tuple(
+                as_real_vector(gain_direction, "gain_direction", "a direction vector", length=2)
+            )
+    else:
+        if not isinstance(observer, dict):
+            raise ParameterTypeError(
+                f"observer must be a dict of design arguments (a family spec), got {observer!r}"
+            )
+        spec = {k: v for k, v in observer.items() if k not in ("bandwidth", "poles")}
+        if spec.get("type") == "kalman":
+            spec.pop("process_noise_std", None)
+        m = int(spec.get("order", spec.get("extended_order", 0)))
     delay = as_int(
         delay_samples,
         "delay_samples",
@@ -441,13 +471,9 @@ def robust_stability_map(
         nominal=nominal,
         Ts=Ts,
         controller=controller,
-        order=m,
-        gain_direction=tuple(
-            as_real_vector(gain_direction, "gain_direction", "a direction vector", length=2)
-        ),
+        spec=spec,
         delay=delay,
         backward_difference=sensor is not None and sensor.velocity == "backward-difference",
-        measurement=check_choice(measurement, "measurement", MEASUREMENTS),
     )
     values = ratios if ratio_grid else frictions
     if values.size * bandwidths.size > MAX_MAP_POINTS:
@@ -484,5 +510,6 @@ def robust_stability_map(
         b=float(frictions) if ratio_grid else None,
         delay_samples=delay,
         _setting=setting,
-        measurement=setting.measurement,
+        measurement=setting.spec.get("measurement", "state"),
+        observer=dict(setting.spec),
     )

@@ -17,6 +17,7 @@ from .._validation import ParameterTypeError, ParameterValueError
 from .._version import __version__
 from . import (
     _analyze,
+    _compare,
     _design,
     _estimate,
     _export_c,
@@ -38,6 +39,7 @@ _COMMANDS = (
     _analyze,
     _identify,
     _estimate,
+    _compare,
 )
 
 

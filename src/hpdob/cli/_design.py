@@ -39,10 +39,42 @@ def add_design_arguments(parser: argparse.ArgumentParser) -> None:
     reject_plant_arguments(parser)
     obs = parser.add_argument_group("observer")
     obs.add_argument(
+        "--type",
+        choices=("dob", "eso", "kalman"),
+        default="dob",
+        help="observer family: the paper's order-m observers (dob), ADRC's extended state "
+        "observer (eso) or the Kalman disturbance observer (kalman) (default: %(default)s)",
+    )
+    obs.add_argument(
         "--order",
         type=_integer,
-        default=1,
-        help="truncation order: 0 DOb, 1 HPDOb, >= 2 generalised (default: %(default)s)",
+        default=None,
+        help="truncation order: 0 DOb, 1 HPDOb, >= 2 generalised (dob, default 1); disturbance "
+        "order of the Kalman observer (default 0)",
+    )
+    obs.add_argument(
+        "--extended-order",
+        type=_integer,
+        default=0,
+        help="eso: f^(m+1) = 0 (0 the classical ESO, default)",
+    )
+    obs.add_argument(
+        "--form",
+        choices=("current", "predictive"),
+        default="current",
+        help="eso: discrete implementation (default: %(default)s)",
+    )
+    obs.add_argument(
+        "--position-noise-std",
+        type=finite,
+        default=None,
+        help="kalman: angle noise std [rad] (an encoder's resolution/sqrt(12))",
+    )
+    obs.add_argument(
+        "--process-noise-std",
+        type=finite,
+        default=None,
+        help="kalman: process noise std (default: chosen for --bandwidth, 100 rad/s)",
     )
     which = obs.add_mutually_exclusive_group()
     which.add_argument(
@@ -82,13 +114,43 @@ def add_design_arguments(parser: argparse.ArgumentParser) -> None:
 
 def design_from_args(args: argparse.Namespace):
     """Build the design described by parsed ``add_design_arguments``."""
+    from ._errors import CLIError
+
     model = ServoModel(args.J_n, args.b_n).discretize(args.Ts)
     bandwidth = args.bandwidth
     if bandwidth is None and args.poles is None:
         bandwidth = 100.0
+    kind = getattr(args, "type", "dob")
+    if kind != "dob":
+        given = [f"--{k.replace('_', '-')}" for k in ("poles", "velocity_bandwidth",
+                 "gain_direction") if getattr(args, k) is not None]  # fmt: skip
+        if args.measurement != "state":
+            given.append("--measurement")
+        if given:
+            raise CLIError(f"{', '.join(given)} apply to --type dob only, not --type {kind}")
+    if kind == "eso":
+        from ..observers._eso import design_eso
+
+        if args.order is not None:
+            raise CLIError("--type eso takes --extended-order, not --order")
+        return design_eso(
+            model, bandwidth=bandwidth, extended_order=args.extended_order, form=args.form
+        )
+    if kind == "kalman":
+        from ..observers._kalman import design_kalman, kalman_process_noise
+
+        if args.position_noise_std is None:
+            raise CLIError("--type kalman needs --position-noise-std (the angle noise [rad])")
+        order = 0 if args.order is None else args.order
+        q = args.process_noise_std
+        if q is None:
+            r = args.position_noise_std
+            q = kalman_process_noise(model, bandwidth=bandwidth, position_noise_std=r, order=order)
+        return design_kalman(model, order=order, position_noise_std=args.position_noise_std,
+                             process_noise_std=q)  # fmt: skip
     return design_observer(
         model,
-        order=args.order,
+        order=1 if args.order is None else args.order,
         poles=args.poles,
         bandwidth=bandwidth,
         measurement=args.measurement,
@@ -115,8 +177,26 @@ def _complex_json(values) -> list:
     return [{"real": float(np.real(v)), "imag": float(np.imag(v))} for v in np.atleast_1d(values)]
 
 
+def _system_summary(design) -> dict:
+    system = design.system
+    return {
+        "observer": system.name,
+        "model": {"J": design.model.J, "b": design.model.b, "Ts": design.model.Ts},
+        "measures": list(system.measures),
+        "outputs": list(system.outputs),
+        "F": system.F.tolist(),
+        "G": system.G.tolist(),
+        "H": system.H.tolist(),
+        "E": system.E.tolist(),
+        "N": system.N.tolist(),
+        "eigenvalues": _complex_json(np.linalg.eigvals(system.F)),
+    }
+
+
 def design_summary(design) -> dict:
     """JSON-ready dictionary describing ``design`` (used by ``--json``)."""
+    if not hasattr(design, "error_matrix"):  # the peer families: the linear system itself
+        return _system_summary(design)
     model = design.model
     if design.system.measurement == "position":
         return {
@@ -205,8 +285,27 @@ def _position_table(design) -> str:
     return "\n".join(lines)
 
 
+def _system_table(design) -> str:
+    system = design.system
+    lines = [
+        f"Observer: {system.name}",
+        *(f"  {key:<16}{value}" for key, value in system.info),
+        f"  measures        {', '.join(system.measures)}; outputs {', '.join(system.outputs)}",
+        "",
+        "s[k+1] = F s[k] + G [y[k]; u[k]],  outputs H s[k] + E [y[k]; u[k]]",
+        *_matrix_lines("F", system.F),
+        *_matrix_lines("G", system.G),
+        *_matrix_lines("H", system.H),
+        *_matrix_lines("E", system.E),
+        "  eigenvalues   " + ", ".join(_fmt(v) for v in np.linalg.eigvals(system.F)),
+    ]
+    return "\n".join(lines)
+
+
 def design_table(design) -> str:
     """Human-readable table of ``design`` (the default output of ``hpdob design``)."""
+    if not hasattr(design, "error_matrix"):
+        return _system_table(design)
     if design.system.measurement == "position":
         return _position_table(design)
     model = design.model

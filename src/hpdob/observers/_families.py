@@ -15,7 +15,7 @@ from ._position import PositionObserverDesign
 from ._runtime import DisturbanceObserver
 from ._synthesis import ObserverDesign, design_observer
 
-__all__ = ["FAMILIES", "design_from_spec", "spec_of"]
+__all__ = ["FAMILIES", "design_at_bandwidth", "design_from_spec", "spec_of"]
 
 #: type -> (design function(model, **arguments), its argument names, required ones).
 FAMILIES = {
@@ -101,3 +101,33 @@ def spec_of(observer) -> dict | None:
             spec["poles"] = tuple(observer.poles)
         return spec
     return None
+
+
+def design_at_bandwidth(model, spec: dict, bandwidth: float, where: str = "observer"):
+    """Design ``spec``'s family at ``bandwidth`` [rad/s] (what robust-stability maps, the
+    comparison and the tuner sweep over).
+
+    For the order-m and ESO families the bandwidth replaces ``poles``/``bandwidth`` of the
+    spec; for the Kalman observer, which has no bandwidth parameter, the process noise is
+    chosen by :func:`~hpdob.observers.kalman_process_noise` so that the estimation response
+    has that bandwidth (the spec must give ``position_noise_std``).
+    """
+    if not isinstance(spec, dict):
+        raise ParameterTypeError(f"{where} must be a dict of design arguments, got {spec!r}")
+    kind = spec.get("type", "dob")
+    placeholder = {"process_noise_std": 1.0} if kind == "kalman" else {"bandwidth": 1.0}
+    spec = {**check_spec({**spec, **placeholder}, where), **spec}
+    spec.pop("process_noise_std" if kind == "kalman" else "bandwidth", None)
+    arguments = {k: v for k, v in spec.items() if k not in ("type", "poles")}
+    if kind == "kalman":
+        from ._kalman import kalman_process_noise
+
+        arguments["process_noise_std"] = kalman_process_noise(
+            model,
+            bandwidth=bandwidth,
+            position_noise_std=arguments["position_noise_std"],
+            order=arguments.get("order", 0),
+        )
+    else:
+        arguments["bandwidth"] = bandwidth
+    return FAMILIES[kind][0](model, **arguments)

@@ -26,6 +26,7 @@ like the DOb's.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -199,7 +200,12 @@ def design_kalman(
     A_s = d[:, None] * A / d[None, :]
     G_s = d * G
     try:
-        P_s = solve_discrete_are(A_s.T, C.T, (q * q) * np.outer(G_s, G_s), np.array([[r * r]]))
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            # scipy's balancing casts NaN for hopeless noise ratios: judged by the result below
+            warnings.simplefilter("ignore", RuntimeWarning)
+            P_s = solve_discrete_are(A_s.T, C.T, (q * q) * np.outer(G_s, G_s), np.array([[r * r]]))
+        if not np.all(np.isfinite(P_s)):
+            raise ValueError("the solution is not finite")
     except (LinAlgError, ValueError) as err:
         raise ParameterValueError(
             f"the Riccati equation has no stabilising solution for position_noise_std={r!r} "
@@ -320,12 +326,21 @@ def kalman_process_noise(
         )
 
     def mismatch(log_q: float) -> float:
-        design = design_kalman(model, order=m, position_noise_std=r, process_noise_std=10**log_q)
+        try:
+            design = design_kalman(
+                model, order=m, position_noise_std=r, process_noise_std=10**log_q
+            )
+        except ParameterValueError:  # no stabilising solution that far out: treat as an end
+            return -math.inf if log_q < centre else math.inf
         return math.log(max(_bandwidth(design), 1e-12) / g)
 
     # q scales like r J / Ts^2 times (g Ts)^(m + 2): bracket around that
     centre = math.log10(r * model.J / model.Ts**2) + (m + 2) * math.log10(g * model.Ts)
     lo, hi = centre - 6, centre + 6
+    while mismatch(lo) == -math.inf and lo < centre - 1:
+        lo += 1.0
+    while mismatch(hi) == math.inf and hi > centre + 1:
+        hi -= 1.0
     if mismatch(lo) > 0 or mismatch(hi) < 0:
         raise ParameterValueError(
             f"bandwidth={g!r} rad/s is not reachable with position_noise_std={r!r} (order {m})"

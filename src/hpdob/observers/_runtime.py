@@ -96,10 +96,21 @@ class Observer:
     @staticmethod
     def of(design, *, x0=(0.0, 0.0), tau0: float = 0.0) -> Observer:
         """The runtime object of a design, reset at ``x0, tau0``: a
-        :class:`DisturbanceObserver` for a design of the order-m families
-        (:func:`hpdob.design_observer`), a plain :class:`Observer` for any other observer."""
+        :class:`DisturbanceObserver` for a design of the order-m families, an
+        :class:`~hpdob.ExtendedStateObserver` or a :class:`~hpdob.KalmanDisturbanceObserver`
+        for their designs, a plain :class:`Observer` for any other observer."""
+        from ._eso import ESODesign, ExtendedStateObserver
+        from ._kalman import KalmanDesign, KalmanDisturbanceObserver
+
         if isinstance(design, DESIGNS):
             return DisturbanceObserver.from_design(design, x0=x0, tau0=tau0)
+        for design_class, runtime in (
+            (ESODesign, ExtendedStateObserver),
+            (KalmanDesign, KalmanDisturbanceObserver),
+        ):
+            if isinstance(design, design_class):
+                state = _core.initial_state(design, x0, tau0)
+                return runtime._with_state(design.system, state, ("_design", design))
         return Observer(design, x0=x0, tau0=tau0)
 
     @classmethod

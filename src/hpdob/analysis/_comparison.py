@@ -1,0 +1,358 @@
+r"""The observers side by side: the paper's, their position-only versions, ADRC's ESO, Kalman.
+
+Every observer is tuned to the **same noise gain in the estimate**: the RMS of
+:math:`\hat\tau` per unit white angle noise, the noise an encoder's quantisation adds to every
+observer alike (std ``q/sqrt(12)``; an observer that takes a velocity gets the backward
+difference of the noisy angle, ``observer_noise_gain(..., noise="encoder")``). The tuned
+parameter is the bandwidth (the order-m families and the ESO) or the process noise (Kalman).
+Then each runs the paper's scenario (:func:`hpdob.paper.scenario`) with the ideal sensor and
+with the virtual experiment's encoder, delay and torque limit, and the linear loop gives its
+noise in ``u``, delay margin and the range of true/nominal inertia it stays stable over.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._table import columns_to_csv, columns_to_pandas
+from .._validation import ParameterTypeError, ParameterValueError, check_choice, positive
+
+__all__ = ["CANDIDATES", "Comparison", "compare_observers"]
+
+#: The observers compared, by name: their family spec without the tuned parameter.
+CANDIDATES = {
+    "DOb": {"order": 0},
+    "HPDOb": {"order": 1},
+    "order 2": {"order": 2},
+    "DOb, position": {"order": 0, "measurement": "position"},
+    "HPDOb, position": {"order": 1, "measurement": "position"},
+    "order 2, position": {"order": 2, "measurement": "position"},
+    "ESO, current": {"type": "eso", "extended_order": 0, "form": "current"},
+    "ESO, predictive": {"type": "eso", "extended_order": 0, "form": "predictive"},
+    "GESO m=1, current": {"type": "eso", "extended_order": 1, "form": "current"},
+    "GESO m=1, predictive": {"type": "eso", "extended_order": 1, "form": "predictive"},
+    "Kalman m=0": {"type": "kalman", "order": 0},
+    "Kalman m=1": {"type": "kalman", "order": 1},
+}
+SENSORS = ("ideal", "encoder")
+#: Default target noise gain [N m/rad]: with the virtual experiment's 16384-count encoder
+#: (q/sqrt(12) = 1.1e-4 rad) an estimate noise of 1.1e-3 N m RMS; the lowest level at which
+#: every family has a design (the paper's observers, with a differenced velocity, have no
+#: usable bandwidth below about 3 N m/rad).
+DEFAULT_NOISE_GAIN = 10.0
+_BANDWIDTHS = (0.5, 1400.0)  # rad/s, the tuning's search range at Ts = 1 ms
+METRICS = (
+    "rms_estimation_error",
+    "rms_position_error_regulation",
+    "rms_position_error_tracking",
+)
+
+
+def _noise_gain(design) -> float:
+    from ._noise import observer_noise_gain
+
+    return observer_noise_gain(design, noise="encoder")
+
+
+def _tune(model, spec: dict, target: float, sigma: float):
+    """``(design, parameter, value, matched)``: the design whose noise gain is ``target``."""
+    from scipy.optimize import brentq
+
+    from ..observers._families import design_from_spec
+
+    if spec.get("type") == "kalman":
+        name = "process_noise_std"
+
+        def design(log_value):
+            return design_from_spec(
+                model, {**spec, "position_noise_std": sigma, name: 10**log_value}
+            )
+
+        centre = math.log10(sigma * model.J / model.Ts**2)
+        lo, hi = centre - 8, centre + 4
+    else:
+        name = "bandwidth"
+
+        def design(log_value):
+            return design_from_spec(model, {**spec, name: 10**log_value})
+
+        upper = min(_BANDWIDTHS[1], 0.45 * math.pi / model.Ts)
+        lo, hi = math.log10(_BANDWIDTHS[0]), math.log10(upper)
+
+    def mismatch(log_value):
+        return math.log(_noise_gain(design(log_value)) / target)
+
+    f_lo, f_hi = mismatch(lo), mismatch(hi)
+    if f_lo > 0:
+        return design(lo), name, 10**lo, "noise gain above the target even at the lowest setting"
+    if f_hi < 0:
+        return design(hi), name, 10**hi, "noise gain below the target even at the highest setting"
+    best = brentq(mismatch, lo, hi, xtol=1e-7)
+    return design(best), name, 10**best, "matched"
+
+
+def _inertia_range(loop) -> tuple[float, float]:
+    """The interval of true/nominal inertia ratios around 1 over which the linear loop stays
+    stable (the true plant's J scaled; its viscous friction kept)."""
+    from scipy.optimize import brentq
+
+    from ._closed_loop import closed_loop_poles
+
+    plant = loop.plant
+
+    def margin(ratio: float) -> float:
+        scaled = loop.replace(plant=plant.replace(J=ratio * loop.nominal.J))
+        return float(np.abs(closed_loop_poles(scaled)).max()) - 1.0
+
+    if margin(1.0) >= 0:
+        return math.nan, math.nan
+    low, high = 1.0, 1.0
+    while low > 1e-3 and margin(low / 2) < 0:
+        low /= 2
+    low = 1e-3 if low <= 1e-3 else brentq(margin, low / 2, low, xtol=1e-6)
+    while high < 1e3 and margin(high * 2) < 0:
+        high *= 2
+    high = math.inf if high >= 1e3 else brentq(margin, high, high * 2, xtol=1e-6)
+    return low, high
+
+
+@dataclass(frozen=True, eq=False)
+class Comparison:
+    """The result of :func:`compare_observers`: one row per observer and sensor.
+
+    Attributes
+    ----------
+    rows : list of dict
+        Columns: ``observer``, ``sensor``, ``family``, ``tuned``/``value`` (the tuned parameter
+        and its value), ``tuning`` ("matched" or why not), ``noise_gain`` [N m/rad],
+        ``rms_estimation_error`` [N m], ``rms_position_error_regulation`` and
+        ``rms_position_error_tracking`` [rad], ``u_noise_gain`` [N m/rad] and ``u_noise``
+        [N m RMS at the encoder's quantisation], ``delay_margin`` [s],
+        ``J_ratio_low``/``J_ratio_high`` (the stable range of J/J_n), ``diverged``.
+    noise_gain : float
+        The target noise gain [N m/rad] every observer was tuned to.
+    angle_noise : float
+        The encoder's quantisation noise std [rad] (q/sqrt(12)).
+    """
+
+    rows: list = field(repr=False)
+    noise_gain: float
+    angle_noise: float
+    _results: dict = field(default_factory=dict, repr=False)
+
+    def to_pandas(self):
+        """The table as a :class:`pandas.DataFrame`."""
+        return columns_to_pandas(self._columns(), caller="Comparison.to_pandas()")
+
+    def _columns(self) -> dict:
+        names = list(self.rows[0])
+        return {name: [row[name] for row in self.rows] for name in names}
+
+    def to_csv(self, path):
+        """Write the table as CSV (atomically)."""
+        from .._files import atomic_path
+
+        with atomic_path(path) as temporary:
+            columns_to_csv(self._columns(), temporary)
+        return path
+
+    def to_dict(self) -> dict:
+        """JSON-ready: the tuning rule, the target and the rows."""
+        from ..simulation._result import json_ready
+
+        return json_ready(
+            {
+                "rule": "every observer tuned to the same RMS of tau_hat per unit white angle "
+                "noise (velocity by backward difference where the observer takes one)",
+                "noise_gain": self.noise_gain,
+                "angle_noise": self.angle_noise,
+                "rows": self.rows,
+            }
+        )
+
+    def to_json(self, path):
+        """Write :meth:`to_dict` as JSON (atomically)."""
+        from .._files import write_text_atomic
+
+        return write_text_atomic(path, json.dumps(self.to_dict(), indent=2) + "\n")
+
+    def to_markdown(self) -> str:
+        """The table as Markdown, one section per sensor."""
+        lines = []
+        for sensor in SENSORS:
+            rows = [r for r in self.rows if r["sensor"] == sensor]
+            if not rows:
+                continue
+            lines += [
+                f"**{sensor} sensor**",
+                "",
+                "| observer | tuned | RMS est. error [N m] | regulation [rad] | tracking [rad] | "
+                "u noise [N m] | delay margin [ms] | stable J/J_n |",
+                "|---|---|---:|---:|---:|---:|---:|---|",
+            ]
+            for r in rows:
+                tuned = f"{r['tuned']} = {r['value']:.4g}" + (
+                    "" if r["tuning"] == "matched" else " (!)"
+                )
+                lines.append(
+                    f"| {r['observer']} | {tuned} | {r['rms_estimation_error']:.3e} | "
+                    f"{r['rms_position_error_regulation']:.3e} | "
+                    f"{r['rms_position_error_tracking']:.3e} | {r['u_noise']:.2e} | "
+                    f"{r['delay_margin'] * 1e3:.2f} | "
+                    f"{r['J_ratio_low']:.2f}–{r['J_ratio_high']:.2f} |"
+                )
+            lines.append("")
+        return "\n".join(lines)
+
+    def plot(self):
+        """Bar chart: RMS estimation and position errors per observer, for each sensor.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        import matplotlib.pyplot as plt
+
+        from .._plotting import PAPER_WIDTH
+
+        names = list(dict.fromkeys(r["observer"] for r in self.rows))
+        sensors = [s for s in SENSORS if any(r["sensor"] == s for r in self.rows)]
+        fig, axes = plt.subplots(2, 1, figsize=(PAPER_WIDTH, 6.4), sharex=True,
+                                 layout="constrained")  # fmt: skip
+        width = 0.8 / len(sensors)
+        x = np.arange(len(names))
+        for i, sensor in enumerate(sensors):
+            by_name = {r["observer"]: r for r in self.rows if r["sensor"] == sensor}
+            est = [by_name[n]["rms_estimation_error"] for n in names]
+            pos = [by_name[n]["rms_position_error_tracking"] for n in names]
+            axes[0].bar(x + (i - (len(sensors) - 1) / 2) * width, est, width, label=sensor)
+            axes[1].bar(x + (i - (len(sensors) - 1) / 2) * width, pos, width, label=sensor)
+        axes[0].set_yscale("log")
+        axes[1].set_yscale("log")
+        axes[0].set_ylabel("RMS estimation error [N m]")
+        axes[1].set_ylabel("RMS position error,\ntracking [rad]")
+        axes[1].set_xticks(x, names, rotation=45, ha="right", fontsize="small")
+        for ax in axes:
+            ax.grid(True, axis="y", which="both", alpha=0.3)
+        axes[0].legend(title="sensor", loc="upper left", bbox_to_anchor=(1.0, 1.0),
+                       fontsize="small")  # fmt: skip
+        fig.suptitle(
+            f"every observer at the same estimate noise gain, {self.noise_gain:g} N m/rad",
+            fontsize="medium",
+        )
+        return fig
+
+
+def compare_observers(
+    *,
+    sensors=SENSORS,
+    noise_gain: float = DEFAULT_NOISE_GAIN,
+    candidates=None,
+    duration: float | None = None,
+) -> Comparison:
+    r"""Compare the paper's observers, their position-only versions, ESO and Kalman.
+
+    Each candidate is tuned so that its estimate has the noise gain ``noise_gain`` [N m/rad]
+    per unit white angle noise (``observer_noise_gain(..., noise="encoder")``: the noise an
+    encoder adds to every observer alike, differenced into the velocity where one is taken),
+    then runs the paper's scenario with each sensor: ``"ideal"`` (the paper's simulations) and
+    ``"encoder"`` (the virtual experiment: 16384 counts/rev, one sample of delay, 0.444 N m
+    limit). Observers with a velocity estimate drive the PD's derivative with it
+    (``PD(velocity="observer")``); the paper's state-measuring observers use the measured (with
+    the encoder: differenced) velocity.
+
+    Parameters
+    ----------
+    sensors : sequence of {"ideal", "encoder"}, optional
+        Default both.
+    noise_gain : float, optional
+        Target noise gain [N m/rad]. Default 10 (see :data:`DEFAULT_NOISE_GAIN`).
+    candidates : dict, optional
+        ``{name: family spec}`` (without the tuned parameter); default :data:`CANDIDATES`.
+    duration : float, optional
+        Simulated time [s]; default the scenario's 10 s.
+
+    Returns
+    -------
+    Comparison
+
+    Raises
+    ------
+    TypeError, ValueError
+        For an unknown sensor, a non-positive noise gain or a bad candidate spec.
+
+    References
+    ----------
+    ``docs/comparison.md`` (the findings and the theory of where the families coincide).
+    """
+    from .. import paper
+    from ..simulation import PD, ServoLoop, simulate
+    from ._noise import noise_gains
+    from ._sensitivity import loop_margins
+
+    if isinstance(sensors, str):
+        sensors = (sensors,)
+    sensors = tuple(check_choice(s, "sensors", SENSORS) for s in sensors)
+    if not sensors:
+        raise ParameterValueError("sensors must name at least one of 'ideal', 'encoder'")
+    target = positive(noise_gain, "noise_gain", "a positive finite noise gain [N m/rad]")
+    candidates = dict(CANDIDATES if candidates is None else candidates)
+    if not candidates or not all(isinstance(v, dict) for v in candidates.values()):
+        raise ParameterTypeError("candidates must be a non-empty dict of name -> family spec")
+    scenario = paper.scenario()
+    if duration is not None:
+        scenario["duration"] = positive(duration, "duration", "a positive duration [s]")
+    nominal, Ts = scenario["nominal"], scenario["Ts"]
+    model = nominal.discretize(Ts)
+    encoder, actuator = paper.VIRTUAL_SENSOR, paper.VIRTUAL_ACTUATOR
+    sigma = encoder.resolution / math.sqrt(12.0)
+    linear_plant = scenario["plant"].replace(coulomb=0.0)
+    rows, results = [], {}
+    for name, spec in candidates.items():
+        design, parameter, value, tuning = _tune(model, spec, target, sigma)
+        velocity = "observer" if design.system.has_velocity else "measured"
+        controller = PD(scenario["controller"].kp, scenario["controller"].kd, velocity=velocity)
+        for sensor in sensors:
+            devices = {"sensor": encoder, "actuator": actuator} if sensor == "encoder" else {}
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # a diverged run is a result
+                result = simulate(**{**scenario, "controller": controller}, observer=design,
+                                  label=f"{name} ({sensor})", **devices)  # fmt: skip
+            results[(name, sensor)] = result
+            linear = ServoLoop(
+                plant=linear_plant, nominal=nominal, Ts=Ts, controller=controller,
+                observer=design, sensor=encoder if sensor == "encoder" else None,
+                actuator=type(actuator)(delay_samples=actuator.delay_samples)
+                if sensor == "encoder" else None,
+            )  # fmt: skip
+            low, high = _inertia_range(linear)
+            noise_loop = linear.replace(sensor=encoder)
+            try:
+                u_gain = noise_gains(noise_loop).u_position
+            except ParameterValueError:  # the linear loop is unstable
+                u_gain = math.inf
+            metrics = result.metrics()
+            rows.append(
+                {
+                    "observer": name,
+                    "sensor": sensor,
+                    "family": spec.get("type", "dob"),
+                    "tuned": parameter,
+                    "value": value,
+                    "tuning": tuning,
+                    "noise_gain": _noise_gain(design),
+                    **{k: metrics[k] for k in METRICS},
+                    "u_noise_gain": u_gain,
+                    "u_noise": u_gain * sigma,
+                    "delay_margin": loop_margins(linear).delay_margin,
+                    "J_ratio_low": low,
+                    "J_ratio_high": high,
+                    "diverged": result.diverged,
+                }
+            )
+    return Comparison(rows=rows, noise_gain=target, angle_noise=sigma, _results=results)

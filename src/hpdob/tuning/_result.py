@@ -1,0 +1,176 @@
+"""The result of :func:`hpdob.tune`: the recommendation, the candidates and the evidence."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+
+from .._table import columns_to_pandas
+
+__all__ = ["TuningResult"]
+
+#: Columns of :attr:`TuningResult.table`, with their units.
+COLUMNS = {
+    "family": "",
+    "order": "",
+    "name": "",
+    "parameter": "",
+    "value": "rad/s, or the Kalman process noise",
+    "accuracy": "|1 - Q| at the disturbance frequency (RMS over a band)",
+    "tau_noise": "N m RMS",
+    "u_noise": "N m RMS",
+    "radius": "worst closed-loop spectral radius over the corners",
+    "radius_margin": "the same with one extra sample of delay",
+    "robust": "",
+    "within_noise": "",
+    "pareto": "",
+    "simulated": "objective of the simulation at the centre (N m or rad)",
+}
+
+
+@dataclass(frozen=True, eq=False)
+class TuningResult:
+    """What :func:`hpdob.tune` found (see there and ``docs/tuning.md``).
+
+    Attributes
+    ----------
+    design
+        The recommended design (a :class:`~hpdob.ObserverDesign`, an ESO or a Kalman design).
+    observer
+        Its runtime object, reset at rest: ready for the sample loop.
+    recommendation : dict
+        The recommended candidate's figures (family, order, tuned parameter and value,
+        accuracy, noise, spectral radii, simulated objective).
+    verification : list of dict
+        The nonlinear simulation at every corner of the uncertainty set: ``J_ratio``, ``b``,
+        ``diverged``, ``radius``, ``rms_estimation_error`` [N m], ``rms_position_error`` [rad]
+        and ``delay_margin`` [s].
+    settings : dict
+        The arguments the search ran with.
+    notes : tuple of str
+        What was left out and why.
+    """
+
+    rows: list = field(repr=False)
+    recommended: dict = field(repr=False)
+    verification: list = field(repr=False)
+    settings: dict = field(repr=False)
+    notes: tuple = ()
+
+    @property
+    def design(self):
+        """The recommended design."""
+        return self.recommended["_design"]
+
+    @property
+    def observer(self):
+        """A runtime object of the recommended design, reset at rest."""
+        from ..observers._runtime import Observer
+
+        return Observer.of(self.design)
+
+    @property
+    def controller(self):
+        """The PD the recommendation was verified with (its velocity source included)."""
+        return self.recommended["_controller"]
+
+    @property
+    def recommendation(self) -> dict:
+        """The recommended candidate's figures (JSON-ready)."""
+        return {k: v for k, v in self.recommended.items() if not k.startswith("_")}
+
+    @property
+    def table(self):
+        """Every candidate with its figures, as a :class:`pandas.DataFrame`."""
+        columns = {name: [row.get(name) for row in self.rows] for name in COLUMNS}
+        return columns_to_pandas(columns, caller="TuningResult.table")
+
+    def pareto(self):
+        """The Pareto front of (accuracy, noise) among the qualified candidates, simulated."""
+        frame = self.table
+        return frame[frame["pareto"]].reset_index(drop=True)
+
+    def report(self) -> str:
+        """The recommendation and why, as text."""
+        r, s = self.recommended, self.settings
+        unit = "rad/s" if r["parameter"] == "bandwidth" else ""
+        qualified = sum(row["robust"] and row["within_noise"] for row in self.rows)
+        lines = [
+            f"Recommended: {r['name']}, {r['parameter']} = {r['value']:.4g} {unit}".rstrip(),
+            f"  searched {len(self.rows)} candidates ({', '.join(s['families'])}); "
+            f"{qualified} robustly stable over J/J_n in [{s['J_range'][0]:g}, "
+            f"{s['J_range'][1]:g}] with {s['delay_samples']} + 1 samples of delay"
+            + ("" if s["noise_limit"] is None else f" and within {s['noise_limit']:g} N m noise")
+            + f"; {sum(row['pareto'] for row in self.rows)} on the accuracy/noise Pareto front "
+            "simulated",
+            f"  accuracy |1 - Q| {r['accuracy']:.3g}; sensor noise in the estimate "
+            f"{r['tau_noise']:.3g} N m, in u {r['u_noise']:.3g} N m RMS",
+            f"  worst spectral radius {r['radius']:.5f} (with one more sample of delay "
+            f"{r['radius_margin']:.5f})",
+            f"  simulated at the centre: RMS estimation error {r['simulated_estimation']:.3g} N m, "
+            f"RMS position error {r['simulated_position']:.3g} rad",
+            "  verified by nonlinear simulation at every corner:",
+        ]
+        for c in self.verification:
+            lines.append(
+                f"    J/J_n = {c['J_ratio']:g}, b = {c['b']:g}: bounded, spectral radius "
+                f"{c['radius']:.5f}, delay margin {c['delay_margin'] * 1e3:.2f} ms, RMS "
+                f"estimation error {c['rms_estimation_error']:.3g} N m, position "
+                f"{c['rms_position_error']:.3g} rad"
+            )
+        return "\n".join(lines + [f"  note: {n}" for n in self.notes[:5]])
+
+    def to_dict(self) -> dict:
+        """JSON-ready: settings, recommendation, verification and every candidate."""
+        from ..simulation._result import json_ready
+
+        rows = [{k: v for k, v in row.items() if not k.startswith("_")} for row in self.rows]
+        return json_ready({
+            "settings": self.settings, "recommendation": self.recommendation,
+            "verification": self.verification, "candidates": rows, "notes": list(self.notes),
+        })  # fmt: skip
+
+    def to_json(self, path):
+        """Write :meth:`to_dict` as JSON (atomically)."""
+        from .._files import write_text_atomic
+
+        return write_text_atomic(path, json.dumps(self.to_dict(), indent=2) + "\n")
+
+    def plot(self):
+        """Accuracy against noise of every candidate: the robust set marked, the Pareto front
+        and the recommendation.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+        """
+        import matplotlib.pyplot as plt
+
+        from .._plotting import PAPER_WIDTH
+
+        fig, ax = plt.subplots(figsize=(PAPER_WIDTH, 4.2), layout="constrained")
+        markers = {"state": "o", "position": "s", "eso": "^", "kalman": "D"}
+        colors = {0: "tab:blue", 1: "tab:red", 2: "tab:green"}
+        quiet = min((r["tau_noise"] for r in self.rows if r["tau_noise"] > 0), default=1e-12)
+        for family, marker in markers.items():
+            for m, color in colors.items():
+                rows = [r for r in self.rows if r["family"] == family and r["order"] == m
+                        and math.isfinite(r["tau_noise"])]  # fmt: skip
+                if not rows:
+                    continue
+                noise = [max(r["tau_noise"], quiet / 10) for r in rows]
+                ax.scatter(noise, [r["accuracy"] for r in rows], marker=marker, s=18,
+                           facecolors=[color if r["robust"] else "none" for r in rows],
+                           edgecolors=color, linewidths=0.8, label=f"{family}, m={m}")  # fmt: skip
+        r = self.recommended
+        ax.scatter([max(r["tau_noise"], quiet / 10)], [r["accuracy"]], marker="*", s=220,
+                   color="gold", edgecolors="black", zorder=5, label="recommended")  # fmt: skip
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("sensor noise in the estimate [N m RMS]")
+        ax.set_ylabel("estimation error $|1-Q|$ [-]")
+        ax.set_title("candidates (filled: robustly stable)", fontsize="medium")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="x-small", ncols=1)
+        return fig

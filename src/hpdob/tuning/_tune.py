@@ -1,0 +1,414 @@
+r"""``tune``: recommend the observer for a motor, a sensor and an uncertainty, and prove it.
+
+The search (``docs/tuning.md``):
+
+1. **Candidates**: every family (the order-m observers measuring the state, their
+   position-only versions, ADRC's ESO in current form, the Kalman observer) x orders x a
+   log-spaced grid of bandwidths from 5 rad/s to ``0.4 pi/Ts`` (for the Kalman observer, of
+   process noises spanning the same bandwidths).
+2. **Analytic figures**, no simulation: the estimation error for a disturbance at
+   ``disturbance_frequency`` (``|1 - Q|`` of the closed-form or state-space estimation
+   response, or its RMS over a band), the noise in the estimate and in ``u`` from the sensor
+   (exact closed-loop noise gains from the Lyapunov equation, times the encoder's ``q/sqrt(12)``
+   and the sensor's noise std), and the closed-loop spectral radius at every corner of the
+   inertia/friction uncertainty set, with the actuator's delay and with **one extra sample of
+   delay** (the documented robustness margin).
+3. **Robust set**: the candidates stable at every corner with the extra sample of delay and
+   within ``noise_limit``; of those, the Pareto front of (error, noise) is simulated.
+4. **Simulation**: each Pareto candidate runs the nonlinear loop (sensor, actuator, Coulomb
+   friction) on the verification scenario at the centre of the uncertainty set; the best for
+   ``objective`` is then **verified at every corner** of the set (a divergent corner, or one
+   whose linear loop is unstable, disqualifies it and the next one is tried).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import warnings
+
+import numpy as np
+
+from .._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    as_real,
+    check_choice,
+    nonnegative,
+    positive,
+    require_instance,
+)
+from ..models._servo import ServoModel
+from ..simulation._controller import PD
+from ..simulation._devices import Actuator, Encoder
+from ._result import TuningResult
+
+__all__ = ["FAMILIES", "OBJECTIVES", "tune"]
+
+#: Families the tuner searches: name -> (spec without bandwidth, orders).
+FAMILIES = {
+    "state": ({"type": "dob", "measurement": "state"}, (0, 1, 2)),
+    "position": ({"type": "dob", "measurement": "position"}, (0, 1, 2)),
+    "eso": ({"type": "eso", "form": "current"}, (0, 1)),
+    "kalman": ({"type": "kalman"}, (0, 1)),
+}
+OBJECTIVES = ("estimation", "position")
+N_BANDWIDTHS = 24
+MIN_BANDWIDTH = 5.0  # rad/s
+#: The paper's nominal inertia [kg m^2]: the default verification disturbance scales with J_n.
+_PAPER_J = 2.8e-4
+
+
+def _range(value, name: str, what: str, *, allow_zero: bool) -> tuple[float, float]:
+    if isinstance(value, (str, bytes)) or np.ndim(value) != 1 or len(value) != 2:
+        raise ParameterValueError(f"{name} must be a (low, high) pair of {what}, got {value!r}")
+    check = nonnegative if allow_zero else positive
+    low, high = (check(v, name, f"a pair of {what}") for v in value)
+    if low > high:
+        raise ParameterValueError(f"{name} must have low <= high, got {value!r}")
+    return low, high
+
+
+def _frequencies(disturbance_frequency) -> np.ndarray:
+    if disturbance_frequency is None:
+        return np.geomspace(0.1, 10.0, 25)
+    if np.ndim(disturbance_frequency) == 0:
+        return np.array([positive(disturbance_frequency, "disturbance_frequency",
+                                  "a positive frequency [Hz] or a (low, high) band")])  # fmt: skip
+    low, high = _range(disturbance_frequency, "disturbance_frequency",
+                       "positive frequencies [Hz]", allow_zero=False)  # fmt: skip
+    return np.geomspace(low, high, 25) if high > low else np.array([low])
+
+
+def _sensor_noise(sensor) -> float:
+    """Std [rad] of the white angle noise the sensor adds: q/sqrt(12) and its noise_std."""
+    if sensor is None:
+        return 0.0
+    return math.hypot(sensor.resolution / math.sqrt(12.0), sensor.noise_std)
+
+
+def _scenario(nominal, disturbance_frequency, scenario):
+    """The verification run: the paper's reference and disturbance shape, with the sine at the
+    disturbance frequency and the amplitudes scaled by J_n (the same disturbance acceleration
+    as the paper's), unless given."""
+    from .. import paper
+    from ..signals import Sine, Step
+
+    if scenario is not None:
+        if not isinstance(scenario, dict):
+            raise ParameterTypeError(
+                "scenario must be a dict with reference, disturbance and duration, got "
+                f"{type(scenario).__name__}"
+            )
+        unknown = sorted(set(scenario) - {"reference", "disturbance", "duration"})
+        if unknown or "reference" not in scenario or "duration" not in scenario:
+            raise ParameterValueError(
+                "scenario must have the keys reference and duration (and may have "
+                f"disturbance), got {sorted(scenario)}"
+            )
+        return dict(scenario)
+    f = 2.0 if disturbance_frequency is None else float(np.atleast_1d(disturbance_frequency)[0])
+    scale = nominal.J / _PAPER_J
+    disturbance = Step(1.5005, 0.05 * scale) + Sine(0.02 * scale, f, start=2.5005)
+    return {"reference": paper.REFERENCE, "disturbance": disturbance, "duration": paper.DURATION}
+
+
+def _candidates(model, families, sigma, notes):
+    """``[(family, order, parameter, value, design)]`` over the bandwidth grid."""
+    from ..observers._families import design_from_spec
+    from ..observers._kalman import kalman_process_noise
+
+    g_max = 0.4 * math.pi / model.Ts
+    bandwidths = np.geomspace(MIN_BANDWIDTH, g_max, N_BANDWIDTHS)
+    out = []
+    for family in families:
+        base, orders = FAMILIES[family]
+        key = "extended_order" if family == "eso" else "order"
+        for m in orders:
+            spec = {**base, key: m}
+            if family == "kalman":
+                if sigma == 0.0:
+                    notes.append("kalman: left out, it needs a measurement noise (no sensor)")
+                    break
+                spec["position_noise_std"] = sigma
+                ends = [
+                    kalman_process_noise(model, bandwidth=g, position_noise_std=sigma, order=m)
+                    for g in (bandwidths[0], min(g_max, 0.45 * math.pi / model.Ts))
+                ]
+                low, high = ends
+                grid = ("process_noise_std", np.geomspace(low, high, N_BANDWIDTHS))
+            else:
+                grid = ("bandwidth", bandwidths)
+            for value in grid[1]:
+                try:
+                    design = design_from_spec(model, {**spec, grid[0]: float(value)})
+                except ParameterValueError as err:  # e.g. not realisable in double precision
+                    notes.append(f"{family} m={m} at {grid[0]}={value:.4g}: {err}")
+                    continue
+                out.append((family, m, grid[0], float(value), design))
+    return out
+
+
+def _radius(loop) -> float:
+    from ..analysis._closed_loop import closed_loop_poles
+
+    return float(np.abs(closed_loop_poles(loop)).max())
+
+
+def tune(
+    *,
+    nominal: ServoModel,
+    Ts: float,
+    controller: PD | None = None,
+    sensor: Encoder | None = None,
+    actuator: Actuator | None = None,
+    J_range=(1.0, 1.0),
+    b_range=None,
+    disturbance_frequency=None,
+    families=None,
+    objective: str = "estimation",
+    noise_limit: float | None = None,
+    coulomb: float = 0.0,
+    scenario: dict | None = None,
+) -> TuningResult:
+    r"""Recommend an observer for a motor, a sensor and an uncertainty, verified by simulation.
+
+    Parameters
+    ----------
+    nominal : ServoModel
+        The nominal model (``J_n``, ``b_n``) of controller and observer.
+    Ts : float
+        Sampling period [s].
+    controller : PD, optional
+        Outer loop; default ``PD(50, 5, velocity="observer")`` (the paper's gains). With
+        ``velocity="observer"`` the derivative uses the observer's velocity estimate where it
+        has one and the measured velocity otherwise.
+    sensor : Encoder, optional
+        Default: the ideal state. Its quantisation (``q/sqrt(12)``) and noise set the noise
+        figures; without a sensor the noise is zero and the Kalman observer is left out.
+    actuator : Actuator, optional
+        Torque limit (in the simulations) and delay (in every figure). Default ideal.
+    J_range : (float, float), optional
+        True/nominal inertia ratios ``J/J_n`` the loop must be stable over. Default (1, 1).
+    b_range : (float, float), optional
+        True viscous frictions [N m s/rad]; default ``(b_n, b_n)``.
+    disturbance_frequency : float or (float, float), optional
+        Frequency [Hz] of the disturbance the accuracy is judged at (``|1 - Q|``), or a band
+        (RMS of ``|1 - Q|`` over it). Default: the band 0.1-10 Hz (and 2 Hz for the verification
+        scenario's sine).
+    families : sequence of str, optional
+        Any of ``"state"``, ``"position"``, ``"eso"``, ``"kalman"`` (:data:`FAMILIES`). Default
+        all.
+    objective : {"estimation", "position"}, optional
+        What the simulations rank by: the RMS estimation error, or the RMS position error
+        (the larger of the regulation and tracking windows). Default ``"estimation"``.
+    noise_limit : float, optional
+        Largest RMS noise the sensor may cause in the estimate [N m]. Default: no limit.
+    coulomb : float, optional
+        Coulomb friction of the simulated plant [N m] (``tanh`` scale 0.01 rad/s). Default 0.
+    scenario : dict, optional
+        The verification run: ``reference``, ``duration`` [s] and optionally ``disturbance``
+        (as for :func:`hpdob.simulate`). Default: the paper's reference, a load step at 1.5 s and
+        a sine at the disturbance frequency from 2.5 s, amplitudes scaled with ``J_n`` from the
+        paper's (0.05 and 0.02 N m at ``J_n`` = 2.8e-4 kg m^2); 10 s.
+
+    Returns
+    -------
+    TuningResult
+        ``.observer`` (ready to use), ``.design``, ``.table``, ``.pareto()``, ``.plot()``,
+        ``.report()``, ``.to_dict()``.
+
+    Raises
+    ------
+    TypeError, ValueError
+        For bad arguments (named); ValueError if no candidate qualifies, saying which constraint
+        rules everything out.
+
+    References
+    ----------
+    ``docs/tuning.md``: the search, the margin, and the benchmark against brute-force
+    simulation.
+
+    Examples
+    --------
+    >>> from hpdob import Actuator, Encoder, ServoModel, tune
+    >>> result = tune(nominal=ServoModel(2.8e-4), Ts=1e-3, sensor=Encoder(16384),
+    ...               actuator=Actuator(delay_samples=1), J_range=(0.7, 1.3),
+    ...               disturbance_frequency=2.0, families=["position"])   # doctest: +SKIP
+    >>> print(result.report())                                            # doctest: +SKIP
+    """
+    from ..analysis._estimation import estimation_response
+    from ..analysis._noise import noise_gains
+    from ..analysis._sensitivity import loop_margins
+    from ..simulation._loop import ServoLoop
+    from ..simulation._simulate import simulate
+
+    nominal = require_instance(nominal, ServoModel, "nominal")
+    Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
+    controller = PD(50.0, 5.0, velocity="observer") if controller is None else require_instance(
+        controller, PD, "controller")  # fmt: skip
+    sensor = require_instance(sensor, Encoder, "sensor", optional=True)
+    actuator = require_instance(actuator, Actuator, "actuator", optional=True) or Actuator()
+    J_low, J_high = _range(J_range, "J_range", "positive inertia ratios J/J_n", allow_zero=False)
+    b_low, b_high = (nominal.b, nominal.b)
+    if b_range is not None:
+        b_low, b_high = _range(
+            b_range, "b_range", "non-negative viscous frictions [N m s/rad]", allow_zero=True
+        )
+    frequencies = _frequencies(disturbance_frequency)
+    if families is None:
+        families = tuple(FAMILIES)
+    if isinstance(families, str) or not families:
+        raise ParameterValueError(
+            f"families must be a non-empty sequence of {', '.join(map(repr, FAMILIES))}, got "
+            f"{families!r}"
+        )
+    families = tuple(dict.fromkeys(check_choice(f, "families", FAMILIES) for f in families))
+    objective = check_choice(objective, "objective", OBJECTIVES)
+    if noise_limit is not None:
+        noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
+    coulomb = nonnegative(coulomb, "coulomb", "a non-negative Coulomb friction [N m]")
+    run = _scenario(nominal, disturbance_frequency, scenario)
+    as_real(run["duration"], "scenario duration", "a duration [s]")
+
+    model = nominal.discretize(Ts)
+    sigma = _sensor_noise(sensor)
+    notes: list[str] = []
+    candidates = _candidates(model, families, sigma, notes)
+    corners = sorted(set(itertools.product((J_low, J_high), (b_low, b_high))))
+    centre = (0.5 * (J_low + J_high), 0.5 * (b_low + b_high))
+    margin_actuator = Actuator(delay_samples=actuator.delay_samples + 1)
+    linear_actuator = Actuator(delay_samples=actuator.delay_samples)
+
+    def plant(J_ratio: float, b: float) -> ServoModel:
+        return ServoModel(J_ratio * nominal.J, b)
+
+    rows = []
+    for family, m, parameter, value, design in candidates:
+        velocity = "observer" if (controller.velocity == "observer"
+                                  and design.system.has_velocity) else "measured"  # fmt: skip
+        ctrl = PD(controller.kp, controller.kd, feedforward=controller.feedforward,
+                  velocity=velocity)  # fmt: skip
+        base = ServoLoop(plant=plant(*centre), nominal=nominal, Ts=Ts, controller=ctrl,
+                         observer=design, sensor=sensor, actuator=linear_actuator)  # fmt: skip
+        error = np.abs(estimation_response(design, frequencies, error=True))
+        accuracy = float(np.sqrt(np.mean(error**2)))
+        radius = max(_radius(base.replace(plant=plant(*c))) for c in corners)
+        radius_margin = max(
+            _radius(base.replace(plant=plant(*c), actuator=margin_actuator)) for c in corners
+        )
+        tau_noise = u_noise = 0.0
+        if sigma > 0.0 and radius < 1.0:
+            try:
+                gains = noise_gains(base)
+                tau_noise, u_noise = gains.tau_hat_position * sigma, gains.u_position * sigma
+            except ParameterValueError:
+                tau_noise = u_noise = math.inf
+        elif radius >= 1.0:
+            tau_noise = u_noise = math.inf
+        rows.append({
+            "family": family, "order": m, "name": design.system.name, "parameter": parameter,
+            "value": value, "accuracy": accuracy, "tau_noise": tau_noise, "u_noise": u_noise,
+            "radius": radius, "radius_margin": radius_margin,
+            "robust": radius_margin < 1.0,
+            "within_noise": noise_limit is None or tau_noise <= noise_limit,
+            "pareto": False, "simulated": math.nan, "_design": design, "_controller": ctrl,
+        })  # fmt: skip
+    if not rows:
+        raise ParameterValueError("no candidate could be designed: " + "; ".join(notes[:3]))
+    qualified = [r for r in rows if r["robust"] and r["within_noise"]]
+    if not qualified:
+        robust = [r for r in rows if r["robust"]]
+        if not robust:
+            raise ParameterValueError(
+                f"no candidate is stable over J/J_n in [{J_low:g}, {J_high:g}] and b in "
+                f"[{b_low:g}, {b_high:g}] with {actuator.delay_samples} + 1 samples of delay "
+                f"(smallest worst-case spectral radius "
+                f"{min(r['radius_margin'] for r in rows):.4f}); narrow the uncertainty, lower "
+                "the PD gains or reduce the delay"
+            )
+        quietest = min(r["tau_noise"] for r in robust)
+        raise ParameterValueError(
+            f"no robustly stable candidate meets noise_limit={noise_limit!r} N m: the quietest "
+            f"makes {quietest:.3g} N m RMS of noise in the estimate; raise the limit or use a "
+            "finer encoder"
+        )
+    # Pareto front of (accuracy, noise) among the qualified, then simulated at the centre.
+    ordered = sorted(qualified, key=lambda r: (r["accuracy"], r["tau_noise"]))
+    best_noise = math.inf
+    for r in ordered:
+        if r["tau_noise"] < best_noise:
+            r["pareto"] = True
+            best_noise = r["tau_noise"]
+    pareto = [r for r in ordered if r["pareto"]]
+    simulation = {"sensor": sensor, "actuator": actuator}
+
+    def simulate_at(r, J_ratio, b):
+        true = ServoModel(J_ratio * nominal.J, b, coulomb=coulomb)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            result = simulate(plant=true, nominal=nominal, Ts=Ts, controller=r["_controller"],
+                              observer=r["_design"], **simulation, **run)  # fmt: skip
+        metrics = result.metrics()
+        position = max(metrics["rms_position_error_regulation"],
+                       metrics["rms_position_error_tracking"])  # fmt: skip
+        return result, metrics, position
+
+    for r in pareto:
+        result, metrics, position = simulate_at(r, *centre)
+        r["simulated"] = math.inf if result.diverged else (
+            metrics["rms_estimation_error"] if objective == "estimation" else position)  # fmt: skip
+        r["simulated_estimation"] = metrics["rms_estimation_error"]
+        r["simulated_position"] = position
+    verification = None
+    for r in sorted(pareto, key=lambda r: r["simulated"]):
+        if not math.isfinite(r["simulated"]):
+            break
+        checks = []
+        for J_ratio, b in corners:
+            result, metrics, position = simulate_at(r, J_ratio, b)
+            loop = ServoLoop(plant=plant(J_ratio, b), nominal=nominal, Ts=Ts,
+                             controller=r["_controller"], observer=r["_design"],
+                             actuator=linear_actuator, sensor=sensor)  # fmt: skip
+            checks.append({
+                "J_ratio": J_ratio, "b": b, "diverged": result.diverged,
+                "radius": _radius(loop), "rms_estimation_error": metrics["rms_estimation_error"],
+                "rms_position_error": position,
+                "delay_margin": loop_margins(loop).delay_margin,
+            })  # fmt: skip
+        if all(not c["diverged"] and c["radius"] < 1.0 for c in checks):
+            verification = (r, checks)
+            break
+        notes.append(f"{r['name']} at {r['parameter']}={r['value']:.4g} failed at a corner")
+    if verification is None:
+        raise ParameterValueError(
+            "no Pareto candidate stays bounded in the nonlinear simulation at every corner of "
+            "the uncertainty set (torque limit and Coulomb friction included); narrow the "
+            "uncertainty or relax the scenario"
+        )
+    return TuningResult(
+        rows=rows,
+        recommended=verification[0],
+        verification=verification[1],
+        settings={
+            "nominal": {"J": nominal.J, "b": nominal.b},
+            "Ts": Ts,
+            "controller": {
+                "kp": controller.kp,
+                "kd": controller.kd,
+                "velocity": controller.velocity,
+            },
+            "sensor_noise_std": sigma,
+            "delay_samples": actuator.delay_samples,
+            "torque_limit": actuator.torque_limit,
+            "J_range": (J_low, J_high),
+            "b_range": (b_low, b_high),
+            "frequencies_Hz": frequencies.tolist(),
+            "families": families,
+            "objective": objective,
+            "noise_limit": noise_limit,
+            "coulomb": coulomb,
+            "margin": "stable at every corner with one extra sample of delay",
+        },
+        notes=tuple(notes),
+    )
