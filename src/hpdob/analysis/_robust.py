@@ -29,14 +29,12 @@ from ..observers._families import design_at_bandwidth
 from ..observers._system import MEASUREMENTS
 from ..simulation._controller import PD
 from ..simulation._devices import Encoder
-from ._linear_loop import MAX_DELAY_SAMPLES, LoopSpec, loop_matrices
+from ._linear_loop import LoopSpec, loop_matrices
+from ._map_limits import check_delay, check_map_size, check_plants
 
 __all__ = ["StabilityMap", "robust_stability_map"]
 
 PARAMETERS = ("J_ratio", "b")
-#: Most grid points (values x bandwidths) of one map: each costs a closed-loop eigenvalue
-#: problem, so larger maps are refused up front rather than run for hours.
-MAX_MAP_POINTS = 1_000_000
 _UNITS = {"J_ratio": "true/nominal inertia J/J_n [-]", "b": "true viscous friction b [N m s/rad]"}
 
 
@@ -442,13 +440,7 @@ def robust_stability_map(
         if spec.get("type") == "kalman":
             spec.pop("process_noise_std", None)
         m = int(spec.get("order", spec.get("extended_order", 0)))
-    delay = as_int(
-        delay_samples,
-        "delay_samples",
-        "a non-negative integer number of samples (each adds a state to the linear loop)",
-        minimum=0,
-        maximum=MAX_DELAY_SAMPLES,
-    )
+    delay = check_delay(delay_samples)
     ratios, ratio_grid = _grid_or_scalar(
         J_ratio, "J_ratio", "positive true/nominal inertia ratios J/J_n", allow_zero=False
     )
@@ -476,23 +468,10 @@ def robust_stability_map(
         backward_difference=sensor is not None and sensor.velocity == "backward-difference",
     )
     values = ratios if ratio_grid else frictions
-    if values.size * bandwidths.size > MAX_MAP_POINTS:
-        raise ParameterValueError(
-            f"the map has {values.size} x {bandwidths.size} = {values.size * bandwidths.size:.3g} "
-            f"points; at most {MAX_MAP_POINTS} are supported (use coarser grids)"
-        )
+    check_map_size(values, bandwidths)
     designs = [setting.design(float(g)) for g in bandwidths]
     # Validate every plant before computing (ServoModel checks finiteness of J and b).
-    for v in values:
-        J_r, b_r = (float(v), float(frictions)) if ratio_grid else (float(ratios), float(v))
-        try:
-            ServoModel(J_r * nominal.J, b_r).discretize(Ts)
-        except ParameterValueError as err:
-            name = "J_ratio" if ratio_grid else "b"
-            raise ParameterValueError(
-                f"{name} entry {float(v)!r} gives a true plant ServoModel(J={J_r * nominal.J!r}, "
-                f"b={b_r!r}) that cannot be discretised at Ts={Ts!r}: {err}"
-            ) from None
+    check_plants(values, ratio_grid, ratios, frictions, nominal, Ts)
     rho = np.empty((values.size, bandwidths.size))
     for i, v in enumerate(values):
         J_r, b_r = (float(v), float(frictions)) if ratio_grid else (float(ratios), float(v))
