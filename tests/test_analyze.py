@@ -171,10 +171,16 @@ def test_stability(capsys, tmp_path):
         (["stability", "--bandwidths", ","], "argument --bandwidths: expected LO:HI:N"),
         (["stability", "--values", ","], "argument --values: expected LO:HI:N"),
         (["bode", "--orders", ","], "argument --orders: expected comma-separated integer"),
-        (["bode", "--dpi", "0"], "argument --dpi: expected a positive finite number, got '0'"),
-        (["noise", "--dpi=-72"], "argument --dpi: expected a positive finite number, got '-72'"),
-        (["tradeoff", "--dpi", "inf"], "argument --dpi: expected a positive finite number"),
-        (["stability", "--dpi", "high"], "argument --dpi: expected a positive finite number"),
+        (
+            ["bode", "--dpi", "0"],
+            "--dpi: expected a positive resolution of at most 1200 dots per inch, got '0'",
+        ),
+        (
+            ["noise", "--dpi=-72"],
+            "--dpi: expected a positive resolution of at most 1200 dots per inch",
+        ),
+        (["tradeoff", "--dpi", "inf"], "argument --dpi: expected a positive resolution"),
+        (["stability", "--dpi", "high"], "argument --dpi: expected a positive resolution"),
     ],
 )
 def test_bad_arguments_exit_2_with_one_line(capsys, tmp_path, argv, message):

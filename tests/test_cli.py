@@ -162,6 +162,30 @@ def test_unwritable_output_is_one_line_exit_2(capsys, tmp_path, argv):
     assert blocker.read_text() == "not a directory\n"
 
 
+def test_every_error_is_one_line(capsys):
+    # issue 16, item 9: the message holds an array whose repr wrapped onto a second line
+    code, out, err = run(capsys, "design", "--order", "50", "--bandwidth", "1000")
+    assert code == 2 and out == ""
+    assert err.startswith("hpdob design: error: bandwidth=1000.0 rad/s cannot be realised")
+    assert err.count("\n") == 1
+
+
+def test_unexpected_errors_are_one_line_too(capsys, monkeypatch):
+    import hpdob.cli._design
+
+    def broken(args):
+        raise RuntimeError("first line\nsecond line")
+
+    monkeypatch.setattr(hpdob.cli._design, "_run", broken)
+    monkeypatch.delenv("HPDOB_TRACEBACK", raising=False)
+    code, _, err = run(capsys, "design")
+    assert code == 1
+    assert err == (
+        "hpdob design: internal error: RuntimeError: first line second line (please report it; "
+        "set HPDOB_TRACEBACK=1 for the traceback)\n"
+    )
+
+
 # -- --help: a description line for every command, pages that exist -------------------------
 COMMANDS = [
     ["reproduce"],

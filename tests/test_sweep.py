@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import signal
 import threading
+import time
 import warnings
 from pathlib import Path
 
@@ -227,6 +228,28 @@ def test_a_killed_worker_does_not_lose_rows(cluster):
     pd.testing.assert_frame_equal(rows, expected)
 
 
+@pytest.mark.timeout(120)
+def test_an_interrupted_dask_sweep_cancels_its_tasks(cluster):
+    # issue 16, item 2: Ctrl-C (here raised by the progress callback once the first chunk is
+    # back) must not leave the remaining chunks running on the cluster
+    _, client = cluster
+    # 63 chunks of 64 scenarios of 10 s: about a minute of work on the two workers
+    grid = {"observer.bandwidth": list(np.linspace(40.0, 200.0, 2000)), "observer.order": [0, 1]}
+
+    def interrupt(done, total):
+        raise KeyboardInterrupt
+
+    def tasks(dask_scheduler):
+        return len(dask_scheduler.tasks)
+
+    with pytest.raises(KeyboardInterrupt):  # the traceback keeps the futures referenced
+        sweep(base(10.0), grid=grid, scheduler=client, progress=interrupt)
+    deadline = time.monotonic() + 20
+    while client.run_on_scheduler(tasks):
+        assert time.monotonic() < deadline, "chunks still on the scheduler after the interrupt"
+        time.sleep(0.05)
+
+
 def test_cli_sweep_example(tmp_path, capsys):
     from hpdob.cli import main
 
@@ -305,3 +328,21 @@ def test_wildly_diverging_scenarios_are_flagged_without_warnings():
     # (pytest turns warnings into errors) and the row must still be flagged.
     rows = sweep(base(1.0), grid={"controller.kd": [1e12, 1e300]}, progress=False)
     assert not rows["stable"].any()
+
+
+def test_scenarios_that_share_a_design_design_it_once(monkeypatch):
+    import hpdob.simulation._sweep as sweep_module
+
+    calls = []
+    real = sweep_module.design_from_spec
+
+    def counted(model, spec):
+        calls.append(spec)
+        return real(model, spec)
+
+    monkeypatch.setattr(sweep_module, "design_from_spec", counted)
+    grid = {"plant.J": list(np.linspace(2e-4, 4e-4, 100))}
+    rows = sweep(base(0.2), grid=grid, scheduler=1, progress=False)
+    assert rows["stable"].all()
+    # one check up front, then one design per chunk (one worker: 8 chunks of 13 scenarios)
+    assert len(calls) == 1 + 8

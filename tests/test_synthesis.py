@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import cmath
 import dataclasses
+import inspect
 import math
 from fractions import Fraction
 
@@ -347,12 +348,16 @@ NEAR_THRESHOLD = [((3, 0.1), True), ((6, 10.0), True), ((6, 9.0), True), ((4, 1.
 @pytest.mark.parametrize(("case", "stable"), NEAR_THRESHOLD, ids=str)
 def test_realisability_is_decided_exactly_near_the_threshold(paper_model, case, stable):
     order, bandwidth = case
+    # pole_tolerance=None: the stability decision alone (these realised poles are far off the
+    # requested ones, so the default tolerance refuses all four)
     if stable:
-        design = design_observer(paper_model, order=order, bandwidth=bandwidth)
+        design = design_observer(paper_model, order=order, bandwidth=bandwidth, pole_tolerance=None)
         assert _radius_near_one(design.k) < 1.0
     else:
         with pytest.raises(ValueError, match=rf"^bandwidth={bandwidth} rad/s cannot be realised"):
-            design_observer(paper_model, order=order, bandwidth=bandwidth)
+            design_observer(paper_model, order=order, bandwidth=bandwidth, pole_tolerance=None)
+    with pytest.raises(ValueError, match=rf"^bandwidth={bandwidth} rad/s cannot be realised"):
+        design_observer(paper_model, order=order, bandwidth=bandwidth)
 
 
 def test_schur_cohn_agrees_with_roots_on_well_conditioned_polynomials(rng):
@@ -385,3 +390,94 @@ def test_unit_root_polynomial(order):
 
     # (z - 1)^{m+1} from its roots, highest power first; ours is ascending.
     np.testing.assert_array_equal(unit_root_polynomial(order)[::-1], np.poly(np.ones(order + 1)))
+
+
+# -- realised poles (issue 16, item 7) ----------------------------------------------------
+def _mpmath_roots(k, digits=80):
+    """Roots of det(zI - M) for the rounded gains k: the exact rational characteristic
+    polynomial (eq. 24 generalised: (z-1)^{m+1} + sum_j k_j q_j(z), with every float at its
+    exact value), solved by mpmath at ``digits`` significant digits (an independent solver)."""
+    mpmath = pytest.importorskip("mpmath")
+    from hpdob.observers._error_dynamics import characteristic_basis, unit_root_polynomial
+
+    m = len(k) - 1
+    Q = characteristic_basis(m)
+    gains = [Fraction(float(v)) for v in k]
+    ascending = [
+        int(base) + sum((int(Q[i, j]) * gains[j] for j in range(m + 1)), Fraction(0))
+        for i, base in enumerate(unit_root_polynomial(m)[: m + 1])
+    ] + [Fraction(1)]
+    with mpmath.workdps(digits):
+        coefficients = [mpmath.mpf(c.numerator) / c.denominator for c in ascending]
+        options = {"maxsteps": 4000, "extraprec": 8 * digits}
+        if "asc" in inspect.signature(mpmath.polyroots).parameters:  # mpmath >= 1.4
+            roots = mpmath.polyroots(coefficients, asc=True, **options)
+        else:
+            roots = mpmath.polyroots(coefficients[::-1], **options)
+        return np.array([complex(r) for r in roots])
+
+
+REALISED_CASES = [
+    # (order, design arguments): canonical designs, two of issue 16's examples (order 30 at
+    # 1000 rad/s is in the refusal test below: its roots to 220 digits take seconds), order 20,
+    # mixed real, repeated and complex poles
+    (0, {"bandwidth": 100.0}),
+    (1, {"bandwidth": 100.0}),
+    (3, {"bandwidth": 50.0}),
+    (8, {"poles": [0.9] * 9}),
+    (10, {"bandwidth": 100.0}),
+    (20, {"bandwidth": 1000.0}),
+    (3, {"poles": [0.8, 0.8, 0.5 + 0.3j, 0.5 - 0.3j]}),
+    (4, {"poles": [0.9, 0.9, 0.9, 0.2, 0.2]}),
+]
+
+
+@pytest.mark.parametrize(("order", "kwargs"), REALISED_CASES, ids=str)
+def test_realised_poles_agree_with_high_precision_roots(paper_model, order, kwargs):
+    design = design_observer(paper_model, order=order, pole_tolerance=None, **kwargs)
+    reference = _mpmath_roots(design.k, digits=40 + 6 * order)
+    spread = max(np.max(np.abs(reference - np.mean(reference))), 1e-300)
+    # the same multiset of roots, to a tiny fraction of how far they spread
+    assert _match(design.realised_poles, reference) < 1e-9 * max(spread, 1e-6)
+    # paired with the requested poles entry by entry
+    assert design.realised_poles.shape == design.poles.shape
+
+
+@pytest.mark.parametrize(
+    ("order", "kwargs", "realised"),
+    [  # |z| of the realised pole furthest off, from the 80-digit roots of the test above
+        (30, {"bandwidth": 1000.0}, 0.92),
+        (10, {"bandwidth": 100.0}, 0.95),
+        (8, {"poles": [0.9] * 9}, 0.924),
+    ],
+)
+def test_far_off_realised_poles_are_refused(paper_model, order, kwargs, realised):
+    design = design_observer(paper_model, order=order, pole_tolerance=None, **kwargs)
+    assert np.max(np.abs(design.realised_poles)) == pytest.approx(realised, abs=0.01)
+    with pytest.raises(ValueError, match=r"cannot be realised for order .* is realised at") as info:
+        design_observer(paper_model, order=order, **kwargs)
+    assert "more than pole_tolerance=0.05" in str(info.value) and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("order", range(4))
+@pytest.mark.parametrize("bandwidth", [50.0, 100.0, 200.0])
+def test_canonical_designs_are_accepted_unchanged(paper_model, order, bandwidth):
+    design = design_observer(paper_model, order=order, bandwidth=bandwidth)
+    free = design_observer(paper_model, order=order, bandwidth=bandwidth, pole_tolerance=None)
+    for name in ("k", "gains", "error_matrix", "state_input", "control_input"):
+        np.testing.assert_array_equal(getattr(design, name), getattr(free, name))
+    p = math.exp(-bandwidth * 1e-3)
+    off = np.abs(design.realised_poles - p) / (1 - p)
+    assert np.all(off <= 0.05)
+    assert np.all(off < [1e-15, 1e-6, 1e-3, 5e-3][order])  # measured: 0, 1e-7, 1e-4, 2.3e-3
+
+
+def test_pole_tolerance_is_validated(paper_model):
+    with pytest.raises(ValueError, match=r"^pole_tolerance must be a fraction >= 0 or None"):
+        design_observer(paper_model, order=1, bandwidth=100.0, pole_tolerance=-1.0)
+    with pytest.raises(TypeError, match=r"^pole_tolerance must be a fraction >= 0 or None"):
+        design_observer(paper_model, order=1, bandwidth=100.0, pole_tolerance="5%")
+    loose = design_observer(paper_model, order=5, bandwidth=50.0, pole_tolerance=0.1)
+    assert loose.realised_poles.shape == (6,)
+    with pytest.raises(ValueError, match=r"is realised at"):  # 7.4% off, measured
+        design_observer(paper_model, order=5, bandwidth=50.0)

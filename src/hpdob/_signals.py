@@ -14,7 +14,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validation import ParameterTypeError, ParameterValueError, as_int, as_real, positive
+from ._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    _show,
+    as_int,
+    as_real,
+    numeric_array,
+    positive,
+)
 
 __all__ = [
     "Chirp",
@@ -31,7 +39,9 @@ __all__ = [
 
 
 def _times(t) -> np.ndarray:
-    return np.asarray(t, dtype=float)
+    if type(t) is np.ndarray and t.dtype == np.float64:
+        return t
+    return numeric_array(t, "t", "times [s] (a number or an array of numbers)", dtype=float)
 
 
 def _check_derivative(n) -> int:
@@ -58,7 +68,8 @@ class Signal:
     def __mul__(self, factor):
         if isinstance(factor, Signal) or not isinstance(factor, (int, float, np.number)):
             return NotImplemented
-        return Sum(tuple((w * float(factor), s) for w, s in _weighted(self)))
+        factor = as_real(factor, "factor", "a finite real factor")
+        return Sum(tuple((w * factor, s) for w, s in _weighted(self)))
 
     __rmul__ = __mul__
 
@@ -208,11 +219,13 @@ class Sine(Signal):
 
     def __post_init__(self):
         object.__setattr__(self, "amplitude", as_real(self.amplitude, "amplitude"))
-        object.__setattr__(
-            self,
-            "frequency",
-            positive(self.frequency, "frequency", "a positive finite frequency [Hz]"),
-        )
+        frequency = positive(self.frequency, "frequency", "a positive finite frequency [Hz]")
+        if not math.isfinite(2.0 * math.pi * frequency):
+            raise ParameterValueError(
+                f"frequency must be a positive frequency [Hz] whose 2 pi frequency [rad/s] is "
+                f"finite, got {frequency!r}"
+            )
+        object.__setattr__(self, "frequency", frequency)
         object.__setattr__(self, "start", as_real(self.start, "start", "a finite time [s]"))
         object.__setattr__(self, "phase", as_real(self.phase, "phase", "a finite phase [rad]"))
         object.__setattr__(self, "offset", as_real(self.offset, "offset"))
@@ -221,12 +234,22 @@ class Sine(Signal):
         t = _times(t)
         n = _check_derivative(n)
         w = 2.0 * math.pi * self.frequency
+        try:
+            gain = self.amplitude * w**n
+        except OverflowError:
+            gain = math.inf
+        if not math.isfinite(gain):
+            raise ParameterValueError(
+                f"derivative n={_show(n)} of Sine(amplitude={self.amplitude!r}, frequency="
+                f"{self.frequency!r} Hz) exceeds the float range: |amplitude| (2 pi frequency)^n "
+                f"overflows; lower the frequency or the derivative order"
+            )
         out = np.array(t, dtype=float)  # a new array, also for scalar t (0-d)
         out -= self.start  # in-place arithmetic: this runs on every sub-step midpoint
         out *= w
-        out += self.phase + n * math.pi / 2.0  # d^n/dt^n sin(x) = w^n sin(x + n pi/2)
+        out += self.phase + (n % 4) * math.pi / 2.0  # d^n/dt^n sin(x) = w^n sin(x + n pi/2)
         np.sin(out, out=out)
-        out *= self.amplitude * w**n
+        out *= gain
         if n == 0 and self.offset:
             out += self.offset
         np.copyto(out, 0.0, where=t < self.start)
@@ -312,7 +335,7 @@ class Noise(Signal):
         count = math.ceil((stop - start) / hold)
         if count > 100_000_000:
             raise ParameterValueError(
-                f"hold={hold!r} s over [{start}, {stop}) needs {count} "
+                f"hold={hold!r} s over [{start}, {stop}) needs {_show(count)} "
                 "samples; at most 1e8 are supported"
             )
         seed = as_int(self.seed, "seed", "a non-negative integer seed", minimum=0)
@@ -334,9 +357,10 @@ class Noise(Signal):
             raise ParameterValueError(
                 "Noise has no derivative: use it as a disturbance, not as a reference"
             )
-        index = np.floor((t - self.start) / self.hold).astype(np.int64)
-        inside = (t >= self.start) & (t < self.stop) & (index < self._samples.size)
-        return np.where(inside, self._samples[np.clip(index, 0, self._samples.size - 1)], 0.0)
+        position = (t - self.start) / self.hold
+        inside = (t >= self.start) & (t < self.stop) & (position < self._samples.size)
+        index = np.floor(np.where(inside, position, 0.0)).astype(np.int64)  # no NaN/huge casts
+        return np.where(inside, self._samples[index], 0.0)
 
 
 class _Trajectory:

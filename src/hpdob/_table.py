@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ._files import atomic_path
+
 __all__ = ["columns_to_csv", "columns_to_pandas"]
 
 
@@ -21,10 +23,13 @@ def _cell(value) -> str:
 
 
 def columns_to_csv(columns: dict, path) -> Path:
-    """Write equal-length columns ``{name: values}`` to ``path`` (header row, full precision)."""
+    """Write equal-length columns ``{name: values}`` to ``path`` (header row, full precision).
+
+    Atomically: a reader never sees a truncated file (:func:`hpdob._files.atomic_path`).
+    """
     path = Path(path)
-    with path.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.writer(handle)
+    with atomic_path(path) as temporary, temporary.open("w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
         writer.writerow(list(columns))
         writer.writerows([_cell(v) for v in row] for row in zip(*columns.values(), strict=True))
     return path

@@ -44,9 +44,26 @@ class ParameterTypeError(TypeError):
 def _show(value: object) -> str:
     """Short repr of ``value`` for error messages (arrays are abbreviated)."""
     if isinstance(value, np.ndarray):
-        return np.array2string(value, threshold=8, precision=6)
-    text = repr(value)
+        # one line: messages are printed on one line by the CLI
+        return np.array2string(value, threshold=8, precision=6, max_line_width=1_000_000)
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**30:
+        return _show_int(value)
+    try:
+        text = repr(value)
+    except (ValueError, RecursionError):  # an int over 4300 digits, a very deep nesting
+        return f"a {type(value).__name__} that cannot be shown"
     return text if len(text) <= 80 else text[:77] + "..."
+
+
+def _show_int(value) -> str:
+    """A huge integer in a few characters: its leading digits and its number of digits."""
+    digits = str(abs(int(value))) if int(value).bit_length() < 13000 else None
+    if digits is None:
+        return f"about 2**{int(value).bit_length()}"
+    sign = "-" if value < 0 else ""
+    if len(digits) <= 30:
+        return str(int(value))
+    return f"{sign}{digits[0]}.{digits[1:4]}e{len(digits) - 1}"
 
 
 def as_real(value: object, name: str, what: str = "a real number") -> float:
@@ -66,7 +83,12 @@ def as_real(value: object, name: str, what: str = "a real number") -> float:
             raise ParameterTypeError(
                 f"{name} must be {what}, got {_show(value)} of type {type(value).__name__}"
             )
-    result = float(value)
+    try:
+        result = float(value)
+    except OverflowError:  # an integer beyond the float range, e.g. 10**400
+        raise ParameterValueError(
+            f"{name} must be {what}, got an integer beyond the float range ({_show_int(value)})"
+        ) from None
     if not math.isfinite(result):
         raise ParameterValueError(f"{name} must be {what}, got {_show(value)}")
     return result
@@ -88,8 +110,13 @@ def nonnegative(value: object, name: str, what: str) -> float:
     return result
 
 
-def as_int(value: object, name: str, what: str, *, minimum: int | None = None) -> int:
-    """Return ``value`` as a Python int (``bool`` and floats are rejected)."""
+def as_int(
+    value: object, name: str, what: str, *, minimum: int | None = None, maximum: int | None = None
+) -> int:
+    """Return ``value`` as a Python int (``bool`` and floats are rejected).
+
+    ``minimum``/``maximum`` bound it (inclusive); the message of ``maximum`` states the limit.
+    """
     if isinstance(value, (bool, np.bool_)):
         raise ParameterTypeError(f"{name} must be {what}, got {_show(value)} of type bool")
     try:
@@ -99,7 +126,11 @@ def as_int(value: object, name: str, what: str, *, minimum: int | None = None) -
             f"{name} must be {what}, got {_show(value)} of type {type(value).__name__}"
         ) from None
     if minimum is not None and result < minimum:
-        raise ParameterValueError(f"{name} must be {what}, got {result}")
+        raise ParameterValueError(f"{name} must be {what}, got {_show(result)}")
+    if maximum is not None and result > maximum:
+        raise ParameterValueError(
+            f"{name} must be {what} of at most {maximum}, got {_show(result)}"
+        )
     return result
 
 
@@ -153,6 +184,10 @@ def numeric_array(value: object, name: str, what: str, *, dtype=float) -> np.nda
         )
     try:
         return np.array(raw, dtype=dtype)
+    except OverflowError:  # an object array holding an integer beyond the float range
+        raise ParameterValueError(
+            f"{name} must be {what}, got an entry beyond the float range ({_show(value)})"
+        ) from None
     except (TypeError, ValueError):
         raise ParameterTypeError(f"{name} must be {what}, got {_show(value)}") from None
 

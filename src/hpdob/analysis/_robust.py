@@ -30,6 +30,7 @@ from ..observers._system import MEASUREMENTS
 from ..simulation._controller import PD
 from ..simulation._devices import Encoder
 from ._linear_loop import LoopSpec, loop_matrices
+from ._map_limits import check_delay, check_map_size, check_plants
 
 __all__ = ["StabilityMap", "robust_stability_map"]
 
@@ -439,9 +440,7 @@ def robust_stability_map(
         if spec.get("type") == "kalman":
             spec.pop("process_noise_std", None)
         m = int(spec.get("order", spec.get("extended_order", 0)))
-    delay = as_int(
-        delay_samples, "delay_samples", "a non-negative integer number of samples", minimum=0
-    )
+    delay = check_delay(delay_samples)
     ratios, ratio_grid = _grid_or_scalar(
         J_ratio, "J_ratio", "positive true/nominal inertia ratios J/J_n", allow_zero=False
     )
@@ -468,12 +467,11 @@ def robust_stability_map(
         delay=delay,
         backward_difference=sensor is not None and sensor.velocity == "backward-difference",
     )
-    designs = [setting.design(float(g)) for g in bandwidths]
     values = ratios if ratio_grid else frictions
+    check_map_size(values, bandwidths)
+    designs = [setting.design(float(g)) for g in bandwidths]
     # Validate every plant before computing (ServoModel checks finiteness of J and b).
-    for v in values:
-        J_r, b_r = (float(v), float(frictions)) if ratio_grid else (float(ratios), float(v))
-        ServoModel(J_r * nominal.J, b_r).discretize(Ts)
+    check_plants(values, ratio_grid, ratios, frictions, nominal, Ts)
     rho = np.empty((values.size, bandwidths.size))
     for i, v in enumerate(values):
         J_r, b_r = (float(v), float(frictions)) if ratio_grid else (float(ratios), float(v))

@@ -8,15 +8,20 @@ b = 5e-5 N m s/rad; nominal J_n = 2.8e-4 kg m^2, b_n = 0; Ts = 1 ms; PD(50, 5).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
-from ..simulation._result import json_ready
-from ._options import add_loop_arguments, add_nominal_arguments, reject_plant_arguments
+from ._options import (
+    add_loop_arguments,
+    add_nominal_arguments,
+    finite,
+    output_path,
+    reject_plant_arguments,
+)
+from ._outputs import MAX_DPI, dpi_argument, save_figure, write_json
 
 __all__ = ["register"]
 
@@ -44,7 +49,7 @@ def _grid(text: str) -> list[float]:
 
 
 def _positive_real(text: str) -> float:
-    """A finite number > 0 (e.g. ``--dpi``)."""
+    """A finite number > 0 (e.g. ``--bandwidth`` of ``stability``)."""
     try:
         value = float(text)
     except ValueError:
@@ -67,16 +72,16 @@ def _add_common(parser: argparse.ArgumentParser, *, loop: bool = True) -> None:
     """Output options and the model/loop options (``loop=False``: the nominal model only)."""
     parser.add_argument(
         "--out",
-        type=Path,
+        type=output_path,
         default=Path("hpdob-analysis"),
         metavar="DIR",
         help="output directory (default: %(default)s)",
     )
     parser.add_argument(
         "--dpi",
-        type=_positive_real,
+        type=dpi_argument,
         default=150.0,
-        help="figure resolution [dots per inch] (default: %(default)s)",
+        help=f"figure resolution [dots per inch], at most {MAX_DPI} (default: %(default)s)",
     )
     title = "loop (defaults: the canonical scenario)" if loop else "nominal model (canonical)"
     group = parser.add_argument_group(title)
@@ -151,10 +156,10 @@ def register(subparsers) -> None:
     _add_common(bode)
     _add_orders(bode, "0,1,2,3")
     _add_measurement(bode)
-    bode.add_argument("--bandwidth", type=float, default=100.0, help="[rad/s] (default 100)")
+    bode.add_argument("--bandwidth", type=finite, default=100.0, help="[rad/s] (default 100)")
     bode.add_argument(
         "--frequency",
-        type=float,
+        type=finite,
         default=2.0,
         help="disturbance frequency to report [Hz] (default 2)",
     )
@@ -190,7 +195,7 @@ def register(subparsers) -> None:
         help="[rad/s], LO:HI:N or a list (default 10:3000:61)",
     )
     tradeoff.add_argument(
-        "--frequency", type=float, default=2.0, help="disturbance frequency [Hz] (default 2)"
+        "--frequency", type=finite, default=2.0, help="disturbance frequency [Hz] (default 2)"
     )
     tradeoff.add_argument(
         "--noise",
@@ -247,10 +252,6 @@ def register(subparsers) -> None:
         p.set_defaults(handler=_run)
 
 
-def _write_json(path: Path, data: dict) -> None:
-    path.write_text(json.dumps(json_ready(data), indent=2, allow_nan=False) + "\n")
-
-
 def _loop(args):
     from ..models._servo import ServoModel
     from ..simulation._controller import PD
@@ -265,26 +266,35 @@ def _loop(args):
     }
 
 
-def _save(fig, path: Path, dpi: float) -> None:
-    import matplotlib.pyplot as plt
-
-    fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+#: The summary JSON of each analysis: renamed last, so it marks a complete set of outputs.
+MARKERS = {
+    "bode": "bode.json",
+    "noise": "noise.json",
+    "tradeoff": "tradeoff.json",
+    "stability": "stability.json",
+}
 
 
 def _run(args: argparse.Namespace) -> int:
     import matplotlib
 
+    from .._files import staged_outputs
+
     matplotlib.use("Agg")
-    args.out.mkdir(parents=True, exist_ok=True)
-    written = {"bode": _bode, "noise": _noise, "tradeoff": _tradeoff, "stability": _stability}[
-        args.analysis
-    ](args)
+    # Every output is staged and renamed only when all are complete (the JSON last): a bad
+    # value found late (e.g. an order that cannot be designed) leaves the previous outputs.
+    with staged_outputs(args.out, markers=[MARKERS[args.analysis]]) as files:
+        written = {
+            "bode": _bode,
+            "noise": _noise,
+            "tradeoff": _tradeoff,
+            "stability": _stability,
+        }[args.analysis](args, files)
     print(f"wrote {', '.join(written)} to {args.out}")
     return 0
 
 
-def _bode(args) -> list[str]:
+def _bode(args, files) -> list[str]:
     from .._table import columns_to_csv
     from ..analysis._estimation import estimation_response
     from ..analysis._figures import bode_figure
@@ -298,9 +308,10 @@ def _bode(args) -> list[str]:
         gang_of_four(**loop, observer=d).S.frequency_response(2 * np.pi * f).frdata[0, 0]
         for d in designs
     ]
-    _save(
+    save_figure(
         bode_figure(designs, f, sensitivities=sens, mark_frequency=args.frequency),
-        args.out / "bode.png",
+        files,
+        "bode.png",
         args.dpi,
     )
     columns = {
@@ -340,12 +351,12 @@ def _bode(args) -> list[str]:
                 "inertia_factor_range": list(margins.inertia_factor_range),
             },
         }
-    columns_to_csv(columns, args.out / "bode.csv")
-    _write_json(args.out / "bode.json", summary)
+    columns_to_csv(columns, files.path("bode.csv"))
+    write_json(files, "bode.json", summary)
     return ["bode.png", "bode.csv", "bode.json"]
 
 
-def _noise(args) -> list[str]:
+def _noise(args, files) -> list[str]:
     from .._table import columns_to_csv
     from ..analysis._figures import noise_figure
     from ..analysis._noise import noise_gains
@@ -356,14 +367,14 @@ def _noise(args) -> list[str]:
         [noise_gains(**loop, observer=_design(args, model, m, g)) for g in args.bandwidths]
         for m in args.orders
     ]
-    _save(noise_figure(args.bandwidths, args.orders, gains), args.out / "noise.png", args.dpi)
+    save_figure(noise_figure(args.bandwidths, args.orders, gains), files, "noise.png", args.dpi)
     rows = [
         {"order": m, "bandwidth_rad_s": g, **gain.to_dict()}
         for m, row in zip(args.orders, gains, strict=True)
         for g, gain in zip(args.bandwidths, row, strict=True)
     ]
-    columns_to_csv({k: [r[k] for r in rows] for k in rows[0]}, args.out / "noise.csv")
-    _write_json(args.out / "noise.json", {"loop": _describe(args), "gains": rows})
+    columns_to_csv({k: [r[k] for r in rows] for k in rows[0]}, files.path("noise.csv"))
+    write_json(files, "noise.json", {"loop": _describe(args), "gains": rows})
     return ["noise.png", "noise.csv", "noise.json"]
 
 
@@ -382,7 +393,7 @@ def _describe(args) -> dict:
     }
 
 
-def _tradeoff(args) -> list[str]:
+def _tradeoff(args, files) -> list[str]:
     from ..analysis._tradeoff import noise_tradeoff
     from ..models._servo import ServoModel
 
@@ -398,8 +409,8 @@ def _tradeoff(args) -> list[str]:
         noise=noise,
         measurements=args.measurements,
     )
-    _save(result.plot(), args.out / "tradeoff.png", args.dpi)
-    result.to_csv(args.out / "tradeoff.csv")
+    save_figure(result.plot(), files, "tradeoff.png", args.dpi)
+    result.to_csv(files.path("tradeoff.csv"))
     reference = result.orders[0]
     first = result.measurements[0]
 
@@ -425,11 +436,11 @@ def _tradeoff(args) -> list[str]:
             if (m, kind) != (reference, first)
         },
     }
-    _write_json(args.out / "tradeoff.json", summary)
+    write_json(files, "tradeoff.json", summary)
     return ["tradeoff.png", "tradeoff.csv", "tradeoff.json"]
 
 
-def _stability(args) -> list[str]:
+def _stability(args, files) -> list[str]:
     from ..analysis._robust import robust_stability_map
     from ..models._servo import ServoModel
 
@@ -469,8 +480,8 @@ def _stability(args) -> list[str]:
                 and smap.values.min() <= point[1] <= smap.values.max()
             )
             point = point if inside else None
-        _save(smap.plot(mark=point), args.out / f"{stem}.png", args.dpi)
-        smap.to_csv(args.out / f"{stem}.csv")
+        save_figure(smap.plot(mark=point), files, f"{stem}.png", args.dpi)
+        smap.to_csv(files.path(f"{stem}.csv"))
         written += [f"{stem}.png", f"{stem}.csv"]
         summary["maps"].append(
             {
@@ -481,5 +492,5 @@ def _stability(args) -> list[str]:
                 "boundary": smap.boundary(),
             }
         )
-    _write_json(args.out / "stability.json", summary)
+    write_json(files, "stability.json", summary)
     return [*written, "stability.json"]

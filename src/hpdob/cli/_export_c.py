@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ._design import add_design_arguments, design_from_args
+from ._options import output_path
 
 __all__ = ["register"]
 
@@ -31,8 +32,15 @@ def register(subparsers) -> None:
         help="scalar type, 'double' or 'float' (default: %(default)s)",
     )
     out.add_argument(
+        "--nan-guard",
+        action="store_true",
+        help="skip and flag samples with a non-finite input instead of letting one NaN poison "
+        "the state until <prefix>_init (see docs/deployment.md)",
+    )
+    out.add_argument(
         "-o",
         "--out",
+        type=output_path,
         default=".",
         metavar="DIR",
         help="output directory, created if missing (default: current directory)",
@@ -44,6 +52,9 @@ def _run(args: argparse.Namespace) -> int:
     from ..export._c import export_c
 
     design = design_from_args(args)
-    for path in export_c(design, args.out, prefix=args.prefix, dtype=args.dtype):
+    paths = export_c(
+        design, args.out, prefix=args.prefix, dtype=args.dtype, nan_guard=args.nan_guard
+    )
+    for path in paths:
         print(path)
     return 0

@@ -10,6 +10,7 @@ from pathlib import Path
 from ._design import _integer, _number_list
 from ._errors import CLIError
 from ._options import finite as _real
+from ._options import output_path
 
 __all__ = ["register"]
 
@@ -76,7 +77,7 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--out",
-        type=Path,
+        type=output_path,
         default=None,
         metavar="DIR",
         help="output directory (default: hpdob-results/identify-<log name>)",
@@ -140,7 +141,7 @@ def _load(args):
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
-    from .._files import atomic_path
+    from .._files import staged_outputs
     from ..identification import EMPS_PUBLISHED, IdentificationWarning
 
     log, loop = _load(args)
@@ -152,7 +153,6 @@ def _run(args: argparse.Namespace) -> int:
             min_speed=args.min_speed, axis=args.axis or log.axis,
         )  # fmt: skip
     out = args.out or Path("hpdob-results") / f"identify-{Path(log.source).stem}"
-    out.mkdir(parents=True, exist_ok=True)
     report = result.to_dict()
     report["log"] = {
         "source": log.source,
@@ -163,21 +163,25 @@ def _run(args: argparse.Namespace) -> int:
     }
     if args.emps:
         report["published"] = dict(EMPS_PUBLISHED)
-    with atomic_path(out / "identification.json") as temporary:
-        temporary.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n")
-    result.to_csv(out / "identification.csv")
     written = ["identification.json", "identification.csv"]
-    if not args.no_plot:
-        import matplotlib
+    # Staged and renamed together, identification.json last (docs/reliability.md).
+    with staged_outputs(out, markers=["identification.json"]) as files:
+        result.to_csv(files.path("identification.csv"))
+        if not args.no_plot:
+            import matplotlib
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+            matplotlib.use("Agg")
+            import matplotlib.pyplot as plt
 
-        fig = result.plot(title=f"{result.method.upper()} on {log.source}")
-        with atomic_path(out / "identification.png") as temporary:
-            fig.savefig(temporary, dpi=150, format="png")
-        plt.close(fig)
-        written.append("identification.png")
+            fig = result.plot(title=f"{result.method.upper()} on {log.source}")
+            try:
+                files.save_figure("identification.png", fig, dpi=150)
+            finally:
+                plt.close(fig)
+            written.append("identification.png")
+        files.write_text(
+            "identification.json", json.dumps(report, indent=2, allow_nan=False) + "\n"
+        )
     print(f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s")
     print(result.summary())
     if args.emps:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
 from ..paper._scenario import CONTROLLER, NOMINAL, PLANT, TS
 
@@ -16,6 +17,7 @@ __all__ = [
     "add_loop_arguments",
     "add_nominal_arguments",
     "finite",
+    "output_path",
     "reject_plant_arguments",
 ]
 
@@ -29,6 +31,14 @@ def finite(text: str) -> float:
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
     return value
+
+
+def output_path(text: str) -> Path:
+    """A non-empty path (argparse type of every ``--out``): ``--out ''`` would silently mean
+    the current directory."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"expected a non-empty path, got {text!r}")
+    return Path(text)
 
 
 def add_nominal_arguments(group) -> None:

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 import time
+from pathlib import Path
+
+from ._options import output_path
 
 __all__ = ["register"]
 
@@ -20,7 +23,8 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--out",
-        default="hpdob-results",
+        type=output_path,
+        default=Path("hpdob-results"),
         metavar="DIR",
         help="output directory (default: %(default)s)",
     )

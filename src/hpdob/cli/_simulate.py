@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ._options import output_path
+
 __all__ = ["register"]
 
 
@@ -20,7 +22,7 @@ def register(subparsers) -> None:
     parser.add_argument("scenario", type=Path, help="scenario file (.toml)")
     parser.add_argument(
         "--out",
-        type=Path,
+        type=output_path,
         default=None,
         metavar="DIR",
         help="output directory (default: hpdob-results/<scenario name>)",
@@ -70,28 +72,33 @@ def _scenario(args):
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
+    from .._files import check_file_stem, staged_outputs
     from ..simulation._result import metrics_json
     from ..simulation._simulate import SimulationDivergedWarning, simulate
 
     kwargs, windows = _scenario(args)
     out = args.out or Path("hpdob-results") / args.scenario.stem
+    # The label names the output files: never a path (e.g. "../escaped") nor a hidden name.
+    stem = check_file_stem(kwargs.get("label") or args.scenario.stem, "label")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SimulationDivergedWarning)  # reported below instead
         result = simulate(**kwargs)
-    out.mkdir(parents=True, exist_ok=True)
-    stem = result.label or args.scenario.stem
-    result.to_csv(out / f"{stem}.csv")
     metrics = result.metrics(**windows)
-    (out / "metrics.json").write_text(metrics_json({stem: metrics}))
-    if not args.no_plot:
-        import matplotlib
+    # Staged: renamed together when all are written, metrics.json last (docs/reliability.md).
+    with staged_outputs(out, markers=["metrics.json"]) as files:
+        result.to_csv(files.path(f"{stem}.csv"))
+        if not args.no_plot:
+            import matplotlib
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+            matplotlib.use("Agg")
+            import matplotlib.pyplot as plt
 
-        fig = result.plot()
-        fig.savefig(out / f"{stem}.png", dpi=150)
-        plt.close(fig)
+            fig = result.plot()
+            try:
+                files.save_figure(f"{stem}.png", fig, dpi=150)
+            finally:
+                plt.close(fig)
+        files.write_text("metrics.json", metrics_json({stem: metrics}))
     for name, value in metrics.items():
         print(f"{name:<32}{value:.6e}")
     print(f"wrote {stem}.csv, metrics.json{'' if args.no_plot else f', {stem}.png'} to {out}")

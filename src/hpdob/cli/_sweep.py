@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 
 from ._errors import CLIError
+from ._options import output_path
 
 __all__ = ["register"]
 
@@ -23,7 +24,11 @@ def register(subparsers) -> None:
     )
     parser.add_argument("spec", type=Path, help="sweep spec (.toml)")
     parser.add_argument(
-        "--out", type=Path, required=True, metavar="FILE", help="results file: .parquet or .csv"
+        "--out",
+        type=output_path,
+        required=True,
+        metavar="FILE",
+        help="results file: .parquet or .csv",
     )
     where = parser.add_mutually_exclusive_group()
     where.add_argument(
@@ -44,20 +49,24 @@ def register(subparsers) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from .._files import atomic_path
     from ..simulation._scenario import load_sweep
     from ..simulation._sweep import sweep
 
     if args.out.suffix not in FORMATS:
         raise CLIError(f"--out must end in {' or '.join(FORMATS)}, got {str(args.out)!r}")
+    if args.out.is_dir():
+        raise CLIError(f"--out must be a file, got the directory {str(args.out)!r}")
     base, options = load_sweep(args.spec)
     start = time.perf_counter()
     rows = sweep(base, **options, scheduler=args.scheduler or args.workers)
     elapsed = time.perf_counter() - start
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    if args.out.suffix == ".parquet":
-        rows.to_parquet(args.out, index=False)
-    else:
-        rows.to_csv(args.out, index=False)
+    with atomic_path(args.out) as temporary:  # a reader never sees a truncated table
+        if args.out.suffix == ".parquet":
+            rows.to_parquet(temporary, index=False)
+        else:
+            rows.to_csv(temporary, index=False)
     stable = int(rows["stable"].sum())
     print(
         f"{len(rows)} scenarios ({stable} stable, {len(rows) - stable} diverged or invalid) "

@@ -15,10 +15,14 @@ import re
 import struct
 from pathlib import Path
 
+import numpy as np
+
+from .._files import staged_outputs
 from .._validation import ParameterTypeError, ParameterValueError, check_choice
 from .._version import __version__
 from ..observers._program import RESET_OPERANDS, render_sum
 from ..observers._system import UNITS, LinearObserver, as_system
+from ._c_guard import guard_header, guard_helpers, guarded_init, guarded_output, guarded_update
 
 __all__ = ["export_c", "render_c"]
 
@@ -28,6 +32,15 @@ DTYPES = ("double", "float")
 #: C99 (5.2.4.1) guarantees for external identifiers.
 MAX_PREFIX = 31 - len("_estimate")
 _IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
+#: The standard headers of C99 (7.1.2) and C11: a prefix equal to one of them (in any case, for
+#: case-insensitive file systems) would write e.g. ``math.h`` and shadow the system header for
+#: every file of the firmware compiled with ``-I`` on the output directory.
+STANDARD_HEADERS = (
+    "assert", "complex", "ctype", "errno", "fenv", "float", "inttypes", "iso646", "limits",
+    "locale", "math", "setjmp", "signal", "stdarg", "stdbool", "stddef", "stdint", "stdio",
+    "stdlib", "string", "tgmath", "time", "wchar", "wctype",
+    "stdalign", "stdatomic", "stdnoreturn", "threads", "uchar",
+)  # fmt: skip
 
 
 def _check_prefix(prefix) -> str:
@@ -40,6 +53,11 @@ def _check_prefix(prefix) -> str:
         raise ParameterValueError(
             "prefix must be a C identifier starting with a letter (letters, digits and "
             f"underscores only, e.g. 'dob' or 'axis1_dob'), got {prefix!r}"
+        )
+    if prefix.lower() in STANDARD_HEADERS:
+        raise ParameterValueError(
+            f"prefix {prefix!r} would write {prefix}.h, which shadows the C standard header "
+            f"<{prefix.lower()}.h>; choose another prefix, e.g. 'dob' or '{prefix}_dob'"
         )
     if len(prefix) > MAX_PREFIX:
         raise ParameterValueError(
@@ -122,7 +140,7 @@ def _state_note(system: LinearObserver) -> str:
     return " (z_(i+1) of the paper's auxiliary variables)" if _paper_form(system) else ""
 
 
-def _header(system: LinearObserver, prefix: str, dtype: str) -> str:
+def _header(system: LinearObserver, prefix: str, dtype: str, guard: bool = False) -> str:
     up = prefix.upper()
     n = system.n_states
     meas = ", ".join(system.measures)
@@ -133,6 +151,8 @@ def _header(system: LinearObserver, prefix: str, dtype: str) -> str:
     ]
     info.append(("measures", meas))
     info.append(("scalar type", dtype))
+    if guard:
+        info.append(("NaN guard", "on: non-finite inputs are skipped and flagged"))
     width = max(len(key) for key, _ in info) + 1
     design = "\n".join(f" *   {key:<{width}}{value}" for key, value in info)
     args = ", ".join(system.measures)
@@ -157,13 +177,17 @@ def _header(system: LinearObserver, prefix: str, dtype: str) -> str:
             f"#define {up}_ORDER {system.truncation_order}\n"
         )
     meas_doc = ", ".join(f"{m} [{UNITS[m]}]" for m in system.measures)
+    const = "" if guard else "const "
     velocity_decl = ""
     if system.has_velocity:
         velocity_decl = (
             f"\n/** Velocity estimate omega_hat_k [rad/s] from the measured {meas_doc}. */\n"
-            f"{dtype} {prefix}_velocity(const {prefix}_state *s, "
+            f"{dtype} {prefix}_velocity({const}{prefix}_state *s, "
             f"{_signature(system, dtype, with_u=False)});\n"
         )
+    guard_fields = guard_doc = guard_define = ""
+    if guard:
+        guard_fields, guard_doc, guard_define = guard_header(prefix, dtype, len(system.outputs))
     return f"""\
 /*
  * {prefix}.h -- disturbance observer exported by hpdob {__version__} (hpdob.export_c).
@@ -177,7 +201,7 @@ def _header(system: LinearObserver, prefix: str, dtype: str) -> str:
  * Call {prefix}_init(&s, theta0, omega0, tau0) once before the first sample: it sets the
  * state a constant disturbance tau0 [N m] at rest in (theta0, omega0) would give.
  *
- * No dynamic memory, no I/O, no library calls: plain C99 arithmetic on {dtype}.
+{guard_doc} * No dynamic memory, no I/O, no library calls: plain C99 arithmetic on {dtype}.
  */
 #ifndef {up}_H
 #define {up}_H
@@ -191,19 +215,19 @@ typedef {dtype} {prefix}_real;
 
 {order}/** Number of states of the observer. */
 #define {up}_STATES {n}
-/** Sampling period Ts [s] the observer was designed for. */
+{guard_define}/** Sampling period Ts [s] the observer was designed for. */
 #define {up}_TS {_literal(system.Ts, dtype, "Ts")}
 
 /** Observer state: z[i] is state s_(i+1) of the observer (docs/theory.md). */
 typedef struct {{
     {dtype} z[{n}];
-}} {prefix}_state;
+{guard_fields}}} {prefix}_state;
 
 /** Reset to the state of a constant disturbance tau0 [N m] at rest in theta0, omega0. */
 void {prefix}_init({prefix}_state *s, {dtype} theta0, {dtype} omega0, {dtype} tau0);
 
 /** Disturbance estimate tau_hat_k [N m] from the measured {meas_doc}. */
-{dtype} {prefix}_estimate(const {prefix}_state *s, {_signature(system, dtype, with_u=False)});
+{dtype} {prefix}_estimate({const}{prefix}_state *s, {_signature(system, dtype, with_u=False)});
 {velocity_decl}
 /** Advance to sample k+1 with the same measurement and the torque u_k [N m] applied. */
 void {prefix}_update({prefix}_state *s, {_signature(system, dtype, with_u=True)});
@@ -232,16 +256,22 @@ def _constants(system: LinearObserver, dtype: str, code: str) -> list[str]:
     return lines
 
 
-def _source(system: LinearObserver, prefix: str, dtype: str) -> str:
+def _source(system: LinearObserver, prefix: str, dtype: str, guard: bool = False) -> str:
     program = system.program
     n = system.n_states
     z = [f"z{i + 1}" for i in range(n)]
     operands = [*z, *system.measures, "u"]
+    zero = _literal(0.0, dtype, "0")
+
     init_rows = [
-        f"    s->z[{i}] = {_expression(row, RESET_OPERANDS, dtype)};"
+        f"    {'next' if guard else 's->z'}[{i}] = {_expression(row, RESET_OPERANDS, dtype)};"
         for i, row in enumerate(program.reset)
     ]
-    init = "\n".join(_unused(list(RESET_OPERANDS), "\n".join(init_rows)) + init_rows)
+    if guard:
+        init = guarded_init(prefix, dtype, n, init_rows, RESET_OPERANDS, zero,
+                            velocity=system.has_velocity)  # fmt: skip
+    else:
+        init = "\n".join(_unused(list(RESET_OPERANDS), "\n".join(init_rows)) + init_rows)
 
     def reads(body):
         return [
@@ -253,24 +283,33 @@ def _source(system: LinearObserver, prefix: str, dtype: str) -> str:
     direct = [f"s->z[{i}]" for i in range(n)] + operands[n:]  # outputs read the state in place
 
     def output_body(r):
-        line = f"    return {_expression(program.output[r], direct, dtype)};"
+        expression = _expression(program.output[r], direct, dtype)
+        if guard:
+            return guarded_output(prefix, dtype, expression, system.measures, r)
+        line = f"    return {expression};"
         return "\n".join([*_unused(list(system.measures), line), line])
 
     est = output_body(0)
+    target = "next" if guard else "s->z"
     rows = [
-        f"    s->z[{i}] = {_expression(row, operands, dtype)};"
+        f"    {target}[{i}] = {_expression(row, operands, dtype)};"
         for i, row in enumerate(program.update)
     ]
     body = "\n".join(rows)
-    upd = "\n".join([*reads(body), *_unused([*system.measures, "u"], body), *rows])
+    if guard:
+        upd = guarded_update(prefix, dtype, n, reads(body), rows, system.measures)
+    else:
+        upd = "\n".join([*reads(body), *_unused([*system.measures, "u"], body), *rows])
+    const = "" if guard else "const "
     velocity = ""
     if system.has_velocity:
         velocity = f"""
-{dtype} {prefix}_velocity(const {prefix}_state *s, {_signature(system, dtype, with_u=False)})
+{dtype} {prefix}_velocity({const}{prefix}_state *s, {_signature(system, dtype, with_u=False)})
 {{
 {output_body(1)}
 }}
 """
+    helpers = guard_helpers(prefix, dtype, n) if guard else ""
     constants = "\n".join(_constants(system, dtype, init + est + upd + velocity))
     recursion = (
         " * Recursion (docs/theory.md, paper eqs. 11/13 for order 0, 20/21/23 for order 1):\n"
@@ -293,13 +332,13 @@ def _source(system: LinearObserver, prefix: str, dtype: str) -> str:
 #include "{prefix}.h"
 
 {constants}
-
+{helpers}
 void {prefix}_init({prefix}_state *s, {dtype} theta0, {dtype} omega0, {dtype} tau0)
 {{
 {init}
 }}
 
-{dtype} {prefix}_estimate(const {prefix}_state *s, {_signature(system, dtype, with_u=False)})
+{dtype} {prefix}_estimate({const}{prefix}_state *s, {_signature(system, dtype, with_u=False)})
 {{
 {est}
 }}
@@ -311,15 +350,28 @@ void {prefix}_update({prefix}_state *s, {_signature(system, dtype, with_u=True)}
 """
 
 
-def render_c(obs, *, prefix: str = "dob", dtype: str = "double") -> tuple[str, str]:
+def _check_guard(nan_guard) -> bool:
+    if not isinstance(nan_guard, (bool, np.bool_)):
+        raise ParameterTypeError(
+            f"nan_guard must be True or False, got {nan_guard!r} of type {type(nan_guard).__name__}"
+        )
+    return bool(nan_guard)
+
+
+def render_c(
+    obs, *, prefix: str = "dob", dtype: str = "double", nan_guard: bool = False
+) -> tuple[str, str]:
     """Text of ``<prefix>.h`` and ``<prefix>.c`` for ``obs``; see :func:`export_c`."""
     system = as_system(obs, "obs")
     dtype = check_choice(dtype, "dtype", DTYPES)
     prefix = _check_prefix(prefix)
-    return _header(system, prefix, dtype), _source(system, prefix, dtype)
+    guard = _check_guard(nan_guard)
+    return _header(system, prefix, dtype, guard), _source(system, prefix, dtype, guard)
 
 
-def export_c(obs, directory, *, prefix: str = "dob", dtype: str = "double") -> tuple[Path, Path]:
+def export_c(
+    obs, directory, *, prefix: str = "dob", dtype: str = "double", nan_guard: bool = False
+) -> tuple[Path, Path]:
     r"""Write the observer as dependency-free C99: ``<prefix>.h`` and ``<prefix>.c``.
 
     The header declares, with ``T`` the chosen ``dtype``::
@@ -393,13 +445,16 @@ def export_c(obs, directory, *, prefix: str = "dob", dtype: str = "double") -> t
     axis1.h axis1.c
     True
     """
-    system = as_system(obs, "obs")
-    dtype = check_choice(dtype, "dtype", DTYPES)
-    prefix = _check_prefix(prefix)
     path = _check_directory(directory)
-    header, source = _header(system, prefix, dtype), _source(system, prefix, dtype)
-    path.mkdir(parents=True, exist_ok=True)
-    written = (path / f"{prefix}.h", path / f"{prefix}.c")
-    for target, text in zip(written, (header, source), strict=True):
-        target.write_text(text, encoding="ascii")
-    return written
+    header, source = render_c(obs, prefix=prefix, dtype=dtype, nan_guard=nan_guard)
+    names = (f"{prefix}.h", f"{prefix}.c")
+    for name in names:  # refused before anything is written, the other file untouched
+        if (path / name).is_dir():
+            raise ParameterValueError(
+                f"cannot write {str(path / name)!r}: it is an existing directory (nothing written)"
+            )
+    # Both files are staged and renamed together: a failure leaves the previous pair.
+    with staged_outputs(path) as files:
+        for name, text in zip(names, (header, source), strict=True):
+            files.write_text(name, text, encoding="ascii")
+    return path / names[0], path / names[1]

@@ -56,7 +56,24 @@ def _missing(path: Path, wanted: dict[str, str], available) -> None:
             )
 
 
+def _one_line(err: Exception) -> str:
+    """A library's error message on one line (pyarrow's end in a newline, some span several)."""
+    return " ".join(str(err).split())
+
+
 def _read_csv(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
+    try:
+        return _parse_csv(path, wanted)
+    except UnicodeDecodeError as err:
+        raise ParameterValueError(
+            f"{path.name} is not UTF-8 text (byte {err.start} is "
+            f"{err.object[err.start : err.start + 1]!r}): save the log as UTF-8 CSV"
+        ) from None
+    except csv.Error as err:  # e.g. a field over the csv module's limit (131072 characters)
+        raise ParameterValueError(f"cannot read {path.name} as CSV: {_one_line(err)}") from None
+
+
+def _parse_csv(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
     with path.open(newline="", encoding="utf-8-sig") as handle:
         first = handle.readline()
         delimiter = max(",;\t", key=first.count) if first.strip() else ","
@@ -99,7 +116,7 @@ def _read_parquet(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
     try:
         schema = pq.read_schema(path)
     except Exception as err:  # pyarrow raises its own exception types
-        raise ParameterValueError(f"cannot read {path.name} as Parquet: {err}") from err
+        raise ParameterValueError(f"cannot read {path.name} as Parquet: {_one_line(err)}") from err
     _missing(path, wanted, schema.names)
     table = pq.read_table(path, columns=list(dict.fromkeys(wanted.values())))
     out = {}
@@ -125,7 +142,9 @@ def _read_mat(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
             "with save(..., '-v7') or export the signals to CSV or Parquet"
         ) from err
     except (ValueError, TypeError, OSError) as err:
-        raise ParameterValueError(f"cannot read {path.name} as a MATLAB file: {err}") from err
+        raise ParameterValueError(
+            f"cannot read {path.name} as a MATLAB file: {_one_line(err)}"
+        ) from err
     variables = {key: value for key, value in data.items() if not key.startswith("__")}
     _missing(path, wanted, variables)
     out = {}

@@ -264,9 +264,7 @@ class Identification:
 
     def to_csv(self, path):
         """Write the fit (columns t, u, u_model, residual on the regression rows) as CSV."""
-        with atomic_path(path) as temporary:
-            columns_to_csv(self._columns(), temporary)
-        return path
+        return columns_to_csv(self._columns(), path)  # atomic
 
     def to_pandas(self):
         """The fit as a :class:`pandas.DataFrame` (columns t, u, u_model, residual)."""

@@ -250,6 +250,12 @@ class DiscreteServoModel:
         decay, phi1, phi2 = _zoh_phi(alpha)
         A = np.array([[1.0, Ts * phi1], [0.0, decay]])
         B = np.array([Ts * Ts * phi2 / model.J, Ts * phi1 / model.J])
+        if not (np.all(np.isfinite(B)) and B[1] > 0.0):
+            raise ParameterValueError(
+                f"the ratio Ts/J = {Ts!r} s / {model.J!r} kg m^2 is beyond the float range: the "
+                f"discrete input vector B_D = D_D = [Ts^2 phi_2/J, Ts phi_1/J] is {B.tolist()} "
+                f"(J={model.J!r}, Ts={Ts!r}); use SI units with J and Ts of a realistic scale"
+            )
         object.__setattr__(self, "Ts", Ts)
         object.__setattr__(self, "A", readonly(A))
         object.__setattr__(self, "B", readonly(B))

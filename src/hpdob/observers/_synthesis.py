@@ -44,6 +44,7 @@ from ._error_dynamics import (
     unit_root_polynomial,
 )
 from ._program import Program, Term
+from ._realised import POLE_TOLERANCE, finite_gains, position_tolerance, realised_poles
 from ._system import MEASUREMENTS, ErrorDynamics, LinearObserver
 
 __all__ = [
@@ -99,7 +100,7 @@ def _validate_poles(poles, count: int, label: str, order: int) -> np.ndarray:
 
 
 def _show_k(k: np.ndarray) -> str:
-    return np.array2string(np.asarray(k), threshold=6, precision=6)
+    return np.array2string(np.asarray(k), threshold=6, precision=6, max_line_width=1_000_000)
 
 
 def _fmt_pole(p: complex) -> str:
@@ -141,6 +142,8 @@ class ObserverDesign:
         ``F = M``, ``G = [K_x, K_u]``, ``H = e_{m+1}^T``, ``E = [-L_{m+1}^T, 0]``,
         ``N = [G, 1]``, with the companion structure kept in its program (unit shifts and
         integer extrapolation weights as exact terms; see :func:`structured_program`).
+    realised_poles : ndarray, shape (order + 1,)
+        The poles the gains rounded to doubles really place, paired with ``poles``.
     """
 
     model: DiscreteServoModel
@@ -154,6 +157,7 @@ class ObserverDesign:
     state_input: np.ndarray
     control_input: np.ndarray
     system: LinearObserver = field(repr=False)
+    realised_poles: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def state_matrix(self) -> np.ndarray:
@@ -192,6 +196,7 @@ def design_observer(
     measurement: str = "state",
     velocity_bandwidth: float | None = None,
     gain_direction=None,
+    pole_tolerance: float | None = POLE_TOLERANCE,
 ):
     r"""Synthesise an observer of truncation order ``order`` by eigenvalue placement.
 
@@ -228,6 +233,8 @@ def design_observer(
         ``measurement="state"`` only. Direction ``d`` of the gain vectors,
         ``L_i = k_i d / (d^T D_Dn)``. The default ``(1, 1)`` is the paper's eq. (25).
         ``(0, 1)`` makes the estimate independent of the absolute position.
+    pole_tolerance : float or None, optional
+        State only: refuse realised poles beyond ``pole_tolerance (1 - |p|)`` (0.05; None: off).
 
     Returns
     -------
@@ -246,7 +253,8 @@ def design_observer(
         one of the two, ``velocity_bandwidth`` or ``gain_direction`` is given where it does not
         apply, ``order > 50``, or the error matrix is not stable although the requested
         poles are (high orders or repeated poles very close to 1: the gains, rounded to
-        double precision, no longer place them; decided exactly by a Schur-Cohn test).
+        double precision, no longer place them; decided exactly by a Schur-Cohn test), or a
+        realised pole is off by more than ``pole_tolerance``.
 
     Notes
     -----
@@ -294,6 +302,7 @@ def design_observer(
         )
     check_choice(measurement, "measurement", MEASUREMENTS)
     if measurement == "position":
+        position_tolerance(pole_tolerance)
         if gain_direction is not None:
             raise ParameterValueError(
                 "gain_direction applies to measurement='state' only (a position-only "
@@ -344,7 +353,7 @@ def design_observer(
     rhs = desired[::-1][: m + 1] - unit_root_polynomial(m)[: m + 1]
     k = np.linalg.solve(characteristic_basis(m), rhs)
 
-    G = np.outer(k, unit / dD)
+    G = finite_gains(k, unit, dD, model)
     M = error_matrix(k)
     if not schur_stable(k):
         asked = f"bandwidth={g_out!r} rad/s" if g_out is not None else f"poles={_show(poles)}"
@@ -386,6 +395,7 @@ def design_observer(
         state_input=readonly(Kx),
         control_input=readonly(Ku),
         system=system,
+        realised_poles=readonly(realised_poles(k, placed, pole_tolerance, g_out, poles)),
     )
 
 

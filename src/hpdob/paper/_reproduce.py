@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from .._files import staged_outputs
 from ..simulation._result import metrics_json
 from ._scenario import RUNS, run
 
@@ -32,7 +33,9 @@ def reproduce(out_dir="hpdob-results", *, figures: bool = True) -> dict:
 
     Writes ``fig2.png`` ... ``fig5.png`` (and ``.pdf``), ``traces/<run>.csv`` and
     ``metrics.json`` ``{"PD": {...}, "DOb-50": {...}, ..., "virtual-experiment": {...},
-    "virtual-experiment-position": {...}}``.
+    "virtual-experiment-position": {...}}``. The files are written to temporary names and
+    renamed when all are complete, ``metrics.json`` last: a failed or interrupted call leaves
+    the previous complete set, or files without ``metrics.json`` (``docs/reliability.md``).
 
     Returns
     -------
@@ -40,22 +43,26 @@ def reproduce(out_dir="hpdob-results", *, figures: bool = True) -> dict:
         ``{run name: SimulationResult}``.
     """
     out = Path(out_dir)
-    (out / "traces").mkdir(parents=True, exist_ok=True)
     results = {name: run(name) for name in RUNS}
     metrics = {name: res.metrics() for name, res in results.items()}
-    for name, res in results.items():
-        res.to_csv(out / "traces" / f"{name}.csv")
-    (out / "metrics.json").write_text(metrics_json(metrics))
-    if figures:
-        import matplotlib
+    # Every file is staged and renamed when all are complete, metrics.json last: an
+    # interrupted or failed run leaves the previous complete set or no metrics.json.
+    with staged_outputs(out, markers=["metrics.json"]) as files:
+        for name, res in results.items():
+            res.to_csv(files.path(f"traces/{name}.csv"))
+        if figures:
+            import matplotlib
 
-        matplotlib.use("Agg")  # files only; never needs a display
-        import matplotlib.pyplot as plt
+            matplotlib.use("Agg")  # files only; never needs a display
+            import matplotlib.pyplot as plt
 
-        from ._figures import paper_figures
+            from ._figures import paper_figures
 
-        for name, fig in paper_figures(results).items():
-            fig.savefig(out / f"{name}.png", dpi=200)
-            fig.savefig(out / f"{name}.pdf")
-            plt.close(fig)
+            for name, fig in paper_figures(results).items():
+                try:
+                    files.save_figure(f"{name}.png", fig, dpi=200)
+                    files.save_figure(f"{name}.pdf", fig)
+                finally:
+                    plt.close(fig)
+        files.write_text("metrics.json", metrics_json(metrics))
     return results

@@ -56,6 +56,7 @@ class Encoder:
                 "counts_per_rev",
                 "a positive integer number of counts",
                 minimum=1,
+                maximum=2**53,  # exactly representable: resolution is 2 pi / counts_per_rev
             ),
         )
         check_choice(self.velocity, "velocity", VELOCITY_METHODS)

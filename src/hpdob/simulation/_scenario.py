@@ -253,15 +253,28 @@ def _plant(table: dict):
 
 def _read_toml(path: Path) -> dict:
     try:
-        text = path.read_text()
+        data = path.read_bytes()
     except OSError as err:
         raise ParameterValueError(
             f"cannot read scenario file {str(path)!r}: {err.strerror}"
         ) from None
     try:
+        text = data.decode("utf-8-sig")  # TOML is UTF-8 (a byte-order mark is tolerated)
+    except UnicodeDecodeError as err:
+        utf16 = data[:2] in (b"\xff\xfe", b"\xfe\xff")
+        raise ParameterValueError(
+            f"{path} is not UTF-8 text ({'it looks like UTF-16; ' if utf16 else ''}byte "
+            f"{err.start} is {data[err.start : err.start + 1]!r}): TOML files must be saved as "
+            f"UTF-8"
+        ) from None
+    try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise ParameterValueError(f"{path} is not valid TOML: {err}") from None
+    except RecursionError:
+        raise ParameterValueError(
+            f"{path} nests tables or arrays too deeply to be a scenario"
+        ) from None
 
 
 def load_sweep(path) -> tuple[dict, dict]:

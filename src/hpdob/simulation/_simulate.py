@@ -72,7 +72,13 @@ def check_run_arguments(Ts, duration, substeps=None, x0=(0.0, 0.0)):
 
 
 def _sample_count(Ts: float, duration: float) -> int:
-    n = round(duration / Ts)
+    ratio = duration / Ts
+    if not ratio <= MAX_PLANT_STEPS:  # also inf: duration/Ts beyond the float range
+        raise ParameterValueError(
+            f"duration/Ts = {duration!r} s / {Ts!r} s = {ratio:.3g} samples exceeds the limit "
+            f"of {MAX_PLANT_STEPS:.0e} per run; shorten duration or raise Ts"
+        )
+    n = round(ratio)
     if n < 1 or abs(n * Ts - duration) > 1e-9 * duration:
         raise ParameterValueError(
             f"duration must be a positive multiple of Ts={Ts!r} s, got "
@@ -83,7 +89,10 @@ def _sample_count(Ts: float, duration: float) -> int:
 
 def _call(function, t: np.ndarray, name: str):
     try:
-        return function(t)
+        # floating-point overflow shows up as a non-finite sample, reported with its time by
+        # _as_samples: numpy's RuntimeWarning on top of that would only add lines
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            return function(t)
     except (ParameterValueError, ParameterTypeError):
         raise
     except Exception as err:
@@ -94,7 +103,17 @@ def _call(function, t: np.ndarray, name: str):
 
 def _as_samples(values, t: np.ndarray, name: str) -> np.ndarray:
     try:
-        values = np.asarray(values, dtype=float)
+        raw = np.asarray(values)
+    except (TypeError, ValueError):
+        raw = None
+    if raw is not None and raw.dtype.kind == "c":  # a cast would drop the imaginary part
+        raise ParameterValueError(
+            f"{name} must be real-valued, got complex values of dtype {raw.dtype.name}"
+        )
+    try:
+        values = np.asarray(raw if raw is not None else values, dtype=float)
+    except OverflowError:  # an object array holding an int beyond the float range
+        raise ParameterValueError(f"{name} has a value beyond the float range") from None
     except (TypeError, ValueError):
         raise ParameterValueError(
             f"{name} must be an array of numbers, got {type(values).__name__}"

@@ -11,7 +11,8 @@ from __future__ import annotations
 import math
 import os
 import sys
-from concurrent.futures import ThreadPoolExecutor, as_completed
+import threading
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
 import numpy as np
 
@@ -119,8 +120,29 @@ def _metric_windows(windows) -> dict:
     return resolved
 
 
-def scenario_loop(base: dict, params: dict) -> ServoLoop:
-    """The validated loop of one scenario (raises Parameter*Error on bad values)."""
+def _frozen(value):
+    """``value`` as a hashable key (lists and arrays become tuples), or None if it is not."""
+    if isinstance(value, dict):
+        items = tuple((k, _frozen(v)) for k, v in sorted(value.items(), key=lambda kv: str(kv[0])))
+        return None if any(v is None for _, v in items) else items
+    if isinstance(value, (list, tuple, np.ndarray)):
+        items = tuple(
+            _frozen(v) for v in (value.tolist() if isinstance(value, np.ndarray) else value)
+        )
+        return None if any(v is None for v in items) else items
+    try:
+        hash(value)
+    except TypeError:
+        return None
+    return (type(value).__name__, value)
+
+
+def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoLoop:
+    """The validated loop of one scenario (raises Parameter*Error on bad values).
+
+    ``cache`` (a dict) keeps the observer designs of a chunk: scenarios that vary only the
+    plant, the gains or the disturbance share one design (designs are immutable).
+    """
 
     def sub(prefix):
         return {k[len(prefix) :]: v for k, v in params.items() if k.startswith(prefix)}
@@ -157,7 +179,14 @@ def scenario_loop(base: dict, params: dict) -> ServoLoop:
                 )
         nominal = changes.get("nominal", loop.nominal)
         Ts = changes.get("Ts", loop.Ts)
-        changes["observer"] = design_from_spec(nominal.discretize(Ts), spec)
+        key = _frozen({"spec": spec, "nominal": nominal, "Ts": Ts})
+        key = None if key is None or cache is None else ("design", key)
+        design = None if key is None else cache.get(key)
+        if design is None:
+            design = design_from_spec(nominal.discretize(Ts), spec)
+            if key is not None:
+                cache[key] = design
+        changes["observer"] = design
     elif sub("observer."):
         raise ParameterValueError(
             "observer.* parameters need base['observer'] as a dict of design arguments (or a "
@@ -176,7 +205,7 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
     """
     row = dict(params)
     try:
-        loop = scenario_loop(base, params)
+        loop = scenario_loop(base, params, cache)
         S = loop.plant.substeps(loop.Ts, base["substeps"])
         n = _sample_count(loop.Ts, base["duration"])
         x0 = np.array(base["x0"])  # checked once in _resolve_base
@@ -200,10 +229,23 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
     return row
 
 
-def run_chunk(base: dict, chunk: list) -> list:
-    """Rows of ``chunk``, a list of ``(index, params)``; runs anywhere (local or a worker)."""
+class SweepCancelled(Exception):
+    """Raised inside a local chunk when the sweep was cancelled (e.g. by Ctrl-C)."""
+
+
+def run_chunk(base: dict, chunk: list, stop: threading.Event | None = None) -> list:
+    """Rows of ``chunk``, a list of ``(index, params)``; runs anywhere (local or a worker).
+
+    ``stop`` (local runs): checked before every scenario, so a cancelled sweep ends within one
+    scenario instead of one chunk.
+    """
     cache: dict = {}
-    return [{"scenario": index, **run_scenario(base, params, cache)} for index, params in chunk]
+    rows = []
+    for index, params in chunk:
+        if stop is not None and stop.is_set():
+            raise SweepCancelled
+        rows.append({"scenario": index, **run_scenario(base, params, cache)})
+    return rows
 
 
 def _chunks(scenarios: list, workers: int) -> list:
@@ -211,6 +253,15 @@ def _chunks(scenarios: list, workers: int) -> list:
     indexed = list(enumerate(scenarios))
     size = max(1, min(64, math.ceil(len(indexed) / (8 * max(workers, 1)))))
     return [indexed[i : i + size] for i in range(0, len(indexed), size)]
+
+
+def _check_progress(progress):
+    if progress is None or isinstance(progress, (bool, np.bool_)) or callable(progress):
+        return progress
+    raise ParameterTypeError(
+        f"progress must be None, True, False or a callable progress(done, total), got "
+        f"{progress!r} of type {type(progress).__name__}"
+    )
 
 
 def _progress_callback(progress, total: int):
@@ -234,13 +285,39 @@ def _progress_callback(progress, total: int):
 
 
 def _run_local(base, chunks, workers, update) -> list:
+    """Run the chunks on ``workers`` threads (the kernel releases the GIL).
+
+    Chunks are submitted lazily, at most two per worker in flight, so that an interrupt
+    (KeyboardInterrupt in the main thread) or a failure leaves little to cancel: pending
+    chunks are cancelled, running ones stop before their next scenario, and the call returns
+    (re-raising) without waiting for the rest of the sweep.
+    """
     rows = []
-    with ThreadPoolExecutor(max_workers=workers) as pool:  # the kernel releases the GIL
-        futures = [pool.submit(run_chunk, base, chunk) for chunk in chunks]
-        for future in as_completed(futures):
-            chunk_rows = future.result()
-            rows.extend(chunk_rows)
-            update(len(chunk_rows))
+    stop = threading.Event()
+    pending = iter(chunks)
+    pool = ThreadPoolExecutor(max_workers=workers)
+    running = set()
+    try:
+        for chunk in pending:
+            running.add(pool.submit(run_chunk, base, chunk, stop))
+            if len(running) >= 2 * workers:
+                break
+        while running:
+            done, running = wait(running, return_when=FIRST_COMPLETED)
+            for future in done:
+                chunk_rows = future.result()
+                rows.extend(chunk_rows)
+                update(len(chunk_rows))
+                chunk = next(pending, None)
+                if chunk is not None:
+                    running.add(pool.submit(run_chunk, base, chunk, stop))
+    except BaseException:
+        stop.set()
+        for future in running:
+            future.cancel()
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
     return rows
 
 
@@ -262,10 +339,14 @@ def _run_dask(base, scenarios, scheduler, update) -> list:
         # pure=False: never reuse results across sweeps; retries also covers transient failures.
         futures = [client.submit(run_chunk, base, chunk, pure=False, retries=3) for chunk in chunks]
         rows = []
-        for future in dask_completed(futures):
-            chunk_rows = future.result()
-            rows.extend(chunk_rows)
-            update(len(chunk_rows))
+        try:
+            for future in dask_completed(futures):
+                chunk_rows = future.result()
+                rows.extend(chunk_rows)
+                update(len(chunk_rows))
+        except BaseException:  # an interrupt or a failure: nothing more may run for us
+            client.cancel(futures)
+            raise
         return rows
     finally:
         if own:
@@ -392,6 +473,7 @@ def sweep(
     resolved["metric_windows"] = _metric_windows(metric_windows)
     scenarios = expand_scenarios(grid, vary, n, seed)
     workers, mode = _workers_and_mode(scheduler)
+    progress = _check_progress(progress)
     # Validate the shared part once, loudly, before spending time on scenarios.
     scenario_loop(resolved, {})
     sample_signals(

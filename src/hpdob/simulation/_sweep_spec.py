@@ -9,7 +9,10 @@ import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, as_int, as_real, check_choice
 
-__all__ = ["DISTRIBUTIONS", "PATHS", "expand_scenarios"]
+__all__ = ["DISTRIBUTIONS", "MAX_SCENARIOS", "PATHS", "expand_scenarios"]
+
+#: Most scenarios one sweep may expand to (rows and draws are held in memory): checked up front.
+MAX_SCENARIOS = 1_000_000
 
 #: Parameters a sweep can vary (dotted paths into :func:`hpdob.simulate`'s arguments).
 PATHS = (
@@ -112,6 +115,13 @@ def expand_scenarios(grid=None, vary=None, n=None, seed=0) -> list[dict]:
             )
     seed = as_int(seed, "seed", "a non-negative integer seed", minimum=0)
     axes = {path: _grid_values(path, values) for path, values in grid.items()}
+    count = math.prod(len(values) for values in axes.values()) * (n or 1)
+    if count > MAX_SCENARIOS:
+        sizes = " x ".join([str(len(v)) for v in axes.values()] + ([f"n={n}"] if n else []))
+        raise ParameterValueError(
+            f"the sweep has {sizes} = {count:.3g} scenarios; at most {MAX_SCENARIOS} are "
+            f"supported per sweep (split it into several sweeps)"
+        )
     rng = np.random.default_rng(seed)
     draws = {path: _draw(path, vary[path], n, rng) for path in sorted(vary)}
     scenarios = []

@@ -197,6 +197,12 @@ def _as_trace(theta, omega, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return arrays[0], arrays[1], arrays[2]
 
 
+def _outputs(observer) -> tuple:
+    from ..observers._system import as_system
+
+    return as_system(observer).outputs
+
+
 def _shape(order, observer) -> tuple[int, tuple]:
     """``(states, measures)`` of the exported observer, from ``observer`` or ``order``."""
     if observer is not None:
@@ -223,6 +229,10 @@ class CObserver:
     observer : observer-like, optional
         The exported observer; gives the number of states and what it measures. Give
         ``observer`` or ``order``.
+    nan_guard : bool, optional
+        Whether the export has the NaN guard (``export_c(..., nan_guard=True)``): its state
+        struct then also holds ``last``, ``skipped`` and ``fault`` (see :attr:`skipped`,
+        :attr:`fault`).
     build_dir : Path
         Where the drive loop and the library are written (use a fresh directory per build:
         the dynamic loader caches libraries by path).
@@ -231,7 +241,17 @@ class CObserver:
     """
 
     def __init__(
-        self, header, source, *, prefix, dtype, build_dir, order=None, observer=None, flags=None
+        self,
+        header,
+        source,
+        *,
+        prefix,
+        dtype,
+        build_dir,
+        order=None,
+        observer=None,
+        flags=None,
+        nan_guard=False,
     ):
         states, measures = _shape(order, observer)
         build_dir = Path(build_dir)
@@ -246,8 +266,15 @@ class CObserver:
         self._scalar = scalar
         p = len(measures)
 
+        outputs = 1 if observer is None else len(_outputs(observer))
+        guard_fields = [
+            ("last", scalar * outputs),
+            ("skipped", ctypes.c_uint),
+            ("fault", ctypes.c_int),
+        ]
+
         class State(ctypes.Structure):
-            _fields_ = [("z", scalar * states)]
+            _fields_ = [("z", scalar * states), *(guard_fields if nan_guard else [])]
 
         self._state = State()
         lib = ctypes.CDLL(str(self.library_path))
@@ -290,6 +317,16 @@ class CObserver:
     def state(self) -> tuple:
         """The C state ``z`` as Python floats."""
         return tuple(self._state.z)
+
+    @property
+    def skipped(self) -> int:
+        """``s.skipped`` of a NaN-guarded export: updates skipped since ``init``."""
+        return int(self._state.skipped)
+
+    @property
+    def fault(self) -> int:
+        """``s.fault`` of a NaN-guarded export: 1 if the latest call got a non-finite input."""
+        return int(self._state.fault)
 
     def drive(self, theta, omega, u, *, init=(0.0, 0.0, 0.0)):
         """Run a trace in C from ``<prefix>_init(*init)``; return ``(tau_hat, z)``.

@@ -1,0 +1,128 @@
+"""Issue 16, item 2: Ctrl-C cancels pending work, prints one line and exits with 130.
+
+Before the fix every command printed a KeyboardInterrupt traceback, and a local sweep ran to
+completion after SIGINT (the thread pool waited for every submitted chunk).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from hpdob import paper, sweep
+
+pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+
+
+def test_interrupted_local_sweep_cancels_pending_chunks(monkeypatch):
+    import hpdob.simulation._sweep as sweep_module
+
+    ran = []
+    real = sweep_module.run_scenario
+
+    def counted(*args, **kwargs):
+        ran.append(1)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(sweep_module, "run_scenario", counted)
+
+    def progress(done, total):  # Ctrl-C as soon as the first chunk is back
+        raise KeyboardInterrupt
+
+    base = {**paper.scenario(), "duration": 0.5, "observer": {"order": 1, "bandwidth": 100.0}}
+    vary = {"plant.J": ("loguniform", 1.5e-4, 6e-4)}
+    total = 2000
+    with pytest.raises(KeyboardInterrupt):
+        sweep(base, vary=vary, n=total, scheduler=2, progress=progress)
+    deadline = time.monotonic() + 30
+    while any(t.name.startswith("ThreadPoolExecutor") for t in threading.enumerate()):
+        assert time.monotonic() < deadline, "sweep threads still running after the interrupt"
+        time.sleep(0.01)
+    # chunks of 64 scenarios, at most 2 per worker in flight, each stopping between scenarios
+    assert len(ran) <= 5 * 64 < total
+
+
+def run_and_interrupt(argv, *, after: float, cwd: Path, timeout: float = 60.0):
+    """Start ``python -m hpdob argv``, send SIGINT after ``after`` seconds; return
+    ``(returncode, stderr, seconds from SIGINT to exit)``."""
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    process = subprocess.Popen(
+        [sys.executable, "-m", "hpdob", *argv],
+        cwd=cwd,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    time.sleep(after)
+    assert process.poll() is None, process.communicate()
+    sent = time.monotonic()
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=timeout)
+    return process.returncode, err, time.monotonic() - sent
+
+
+SWEEP = """\
+Ts = 1e-3
+duration = 10.0
+[plant]
+J = 3.06e-4
+b = 5e-5
+coulomb = 0.01
+[nominal]
+J = 2.8e-4
+[controller]
+kp = 50.0
+kd = 5.0
+[observer]
+order = 1
+bandwidth = 100.0
+[[reference]]
+type = "smooth_step"
+start = 0.2
+end = 1.2
+amplitude = 1.0
+[sweep]
+n = 5000
+seed = 0
+[sweep.vary]
+"plant.J" = ["loguniform", 1.5e-4, 6e-4]
+"""
+
+
+def test_ctrl_c_stops_a_local_sweep_promptly(tmp_path):
+    # 5000 scenarios of 10 s take about 30 s on two threads; the interrupt comes after 6 s.
+    (tmp_path / "spec.toml").write_text(SWEEP)
+    code, err, seconds = run_and_interrupt(
+        ["sweep", "spec.toml", "--out", "rows.csv", "--workers", "2"], after=6.0, cwd=tmp_path
+    )
+    assert code == 130, err
+    assert err == "hpdob sweep: interrupted\n"
+    assert seconds < 10.0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["spec.toml"]  # no rows.csv
+
+
+def test_ctrl_c_during_reproduce_leaves_the_previous_outputs(tmp_path):
+    out = tmp_path / "results"
+    (out / "traces").mkdir(parents=True)
+    previous = {"metrics.json": "previous\n", "fig2.png": "previous\n"}
+    previous.update({f"traces/{name}.csv": "previous\n" for name in paper.RUNS})
+    for name, text in previous.items():
+        (out / name).write_text(text)
+    code, err, _ = run_and_interrupt(["reproduce", "--out", str(out)], after=3.0, cwd=tmp_path)
+    files = {str(p.relative_to(out)): p for p in out.rglob("*") if p.is_file()}
+    assert not [name for name in files if Path(name).name.startswith(".")], files  # no temps
+    if code == 130:  # interrupted before the commit: the previous files, untouched
+        assert err == "hpdob reproduce: interrupted\n"
+        assert {name: p.read_text() for name, p in files.items()} == previous
+    else:  # the run got to its commit first: then it is complete
+        assert code == 0, err
+        assert (out / "metrics.json").read_text() != "previous\n"
+        assert all(p.read_bytes() != b"previous\n" for p in files.values())
