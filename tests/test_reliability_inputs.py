@@ -330,3 +330,21 @@ def test_overflowing_signals_are_reported_by_time_without_warnings():
         )  # fmt: skip
     with pytest.raises(ValueError, match=r"^frequency must be a positive frequency \[Hz\] whose"):
         Sine(1.0, 1e308)
+
+
+def test_written_files_have_the_usual_permissions(tmp_path):
+    """Atomic writes go through mkstemp (mode 0600); the renamed file must get the mode a plain
+    open() would give it under the process's umask, so that others can read the results."""
+    import os
+    import stat
+
+    from hpdob import ServoModel, design_observer, export_c
+
+    old = os.umask(0o022)
+    try:
+        paths = export_c(design_observer(ServoModel(2.8e-4).discretize(1e-3), order=1,
+                                         bandwidth=100.0), tmp_path)  # fmt: skip
+    finally:
+        os.umask(old)
+    for path in paths:
+        assert stat.S_IMODE(path.stat().st_mode) == 0o644, path
