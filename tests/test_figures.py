@@ -108,6 +108,33 @@ def test_error_panels_show_the_steady_state_and_name_the_spike(figures, results,
     assert markers and all(abs(m.get_xdata()[0] - step) < 0.01 for m in markers)
 
 
+@pytest.mark.parametrize("name", ["fig3", "fig4"])
+def test_zoom_insets_name_their_units_and_cover_no_data(figures, name):
+    ax = figures[name].axes[0]
+    (inset,) = ax.child_axes
+    figures[name].draw_without_rendering()
+    title = inset.get_title()
+    assert "[rad]" in title and "[s]" in title, "the zoom has no axis labels: its title says"
+    # The inset with its tick labels and title: inside the panel, over none of its traces.
+    box, frame = inset.get_tightbbox(), ax.get_window_extent()
+    assert frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 <= box.y1 <= frame.y1
+    for line in ax.get_lines():
+        xy = visible_points(ax, line)
+        inside = (xy[:, 0] > box.x0) & (xy[:, 0] < box.x1)
+        inside &= (xy[:, 1] > box.y0) & (xy[:, 1] < box.y1)
+        assert not inside.any(), f"{name}: the zoom covers {line.get_label()!r}"
+
+
+@pytest.mark.parametrize(("name", "panel"), [("fig3", 2), ("fig4", 1), ("fig5", 2)])
+def test_panel_letter_and_clipping_note_do_not_overlap(figures, name, panel):
+    ax = figures[name].axes[panel]
+    figures[name].draw_without_rendering()
+    left, right = ax._left_title.get_window_extent(), ax._right_title.get_window_extent()
+    gap = 0.05 * ax.get_window_extent().width  # clear at any dpi (text and axes scale alike)
+    assert ax.get_title(loc="right") and left.x1 + gap < right.x0, name
+    assert_inside_figure(figures[name], ax._right_title)
+
+
 def test_simulation_result_plot_keeps_its_legends_off_the_data(results):
     fig = results["virtual-experiment"].plot()
     assert_legends_off_the_data(fig, "SimulationResult.plot")

@@ -37,14 +37,16 @@ def _position(ax, results, names, *, inset=True):
     style_axes(ax, xlabel="time [s]", ylabel=r"position $\theta$ [rad]")
     ax.legend(loc="upper left", fontsize="small", ncol=2)
     if inset:
-        box = ax.inset_axes([0.40, 0.08, 0.3, 0.38])
+        # Below the traces, between the step and the sine; its tick labels and title (which
+        # carries the units: no room for axis labels) stay inside the panel, off the data.
+        box = ax.inset_axes([0.36, 0.12, 0.38, 0.25])
         mask = (first.t >= ZOOM[0]) & (first.t <= ZOOM[1])
         box.plot(first.t[mask], first.r[mask], "k--", linewidth=0.8)
         for name in names:
             res = results[name]
             box.plot(res.t[mask], res.theta[mask], color=COLORS[name], linewidth=0.9)
-        box.set_title("zoom", fontsize="x-small")
-        box.tick_params(labelsize="x-small")
+        box.set_title(r"zoom: $\theta$ [rad] against time [s]", fontsize="x-small", pad=2.0)
+        box.tick_params(labelsize="x-small", pad=1.5)
         box.grid(True, linewidth=0.3, alpha=0.5)
 
 
@@ -89,8 +91,7 @@ def _error_panel(ax, results, names):
         _, value, name = max(peaks)
         number = f"{value:.3f}".replace("-", "\N{MINUS SIGN}")
         ax.set_title(
-            f"y-range clipped: at the {STEP_TIME:.1f} s step the error reaches {number} N m "
-            f"({name})",
+            f"y-range clipped: {number} N m at the {STEP_TIME:.1f} s step ({name})",
             loc="right",
             fontsize="x-small",
         )
