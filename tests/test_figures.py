@@ -7,6 +7,8 @@ labels must not overlap, an off-scale spike must be marked and named.
 
 from __future__ import annotations
 
+import itertools
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -217,6 +219,36 @@ def test_narrow_log_axis_has_tick_labels():
     title = ax.title
     assert "delay" in title.get_text()
     assert_inside_figure(fig, title)
+    plt.close(fig)
+
+
+@pytest.mark.parametrize("measurement", ["state", "position"])
+def test_stability_map_titles_are_short_and_fit_their_panels(measurement):
+    """One map alone and three side by side: each title says "position-only" at most once,
+    lies inside the figure and keeps off its neighbours; constrained layout holds (a
+    collapsed layout would warn, an error here)."""
+    common = {"nominal": NOMINAL, "Ts": TS, "controller": PD(50.0, 5.0), "delay_samples": 1}
+    common |= {"bandwidth": [50.0, 100.0, 200.0], "measurement": measurement}
+    maps = [
+        robust_stability_map(order=1, J_ratio=np.geomspace(0.5, 2.0, 5), **common),
+        robust_stability_map(order=2, J_ratio=1.2, b=np.geomspace(1e-4, 1.0, 5), **common),
+        robust_stability_map(order=3, J_ratio=np.geomspace(0.5, 2.0, 5), **common),
+    ]
+    single = maps[0].plot(mark=(100.0, 1.2))
+    assert_inside_figure(single, single.axes[0].title)
+    fig, axes = plt.subplots(1, 3, figsize=(9.0, 3.6), layout="constrained")
+    for ax, smap in zip(axes, maps, strict=True):
+        smap.plot(ax=ax, mark=(100.0, 1.2 if smap.parameter == "J_ratio" else 1e-3))
+    fig.draw_without_rendering()
+    boxes = []
+    for ax in axes:
+        text = ax.title.get_text()
+        assert text.count("position-only") == (measurement == "position"), text
+        assert "1-sample actuator delay" in text
+        assert_inside_figure(fig, ax.title)
+        boxes.append(ax.title.get_window_extent())
+    assert all(a.x1 <= b.x0 for a, b in itertools.pairwise(boxes))
+    plt.close(single)
     plt.close(fig)
 
 

@@ -35,7 +35,6 @@ from ._map_limits import check_delay, check_map_size, check_plants
 __all__ = ["StabilityMap", "robust_stability_map"]
 
 PARAMETERS = ("J_ratio", "b")
-_UNITS = {"J_ratio": "true/nominal inertia J/J_n [-]", "b": "true viscous friction b [N m s/rad]"}
 
 
 @dataclass(frozen=True)
@@ -75,9 +74,9 @@ class _Setting:
         if kind == "kalman":
             return f"Kalman (m={spec.get('order', 0)})"
         m = spec.get("order")
-        name = {0: "DOb", 1: "HPDOb"}.get(m, f"order {m}")
-        position = ", position-only" if spec.get("measurement") == "position" else ""
-        return f"{name} (m={m}{position})"
+        name = {0: "DOb (m=0)", 1: "HPDOb (m=1)"}.get(m, f"order-{m} DOb")
+        position = "position-only " if spec.get("measurement") == "position" else ""
+        return position + name
 
 
 @dataclass(frozen=True, eq=False)
@@ -217,98 +216,9 @@ class StabilityMap:
         -------
         matplotlib.figure.Figure
         """
-        import matplotlib.pyplot as plt
-        from matplotlib.colors import SymLogNorm
-        from matplotlib.lines import Line2D
+        from ._robust_plot import plot_stability_map
 
-        from .._plotting import PAPER_WIDTH, style_axes
-
-        if ax is None:
-            fig, ax = plt.subplots(figsize=(PAPER_WIDTH * 0.62, 3.9), layout="constrained")
-        else:
-            fig = ax.figure
-        rho = self.spectral_radius
-        # Slowest decay rate [1/s]: positive stable, negative growing; symmetric log colours.
-        rate = -np.log(rho) / self._setting.Ts
-        top = max(float(np.abs(rate).max()), 1.0)
-        mesh = ax.pcolormesh(
-            self.bandwidths,
-            self.values,
-            rate,
-            shading="nearest",
-            cmap="RdBu",
-            norm=SymLogNorm(linthresh=1.0, vmin=-top, vmax=top),
-        )
-        handles = []
-        if rho.shape[0] > 1 and rho.shape[1] > 1 and rho.min() < 1.0 < rho.max():
-            ax.contour(self.bandwidths, self.values, rho, levels=[1.0], colors="k", linewidths=1.4)
-            handles.append(
-                Line2D([], [], color="k", linewidth=1.4, label="stability boundary (radius = 1)")
-            )
-        ax.set_xscale("log")
-        _log_ticks(ax.xaxis, self.bandwidths)
-        if self.parameter == "J_ratio" or np.all(self.values > 0):
-            ax.set_yscale("log")
-            _log_ticks(ax.yaxis, self.values)
-        if mark is not None:
-            g, value = (float(v) for v in mark)
-            style = {"marker": "*", "color": "gold", "markeredgecolor": "k", "markersize": 11}
-            ax.plot(g, value, linestyle="none", **style)
-            name = "J/J_n" if self.parameter == "J_ratio" else "b"
-            label = mark_label or f"design: g = {g:g} rad/s, {name} = {value:.3g}"
-            handles.append(Line2D([], [], linestyle="none", label=label, **style))
-        cbar = fig.colorbar(mesh, ax=ax)
-        cbar.set_label("slowest decay rate -ln(radius)/Ts [1/s]\n(< 0: unstable)")
-        style_axes(ax, xlabel="observer bandwidth g [rad/s]", ylabel=_UNITS[self.parameter])
-        name = self._setting.name
-        if self.measurement == "position":
-            name = f"position-only {name}"
-        fixed = (
-            f"b = {self.b:.3g} N m s/rad"
-            if self.parameter == "J_ratio"
-            else f"J/J_n = {self.J_ratio:.3g}"
-        )
-        # The delay on a line of its own: the title must fit the map's width.
-        delay = f"\n{self.delay_samples}-sample actuator delay" if self.delay_samples else ""
-        pad = 6.0  # [points] matplotlib's default title pad
-        if handles:  # above the map (it has no free space), between the map and its title
-            legend = ax.legend(
-                handles=handles,
-                loc="lower left",
-                bbox_to_anchor=(0.0, 1.0),
-                fontsize="small",
-                frameon=False,
-                borderaxespad=0.2,
-                handlelength=1.6,
-            )
-            fig.draw_without_rendering()
-            pad += legend.get_window_extent().height * 72.0 / fig.dpi
-        ax.set_title(f"{name}, {fixed}{delay}", fontsize="medium", pad=pad)
-        return fig
-
-
-def _log_ticks(axis, values) -> None:
-    """Labelled ticks on a log axis of any span: plain numbers, several per decade if needed.
-
-    Less than a decade (where matplotlib's log ticks leave the axis unlabelled or nearly so):
-    evenly spaced ticks; up to 1.5 decades: 1, 2, 5 per decade; up to three: 1, 3 per decade;
-    more: one per decade.
-    """
-    from matplotlib import ticker
-
-    lo, hi = float(np.min(values)), float(np.max(values))
-    decades = np.log10(hi / lo) if lo > 0 and hi > lo else 0.0
-    if decades < 1.0:
-        axis.set_major_locator(ticker.MaxNLocator(nbins=8, steps=[1, 2, 2.5, 5, 10]))
-        axis.set_minor_locator(ticker.NullLocator())
-    elif decades <= 1.5:
-        axis.set_major_locator(ticker.LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
-    elif decades <= 3.0:
-        axis.set_major_locator(ticker.LogLocator(base=10.0, subs=(1.0, 3.0)))
-    else:
-        axis.set_major_locator(ticker.LogLocator(base=10.0))
-    axis.set_major_formatter(ticker.StrMethodFormatter("{x:g}"))
-    axis.set_minor_formatter(ticker.NullFormatter())
+        return plot_stability_map(self, ax, mark=mark, mark_label=mark_label)
 
 
 def _grid_or_scalar(value, name: str, what: str, *, allow_zero: bool):
