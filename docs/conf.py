@@ -75,8 +75,10 @@ myst_ref_domains = ["std", "py"]  # where [text](target) looks for a target that
 
 # -- sphinx-gallery over examples/ ----------------------------------------------------------
 # Only examples/plot_*.py are executed (each is fast and renders its figures). The other
-# scripts appear with their source: analysis_figures.py (~15 s, writes docs/figures) and
-# mujoco_pendulum.py (needs the [mujoco] extra) are command-line tools, not gallery pages.
+# scripts are command-line tools (analysis_figures.py ~15 s, mujoco_pendulum.py needs the
+# [mujoco] extra, ...) that write docs/figures: their pages show the source, and the figures
+# committed there through ``.. image:: ../figures/<name>.png`` in their module docstrings
+# (a path relative to the generated auto_examples/<script>.rst).
 sphinx_gallery_conf = {
     "examples_dirs": str(HERE.parent / "examples"),
     "gallery_dirs": str(HERE / "auto_examples"),

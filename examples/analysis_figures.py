@@ -9,6 +9,26 @@ Regenerate the figures and the tables of docs/analysis.md for the canonical moto
 writes analysis_*.png (100 dpi) into OUT_DIR (default docs/figures) and prints the Markdown
 tables of docs/analysis.md, computed here from the library (copy them into the page when the
 numbers change). Takes ~15 s.
+
+The figures as committed in ``docs/figures/`` (this page does not run the script):
+
+.. image:: ../figures/analysis_bode.png
+   :alt: Estimation response and input sensitivity, orders 0-3 at 100 rad/s
+
+.. image:: ../figures/analysis_noise.png
+   :alt: Noise gains of the canonical loop against bandwidth
+
+.. image:: ../figures/analysis_tradeoff.png
+   :alt: Estimation error at 2 Hz against noise gain
+
+.. image:: ../figures/analysis_stability_inertia.png
+   :alt: Stability over an inertia error, orders 0-3
+
+.. image:: ../figures/analysis_stability_delay.png
+   :alt: Stability over an inertia error with a one-sample delay
+
+.. image:: ../figures/analysis_stability_friction.png
+   :alt: Stability over a viscous-friction error
 """
 
 # sphinx_gallery_thumbnail_path = 'figures/analysis_tradeoff.png'

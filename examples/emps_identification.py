@@ -10,7 +10,15 @@ Uses the EMPS measured run shipped with hpdob (no download). Prints the Markdown
 docs/real-data.md, computed here from the library, and writes emps_identification.png (the
 IDIM-IV fit and the loop simulated with it) into OUT_DIR (default hpdob-results/emps).
 Takes ~10 s.
+
+The figure as committed in ``docs/figures/`` (OUT_DIR = docs/figures; this page does not run the
+script):
+
+.. image:: ../figures/emps_identification.png
+   :alt: EMPS: the IDIM-IV fit and the loop simulated with it
 """
+
+# sphinx_gallery_thumbnail_path = 'figures/emps_identification.png'
 
 from __future__ import annotations
 

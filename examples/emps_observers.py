@@ -13,7 +13,14 @@ velocity::
 
 prints the Markdown table of docs/real-data.md and writes emps_observers.png (100 dpi) into
 OUT_DIR (default docs/figures). Takes ~10 s.
+
+The figure as committed in ``docs/figures/`` (this page does not run the script):
+
+.. image:: ../figures/emps_observers.png
+   :alt: Observers on the EMPS log against the identified friction
 """
+
+# sphinx_gallery_thumbnail_path = 'figures/emps_observers.png'
 
 from __future__ import annotations
 

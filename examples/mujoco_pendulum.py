@@ -13,7 +13,15 @@ estimates, and the estimation errors. To run it::
     pip install 'hpdob[mujoco]'
     python examples/mujoco_pendulum.py                      # writes mujoco_pendulum.png
     python examples/mujoco_pendulum.py --duration 3 --out /tmp/pendulum.png
+
+The figure as committed in ``docs/figures/`` (``--out docs/figures/mujoco_pendulum.png``; this
+page does not run the script):
+
+.. image:: ../figures/mujoco_pendulum.png
+   :alt: MuJoCo pendulum: DOb vs HPDOb at 100 rad/s
 """
+
+# sphinx_gallery_thumbnail_path = 'figures/mujoco_pendulum.png'
 
 from __future__ import annotations
 

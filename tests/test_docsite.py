@@ -175,6 +175,22 @@ def test_gallery_renders_every_plot_example(site):
         assert figure in page and (html / "_images" / figure).exists(), script.name
 
 
+def test_gallery_shows_the_figures_of_the_command_line_examples(site):
+    """The scripts the build does not run show the figures they wrote into docs/figures."""
+    html, _, _ = site
+    scripts = [p for p in sorted((ROOT / "examples").glob("*.py")) if p.name[:5] != "plot_"]
+    assert len(scripts) >= 6
+    for script in scripts:
+        names = re.findall(r"^\.\. image:: \.\./figures/(\S+)$", script.read_text(), flags=re.M)
+        assert names, f"{script.name} shows no figure"
+        page = html / "auto_examples" / f"{script.stem}.html"
+        sources = re.findall(r'<img[^>]+src="([^"]+)"', page.read_text())
+        for name in names:
+            assert (ROOT / "docs" / "figures" / name).exists(), name
+            shown = [src for src in sources if src.rsplit("/", 1)[-1] == name]
+            assert shown and (page.parent / shown[0]).resolve().exists(), (script.name, name)
+
+
 def test_every_markdown_page_is_on_the_site(site):
     html, _, _ = site
     for page in (ROOT / "docs").glob("*.md"):
