@@ -10,7 +10,7 @@ import pytest
 
 from hpdob import ServoModel, design_observer, export_c
 from hpdob.cli import main
-from hpdob.testing._c_harness import find_compiler
+from hpdob.testing import find_compiler
 
 ROOT = Path(__file__).resolve().parents[1]
 DTYPES = ("double", "float")

@@ -1,7 +1,8 @@
 """Tests of hpdob.export_c: the generated C99 is compiled with gcc and driven side by side with
 the Python DisturbanceObserver. A double build must reproduce it bit for bit (and so within the
 issue's 1e-12); a float build must stay within the rounding-error bound derived in
-docs/deployment.md (hpdob.testing._rounding), computed independently of the C code from the design.
+docs/deployment.md (hpdob.testing.export_error_bound), computed independently of the C code
+from the design.
 """
 
 from __future__ import annotations
@@ -17,19 +18,26 @@ import numpy as np
 import pytest
 
 import hpdob
-from hpdob import DisturbanceObserver, ServoModel, design_observer, export_c, paper
-from hpdob._validation import ParameterTypeError, ParameterValueError
-from hpdob.export._c import render_c
-from hpdob.testing._c_harness import (
+from hpdob import (
+    DisturbanceObserver,
+    ParameterTypeError,
+    ParameterValueError,
+    ServoModel,
+    design_observer,
+    export_c,
+    paper,
+)
+from hpdob.export import render_c
+from hpdob.testing import (
     STRICT_FLAGS,
     CBuildError,
     CObserver,
     compile_c,
+    export_error_bound,
     find_compiler,
     sanitized_run,
     sanitizer_available,
 )
-from hpdob.testing._rounding import export_error_bound
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = paper.NOMINAL.discretize(

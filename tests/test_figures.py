@@ -144,7 +144,7 @@ def test_simulation_result_plot_keeps_its_legends_off_the_data(results):
 
 
 def test_bode_title_fits_the_figure():
-    from hpdob.analysis._figures import bode_figure  # no public figure function
+    from hpdob.analysis import bode_figure
 
     designs = [design_observer(NOMINAL.discretize(TS), order=m, bandwidth=100.0) for m in (0, 1)]
     f = np.geomspace(0.1, 500.0, 50)

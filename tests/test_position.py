@@ -269,8 +269,13 @@ def test_closed_form_three_ways(order):
 
 def test_object_core_kernel_and_c_agree_bit_for_bit(tmp_path):
     from hpdob import export_c
-    from hpdob.testing import CObserver, export_error_bound, find_compiler
-    from hpdob.testing._c_harness import sanitized_run, sanitizer_available
+    from hpdob.testing import (
+        CObserver,
+        export_error_bound,
+        find_compiler,
+        sanitized_run,
+        sanitizer_available,
+    )
 
     design = position(2)
     kwargs = paper.scenario()

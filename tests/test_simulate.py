@@ -19,8 +19,10 @@ from hpdob import (
     simulate,
 )
 from hpdob.signals import Constant, Ramp, SmoothStep, Step
-from hpdob.simulation._simulate import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, default_substeps
 from reference_loop import reference_loop
+
+# Default plant sub-steps per sample (docs/simulation.md, ServoModel.default_substeps).
+DEFAULT_SUBSTEPS = 8
 
 
 @pytest.fixture(scope="module")
@@ -85,14 +87,14 @@ def test_virtual_experiment_metrics_are_robust(canonical_results, name):
 
 def test_default_substeps_follow_the_coulomb_stiffness():
     plant = paper.scenario()["plant"]  # c / (v J) = 0.01 / (0.01 * 3.06e-4) = 3268 1/s
-    assert default_substeps(plant, 1e-3) == DEFAULT_SUBSTEPS  # 2 ceil(3.27) = 8
+    assert plant.default_substeps(1e-3) == DEFAULT_SUBSTEPS  # 2 ceil(3.27) = 8
     # 2 ceil(Ts c / (v J)): h c / (v J) <= 0.5 on an even number of sub-steps.
-    assert default_substeps(plant.replace(coulomb_velocity=1e-3), 1e-3) == 66
-    assert default_substeps(plant.replace(coulomb_velocity=1e-4), 1e-3) == 654
-    assert default_substeps(plant.replace(coulomb=0.0), 1e-3) == DEFAULT_SUBSTEPS
+    assert plant.replace(coulomb_velocity=1e-3).default_substeps(1e-3) == 66
+    assert plant.replace(coulomb_velocity=1e-4).default_substeps(1e-3) == 654
+    assert plant.replace(coulomb=0.0).default_substeps(1e-3) == DEFAULT_SUBSTEPS
     # c/(v J) overflows to inf: a clear error, not ZeroDivisionError/OverflowError
     with pytest.raises(ValueError, match=r"^plant Coulomb friction is too stiff .*= inf for"):
-        default_substeps(ServoModel(1e-200, coulomb=1.0, coulomb_velocity=1e-200), 1e-3)
+        ServoModel(1e-200, coulomb=1.0, coulomb_velocity=1e-200).default_substeps(1e-3)
 
 
 def test_stiff_coulomb_friction_converges():
@@ -112,9 +114,10 @@ def test_stiff_coulomb_friction_converges():
 
 
 def test_run_length_is_capped():
-    with pytest.raises(ValueError, match=r"^duration/Ts \* substeps = 10000 \* 20000 = 2e\+08"):
+    # The cap of docs/reliability.md: 10^8 plant steps per run.
+    match = r"^duration/Ts \* substeps = 10000 \* 20000 = 2e\+08 .* the limit of 1e\+08 per run"
+    with pytest.raises(ValueError, match=match):
         paper.run("HPDOb-100", substeps=20_000)
-    assert MAX_PLANT_STEPS == 100_000_000
 
 
 def test_hpdob_beats_dob_on_every_canonical_metric(canonical_results):

@@ -1,4 +1,8 @@
-"""Tests of the shared argument checks in hpdob._validation."""
+"""Tests of the shared argument checks in hpdob._validation.
+
+The checks themselves are private helpers of the library (every public function validates
+with them); the exceptions they raise are public (``hpdob.ParameterValueError`` and
+``hpdob.ParameterTypeError``)."""
 
 from __future__ import annotations
 
@@ -7,9 +11,8 @@ import math
 import numpy as np
 import pytest
 
+from hpdob import ParameterTypeError, ParameterValueError
 from hpdob._validation import (
-    ParameterTypeError,
-    ParameterValueError,
     as_grid,
     as_real_vector,
     numeric_array,

@@ -11,8 +11,8 @@ Two ways to drive a build:
 * :meth:`CObserver.drive` runs a whole input trace in a C loop (``<prefix>_drive`` from
   :func:`drive_source`) and returns the estimates and the states.
 
-:func:`sanitized_run` builds the same drive loop with a ``main`` that reads the trace from a
-file, under ``-fsanitize=address,undefined``, and runs it as a subprocess.
+:func:`hpdob.testing.sanitized_run` (``_sanitize.py``) builds the same drive loop under
+AddressSanitizer and UndefinedBehaviorSanitizer.
 """
 
 from __future__ import annotations
@@ -33,8 +33,6 @@ __all__ = [
     "compile_c",
     "drive_source",
     "find_compiler",
-    "sanitized_run",
-    "sanitizer_available",
 ]
 
 #: The warning set of the issue, plus the checks that matter on a microcontroller.
@@ -51,21 +49,30 @@ STRICT_FLAGS = (
 #: No fused multiply-add contraction: the double build then reproduces hpdob.update exactly.
 #: (GCC's default under -std=c99 already; spelt out for other compilers and modes.)
 EXACT_FLAGS = ("-ffp-contract=off",)
-SANITIZE_FLAGS = (
-    "-O2",
-    "-g",
-    "-fsanitize=address,undefined",
-    "-fno-sanitize-recover=all",
-    "-fno-omit-frame-pointer",
-)
 
 
 class CBuildError(RuntimeError):
-    """The C compiler or a compiled program failed (the message holds its output)."""
+    """The C compiler or a compiled program failed (the message holds its output).
+
+    Raised by :func:`compile_c`, :class:`CObserver` and :func:`sanitized_run`.
+    """
 
 
 def find_compiler() -> str | None:
-    """Path of ``$CC`` (default ``gcc``), or None if it is not installed."""
+    """The C compiler :func:`compile_c` uses: ``$CC``, default ``gcc``, found on ``PATH``.
+
+    Returns
+    -------
+    str or None
+        Its full path, or None if it is not installed (skip C tests then).
+
+    Examples
+    --------
+    >>> from hpdob.testing import find_compiler
+    >>> cc = find_compiler()
+    >>> cc is None or isinstance(cc, str)
+    True
+    """
     return shutil.which(os.environ.get("CC", "gcc"))
 
 
@@ -79,11 +86,45 @@ def compile_c(
 ) -> Path:
     """Compile ``sources`` into ``output`` (an executable, or a shared library if ``shared``).
 
+    Any output of the compiler on stderr counts as a failure, so a build with
+    :data:`STRICT_FLAGS` is warning-free.
+
+    Parameters
+    ----------
+    sources : sequence of str or Path
+        The C files to compile and link together.
+    output : str or Path
+        The file to write.
+    flags : sequence of str, optional
+        Compiler flags, e.g. :data:`STRICT_FLAGS`. Default none.
+    shared : bool, optional
+        Build a shared library (``-shared -fPIC``) to load with ctypes. Default False.
+    libraries : sequence of str, optional
+        Libraries to link, without ``-l`` (e.g. ``["m"]``). Default none.
+
+    Returns
+    -------
+    pathlib.Path
+        ``output``.
+
     Raises
     ------
     CBuildError
-        If no compiler is found or it reports an error (warnings are errors with
-        :data:`STRICT_FLAGS`).
+        If no compiler is found or it reports an error or a warning (the message holds the
+        command and its output).
+
+    Examples
+    --------
+    >>> import ctypes, tempfile
+    >>> from pathlib import Path
+    >>> from hpdob.testing import STRICT_FLAGS, compile_c, find_compiler
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     source = Path(tmp, "answer.c")
+    ...     _ = source.write_text("int answer(void);\\nint answer(void) { return 42; }\\n")
+    ...     if find_compiler():  # needs gcc or $CC; without one nothing is checked
+    ...         lib = compile_c([source], Path(tmp, "libanswer.so"), flags=STRICT_FLAGS,
+    ...                         shared=True)
+    ...         assert ctypes.CDLL(str(lib)).answer() == 42
     """
     cc = find_compiler()
     if cc is None:
@@ -129,57 +170,6 @@ void {prefix}_drive(long n, const double *init, const double *theta, const doubl
         tau_hat[k] = (double){prefix}_estimate(&s, {args});
         {prefix}_update(&s, {args}, ({dtype})u[k]);
     }}
-}}
-"""
-
-
-_MAIN = """\
-#include <stdio.h>
-#include <stdlib.h>
-
-void {prefix}_drive(long n, const double *init, const double *theta, const double *omega,
-                    const double *u, double *tau_hat, double *z);
-
-/* usage: drive IN OUT. IN: n (int64), init[3], theta[n], omega[n], u[n] (float64);
-   OUT: tau_hat[n], z[n * {n}] (float64). */
-int main(int argc, char **argv)
-{{
-    FILE *in;
-    FILE *out;
-    long long count = 0;
-    size_t n, ok;
-    double init[3];
-    double *buf;
-    if (argc != 3 || (in = fopen(argv[1], "rb")) == NULL) {{
-        return 2;
-    }}
-    if (fread(&count, sizeof count, 1, in) != 1 || count <= 0
-        || fread(init, sizeof(double), 3, in) != 3) {{
-        fclose(in);
-        return 3;
-    }}
-    n = (size_t)count;
-    buf = (double *)malloc(sizeof(double) * n * (4 + {n}));
-    if (buf == NULL) {{
-        fclose(in);
-        return 4;
-    }}
-    ok = fread(buf, sizeof(double), 3 * n, in);
-    fclose(in);
-    if (ok != 3 * n) {{
-        free(buf);
-        return 5;
-    }}
-    {prefix}_drive((long)n, init, buf, buf + n, buf + 2 * n, buf + 3 * n, buf + 4 * n);
-    out = fopen(argv[2], "wb");
-    if (out == NULL) {{
-        free(buf);
-        return 6;
-    }}
-    ok = fwrite(buf + 3 * n, sizeof(double), n * (1 + {n}), out);
-    fclose(out);
-    free(buf);
-    return ok == n * (1 + {n}) ? 0 : 7;
 }}
 """
 
@@ -296,21 +286,64 @@ class CObserver:
         self._ref = ctypes.byref(self._state)
 
     def init(self, theta0: float, omega0: float, tau0: float) -> None:
-        """``<prefix>_init`` on the held state (arguments rounded to the C type)."""
+        """``<prefix>_init`` on the held state (arguments rounded to the C type).
+
+        Parameters
+        ----------
+        theta0, omega0 : float
+            Initial angle [rad] and velocity [rad/s] of the loop.
+        tau0 : float
+            Initial disturbance estimate [N m].
+        """
         self._init(self._ref, theta0, omega0, tau0)
 
     def estimate(self, *measurement: float) -> float:
-        """``<prefix>_estimate`` of the held state [N m] (``theta, omega`` or ``theta``)."""
+        """``<prefix>_estimate`` of the held state.
+
+        Parameters
+        ----------
+        *measurement : float
+            ``theta`` [rad] and ``omega`` [rad/s], or ``theta`` alone for a position-only
+            observer.
+
+        Returns
+        -------
+        float
+            The disturbance estimate [N m], computed in the export's ``dtype``.
+        """
         return self._estimate(self._ref, *measurement)
 
     def velocity(self, *measurement: float) -> float:
-        """``<prefix>_velocity`` of the held state [rad/s] (observers with a velocity)."""
+        """``<prefix>_velocity`` of the held state (observers that estimate the velocity).
+
+        Parameters
+        ----------
+        *measurement : float
+            As for :meth:`estimate`.
+
+        Returns
+        -------
+        float
+            The velocity estimate [rad/s].
+
+        Raises
+        ------
+        AttributeError
+            If the export has no ``<prefix>_velocity``.
+        """
         if self._velocity is None:
             raise AttributeError("this observer exports no velocity estimate")
         return self._velocity(self._ref, *measurement)
 
     def update(self, *measurement_and_u: float) -> None:
-        """``<prefix>_update`` of the held state (``theta, omega, u`` or ``theta, u``)."""
+        """``<prefix>_update`` of the held state: advance it by one sample.
+
+        Parameters
+        ----------
+        *measurement_and_u : float
+            ``theta`` [rad], ``omega`` [rad/s] and the torque applied ``u`` [N m], or
+            ``theta, u`` for a position-only observer.
+        """
         self._update(self._ref, *measurement_and_u)
 
     @property
@@ -329,10 +362,27 @@ class CObserver:
         return int(self._state.fault)
 
     def drive(self, theta, omega, u, *, init=(0.0, 0.0, 0.0)):
-        """Run a trace in C from ``<prefix>_init(*init)``; return ``(tau_hat, z)``.
+        """Run a whole trace through the C observer in a C loop, from ``<prefix>_init(*init)``.
 
-        ``z[k]`` is the state sample ``k`` started from, shape ``(n, states)``; ``omega`` is
-        ignored by a position-only observer.
+        Parameters
+        ----------
+        theta, omega, u : array_like
+            Angle [rad], velocity [rad/s] and torque applied [N m] at each sample, 1-D of the
+            same length ``n`` (``omega`` is ignored by a position-only observer).
+        init : tuple of 3 floats, optional
+            ``(theta0, omega0, tau0)`` of ``<prefix>_init``. Default zeros.
+
+        Returns
+        -------
+        tau_hat : ndarray, shape (n,)
+            The estimate at each sample [N m].
+        z : ndarray, shape (n, states)
+            The state each sample started from.
+
+        Raises
+        ------
+        ValueError
+            If the three traces are not 1-D arrays of the same length.
         """
         theta, omega, u = _as_trace(theta, omega, u)
         n = theta.size
@@ -344,78 +394,3 @@ class CObserver:
 
         self._drive(n, ptr(start), ptr(theta), ptr(omega), ptr(u), ptr(tau_hat), ptr(z))
         return tau_hat, z
-
-
-def sanitizer_available(directory: Path) -> str | None:
-    """None if ``-fsanitize=address,undefined`` builds and runs here, else the reason."""
-    if find_compiler() is None:
-        return "no C compiler found"
-    directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
-    probe = directory / "probe.c"
-    probe.write_text("int main(void) { return 0; }\n")
-    try:
-        exe = compile_c([probe], directory / "probe", flags=SANITIZE_FLAGS)
-    except CBuildError as err:
-        return f"the sanitizer runtime cannot be linked: {err}"
-    done = subprocess.run([str(exe)], capture_output=True, text=True, check=False)
-    if done.returncode != 0:
-        return f"a sanitized program cannot run here: {done.stderr.strip()[:200]}"
-    return None
-
-
-def sanitized_run(
-    source,
-    *,
-    prefix,
-    dtype,
-    build_dir,
-    theta,
-    omega,
-    u,
-    order=None,
-    observer=None,
-    init=(0.0, 0.0, 0.0),
-):
-    """Build the drive loop under ASan + UBSan (``-O2``) and run a trace through it.
-
-    Returns ``(tau_hat, z)`` like :meth:`CObserver.drive`.
-
-    Raises
-    ------
-    CBuildError
-        If the build fails or the program exits non-zero or prints anything (every sanitizer
-        finding is fatal: ``-fno-sanitize-recover=all``).
-    """
-    build_dir = Path(build_dir)
-    build_dir.mkdir(parents=True, exist_ok=True)
-    theta, omega, u = _as_trace(theta, omega, u)
-    n = theta.size
-    states, measures = _shape(order, observer)
-    drive = _write_drive(Path(source).parent, prefix, dtype, states, measures)
-    main = build_dir / f"{prefix}_main.c"
-    main.write_text(_MAIN.format(prefix=prefix, n=states))
-    exe = compile_c(
-        [source, drive, main],
-        build_dir / f"{prefix}_sanitized",
-        flags=(*STRICT_FLAGS, *SANITIZE_FLAGS),
-    )
-    inputs, outputs = build_dir / "trace.bin", build_dir / "result.bin"
-    with open(inputs, "wb") as f:
-        f.write(np.int64(n).tobytes())
-        f.write(np.ascontiguousarray(init, dtype=np.float64).tobytes())
-        for a in (theta, omega, u):
-            f.write(a.tobytes())
-    env = dict(os.environ)
-    env["ASAN_OPTIONS"] = "detect_leaks=1:abort_on_error=0:halt_on_error=1"
-    env["UBSAN_OPTIONS"] = "print_stacktrace=1:halt_on_error=1"
-    done = subprocess.run(
-        [str(exe), str(inputs), str(outputs)], capture_output=True, text=True, env=env, check=False
-    )
-    if done.returncode != 0 or done.stdout or done.stderr:
-        raise CBuildError(
-            f"sanitized drive of {prefix} exited with {done.returncode}:\n"
-            f"{done.stdout}{done.stderr}"
-        )
-    data = np.fromfile(outputs, dtype=np.float64)
-    return data[:n], data[n:].reshape(n, states)
