@@ -58,6 +58,34 @@ class Signal:
         return self.derivative(t, 0)
 
     def derivative(self, t, n: int = 0) -> np.ndarray:  # pragma: no cover - abstract
+        """The ``n``-th time derivative of the signal at the times ``t``.
+
+        Parameters
+        ----------
+        t : float or array_like
+            Times [s].
+        n : int, optional
+            Derivative order, ``n >= 0``; 0 (the default) is the value itself. A step's
+            derivatives are taken as 0; :class:`Noise` has none (only ``n = 0``).
+
+        Returns
+        -------
+        ndarray
+            Values in the signal's unit per ``s^n``, the shape of ``t``.
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            If ``t`` is not numeric or ``n`` is not a non-negative integer (for
+            :class:`Noise`: not 0).
+
+        Examples
+        --------
+        >>> from hpdob.signals import Sine
+        >>> s = Sine(2.0, 0.5)          # 2 sin(2 pi 0.5 t) = 2 sin(pi t)
+        >>> s.derivative([0.0, 1.0], 1)  # 2 pi cos(pi t)
+        array([ 6.28318531, -6.28318531])
+        """
         raise NotImplementedError
 
     def __add__(self, other):
@@ -389,6 +417,23 @@ class _Trajectory:
 
 def trajectory(signal: Signal):
     """Reference callable ``t -> (r, r_dot, r_ddot)`` from a :class:`Signal` [rad, rad/s, rad/s^2].
+
+    Parameters
+    ----------
+    signal : Signal
+        The reference angle [rad] as a function of time.
+
+    Returns
+    -------
+    callable
+        ``f(t)`` returning the tuple ``(r, r_dot, r_ddot)`` of arrays at the times ``t`` [s]:
+        the signal and its first two derivatives (:meth:`Signal.derivative`), what
+        :func:`hpdob.simulate` takes as ``reference``.
+
+    Raises
+    ------
+    ParameterTypeError
+        If ``signal`` is not a :class:`Signal`.
 
     Examples
     --------

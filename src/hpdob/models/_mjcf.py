@@ -6,7 +6,11 @@ MuJoCo is imported on first use only (:func:`import_mujoco`).
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
 from typing import NamedTuple
+
+import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError
 
@@ -19,7 +23,11 @@ __all__ = [
     "find_joint",
     "import_mujoco",
     "integrator_name",
+    "joint_and_actuator",
+    "joint_inertia",
     "object_names",
+    "open_handle",
+    "read_mjcf",
     "servo_xml",
 ]
 
@@ -181,6 +189,62 @@ def find_actuator(model, joint_id: int, joint_name: str, actuator) -> tuple[int,
             f"{kinds[1]}, dynamics {kinds[2]} and gear x gain = {scale!r}"
         )
     return index, 1.0 / scale
+
+
+def open_handle(source: str, path, joint, actuator, overrides: dict, timestep: float):
+    """A fresh compiled model with MuJoCo time step ``timestep`` [s] and its data at ``qpos0``
+    (:meth:`MujocoServo.open`); ``overrides`` may set the joint's ``b`` and ``coulomb``."""
+    mujoco = import_mujoco()
+    model = compile_model(source, path)
+    model.opt.timestep = timestep
+    joint_id = find_joint(model, joint)
+    actuator_id, scale = find_actuator(model, joint_id, joint, actuator)
+    dof = int(model.jnt_dofadr[joint_id])
+    if "b" in overrides:
+        model.dof_damping[dof] = overrides["b"]
+    if "coulomb" in overrides:
+        model.dof_frictionloss[dof] = overrides["coulomb"]
+    data = mujoco.MjData(model)
+    return MujocoHandle(
+        mujoco, model, data, int(model.jnt_qposadr[joint_id]), dof, actuator_id, scale
+    )
+
+
+def read_mjcf(path_or_string) -> tuple[str, str | None]:
+    """``(MJCF text, resolved path or None)`` of :meth:`MujocoServo.from_xml`'s argument."""
+    if isinstance(path_or_string, os.PathLike) or (
+        isinstance(path_or_string, str) and not path_or_string.lstrip().startswith("<")
+    ):
+        path = Path(path_or_string)
+        if not path.is_file():
+            raise ParameterValueError(
+                f"path_or_string must be MJCF XML text or the path of an MJCF file, got "
+                f"{str(path_or_string)!r}, which is not an existing file"
+            )
+        return path.read_text(), str(path.resolve())
+    if isinstance(path_or_string, str):
+        return path_or_string, None
+    raise ParameterTypeError(
+        f"path_or_string must be MJCF XML text or a file path, got {type(path_or_string).__name__}"
+    )
+
+
+def joint_and_actuator(model, joint, actuator) -> tuple[str, str]:
+    """The names of the controlled hinge and of its motor (found or checked in ``model``)."""
+    joint_id = find_joint(model, joint)
+    name = object_names(model, import_mujoco().mjtObj.mjOBJ_JOINT, model.njnt)[joint_id]
+    index, _ = find_actuator(model, joint_id, name, actuator)
+    return name, object_names(model, import_mujoco().mjtObj.mjOBJ_ACTUATOR, model.nu)[index]
+
+
+def joint_inertia(handle: MujocoHandle) -> float:
+    """The joint-space inertia of the handle's joint at its pose [kg m^2] (``mj_mulM``)."""
+    column = np.zeros(handle.model.nv)
+    unit = np.zeros(handle.model.nv)
+    unit[handle.dof] = 1.0
+    handle.mujoco.mj_forward(handle.model, handle.data)
+    handle.mujoco.mj_mulM(handle.model, handle.data, column, unit)
+    return float(column[handle.dof])
 
 
 def integrator_name(model) -> str:

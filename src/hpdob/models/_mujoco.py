@@ -7,9 +7,6 @@ stays fast and works without it. The sample loop that drives the model is in
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import numpy as np
 
 from .._validation import (
@@ -25,11 +22,13 @@ from ._mjcf import (
     INTEGRATORS,
     MujocoHandle,
     compile_model,
-    find_actuator,
     find_joint,
     import_mujoco,
     integrator_name,
-    object_names,
+    joint_and_actuator,
+    joint_inertia,
+    open_handle,
+    read_mjcf,
     servo_xml,
 )
 from ._mujoco_session import MujocoSampler
@@ -184,29 +183,9 @@ class MujocoServo(Plant):
             If the XML does not compile, the file does not exist, the joint is not a hinge,
             or the actuator is not a motor driving it (the valid names are listed).
         """
-        if isinstance(path_or_string, os.PathLike) or (
-            isinstance(path_or_string, str) and not path_or_string.lstrip().startswith("<")
-        ):
-            path = Path(path_or_string)
-            if not path.is_file():
-                raise ParameterValueError(
-                    f"path_or_string must be MJCF XML text or the path of an MJCF file, got "
-                    f"{str(path_or_string)!r}, which is not an existing file"
-                )
-            source, path = path.read_text(), str(path.resolve())
-        elif isinstance(path_or_string, str):
-            source, path = path_or_string, None
-        else:
-            raise ParameterTypeError(
-                "path_or_string must be MJCF XML text or a file path, got "
-                f"{type(path_or_string).__name__}"
-            )
+        source, path = read_mjcf(path_or_string)
         timestep = _check_timestep(timestep)
-        model = compile_model(source, path)
-        joint_id = find_joint(model, joint)
-        name = object_names(model, import_mujoco().mjtObj.mjOBJ_JOINT, model.njnt)[joint_id]
-        index, _ = find_actuator(model, joint_id, name, actuator)
-        actuator = object_names(model, import_mujoco().mjtObj.mjOBJ_ACTUATOR, model.nu)[index]
+        name, actuator = joint_and_actuator(compile_model(source, path), joint, actuator)
         servo = object.__new__(cls)
         servo._set(source, path, name, actuator, timestep, None, {})
         return servo
@@ -223,13 +202,7 @@ class MujocoServo(Plant):
         """Rotor inertia [kg m^2] (wrapped model: joint inertia at ``qpos0``)."""
         if self._params is not None:
             return self._params["J"]
-        handle = self.open(1e-3)
-        column = np.zeros(handle.model.nv)
-        unit = np.zeros(handle.model.nv)
-        unit[handle.dof] = 1.0
-        handle.mujoco.mj_forward(handle.model, handle.data)
-        handle.mujoco.mj_mulM(handle.model, handle.data, column, unit)
-        return float(column[handle.dof])
+        return joint_inertia(self.open(1e-3))
 
     @property
     def b(self) -> float:
@@ -302,8 +275,21 @@ class MujocoServo(Plant):
     def replace(self, **changes) -> MujocoServo:
         """Return a copy with some parameters changed (validated like the constructor).
 
-        A built servo accepts its constructor's parameters; a wrapped model (``from_xml``)
-        accepts ``b``, ``coulomb`` (set on the joint after compiling) and ``timestep``.
+        Parameters
+        ----------
+        **changes
+            A built servo accepts its constructor's parameters; a wrapped model
+            (``from_xml``) accepts ``b``, ``coulomb`` (set on the joint after compiling) and
+            ``timestep``.
+
+        Returns
+        -------
+        MujocoServo
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            For a parameter it does not accept, or a value the constructor rejects.
         """
         valid = self._replaceable()
         unknown = sorted(set(changes) - set(valid))
@@ -362,8 +348,19 @@ class MujocoServo(Plant):
     # -- running ----------------------------------------------------------------------------
 
     def steps_per_sample(self, Ts: float, substeps: int | None = None) -> int | None:
-        """MuJoCo steps per sampling period ``Ts``: ``Ts/timestep``, or ``substeps`` if
-        ``timestep`` is None.
+        """MuJoCo steps per sampling period ``Ts``.
+
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s].
+        substeps : int, optional
+            Steps asked for (``simulate(..., substeps=)``).
+
+        Returns
+        -------
+        int or None
+            ``Ts/timestep``, or ``substeps`` if the servo has no ``timestep``.
 
         Raises
         ------
@@ -393,32 +390,61 @@ class MujocoServo(Plant):
         return self.inertia
 
     def substeps(self, Ts: float, substeps: int | None) -> int:
-        """MuJoCo steps per sample (:meth:`steps_per_sample`; default 8 without a timestep)."""
+        """MuJoCo steps per sample.
+
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s].
+        substeps : int or None
+            Steps asked for, or None.
+
+        Returns
+        -------
+        int
+            :meth:`steps_per_sample`; 8 without a timestep and without ``substeps``.
+        """
         if substeps is not None:
             substeps = Plant.substeps(self, Ts, substeps)
         n = self.steps_per_sample(Ts, substeps)
         return DEFAULT_SUBSTEPS if n is None else n
 
     def sampler(self, Ts: float, substeps: int) -> MujocoSampler:
-        """Runs advanced from Python by MuJoCo with ``substeps`` steps of ``Ts/substeps``."""
+        """Runs advanced from Python by MuJoCo with ``substeps`` steps of ``Ts/substeps``.
+
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s].
+        substeps : int
+            MuJoCo steps per sample.
+
+        Returns
+        -------
+        MujocoSampler
+            Its ``start(x)`` opens a run (:meth:`open`) at the plant state ``x``.
+        """
         return MujocoSampler(self, Ts / substeps, substeps)
 
     def open(self, timestep: float) -> MujocoHandle:
-        """Compile a fresh model with MuJoCo time step ``timestep`` [s] and its data at
-        ``qpos0`` (each run gets its own, so runs can go on in parallel threads)."""
-        mujoco = import_mujoco()
-        model = compile_model(self._source, self._path)
-        model.opt.timestep = timestep
-        joint = find_joint(model, self._joint)
-        actuator, scale = find_actuator(model, joint, self._joint, self._actuator)
-        dof = int(model.jnt_dofadr[joint])
-        if "b" in self._overrides:
-            model.dof_damping[dof] = self._overrides["b"]
-        if "coulomb" in self._overrides:
-            model.dof_frictionloss[dof] = self._overrides["coulomb"]
-        data = mujoco.MjData(model)
-        return MujocoHandle(
-            mujoco, model, data, int(model.jnt_qposadr[joint]), dof, actuator, scale
+        """Compile a fresh model and its data at ``qpos0``, for one run.
+
+        Each run gets its own, so runs can go on in parallel threads.
+
+        Parameters
+        ----------
+        timestep : float
+            MuJoCo time step [s] of the compiled model.
+
+        Returns
+        -------
+        MujocoHandle
+            ``(mujoco, model, data, qpos, dof, actuator, scale)``: the module, ``MjModel`` and
+            ``MjData``, the joint's ``qpos``/``dof`` addresses, the actuator's id and the
+            factor from torque [N m] to its ``ctrl``.
+        """
+        return open_handle(
+            self._source, self._path, self._joint, self._actuator, self._overrides, timestep
         )
 
     def bias_torque(self, theta, omega=0.0) -> np.ndarray:
@@ -433,6 +459,16 @@ class MujocoServo(Plant):
             Joint angles [rad].
         omega : float, optional
             Joint velocity [rad/s] (matters only for multi-joint models). Default 0.
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            ``qfrc_bias`` [N m] at each angle (one entry for a scalar ``theta``).
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            If an angle or ``omega`` is not finite.
         """
         if np.ndim(theta) == 0:
             angles = np.array([as_real(theta, "theta", "a finite joint angle [rad]")])

@@ -98,17 +98,47 @@ class PlantSession(ABC):
 
     @abstractmethod
     def acceleration(self, applied: float, tau: float) -> float:
-        """Motor acceleration [rad/s^2] just after ``applied`` [N m] is applied, with
-        external torque ``tau`` [N m] (for the ground truth of eq. 3)."""
+        """Motor acceleration just after a torque is applied (for the ground truth of eq. 3).
+
+        Parameters
+        ----------
+        applied : float
+            The motor torque applied [N m].
+        tau : float
+            The external torque at that instant [N m].
+
+        Returns
+        -------
+        float
+            The motor's angular acceleration [rad/s^2].
+        """
 
     @abstractmethod
     def advance(self, applied: float, tau_mid: np.ndarray) -> None:
-        """Advance over one sample with ``applied`` held, ``tau_mid`` the external torque at
-        the midpoints of the sub-steps."""
+        """Advance the run over one sample.
+
+        Parameters
+        ----------
+        applied : float
+            The motor torque [N m], held over the sample.
+        tau_mid : ndarray, shape (substeps,)
+            The external torque [N m] at the midpoints of the sub-steps.
+        """
 
     @abstractmethod
     def diverged(self, limit: float) -> bool:
-        """Whether the state left ``|x| <= limit`` or the plant flagged an unstable run."""
+        """Whether the run has diverged.
+
+        Parameters
+        ----------
+        limit : float
+            Bound on the magnitude of every state entry (SI units).
+
+        Returns
+        -------
+        bool
+            True if the state left ``|x| <= limit`` or the plant flagged an unstable run.
+        """
 
     def states(self) -> np.ndarray | None:
         """The full plant state, when it is worth recording (None: the motor's only)."""
@@ -132,11 +162,40 @@ class Plant(ABC):
         return self.J
 
     def initial_state(self, x0) -> np.ndarray:
-        """Full plant state from the motor's ``x0 = [theta (rad), omega (rad/s)]``."""
+        """Full plant state at the start of a run.
+
+        Parameters
+        ----------
+        x0 : sequence of 2 floats
+            The motor's ``[theta (rad), omega (rad/s)]``.
+
+        Returns
+        -------
+        ndarray
+            The state, entries named by :attr:`state_names` (here ``x0`` itself).
+        """
         return np.array(x0, dtype=float)
 
     def substeps(self, Ts: float, substeps: int | None) -> int:
-        """Plant steps per sample: ``substeps`` (checked), or this plant's default."""
+        """Plant steps per sample of a run.
+
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s].
+        substeps : int or None
+            The number asked for, or None for :meth:`default_substeps`.
+
+        Returns
+        -------
+        int
+            ``substeps`` (checked), or this plant's default.
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            If ``substeps`` is not a positive integer.
+        """
         if substeps is None:
             return self.default_substeps(Ts)
         return as_int(
@@ -144,16 +203,56 @@ class Plant(ABC):
         )
 
     def default_substeps(self, Ts: float) -> int:
-        """Default plant steps per sample."""
+        """Default plant steps per sample.
+
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s].
+
+        Returns
+        -------
+        int
+            :data:`DEFAULT_SUBSTEPS` (8) unless the plant needs more.
+        """
         return DEFAULT_SUBSTEPS
 
     @abstractmethod
     def sampler(self, Ts: float, substeps: int):
-        """:class:`ExactSubsteps` (compiled kernel) or an object whose ``start(x)`` returns a
-        :class:`PlantSession` (advanced from Python)."""
+        """How the loop advances this plant over one sample.
+
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s].
+        substeps : int
+            Plant steps per sample (from :meth:`substeps`).
+
+        Returns
+        -------
+        ExactSubsteps or sampler
+            :class:`ExactSubsteps` (advanced by the compiled kernel) or an object whose
+            ``start(x)`` returns a :class:`PlantSession` (advanced from Python).
+        """
 
     def discretize(self, Ts: float):
-        """Linear ZOH model for the analysis views (``A, B, D, C``, ``state_names``)."""
+        """Linear zero-order-hold model for the analysis views.
+
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s].
+
+        Returns
+        -------
+        discrete model
+            With ``A, B, D, C`` and ``state_names`` (see the module docstring).
+
+        Raises
+        ------
+        ParameterValueError
+            For a plant that is simulated only (no linear model), as here.
+        """
         raise ParameterValueError(
             f"plant must have a linear model for the analysis views; a {type(self).__name__} "
             "is simulated only"

@@ -95,24 +95,83 @@ class ServoModel(Plant):
         return np.array([0.0, 1.0 / self.J])
 
     def coulomb_torque(self, omega):
-        """Coulomb friction torque ``coulomb * tanh(omega / coulomb_velocity)`` [N m]."""
+        """Coulomb friction torque, smoothed: ``coulomb * tanh(omega / coulomb_velocity)``.
+
+        Parameters
+        ----------
+        omega : float or array_like
+            Angular velocity [rad/s].
+
+        Returns
+        -------
+        ndarray
+            The friction torque [N m], the shape of ``omega``.
+
+        Examples
+        --------
+        >>> from hpdob import ServoModel
+        >>> ServoModel(2.8e-4, coulomb=0.01).coulomb_torque([0.0, 1.0])   # tanh(100) = 1
+        array([0.  , 0.01])
+        """
         return self.coulomb * np.tanh(np.asarray(omega, dtype=float) / self.coulomb_velocity)
 
     def discretize(self, Ts: float) -> DiscreteServoModel:
-        """Exact zero-order-hold discretisation with sampling period ``Ts`` [s].
+        r"""Exact zero-order-hold discretisation (eqs. 4-8).
 
-        See :class:`DiscreteServoModel`.
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s], positive.
+
+        Returns
+        -------
+        DiscreteServoModel
+            ``A, B, D`` of :math:`x_{k+1} = A x_k + B u_k - D \tau_k`.
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            If ``Ts`` is not a positive finite number.
         """
         return DiscreteServoModel(self, Ts)
 
     # -- the plant protocol (hpdob.models.Plant) -------------------------------------------
     def default_substeps(self, Ts: float) -> int:
-        """Default plant sub-steps per sample: 8, more for stiff Coulomb friction
-        (``h c / (v J) <= 0.5``)."""
+        """Default plant sub-steps per sample of a simulation.
+
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s].
+
+        Returns
+        -------
+        int
+            8, or the even number ``2 ceil(Ts c / (v J))`` for a stiff Coulomb friction, so
+            that ``h c / (v J) <= 0.5`` with ``h = Ts / substeps``.
+
+        Raises
+        ------
+        ParameterValueError
+            If the friction is too stiff for 1e8 sub-steps per sample.
+        """
         return coulomb_substeps(self.coulomb, self.coulomb_velocity, self.J, Ts)
 
     def sampler(self, Ts: float, substeps: int) -> ExactSubsteps:
-        """The exact sub-step matrices the compiled kernel advances this plant with."""
+        """The exact sub-step matrices the compiled kernel advances this plant with.
+
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s].
+        substeps : int
+            Sub-steps per sample.
+
+        Returns
+        -------
+        ExactSubsteps
+            The ZOH matrices over ``h = Ts/substeps`` and ``h/2``, and the friction data.
+        """
         h = Ts / substeps
         full, half = self.discretize(h), self.discretize(h / 2)
         return ExactSubsteps(
@@ -130,7 +189,28 @@ class ServoModel(Plant):
         )
 
     def replace(self, **changes) -> ServoModel:
-        """Return a copy with some parameters changed (validated like the constructor)."""
+        """Return a copy with some parameters changed (validated like the constructor).
+
+        Parameters
+        ----------
+        **changes
+            New values of ``J``, ``b``, ``coulomb`` or ``coulomb_velocity``.
+
+        Returns
+        -------
+        ServoModel
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            For an unknown parameter or a value the constructor rejects.
+
+        Examples
+        --------
+        >>> from hpdob import ServoModel
+        >>> ServoModel(2.8e-4).replace(b=1e-4)
+        ServoModel(J=0.00028, b=0.0001, coulomb=0.0, coulomb_velocity=0.01)
+        """
         values = {
             "J": self.J,
             "b": self.b,
@@ -288,5 +368,33 @@ class DiscreteServoModel:
         return self.continuous.b
 
     def step(self, x, u: float, tau: float = 0.0) -> np.ndarray:
-        """One step of eq. (8): ``A @ x + B * u - D * tau`` (disturbance held over the sample)."""
+        """One sample of eq. (8): ``A @ x + B * u - D * tau`` (inputs held over the sample).
+
+        Parameters
+        ----------
+        x : sequence of 2 floats
+            ``[theta (rad), omega (rad/s)]`` at sample ``k``.
+        u : float
+            Control torque [N m].
+        tau : float, optional
+            Disturbance torque [N m]. Default 0.
+
+        Returns
+        -------
+        ndarray, shape (2,)
+            The state at sample ``k + 1``.
+
+        References
+        ----------
+        Eq. (8) with the matrices of eqs. (4)-(7).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hpdob import ServoModel
+        >>> J, Ts, u = 2.8e-4, 1e-3, 0.01
+        >>> x1 = ServoModel(J).discretize(Ts).step([0.0, 0.0], u)
+        >>> bool(np.allclose(x1, [u * Ts**2 / (2 * J), u * Ts / J]))   # b = 0: a parabola
+        True
+        """
         return self.A @ np.asarray(x, dtype=float) + self.B * u - self.D * tau

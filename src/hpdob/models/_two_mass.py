@@ -160,15 +160,52 @@ class TwoMassServo(Plant):
         return np.array([0.0, 0.0, 0.0, 1.0 / self.J_load])
 
     def coulomb_torque(self, omega):
-        """Coulomb friction torque of the motor ``coulomb * tanh(omega / coulomb_velocity)``."""
+        """Coulomb friction torque of the motor ``coulomb * tanh(omega / coulomb_velocity)``.
+
+        Parameters
+        ----------
+        omega : float or array_like
+            Motor velocity [rad/s].
+
+        Returns
+        -------
+        ndarray
+            The friction torque [N m], the shape of ``omega``.
+        """
         return self.coulomb * np.tanh(np.asarray(omega, dtype=float) / self.coulomb_velocity)
 
     def discretize(self, Ts: float) -> DiscreteTwoMassServo:
-        """Exact zero-order-hold discretisation with sampling period ``Ts`` [s]."""
+        """Exact zero-order-hold discretisation.
+
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s], positive.
+
+        Returns
+        -------
+        DiscreteTwoMassServo
+            ``A, B, D, C`` of the four-state model (motor and load angle and velocity).
+        """
         return DiscreteTwoMassServo(self, Ts)
 
     def replace(self, **changes) -> TwoMassServo:
-        """A copy with some parameters changed (validated like the constructor)."""
+        """A copy with some parameters changed (validated like the constructor).
+
+        Parameters
+        ----------
+        **changes
+            New values of any of the constructor's parameters.
+
+        Returns
+        -------
+        TwoMassServo
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            For an unknown parameter or a value the constructor rejects.
+        """
         names = [f.name for f in fields(self) if f.init and f.name != "_"]
         unknown = sorted(set(changes) - set(names))
         if unknown:
@@ -181,17 +218,50 @@ class TwoMassServo(Plant):
 
     # -- the plant protocol (hpdob.models.Plant) ----------------------------------------------
     def initial_state(self, x0) -> np.ndarray:
-        """``[theta0, omega0, theta0, omega0]``: the load at the motor's angle and velocity,
-        the spring relaxed."""
+        """The plant state at the start of a run: the spring relaxed.
+
+        Parameters
+        ----------
+        x0 : sequence of 2 floats
+            The motor's ``[theta (rad), omega (rad/s)]``.
+
+        Returns
+        -------
+        ndarray, shape (4,)
+            ``[theta0, omega0, theta0, omega0]``: the load at the motor's angle and velocity.
+        """
         theta, omega = (float(v) for v in x0)
         return np.array([theta, omega, theta, omega])
 
     def default_substeps(self, Ts: float) -> int:
-        """8, more for a stiff Coulomb friction of the motor (``h c / (v J_m) <= 0.5``)."""
+        """Default plant sub-steps per sample of a simulation.
+
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s].
+
+        Returns
+        -------
+        int
+            8, more for a stiff Coulomb friction of the motor (``h c / (v J_m) <= 0.5``).
+        """
         return coulomb_substeps(self.coulomb, self.coulomb_velocity, self.J_motor, Ts)
 
     def sampler(self, Ts: float, substeps: int) -> ExactSubsteps:
-        """The exact sub-step matrices the compiled kernel advances this plant with."""
+        """The exact sub-step matrices the compiled kernel advances this plant with.
+
+        Parameters
+        ----------
+        Ts : float
+            Sampling period [s].
+        substeps : int
+            Sub-steps per sample.
+
+        Returns
+        -------
+        ExactSubsteps
+        """
         h = Ts / substeps
         full, half = self.discretize(h), self.discretize(h / 2)
         c = self.damping
@@ -264,5 +334,20 @@ class DiscreteTwoMassServo:
         return _C
 
     def step(self, x, u: float, tau: float = 0.0) -> np.ndarray:
-        """One sample: ``A @ x + B * u - D * tau`` (inputs held over the sample)."""
+        """One sample: ``A @ x + B * u - D * tau`` (inputs held over the sample).
+
+        Parameters
+        ----------
+        x : sequence of 4 floats
+            ``[theta_m, omega_m, theta_l, omega_l]`` [rad, rad/s] at sample ``k``.
+        u : float
+            Motor torque [N m].
+        tau : float, optional
+            External torque on the load [N m]. Default 0.
+
+        Returns
+        -------
+        ndarray, shape (4,)
+            The state at sample ``k + 1``.
+        """
         return self.A @ np.asarray(x, dtype=float) + self.B * u - self.D * tau

@@ -152,6 +152,29 @@ def estimate(observer, state: tuple, x) -> float:
     x : sequence of 2 floats, or float
         Measurement at sample ``k``: ``[theta (rad), omega (rad/s)]`` for an observer that
         measures the state, the angle [rad] for a position-only one.
+
+    Returns
+    -------
+    float
+        :math:`\hat\tau_k` [N m]; the state is not changed (call :func:`update` next).
+
+    Raises
+    ------
+    TypeError, ValueError
+        If ``x`` is not finite or of the wrong kind, or ``state`` has the wrong length.
+
+    References
+    ----------
+    Eqs. (13) and (23).
+
+    Examples
+    --------
+    >>> from hpdob import ServoModel, design_observer, estimate, initial_state
+    >>> design = design_observer(ServoModel(J=2.8e-4).discretize(1e-3), order=1,
+    ...                          bandwidth=100.0)
+    >>> s0 = initial_state(design, x0=(1.0, 0.0), tau0=0.01)  # converged on 0.01 N m
+    >>> round(estimate(design, s0, (1.0, 0.0)), 12)
+    0.01
     """
     system = as_system(observer)
     values = read_measurement(system, x)
@@ -163,7 +186,37 @@ def outputs(observer, state: tuple, x) -> tuple:
     r"""All outputs ``(tau_hat, [omega_hat])`` of the observer at sample ``k``.
 
     Like :func:`estimate`, with the velocity estimate [rad/s] as second entry where the
-    observer has one (``"omega_hat" in observer.system.outputs``).
+    observer has one (``"omega_hat" in observer.system.outputs``): :math:`H s_k + E v_k`.
+
+    Parameters
+    ----------
+    observer : LinearObserver, design or runtime observer
+    state : tuple of float
+        :math:`s_k`.
+    x : sequence of 2 floats, or float
+        Measurement at sample ``k`` (see :func:`estimate`).
+
+    Returns
+    -------
+    tuple of float
+        ``(tau_hat [N m],)``, or ``(tau_hat [N m], omega_hat [rad/s])`` for an observer that
+        estimates the velocity (the position-only family, ESO, Kalman).
+
+    Raises
+    ------
+    TypeError, ValueError
+        If ``x`` is not finite or of the wrong kind, or ``state`` has the wrong length.
+
+    Examples
+    --------
+    >>> from hpdob import ServoModel, design_observer, initial_state
+    >>> from hpdob.observers import outputs
+    >>> model = ServoModel(J=2.8e-4).discretize(1e-3)
+    >>> design = design_observer(model, order=1, bandwidth=100.0, measurement="position")
+    >>> s0 = initial_state(design, x0=(1.0, 0.5), tau0=0.01)
+    >>> tau_hat, omega_hat = outputs(design, s0, 1.0)   # measures the angle only
+    >>> round(tau_hat, 12), round(omega_hat, 12)
+    (0.01, 0.5)
     """
     system = as_system(observer)
     values = read_measurement(system, x)

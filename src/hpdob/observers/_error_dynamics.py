@@ -32,8 +32,37 @@ def extrapolation_weights(order: int) -> np.ndarray:
     :math:`\Delta^{m+1}\tau_{k+1} = 0`.
 
     :math:`p_i = (-1)^{m+1-i}\binom{m+1}{i-1}` for ``i = 1..m+1`` (``order = m``): the
-    degree-``m`` polynomial extrapolation of the last ``m+1`` samples. ``[1]`` for the DOb,
-    ``[-1, 2]`` for the HPDOb (eqs. 17-19).
+    degree-``m`` polynomial extrapolation of the last ``m+1`` samples.
+
+    Parameters
+    ----------
+    order : int
+        Truncation order ``m >= 0``.
+
+    Returns
+    -------
+    ndarray, shape (m + 1,)
+        :math:`p_1, \dots, p_{m+1}`, oldest sample first: ``[1]`` for the DOb, ``[-1, 2]``
+        for the HPDOb.
+
+    Raises
+    ------
+    ParameterTypeError, ParameterValueError
+        If ``order`` is not a non-negative integer.
+
+    References
+    ----------
+    The disturbance model of eqs. (10), (12) (``m = 0``: :math:`\tau_{k+1} = \tau_k`) and
+    (17)-(19) (``m = 1``: :math:`\tau_{k+1} = 2\tau_k - \tau_{k-1}`), generalised to any
+    order in ``docs/theory.md``.
+
+    Examples
+    --------
+    >>> from hpdob import extrapolation_weights
+    >>> extrapolation_weights(1)   # tau_(k+1) = -tau_(k-1) + 2 tau_k
+    array([-1.,  2.])
+    >>> extrapolation_weights(2)
+    array([ 1., -3.,  3.])
     """
     m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
     return np.array([(-1.0) ** (m + 1 - i) * math.comb(m + 1, i - 1) for i in range(1, m + 2)])
@@ -57,8 +86,35 @@ def companion(order: int) -> np.ndarray:
 def error_matrix(k) -> np.ndarray:
     r"""Estimation-error matrix :math:`M = C - k\,e_{m+1}^T` for ``k_i = L_i^T D_Dn``.
 
-    ``k`` has ``m + 1`` entries. For one entry this is ``[[1 - k1]]`` (eq. 12); for two it is
-    ``[[0, 1 - k1], [-1, 2 - k2]]`` (eq. 22).
+    ``C`` is the companion matrix of :math:`(z-1)^{m+1}` (ones on the superdiagonal, the
+    :func:`extrapolation_weights` in its last row); the errors of the auxiliary variables obey
+    :math:`e_{k+1} = M e_k + [0, \dots, 0, \Delta^{m+1}\tau_{k+1}]^T`.
+
+    Parameters
+    ----------
+    k : sequence of float
+        The ``m + 1`` scalar gains :math:`k_i = L_i^T D_{Dn}` (``design.k``).
+
+    Returns
+    -------
+    ndarray, shape (m + 1, m + 1)
+        ``M``: ``[[1 - k1]]`` for one gain, ``[[0, 1 - k1], [-1, 2 - k2]]`` for two.
+
+    Raises
+    ------
+    ParameterTypeError, ParameterValueError
+        If ``k`` is empty or not a sequence of finite numbers.
+
+    References
+    ----------
+    Eq. (12) (conventional DOb) and eq. (22) (HPDOb); any order in ``docs/theory.md``.
+
+    Examples
+    --------
+    >>> from hpdob import error_matrix
+    >>> error_matrix([0.19, 0.2])   # eq. (22) with k1 = 0.19, k2 = 0.2
+    array([[ 0.  ,  0.81],
+           [-1.  ,  1.8 ]])
     """
     k = as_real_vector(k, "k", "a sequence of scalar gains k_i = L_i^T D_Dn")
     if k.size == 0:
@@ -89,7 +145,34 @@ def characteristic_polynomial(k) -> np.ndarray:
     r"""Coefficients (highest power first) of :math:`\det(zI - M)` for gains ``k``.
 
     Computed from the affine formula :math:`(z-1)^{m+1} + \sum_j k_j q_j(z)`, not from
-    eigenvalues, so it is exact to rounding for repeated roots too.
+    eigenvalues, so it is exact to rounding for repeated roots too. Its roots are the poles
+    of the estimation error (those of :func:`error_matrix`).
+
+    Parameters
+    ----------
+    k : sequence of float
+        The ``m + 1`` scalar gains :math:`k_i = L_i^T D_{Dn}`.
+
+    Returns
+    -------
+    ndarray, shape (m + 2,)
+        Monic coefficients, highest power of ``z`` first (as :func:`numpy.roots` takes them).
+
+    Raises
+    ------
+    ParameterTypeError, ParameterValueError
+        If ``k`` is empty or not a sequence of finite numbers.
+
+    References
+    ----------
+    The characteristic polynomial of eq. (22), whose roots eq. (24) places:
+    :math:`z^2 - (2 - k_2) z + (1 - k_1)`; any order in ``docs/theory.md``.
+
+    Examples
+    --------
+    >>> from hpdob import characteristic_polynomial
+    >>> characteristic_polynomial([0.19, 0.2])   # eq. (24) for poles 0.9, 0.9: (z - 0.9)^2
+    array([ 1.  , -1.8 ,  0.81])
     """
     k = as_real_vector(k, "k", "a sequence of scalar gains k_i = L_i^T D_Dn")
     if k.size == 0:

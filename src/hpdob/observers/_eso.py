@@ -133,8 +133,14 @@ class ESODesign:
         return self.model.Ts
 
     def to_statespace(self):
-        """The observer as a discrete python-control ``StateSpace`` (see
-        :meth:`LinearObserver.to_statespace`)."""
+        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
+
+        Returns
+        -------
+        control.StateSpace
+            Inputs ``theta, u``, outputs ``tau_hat, omega_hat``
+            (:meth:`LinearObserver.to_statespace`).
+        """
         return self.system.to_statespace()
 
 

@@ -130,7 +130,14 @@ class KalmanDesign:
         return np.linalg.eigvals(np.asarray(self.system.F))
 
     def to_statespace(self):
-        """The observer as a discrete python-control ``StateSpace``."""
+        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
+
+        Returns
+        -------
+        control.StateSpace
+            Inputs ``theta, u``, outputs ``tau_hat, omega_hat``
+            (:meth:`LinearObserver.to_statespace`).
+        """
         return self.system.to_statespace()
 
 

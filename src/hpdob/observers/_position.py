@@ -215,9 +215,14 @@ class PositionObserverDesign:
         return self.model.Ts
 
     def to_statespace(self):
-        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``): input
-        ``theta, u``, outputs ``tau_hat, omega_hat``; see
-        :func:`hpdob.analysis._estimation.observer_statespace`."""
+        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
+
+        Returns
+        -------
+        control.StateSpace
+            Inputs ``theta, u``, outputs ``tau_hat, omega_hat``
+            (:meth:`LinearObserver.to_statespace`).
+        """
         from ..analysis._estimation import observer_statespace
 
         return observer_statespace(self)

@@ -88,6 +88,30 @@ class Program:
 
         Constants are named after their matrix entry (``F1_2``, ``G1_THETA``, ``H1_2``,
         ``E1_OMEGA``, ``N1_TAU0``, 1-based); coefficients of magnitude one are written inline.
+
+        Parameters
+        ----------
+        F, G, H, E, N : ndarray
+            The matrices of a :class:`~hpdob.LinearObserver`: shapes ``(n, n)``,
+            ``(n, p + 1)``, ``(q, n)``, ``(q, p)`` and ``(n, 3)`` for ``n`` states, ``p``
+            measured signals and ``q`` outputs.
+        measures : sequence of str
+            The measured signals, ``("theta", "omega")`` or ``("theta",)``: they name the
+            columns of ``G`` and ``E`` (the last column of ``G`` is ``u``).
+
+        Returns
+        -------
+        Program
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hpdob.observers import Program
+        >>> F, G = np.array([[0.9]]), np.array([[0.1, 0.0, 0.5]])   # z' = 0.9 z + 0.1 th + 0.5 u
+        >>> H, E, N = np.array([[1.0]]), np.array([[-0.3, 0.0]]), np.array([[0.0, 0.0, 1.0]])
+        >>> program = Program.from_matrices(F, G, H, E, N, ("theta", "omega"))
+        >>> [(t.coefficient, t.operand, t.constant) for t in program.update[0]]
+        [(0.9, 0, 'F1_1'), (0.1, 1, 'G1_THETA'), (0.5, 3, 'G1_U')]
         """
         n = F.shape[0]
         inputs = [*(m.upper() for m in measures), "U"]
@@ -115,8 +139,15 @@ class Program:
         return cls(update=update, output=output, reset=reset)
 
     def arrays(self):
-        """``(update, output, reset)`` as ``(pointer, coefficient, operand)`` arrays each:
-        the terms of row ``i`` are ``pointer[i]:pointer[i+1]`` (what the numba kernel reads)."""
+        """The program as flat arrays (what the numba kernel reads).
+
+        Returns
+        -------
+        tuple
+            ``(update, output, reset)``, each a tuple ``(pointer, coefficient, operand)`` of
+            arrays (int64, float64, int64): the terms of row ``i`` are
+            ``pointer[i]:pointer[i+1]``.
+        """
 
         def flat(rows):
             pointer = np.zeros(len(rows) + 1, dtype=np.int64)
@@ -134,7 +165,19 @@ class Program:
         return flat(self.update), flat(self.output), flat(self.reset)
 
     def constant_table(self) -> dict:
-        """``{name: (value, description)}`` of every named constant (each name one value)."""
+        """The named constants of the program, as generated C declares them.
+
+        Returns
+        -------
+        dict
+            ``{name: (value, description)}``; ``value`` as written (``-coefficient`` for a
+            negated term), ``description`` from :attr:`constants` or ``""``.
+
+        Raises
+        ------
+        ParameterValueError
+            If one name carries two different values.
+        """
         notes = dict(self.constants)
         table: dict = {}
         for rows in (self.update, self.output, self.reset):

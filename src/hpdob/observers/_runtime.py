@@ -95,10 +95,26 @@ class Observer:
 
     @staticmethod
     def of(design, *, x0=(0.0, 0.0), tau0: float = 0.0) -> Observer:
-        """The runtime object of a design, reset at ``x0, tau0``: a
-        :class:`DisturbanceObserver` for a design of the order-m families, an
-        :class:`~hpdob.ExtendedStateObserver` or a :class:`~hpdob.KalmanDisturbanceObserver`
-        for their designs, a plain :class:`Observer` for any other observer."""
+        """The runtime object of a design, reset at ``x0, tau0``.
+
+        Parameters
+        ----------
+        design : design or observer-like
+            A design of any family, or any observer (a :class:`LinearObserver` or an object
+            whose ``system`` is one).
+        x0 : sequence of 2 floats, optional
+            ``[theta (rad), omega (rad/s)]`` of the reset. Default ``(0, 0)``.
+        tau0 : float, optional
+            Disturbance [N m] of the reset. Default 0.
+
+        Returns
+        -------
+        Observer
+            A :class:`DisturbanceObserver` for a design of the order-m families, an
+            :class:`~hpdob.ExtendedStateObserver` or a
+            :class:`~hpdob.KalmanDisturbanceObserver` for their designs, a plain
+            :class:`Observer` for any other observer.
+        """
         from ._eso import ESODesign, ExtendedStateObserver
         from ._kalman import KalmanDesign, KalmanDisturbanceObserver
 
@@ -170,10 +186,26 @@ class Observer:
 
     # -- the sample loop -------------------------------------------------------------------
     def estimate(self, measurement) -> float:
-        """Disturbance estimate [N m] at the current sample from the measurement.
+        r"""Disturbance estimate at the current sample from the measurement.
 
-        ``measurement`` is ``[theta (rad), omega (rad/s)]`` for an observer that measures the
-        state, the angle [rad] (a float) for a position-only one. Does not change the state.
+        Does not change the state; afterwards :attr:`velocity` holds the velocity estimate
+        where the observer has one.
+
+        Parameters
+        ----------
+        measurement : sequence of 2 floats, or float
+            ``[theta (rad), omega (rad/s)]`` for an observer that measures the state, the
+            angle [rad] (a float) for a position-only one.
+
+        Returns
+        -------
+        float
+            :math:`\hat\tau_k` [N m] (eqs. 13, 23).
+
+        Raises
+        ------
+        TypeError, ValueError
+            If ``measurement`` is non-finite or of the wrong kind.
         """
         system = self._system
         values = _core.read_measurement(system, measurement)
@@ -182,10 +214,19 @@ class Observer:
         return y[0]
 
     def update(self, measurement, u) -> None:
-        """Advance the state with the measurement and the applied torque ``u_k`` [N m].
+        """Advance the state by one sample (eqs. 11, 20-21).
 
-        A non-finite or malformed ``measurement`` or ``u`` raises and leaves the state
-        unchanged.
+        Parameters
+        ----------
+        measurement : sequence of 2 floats, or float
+            As for :meth:`estimate`, at the same sample.
+        u : float
+            The torque applied over the sample [N m], compensation included.
+
+        Raises
+        ------
+        TypeError, ValueError
+            If ``measurement`` or ``u`` is non-finite or malformed; the state is unchanged.
         """
         system = self._system
         values = _core.read_measurement(system, measurement)
@@ -194,20 +235,44 @@ class Observer:
         self._outputs = None
 
     def reset(self, x0=(0.0, 0.0), tau0: float = 0.0) -> None:
-        r"""Set the state a constant disturbance ``tau0`` [N m] at ``x0`` would give.
+        r"""Set the state a constant disturbance ``tau0`` at ``x0`` would give.
 
-        :math:`s = N [	heta_0, \omega_0, 	au_0]`, so ``estimate`` at ``x0`` returns ``tau0``.
+        :math:`s = N [\theta_0, \omega_0, \tau_0]`, so ``estimate`` at ``x0`` returns
+        ``tau0`` (:func:`hpdob.initial_state`).
+
+        Parameters
+        ----------
+        x0 : sequence of 2 floats, optional
+            ``[theta (rad), omega (rad/s)]``. Default ``(0, 0)``.
+        tau0 : float, optional
+            Disturbance [N m]. Default 0.
+
+        Raises
+        ------
+        TypeError, ValueError
+            If ``x0`` or ``tau0`` is non-finite or malformed; the state is unchanged.
         """
         self._state = _core.initial_state(self._system, x0, tau0)
         self._outputs = None
 
     def to_statespace(self):
-        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``); see
-        :meth:`LinearObserver.to_statespace`."""
+        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
+
+        Returns
+        -------
+        control.StateSpace
+            See :meth:`LinearObserver.to_statespace`.
+        """
         return self._system.to_statespace()
 
     def copy(self):
-        """Independent observer with the same design and the same current state."""
+        """Independent observer with the same design and the same current state.
+
+        Returns
+        -------
+        Observer
+            Of the same class; updating one leaves the other unchanged.
+        """
         other = self.__class__.__new__(self.__class__)
         for cls in type(self).__mro__:
             for slot in getattr(cls, "__slots__", ()):
@@ -322,8 +387,26 @@ class DisturbanceObserver(Observer):
 
     @classmethod
     def from_design(cls, design, *, x0=(0.0, 0.0), tau0: float = 0.0) -> DisturbanceObserver:
-        """Runtime observer for an existing design (:class:`ObserverDesign` or
-        :class:`PositionObserverDesign`), reset at ``x0, tau0``."""
+        """Runtime observer for an existing design, reset at ``x0, tau0``.
+
+        Parameters
+        ----------
+        design : ObserverDesign or PositionObserverDesign
+            From :func:`hpdob.design_observer`.
+        x0 : sequence of 2 floats, optional
+            ``[theta (rad), omega (rad/s)]`` of the reset. Default ``(0, 0)``.
+        tau0 : float, optional
+            Disturbance [N m] of the reset. Default 0.
+
+        Returns
+        -------
+        DisturbanceObserver
+
+        Raises
+        ------
+        ParameterTypeError
+            If ``design`` is not a design of the order-m families.
+        """
         if not isinstance(design, DESIGNS):
             raise ParameterTypeError(
                 f"design must be an ObserverDesign, got {type(design).__name__}"
@@ -383,11 +466,15 @@ class DisturbanceObserver(Observer):
     def to_statespace(self):
         """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
 
-        Inputs ``theta, omega, u``, output ``tau_hat``, state the auxiliary variables:
-        ``A = M``, ``B = [K_x, K_u]``, ``C = e_{m+1}^T``, ``D = [-L_{m+1}^T, 0]``; for a
-        position-only observer inputs ``theta, u``, outputs ``tau_hat, omega_hat`` and
-        ``A, B, C, D = F, G, H, E`` of its system. From a zero initial state it reproduces
-        this object after ``reset()`` sample by sample.
+        From a zero initial state it reproduces this object after ``reset()`` sample by sample.
+
+        Returns
+        -------
+        control.StateSpace
+            Inputs ``theta, omega, u``, output ``tau_hat``, state the auxiliary variables:
+            ``A = M``, ``B = [K_x, K_u]``, ``C = e_{m+1}^T``, ``D = [-L_{m+1}^T, 0]``; for a
+            position-only observer inputs ``theta, u``, outputs ``tau_hat, omega_hat`` and
+            ``A, B, C, D = F, G, H, E`` of its system.
 
         Examples
         --------

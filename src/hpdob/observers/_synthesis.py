@@ -172,12 +172,12 @@ class ObserverDesign:
     def to_statespace(self):
         """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
 
-        Inputs ``theta, omega, u``, output ``tau_hat``; see
-        :meth:`hpdob.DisturbanceObserver.to_statespace`.
+        Returns
+        -------
+        control.StateSpace
+            Inputs ``theta, omega, u``, output ``tau_hat`` (:meth:`LinearObserver.to_statespace`).
         """
-        from ..analysis._estimation import observer_statespace
-
-        return observer_statespace(self)
+        return self.system.to_statespace()
 
     def __repr__(self) -> str:
         poles = ", ".join(_fmt_pole(p) for p in np.atleast_1d(self.poles))
@@ -432,7 +432,7 @@ def structured_program(k, G, Kx, Ku, p) -> Program:
       disturbance history, eqs. 16 and 20 for the HPDOb);
     - row ``n``: :math:`-k_n z_n + K_{x,n} x + K_{u,n} u + \sum_j p_j z_j` (the degree-m
       extrapolation, eqs. 19 and 21), with the integer weights :math:`p_j` exact;
-    - the estimate :math:`z_n - L_n^T x` (eqs. 13, 23); the reset :math:`	au_0 + L_i^T x_0`.
+    - the estimate :math:`z_n - L_n^T x` (eqs. 13, 23); the reset :math:`\tau_0 + L_i^T x_0`.
 
     Keeping :math:`1` and :math:`p_j` apart from :math:`k_i` (instead of the rounded entries of
     ``M``) means every executable form runs exactly the polynomial the synthesis certified.

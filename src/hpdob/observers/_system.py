@@ -320,10 +320,35 @@ class LinearObserver:
         return self.program.arrays()
 
     def to_statespace(self):
-        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
+        r"""The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
 
-        Inputs ``measures`` and ``u``, outputs ``outputs``; see
-        :func:`hpdob.analysis._estimation.observer_statespace`.
+        Run from a zero initial state on the sequences of measurements and ``u`` it returns,
+        sample by sample, what the runtime observer returns after ``reset()``.
+
+        Returns
+        -------
+        control.StateSpace
+            ``A, B, C, D = F, G, H, E``: inputs :attr:`measures` (``theta`` [rad], and
+            ``omega`` [rad/s] for a state-measuring observer) and ``u`` [N m], outputs
+            :attr:`outputs` (``tau_hat`` [N m], and ``omega_hat`` [rad/s] where the observer
+            has one). For the order-m family :math:`A = M`, :math:`B = [K_x, K_u]`,
+            :math:`C = e_{m+1}^T`, :math:`D = [-L_{m+1}^T, 0]`.
+
+        References
+        ----------
+        Eqs. (11), (13) (DOb) and (20), (21), (23) (HPDOb), in matrix form.
+
+        Examples
+        --------
+        >>> import control, numpy as np
+        >>> from hpdob import ServoModel, design_observer
+        >>> design = design_observer(ServoModel(J=2.8e-4).discretize(1e-3), order=1,
+        ...                          bandwidth=100.0)
+        >>> ss = design.system.to_statespace()
+        >>> ss.input_labels, ss.output_labels, ss.dt
+        (['theta', 'omega', 'u'], ['tau_hat'], 0.001)
+        >>> np.abs(control.poles(ss)).round(6)   # both at exp(-100 Ts)
+        array([0.904837, 0.904837])
         """
         from ..analysis._estimation import observer_statespace
 
@@ -349,9 +374,34 @@ class LinearObserver:
 def as_system(observer, name: str = "observer") -> LinearObserver:
     """The :class:`LinearObserver` of an observer-like object.
 
-    Accepted: a :class:`LinearObserver`, or anything with a ``system`` attribute that is one
-    (designs such as :class:`~hpdob.ObserverDesign`, runtime objects such as
-    :class:`~hpdob.DisturbanceObserver`).
+    Parameters
+    ----------
+    observer : LinearObserver or observer-like
+        A :class:`LinearObserver`, or anything with a ``system`` attribute that is one
+        (designs such as :class:`~hpdob.ObserverDesign`, runtime objects such as
+        :class:`~hpdob.DisturbanceObserver`, your own observer classes).
+    name : str, optional
+        The parameter name the error message uses. Default ``"observer"``.
+
+    Returns
+    -------
+    LinearObserver
+        ``observer`` itself, or its ``system``.
+
+    Raises
+    ------
+    ParameterTypeError
+        If ``observer`` is neither.
+
+    Examples
+    --------
+    >>> from hpdob import DisturbanceObserver, ServoModel
+    >>> from hpdob.observers import as_system
+    >>> obs = DisturbanceObserver(ServoModel(J=2.8e-4).discretize(1e-3), order=1,
+    ...                           bandwidth=100.0)
+    >>> system = as_system(obs)
+    >>> system.n_states, system.measures, system.outputs
+    (2, ('theta', 'omega'), ('tau_hat',))
     """
     if isinstance(observer, LinearObserver):
         return observer

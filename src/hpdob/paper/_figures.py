@@ -99,9 +99,39 @@ def _error_panel(ax, results, names):
 
 
 def paper_figures(results) -> dict:
-    """Figures ``fig2`` ... ``fig5`` (matplotlib Figures) keyed by name.
+    """The paper's Figs. 2-5 drawn from the canonical runs.
 
-    ``results`` maps the canonical run names to :class:`SimulationResult` objects.
+    Parameters
+    ----------
+    results : dict
+        ``{run name: SimulationResult}`` for every name of :data:`RUNS` (as
+        ``{name: run(name) for name in RUNS}`` gives).
+
+    Returns
+    -------
+    dict
+        ``{"fig2": Figure, ..., "fig5": Figure}`` (matplotlib): Fig. 2 the PD alone, Fig. 3
+        the DObs at three bandwidths, Fig. 4 DOb vs HPDOb at 100 rad/s, Fig. 5 the virtual
+        experiments (simulations standing in for the paper's hardware test).
+
+    Raises
+    ------
+    KeyError
+        If a run is missing from ``results``.
+
+    References
+    ----------
+    Figs. 2-5 of the paper (section IV).
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from hpdob import paper
+    >>> results = {name: paper.run(name, duration=2.0) for name in paper.RUNS}
+    >>> figures = paper.figures(results)
+    >>> sorted(figures), len(figures["fig3"].axes)   # Fig. 3: panels a), b), c)
+    (['fig2', 'fig3', 'fig4', 'fig5'], 3)
+    >>> plt.close("all")
     """
     import matplotlib.pyplot as plt
 

@@ -18,7 +18,34 @@ METRIC_UNITS = {
 
 
 def summary_table(metrics: dict) -> str:
-    """Fixed-width table of ``{run: metrics}``."""
+    """Fixed-width text table of the metrics of several runs.
+
+    Parameters
+    ----------
+    metrics : dict
+        ``{run name: SimulationResult.metrics()}``: each value has the keys
+        ``rms_estimation_error``, ``rms_position_error_regulation`` and
+        ``rms_position_error_tracking``.
+
+    Returns
+    -------
+    str
+        A header naming each metric with its unit, a rule, and one line per run (values in
+        ``%.4e``), what ``hpdob reproduce`` prints.
+
+    Raises
+    ------
+    KeyError
+        If a run's metrics lack one of the three keys.
+
+    Examples
+    --------
+    >>> from hpdob import paper
+    >>> metrics = paper.run("HPDOb-100", duration=2.0).metrics()
+    >>> header, rule, row = paper.summary_table({"HPDOb-100": metrics}).splitlines()
+    >>> header.split()[:4], row.split()[0]
+    (['run', 'rms_estimation_error', '[N', 'm]'], 'HPDOb-100')
+    """
     names = list(METRIC_UNITS)
     width = max(20, *(len(name) + 1 for name in metrics))
     header = f"{'run':<{width}}" + "".join(f"{n + ' [' + METRIC_UNITS[n] + ']':>36}" for n in names)
@@ -36,6 +63,13 @@ def reproduce(out_dir="hpdob-results", *, figures: bool = True) -> dict:
     "virtual-experiment-position": {...}}``. The files are written to temporary names and
     renamed when all are complete, ``metrics.json`` last: a failed or interrupted call leaves
     the previous complete set, or files without ``metrics.json`` (``docs/reliability.md``).
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike, optional
+        Output directory, created if missing. Default ``"hpdob-results"``.
+    figures : bool, optional
+        Draw and write Figs. 2-5 (matplotlib, ~5 s). Default True.
 
     Returns
     -------

@@ -72,7 +72,31 @@ VIRTUAL_RUNS = ("virtual-experiment", "virtual-experiment-position")
 
 
 def scenario() -> dict:
-    """Keyword arguments of :func:`hpdob.simulate` for the canonical scenario, no observer."""
+    """Keyword arguments of :func:`hpdob.simulate` for the canonical scenario, no observer.
+
+    Returns
+    -------
+    dict
+        A new dict with ``plant`` (:data:`PLANT`), ``nominal`` (:data:`NOMINAL`), ``Ts``,
+        ``duration``, ``controller``, ``reference`` and ``disturbance``; add ``observer=``
+        (and ``sensor=``, ``actuator=``) to run it.
+
+    References
+    ----------
+    The paper's section IV (simulation set-up); the values are listed in this module's
+    docstring and in ``docs/simulation.md``.
+
+    Examples
+    --------
+    >>> from hpdob import DisturbanceObserver, paper, simulate
+    >>> kwargs = paper.scenario()
+    >>> kwargs["Ts"], kwargs["duration"], kwargs["plant"].J
+    (0.001, 10.0, 0.000306)
+    >>> obs = DisturbanceObserver(paper.NOMINAL.discretize(paper.TS), order=1, bandwidth=150.0)
+    >>> result = simulate(**{**kwargs, "duration": 2.0}, observer=obs)
+    >>> result.t.size
+    2000
+    """
     return {
         "plant": PLANT,
         "nominal": NOMINAL,
@@ -85,7 +109,38 @@ def scenario() -> dict:
 
 
 def observer(name: str) -> DisturbanceObserver | None:
-    """The observer of canonical run ``name``, reset at ``x0 = (0, 0)``, ``tau0 = 0``."""
+    """The observer of canonical run ``name``, reset at ``x0 = (0, 0)``, ``tau0 = 0``.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`RUNS`: ``"PD"``, ``"DOb-50"``, ``"DOb-100"``, ``"DOb-200"``,
+        ``"HPDOb-100"``, ``"virtual-experiment"``, ``"virtual-experiment-position"``.
+
+    Returns
+    -------
+    DisturbanceObserver or None
+        A new observer on the nominal model with gain direction ``(1, 1)`` (eq. 25), or None
+        for ``"PD"`` (no observer).
+
+    Raises
+    ------
+    ParameterValueError
+        If ``name`` is not a canonical run.
+
+    References
+    ----------
+    The paper's section IV: DObs at 50, 100 and 200 rad/s, the HPDOb at 100 rad/s (eq. 24,
+    poles at ``exp(-g Ts)``).
+
+    Examples
+    --------
+    >>> from hpdob import paper
+    >>> paper.observer("HPDOb-100")
+    DisturbanceObserver(order=1, poles=[0.904837, 0.904837], Ts=0.001, J_n=0.00028, b_n=0)
+    >>> paper.observer("PD") is None
+    True
+    """
     check_choice(name, "name", RUNS)
     spec = RUNS[name]
     if spec is None:
@@ -98,7 +153,38 @@ def observer(name: str) -> DisturbanceObserver | None:
 def run(name: str, **overrides):
     """Simulate canonical run ``name`` (one of :data:`RUNS`).
 
-    ``overrides`` replace keyword arguments of :func:`hpdob.simulate` (e.g. ``substeps``).
+    The virtual experiments add :data:`VIRTUAL_SENSOR` and :data:`VIRTUAL_ACTUATOR`;
+    ``virtual-experiment-position`` runs :data:`VIRTUAL_POSITION_CONTROLLER`.
+
+    Parameters
+    ----------
+    name : str
+        One of :data:`RUNS` (see :func:`observer`); also the result's label.
+    **overrides
+        Keyword arguments of :func:`hpdob.simulate` that replace the scenario's, e.g.
+        ``duration=2.0``, ``substeps=16`` or ``plant=...``.
+
+    Returns
+    -------
+    SimulationResult
+
+    Raises
+    ------
+    ParameterValueError
+        If ``name`` is not a canonical run, or an override is rejected by
+        :func:`hpdob.simulate`.
+
+    References
+    ----------
+    The paper's section IV and Figs. 2-5 (``hpdob reproduce``).
+
+    Examples
+    --------
+    >>> from hpdob import paper
+    >>> dob = paper.run("DOb-100", duration=3.0).metrics()
+    >>> hpdob = paper.run("HPDOb-100", duration=3.0).metrics()
+    >>> hpdob["rms_estimation_error"] < dob["rms_estimation_error"]   # the paper's Fig. 4
+    True
     """
     kwargs = scenario()
     kwargs["observer"] = observer(name)

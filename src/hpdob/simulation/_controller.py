@@ -74,7 +74,33 @@ class PD:
         omega: float,
         tau_hat: float = 0.0,
     ) -> float:
-        """Control torque [N m] for one sample (see the class docstring)."""
+        """Control torque for one sample (see the class docstring).
+
+        Parameters
+        ----------
+        J_n : float
+            Nominal inertia [kg m^2] that scales the acceleration command.
+        r, r_dot, r_ddot : float
+            Reference angle [rad], velocity [rad/s] and acceleration [rad/s^2] (the latter
+            used only with ``feedforward``).
+        theta, omega : float
+            Measured angle [rad] and the velocity [rad/s] the D term uses.
+        tau_hat : float, optional
+            Disturbance estimate [N m] added as compensation. Default 0.
+
+        Returns
+        -------
+        float
+            ``J_n (kp (r - theta) + kd (r_dot - omega) [+ r_ddot]) + tau_hat`` [N m].
+
+        Examples
+        --------
+        >>> from hpdob import PD
+        >>> u = PD(50.0, 5.0).torque(J_n=2.0e-4, r=1.0, r_dot=0.0, r_ddot=3.0, theta=0.9,
+        ...                          omega=0.2, tau_hat=0.001)
+        >>> round(u, 12)   # 2e-4 (50 0.1 - 5 0.2 + 3) + 1e-3
+        0.0024
+        """
         acc = self.kp * (r - theta) + self.kd * (r_dot - omega)
         if self.feedforward:
             acc += r_ddot

@@ -117,7 +117,23 @@ class ServoLoop:
         object.__setattr__(self, "observer_state", state)
 
     def replace(self, **changes) -> ServoLoop:
-        """A copy with some of the loop's arguments changed (validated like the constructor)."""
+        """A copy with some of the loop's arguments changed (validated like the constructor).
+
+        Parameters
+        ----------
+        **changes
+            New values of any of the constructor's arguments (``plant``, ``nominal``, ``Ts``,
+            ``controller``, ``observer``, ``sensor``, ``actuator``).
+
+        Returns
+        -------
+        ServoLoop
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            For an unknown argument, or a value the constructor rejects.
+        """
         unknown = sorted(set(changes) - set(LOOP_KEYS))
         if unknown:
             raise ParameterTypeError(
@@ -130,7 +146,20 @@ class ServoLoop:
         return new
 
     def initial_observer_state(self, x0) -> tuple | None:
-        """The observer's state at the start of a run from ``x0`` (None without observer)."""
+        """The observer's state at the start of a run.
+
+        Parameters
+        ----------
+        x0 : sequence of 2 floats
+            The plant's initial ``[theta (rad), omega (rad/s)]``.
+
+        Returns
+        -------
+        tuple of float or None
+            The state of the runtime observer the loop was built with, as it was then; for a
+            design, the state converged on zero disturbance at ``x0``
+            (:func:`hpdob.initial_state`); None without an observer.
+        """
         if self.system is None:
             return None
         if self.observer_state is not None:
@@ -138,7 +167,14 @@ class ServoLoop:
         return initial_state(self.system, x0, 0.0)
 
     def keywords(self) -> dict:
-        """The loop's arguments as a dict (for ``ServoLoop(**loop.keywords())``)."""
+        """The loop's arguments as a dict.
+
+        Returns
+        -------
+        dict
+            ``{argument: value}`` of the constructor's arguments, so that
+            ``ServoLoop(**loop.keywords())`` builds an equal loop.
+        """
         return {f.name: getattr(self, f.name) for f in fields(self) if f.init}
 
 

@@ -199,17 +199,71 @@ class SimulationResult:
         }
 
     def max_abs_position_error(self) -> float:
-        """Largest ``|theta - r|`` over the run [rad]."""
+        """Largest position error of the run.
+
+        Returns
+        -------
+        float
+            ``max |theta - r|`` [rad]; NaN for an empty result.
+        """
         return float(np.max(np.abs(self.position_error))) if len(self) else math.nan
 
     # -- export -----------------------------------------------------------------------------
     def to_csv(self, path) -> Path:
-        """Write the traces to ``path`` as CSV (header row, full float precision)."""
+        """Write the traces to ``path`` as CSV (header row, full float precision).
+
+        The file is written atomically (a temporary name in the same directory, then
+        renamed): a reader never sees it half written.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (replaced if it exists).
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``. Columns: ``t`` [s], ``theta``, ``omega``, ``theta_measured``,
+            ``omega_measured``, ``r``, ``r_dot``, ``r_ddot``, ``u``, ``tau_hat``, ``tau_dn``,
+            ``tau_ext`` (SI units), then ``omega_hat``, ``theta_load``, ``omega_load`` where
+            the run has them.
+        """
         return columns_to_csv(self._columns(), path)
 
     @classmethod
     def from_csv(cls, path, *, label: str = "") -> SimulationResult:
-        """Read traces written by :meth:`to_csv` (``Ts`` is taken from the time column)."""
+        """Read traces written by :meth:`to_csv` (``Ts`` is taken from the time column).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            A file written by :meth:`to_csv` (or ``hpdob simulate``/``reproduce``).
+        label : str, optional
+            The result's label. Default ``""``.
+
+        Returns
+        -------
+        SimulationResult
+            With the same traces, bit for bit.
+
+        Raises
+        ------
+        ParameterValueError
+            If the header is not that of an hpdob trace file.
+        OSError
+            If the file cannot be read.
+
+        Examples
+        --------
+        >>> import tempfile
+        >>> from pathlib import Path
+        >>> from hpdob import SimulationResult, paper
+        >>> result = paper.run("HPDOb-100", duration=1.0)
+        >>> with tempfile.TemporaryDirectory() as tmp:
+        ...     back = SimulationResult.from_csv(result.to_csv(Path(tmp, "run.csv")))
+        >>> bool((back.tau_hat == result.tau_hat).all()), back.Ts
+        (True, 0.001)
+        """
         path = Path(path)
         with path.open(newline="") as handle:
             reader = csv.reader(handle)
@@ -232,7 +286,18 @@ class SimulationResult:
         return cls(**{name: data[:, i] for i, name in enumerate(header)}, Ts=Ts, label=label)
 
     def to_pandas(self):
-        """The traces as a :class:`pandas.DataFrame` (needs pandas: ``pip install pandas``)."""
+        """The traces as a table.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per sample, the columns of :meth:`to_csv`.
+
+        Raises
+        ------
+        ImportError
+            If pandas is not installed (``pip install hpdob[pandas]``).
+        """
         return columns_to_pandas(self._columns(), caller="SimulationResult.to_pandas()")
 
     def _columns(self) -> dict:
@@ -247,9 +312,16 @@ class SimulationResult:
     def plot(self, *, title: str | None = None):
         """Figure with position vs reference, disturbance and estimate, and estimation error.
 
+        Parameters
+        ----------
+        title : str, optional
+            The figure's title. Default: the result's label (or ``"hpdob simulation"``).
+
         Returns
         -------
         matplotlib.figure.Figure
+            Three panels sharing the time axis [s]: angle [rad], torques [N m] and the
+            estimation error ``tau_hat - tau_dn`` [N m]; the legends above the data.
         """
         from .._plotting import plot_result
 
