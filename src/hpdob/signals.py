@@ -1,4 +1,4 @@
-"""Built-in reference and disturbance signals (public namespace of :mod:`hpdob._signals`).
+"""Built-in reference and disturbance signals (public namespace of the private signal modules).
 
 All signals are immutable, vectorised functions of time that add and scale::
 
@@ -8,18 +8,8 @@ All signals are immutable, vectorised functions of time that add and scale::
     disturbance = Step(1.5005, 0.05) + Sine(0.02, 2.0, start=2.5005)
 """
 
-from ._signals import (
-    Chirp,
-    Constant,
-    Noise,
-    Ramp,
-    Signal,
-    Sine,
-    SmoothStep,
-    Step,
-    Sum,
-    trajectory,
-)
+from ._signals import Constant, Ramp, Signal, SmoothStep, Step, Sum, trajectory
+from ._waveforms import Chirp, Noise, Sine
 
 __all__ = [
     "Chirp",

@@ -146,7 +146,18 @@ class Comparison:
     _results: dict = field(default_factory=dict, repr=False)
 
     def to_pandas(self):
-        """The table as a :class:`pandas.DataFrame`."""
+        """The table as a :class:`pandas.DataFrame`.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per observer and sensor, the columns of ``rows``.
+
+        Raises
+        ------
+        ImportError
+            If pandas is not installed (``pip install hpdob[pandas]``).
+        """
         return columns_to_pandas(self._columns(), caller="Comparison.to_pandas()")
 
     def _columns(self) -> dict:
@@ -154,7 +165,18 @@ class Comparison:
         return {name: [row[name] for row in self.rows] for name in names}
 
     def to_csv(self, path):
-        """Write the table as CSV (atomically)."""
+        """Write the table as CSV (atomically: a temporary file, then renamed).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (replaced if it exists).
+
+        Returns
+        -------
+        str or os.PathLike
+            ``path``, as given.
+        """
         from .._files import atomic_path
 
         with atomic_path(path) as temporary:
@@ -162,7 +184,15 @@ class Comparison:
         return path
 
     def to_dict(self) -> dict:
-        """JSON-ready: the tuning rule, the target and the rows."""
+        """The comparison as plain Python data.
+
+        Returns
+        -------
+        dict
+            JSON-ready (numpy scalars as Python numbers, non-finite values as None):
+            ``rule`` (how the observers were matched), ``noise_gain`` [N m/rad],
+            ``angle_noise`` [rad] and ``rows``.
+        """
         from ..simulation._result import json_ready
 
         return json_ready(
@@ -176,13 +206,33 @@ class Comparison:
         )
 
     def to_json(self, path):
-        """Write :meth:`to_dict` as JSON (atomically)."""
+        """Write :meth:`to_dict` as JSON (atomically: a temporary file, then renamed).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (replaced if it exists).
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+        """
         from .._files import write_text_atomic
 
         return write_text_atomic(path, json.dumps(self.to_dict(), indent=2) + "\n")
 
     def to_markdown(self) -> str:
-        """The table as Markdown, one section per sensor."""
+        """The table as Markdown, one section per sensor.
+
+        Returns
+        -------
+        str
+            For each sensor a bold heading and a table: observer, tuned parameter, RMS
+            estimation error [N m], regulation and tracking errors [rad], command noise
+            [N m], delay margin [ms] and the stable range of J/J_n; "(!)" marks an observer
+            that could not be matched to the target noise gain.
+        """
         lines = []
         for sensor in SENSORS:
             rows = [r for r in self.rows if r["sensor"] == sensor]

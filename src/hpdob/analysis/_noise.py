@@ -86,7 +86,13 @@ class NoiseGains:
     theta_velocity: float
 
     def to_dict(self) -> dict:
-        """The gains as a plain ``dict`` (e.g. for JSON)."""
+        """The gains as a plain ``dict`` (e.g. for JSON).
+
+        Returns
+        -------
+        dict
+            ``{field name: value}`` of every gain (floats, in the units of the attributes).
+        """
         return asdict(self)
 
 

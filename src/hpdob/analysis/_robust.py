@@ -127,7 +127,25 @@ class StabilityMap:
         return self.spectral_radius < 1.0
 
     def radius_at(self, value: float, bandwidth: float) -> float:
-        """Spectral radius at one point (need not be on the grid)."""
+        """Spectral radius at one point (need not be on the grid).
+
+        Parameters
+        ----------
+        value : float
+            The varied parameter: ``J/J_n`` (positive) or ``b`` [N m s/rad] (>= 0).
+        bandwidth : float
+            Observer bandwidth [rad/s], positive.
+
+        Returns
+        -------
+        float
+            The closed loop's spectral radius (< 1: stable).
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            For a value out of range.
+        """
         if self.parameter == "J_ratio":
             value = positive(value, "value", "a positive true/nominal inertia ratio J/J_n")
         else:
@@ -187,11 +205,34 @@ class StabilityMap:
         }
 
     def to_pandas(self):
-        """Long-format ``pandas.DataFrame``, one row per grid point."""
+        """The map in long format.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per grid point: the varied parameter, ``bandwidth_rad_s``, the fixed
+            parameter, ``order``, ``delay_samples``, ``spectral_radius`` and ``stable``.
+
+        Raises
+        ------
+        ImportError
+            If pandas is not installed (``pip install hpdob[pandas]``).
+        """
         return columns_to_pandas(self._columns())
 
     def to_csv(self, path):
-        """Write the long-format table of :meth:`to_pandas` to ``path`` (no pandas needed)."""
+        """Write the long-format table of :meth:`to_pandas` as CSV (no pandas needed).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (atomically; replaced if it exists).
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+        """
         return columns_to_csv(self._columns(), path)
 
     def plot(self, ax=None, *, mark=None, mark_label: str | None = None):

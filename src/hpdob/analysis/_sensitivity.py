@@ -37,7 +37,19 @@ _OUT = {"theta": 0, "omega": 1, "u": 2, "tau_hat": 3, "a": 4}
 
 
 class GangOfFour(NamedTuple):
-    """The four closed-loop transfer functions of :func:`gang_of_four` (SISO ``StateSpace``)."""
+    """The four closed-loop transfer functions of :func:`gang_of_four` (SISO ``StateSpace``).
+
+    Attributes
+    ----------
+    S : control.StateSpace
+        Input sensitivity :math:`1/(1+L)` (dimensionless).
+    T : control.StateSpace
+        Complementary sensitivity :math:`L/(1+L) = 1 - S` (dimensionless).
+    PS : control.StateSpace
+        Load sensitivity: position per input disturbance [rad/(N m)].
+    CS : control.StateSpace
+        Noise sensitivity: command per position-measurement noise [N m/rad].
+    """
 
     S: object
     T: object

@@ -120,9 +120,28 @@ class NoiseTradeoff:
     ) -> np.ndarray:
         """Error gain of ``order`` at the given noise gain(s), log-log interpolated.
 
-        ``channel="command"`` interpolates at noise gains of the command ``u`` instead of the
-        estimate. ``measurement`` picks the family where the table holds an order for both.
-        NaN outside the range of noise gains its bandwidths cover.
+        Parameters
+        ----------
+        order : int
+            A truncation order of the table.
+        noise_gain : float or array_like
+            Noise gain(s) to read at, in the table's units (of the estimate, or of the
+            command for ``channel="command"``).
+        measurement : {"state", "position"}, optional
+            The family, where the table holds ``order`` for both.
+        channel : {"estimate", "command"}, optional
+            Interpolate at noise gains of the estimate (default) or of the command ``u``.
+
+        Returns
+        -------
+        ndarray
+            Error gain at each noise gain; NaN outside the range its bandwidths cover.
+
+        Raises
+        ------
+        ParameterValueError
+            If ``order`` is not in the table, is there for both families and ``measurement``
+            is not given, or ``channel="command"`` without the command's noise gains.
         """
         i = self._row(order, measurement)
         values = self._values(channel)
@@ -146,10 +165,27 @@ class NoiseTradeoff:
     ) -> np.ndarray:
         """Error of ``reference`` divided by the error of ``order`` at the same noise gain.
 
-        One value per bandwidth of ``reference`` (> 1: ``order`` is more accurate for the same
-        noise); NaN where ``order``'s bandwidths do not reach that noise gain. ``measurement``
-        and ``reference_measurement`` pick the families, ``channel`` the noise compared
-        (``"estimate"`` or ``"command"``).
+        Parameters
+        ----------
+        order : int
+            The order compared.
+        reference : int, optional
+            The order compared with. Default 0 (the DOb).
+        measurement, reference_measurement : {"state", "position"}, optional
+            Their families, where the table holds an order for both.
+        channel : {"estimate", "command"}, optional
+            The noise compared. Default ``"estimate"``.
+
+        Returns
+        -------
+        ndarray
+            One value per bandwidth of ``reference``: > 1 where ``order`` is more accurate
+            for the same noise; NaN where ``order``'s bandwidths do not reach that noise gain.
+
+        Raises
+        ------
+        ParameterValueError
+            As for :meth:`error_at_noise`.
         """
         r = self._row(reference, reference_measurement)
         values = self._values(channel)
@@ -158,7 +194,20 @@ class NoiseTradeoff:
         )
 
     def to_pandas(self):
-        """Long-format ``pandas.DataFrame``: one row per order and bandwidth."""
+        """The table in long format.
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per order and bandwidth: ``measurement``, ``order``,
+            ``bandwidth_rad_s``, ``frequency_Hz``, ``error_gain``, ``noise_gain_<noise>``
+            (and ``u_noise_gain_<noise>`` with a controller).
+
+        Raises
+        ------
+        ImportError
+            If pandas is not installed (``pip install hpdob[pandas]``).
+        """
         return columns_to_pandas(self._columns())
 
     def _columns(self) -> dict:
@@ -176,7 +225,18 @@ class NoiseTradeoff:
         return columns
 
     def to_csv(self, path):
-        """Write the long-format table of :meth:`to_pandas` to ``path`` (no pandas needed)."""
+        """Write the long-format table of :meth:`to_pandas` as CSV (no pandas needed).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (atomically; replaced if it exists).
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+        """
         return columns_to_csv(self._columns(), path)
 
     def plot(
@@ -188,11 +248,22 @@ class NoiseTradeoff:
     ):
         """Log-log plot of error gain against noise gain, one curve per order and family.
 
-        Position-only observers are drawn dashed. Bandwidths in ``label_bandwidths`` [rad/s]
-        within the grid are marked and labelled (positions interpolated log-log along each
-        curve). Where the curves crowd together (low noise) a label that would overlap another
-        is left out; its point stays marked. ``channel="command"`` plots against the command's
-        noise gain. Returns the matplotlib Figure.
+        Position-only observers are drawn dashed. Where the curves crowd together (low noise)
+        a bandwidth label that would overlap another is left out; its point stays marked.
+
+        Parameters
+        ----------
+        ax : matplotlib Axes, optional
+            Where to draw; default a new figure.
+        label_bandwidths : sequence of float, optional
+            Bandwidths [rad/s] to mark and label on each curve (those within the grid;
+            positions interpolated log-log). Default 25 to 800 rad/s, doubling.
+        channel : {"estimate", "command"}, optional
+            Plot against the noise gain of the estimate (default) or of the command ``u``.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
         """
         import matplotlib.pyplot as plt
 

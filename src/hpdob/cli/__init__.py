@@ -77,6 +77,24 @@ def main(argv: list[str] | None = None) -> int:
     Errors print one line ``hpdob <command>: error: ...`` and return 2; Ctrl-C
     (KeyboardInterrupt) cancels the pending work, prints ``hpdob <command>: interrupted`` and
     returns 130 (128 + SIGINT), leaving the previous outputs (``docs/reliability.md``).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after ``hpdob`` (e.g. ``["design", "--order", "1"]``). Default
+        ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        The exit code: 0 on success, 2 for a rejected argument or a file error, 130 when
+        interrupted, 1 otherwise (a diverged simulation, a closed output pipe, a bug).
+
+    Examples
+    --------
+    >>> from hpdob.cli import main
+    >>> main(["design", "--order", "-1"])   # prints the error on stderr
+    2
     """
     command = "hpdob"
     try:

@@ -361,7 +361,37 @@ def _check_guard(nan_guard) -> bool:
 def render_c(
     obs, *, prefix: str = "dob", dtype: str = "double", nan_guard: bool = False
 ) -> tuple[str, str]:
-    """Text of ``<prefix>.h`` and ``<prefix>.c`` for ``obs``; see :func:`export_c`."""
+    """Text of ``<prefix>.h`` and ``<prefix>.c`` for ``obs``, without writing files.
+
+    Parameters
+    ----------
+    obs : observer-like
+        As for :func:`export_c`.
+    prefix, dtype, nan_guard
+        As for :func:`export_c`.
+
+    Returns
+    -------
+    header, source : str
+        The C99 texts that :func:`export_c` writes (ASCII).
+
+    Raises
+    ------
+    TypeError, ValueError
+        As :func:`export_c`, for the observer, ``prefix``, ``dtype`` and ``nan_guard``.
+
+    Examples
+    --------
+    >>> from hpdob import ServoModel, design_observer
+    >>> from hpdob.export import render_c
+    >>> design = design_observer(ServoModel(J=2.8e-4).discretize(1e-3), order=1,
+    ...                          bandwidth=100.0)
+    >>> header, source = render_c(design, prefix="axis1")
+    >>> "void axis1_update(axis1_state *s" in header
+    True
+    >>> [line for line in source.splitlines() if line.startswith("#include")]   # no library
+    ['#include "axis1.h"']
+    """
     system = as_system(obs, "obs")
     dtype = check_choice(dtype, "dtype", DTYPES)
     prefix = _check_prefix(prefix)
@@ -402,6 +432,11 @@ def export_c(
         Scalar type of the generated code. ``"double"`` reproduces :func:`hpdob.update` bit
         for bit; ``"float"`` suits single-precision FPUs, within the error bound derived in
         ``docs/deployment.md``. Default ``"double"``.
+    nan_guard : bool, optional
+        Generate the opt-in guard: a sample with a non-finite input, or whose result would
+        overflow, is skipped (the state is unchanged, ``_estimate`` returns the last estimate
+        from finite inputs) and the state's ``fault``/``skipped`` fields say so
+        (``docs/deployment.md``). Default False.
 
     Returns
     -------

@@ -43,6 +43,16 @@ def emps() -> Log:
     ``gtau * vir`` [N] (``gtau`` = 35.15 N/V, read from the file), ``reference`` the
     reference position ``qg`` [m]; 24 841 samples at 1 kHz.
 
+    Returns
+    -------
+    Log
+        Read from :data:`EMPS_FILE` (shipped with hpdob; no download).
+
+    References
+    ----------
+    A. Janot, M. Gautier, M. Brunot, "Data set and reference models of EMPS", Nonlinear
+    System Identification Benchmarks, 2019 (the package's ``data/README.md``).
+
     Examples
     --------
     >>> from hpdob.identification import emps
@@ -67,7 +77,26 @@ def emps_loop(log: Log | None = None) -> FeedbackLoop:
     :math:`u = g_\tau\,(k_p k_v (q_r - q) - k_v \dot q_m)` with
     :math:`\dot q_m(k) = (q_k - q_{k-2})/(2 T_s)` (the FIR filter ``0.5 + 0.5 z^{-1}`` then
     a backward difference, section 2.2), saturated at 10 V. ``gtau``, ``kp`` and ``kv`` are
-    read from the shipped file; ``log`` (default :func:`emps`) supplies the reference ``qg``.
+    read from the shipped file.
+
+    Parameters
+    ----------
+    log : Log, optional
+        Supplies the reference ``qg`` [m]. Default :func:`emps`.
+
+    Returns
+    -------
+    FeedbackLoop
+        For ``method="idim-iv"`` of :func:`hpdob.identify` and :func:`simulate_loop`.
+
+    Raises
+    ------
+    ParameterTypeError, ParameterValueError
+        If ``log`` is not a :class:`Log` or has no reference.
+
+    References
+    ----------
+    The EMPS description (see :func:`emps`), eqs. 6-7 and sections 2.2, 3.5.
 
     Examples
     --------

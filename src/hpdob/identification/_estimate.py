@@ -64,8 +64,27 @@ class EstimationResult:
         return columns
 
     def rms_error(self, reference, *, start: float = 0.0) -> float:
-        """RMS of ``tau_hat - reference`` [N m or N] over ``t >= start`` [s] (e.g. a friction
-        model evaluated on the log, after the observer's transient)."""
+        """RMS of the estimate's deviation from a reference signal.
+
+        Parameters
+        ----------
+        reference : array_like
+            What the estimate should be at each sample [N m or N], e.g. a friction model
+            evaluated on the log; the shape of ``tau_hat``.
+        start : float, optional
+            Only samples with ``t >= start`` [s] count (skip the observer's transient).
+            Default 0.
+
+        Returns
+        -------
+        float
+            ``sqrt(mean((tau_hat - reference)**2))`` [N m or N].
+
+        Raises
+        ------
+        ParameterValueError
+            If ``reference`` has the wrong shape or ``start`` leaves no sample.
+        """
         reference = np.asarray(reference, dtype=float)
         if reference.shape != self.tau_hat.shape:
             raise ParameterValueError(
@@ -81,11 +100,34 @@ class EstimationResult:
         return float(np.sqrt(np.mean((self.tau_hat[keep] - reference[keep]) ** 2)))
 
     def to_pandas(self):
-        """The signals as a :class:`pandas.DataFrame`."""
+        """The signals as a table.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``t``, ``theta``, ``omega`` (if measured), ``u``, ``tau_hat`` and
+            ``omega_hat`` (if the observer estimates it).
+
+        Raises
+        ------
+        ImportError
+            If pandas is not installed (``pip install hpdob[pandas]``).
+        """
         return columns_to_pandas(self._columns(), caller="EstimationResult.to_pandas()")
 
     def to_csv(self, path):
-        """Write the signals to ``path`` as CSV (header row, full precision), atomically."""
+        """Write the signals to ``path`` as CSV (header row, full precision), atomically.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (replaced if it exists); the columns of :meth:`to_pandas`.
+
+        Returns
+        -------
+        str or os.PathLike
+            ``path``, as given.
+        """
         from .._files import atomic_path
 
         with atomic_path(path) as temporary:
@@ -95,6 +137,15 @@ class EstimationResult:
     def plot(self, *, reference=None, reference_label: str = "reference", title=None):
         """Figure: position, and the estimate (with an optional reference such as a friction
         model evaluated on the log).
+
+        Parameters
+        ----------
+        reference : array_like, optional
+            A signal to draw with the estimate [N m or N], one value per sample.
+        reference_label : str, optional
+            Its legend entry. Default ``"reference"``.
+        title : str, optional
+            The figure's title. Default none.
 
         Returns
         -------

@@ -140,14 +140,49 @@ class Log:
         return dict(units(self.axis))
 
     def to_pandas(self):
-        """The signals as a :class:`pandas.DataFrame` (columns t, theta, u[, reference])."""
+        """The signals as a table.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``t`` [s], ``theta``, ``u`` and ``reference`` (if the log has one), in the
+            log's units.
+
+        Raises
+        ------
+        ImportError
+            If pandas is not installed (``pip install hpdob[pandas]``).
+        """
         columns = {"t": self.t, "theta": self.theta, "u": self.u}
         if self.reference is not None:
             columns["reference"] = self.reference
         return columns_to_pandas(columns, caller="Log.to_pandas()")
 
     def identify(self, **options):
-        """:func:`hpdob.identify` on this log (``axis`` and ``time_tolerance`` carried over)."""
+        """:func:`hpdob.identify` on this log (``axis`` and ``time_tolerance`` carried over).
+
+        Parameters
+        ----------
+        **options
+            Keyword arguments of :func:`hpdob.identify` (``method``, ``loop``, filters, ...).
+
+        Returns
+        -------
+        Identification
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            As :func:`hpdob.identify`.
+
+        Examples
+        --------
+        >>> from hpdob.identification import EMPS_PUBLISHED, EMPS_PUBLISHED_STD, emps
+        >>> fit = emps().identify()   # IDIM-LS, as the benchmark's reference script
+        >>> all(abs(fit.parameters[k] - EMPS_PUBLISHED[k]) < EMPS_PUBLISHED_STD[k]
+        ...     for k in EMPS_PUBLISHED)   # within one published standard deviation
+        True
+        """
         from ._identify import identify
 
         options.setdefault("axis", self.axis)

@@ -141,8 +141,32 @@ class FeedbackLoop:
         :math:`u_k = J_n(\ddot r_k + k_p(r_k - y_k) + k_d(\dot r_k - v_k))`, i.e. gains
         ``J_n kp`` and ``J_n kd`` and feed-forward ``J_n r_ddot`` (if the controller has
         feed-forward). For a run of :func:`hpdob.simulate` pass the result's ``r``, ``r_dot``
-        and ``r_ddot``; ``velocity_filter=(1, -1)`` matches an :class:`~hpdob.Encoder` with
-        backward-difference velocity, None an ideal sensor.
+        and ``r_ddot``.
+
+        Parameters
+        ----------
+        controller : PD
+            hpdob's controller (its ``kp`` [1/s^2], ``kd`` [1/s] and ``feedforward``).
+        J_n : float
+            Nominal inertia [kg m^2 or kg], positive.
+        reference : array_like
+            Reference position [rad or m] at each sample.
+        reference_velocity, reference_acceleration : array_like, optional
+            :math:`\dot r_k`, :math:`\ddot r_k` (the latter used with feed-forward only).
+        velocity_filter : sequence of float or None, optional
+            Default ``(1, -1)``: an :class:`~hpdob.Encoder` with backward-difference
+            velocity; None: an ideal sensor (the exact velocity).
+        limit : float, optional
+            Saturation of the command [N m or N]. Default none.
+
+        Returns
+        -------
+        FeedbackLoop
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            For a controller that is not a PD or an invalid value.
         """
         from ..simulation import PD
 
@@ -173,10 +197,34 @@ def simulate_loop(
     theta0: float = 0.0,
     velocity0: float = 0.0,
 ):
-    """Simulate ``loop`` around the model ``parameters = (J, b, coulomb, offset)``.
+    r"""Simulate ``loop`` around a rigid axis with Coulomb friction.
 
-    Returns ``(theta, u)``: the simulated position [rad or m] and command [N m or N] at each
-    sample (see :mod:`hpdob.identification._loop_kernel` for the model and the integration).
+    The plant :math:`J\dot v = u - \mathrm{offset} - b v - c\,\mathrm{sign}(v)` (sticking at
+    :math:`v = 0` while :math:`|u - \mathrm{offset}| \le c`) is integrated exactly over each
+    sample with the command held (zero-order hold); the position is measured without noise.
+
+    Parameters
+    ----------
+    loop : FeedbackLoop
+        The controller and its reference.
+    parameters : sequence of 4 floats
+        ``(J, b, coulomb, offset)`` in the log's units, e.g. ``fit.parameters.values()``.
+    Ts : float
+        Sampling period [s].
+    theta0, velocity0 : float, optional
+        Initial position [rad or m] and velocity [rad/s or m/s]. Default 0.
+
+    Returns
+    -------
+    theta : ndarray
+        Simulated position at each sample [rad or m].
+    u : ndarray
+        Command at each sample [N m or N].
+
+    References
+    ----------
+    The EMPS description (see :func:`emps`), eq. 3; the IDIM-IV instruments of
+    :func:`hpdob.identify` are built with it.
 
     Raises
     ------

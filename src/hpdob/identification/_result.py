@@ -134,18 +134,22 @@ class Identification:
 
     @property
     def J_std(self) -> float:
+        """Standard deviation of ``J`` [kg m^2, or kg on a linear axis]."""
         return self.std["J"]
 
     @property
     def b_std(self) -> float:
+        """Standard deviation of ``b`` [N m s/rad, or N s/m on a linear axis]."""
         return self.std["b"]
 
     @property
     def coulomb_std(self) -> float:
+        """Standard deviation of ``coulomb`` [N m, or N on a linear axis]."""
         return self.std["coulomb"]
 
     @property
     def offset_std(self) -> float:
+        """Standard deviation of ``offset`` [N m, or N on a linear axis]."""
         return self.std["offset"]
 
     @property
@@ -178,6 +182,11 @@ class Identification:
             Velocity scale [rad/s or m/s] of the model's ``tanh`` Coulomb friction (the
             identification uses ``sign``). Default: 1 % of the log's largest speed.
 
+        Returns
+        -------
+        ServoModel
+            ``ServoModel(J, b, coulomb=coulomb, coulomb_velocity=...)``.
+
         Raises
         ------
         ParameterValueError
@@ -204,7 +213,16 @@ class Identification:
 
     # -- reports -----------------------------------------------------------------------------
     def summary(self) -> str:
-        """A few lines of text: each parameter with its standard deviation, and the fit."""
+        """A report of the identification.
+
+        Returns
+        -------
+        str
+            A few lines: the method and rows, each parameter with its standard deviation
+            (absolute and relative) and unit, the relative error, residual std and condition
+            number, IDIM-IV's iterations and, with a loop, the errors of the loop simulated
+            with the identified parameters.
+        """
         u = self.units
         linear = self.axis == "linear"
         lines = [f"{self.method.upper()}: {self.t.size} regression rows from "
@@ -230,7 +248,16 @@ class Identification:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """JSON-ready summary: parameters, standard deviations, units, fit, settings."""
+        """The identification as plain Python data.
+
+        Returns
+        -------
+        dict
+            JSON-ready (non-finite values as None): ``method``, ``axis``, ``parameters``,
+            ``std``, ``units``, ``covariance``, ``relative_error_percent``,
+            ``residual_std``, ``rows``, ``n_samples``, ``condition_number``, ``max_speed``,
+            ``iterations``, ``converged``, ``simulation`` and ``settings``.
+        """
         return _json_ready(
             {
                 "method": self.method,
@@ -253,7 +280,18 @@ class Identification:
         )
 
     def to_json(self, path):
-        """Write :meth:`to_dict` to ``path`` as JSON (atomically)."""
+        """Write :meth:`to_dict` to ``path`` as JSON (atomically).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (replaced if it exists).
+
+        Returns
+        -------
+        str or os.PathLike
+            ``path``, as given.
+        """
         text = json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
         with atomic_path(path) as temporary:
             temporary.write_text(text, encoding="utf-8")
@@ -263,16 +301,44 @@ class Identification:
         return {"t": self.t, "u": self.u, "u_model": self.u_model, "residual": self.residual}
 
     def to_csv(self, path):
-        """Write the fit (columns t, u, u_model, residual on the regression rows) as CSV."""
+        """Write the fit as CSV (atomically).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (replaced if it exists): columns ``t``, ``u``, ``u_model``,
+            ``residual`` on the regression rows.
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+        """
         return columns_to_csv(self._columns(), path)  # atomic
 
     def to_pandas(self):
-        """The fit as a :class:`pandas.DataFrame` (columns t, u, u_model, residual)."""
+        """The fit as a table.
+
+        Returns
+        -------
+        pandas.DataFrame
+            Columns ``t``, ``u``, ``u_model``, ``residual`` on the regression rows.
+
+        Raises
+        ------
+        ImportError
+            If pandas is not installed (``pip install hpdob[pandas]``).
+        """
         return columns_to_pandas(self._columns(), caller="Identification.to_pandas()")
 
     def plot(self, *, title: str | None = None):
         """Measured vs model torque/force, the residual and (with a loop) the position error of
         the loop simulated with the identified model.
+
+        Parameters
+        ----------
+        title : str, optional
+            The figure's title. Default: the method and its relative error.
 
         Returns
         -------

@@ -70,9 +70,27 @@ class ExactSubsteps:
     Over each sub-step of ``h = Ts/S``,
     :math:`x_{j+1} = A_h x_j + B_h (a - F_c(\omega_m)) - D_h \tau_{ext}` with
     :math:`F_c = c \tanh(\omega_m / v)` evaluated at the exponential midpoint (``_half``: the
-    same matrices over ``h/2``). ``shared``: the external torque acts where the command does
-    (``D == B``); the forces are then summed before the product, as for the rigid servo.
-    The motor acceleration (for eq. 3) is ``(a - internal @ x - F_c - [tau_ext]) / J_motor``.
+    same matrices over ``h/2``). The motor acceleration (for eq. 3) is
+    ``(a - internal @ x - F_c - [tau_ext]) / J_motor``.
+
+    Attributes
+    ----------
+    A_h, B_h, D_h : ndarray
+        The ZOH matrices over a sub-step ``h``.
+    A_half, B_half, D_half : ndarray
+        The same over ``h/2`` (for the midpoint of the friction).
+    shared : bool
+        The external torque acts where the command does (``D == B``); the forces are then
+        summed before the product, as for the rigid servo.
+    internal : ndarray
+        Row giving the internal torque on the motor from the state (viscous friction,
+        spring and damper) [N m].
+    J_motor : float
+        Motor inertia [kg m^2].
+    coulomb, coulomb_velocity : float
+        The motor's Coulomb friction level [N m] and ``tanh`` velocity scale [rad/s].
+    velocity_index : int
+        Index of the motor velocity in the state. Default 1.
     """
 
     A_h: np.ndarray

@@ -290,6 +290,13 @@ class DiscreteTwoMassServo:
     \end{bmatrix} T_s\right)` (``scipy.linalg.expm``). ``C`` selects the motor's angle and
     velocity, what the sensor measures.
 
+    Parameters
+    ----------
+    continuous : TwoMassServo
+        The continuous model.
+    Ts : float
+        Sampling period [s], positive.
+
     Attributes
     ----------
     A : ndarray, shape (4, 4)

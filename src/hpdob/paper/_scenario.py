@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import math
 
-from .._signals import Sine, SmoothStep, Step
+from .._signals import SmoothStep, Step
 from .._validation import check_choice
+from .._waveforms import Sine
 from ..models._servo import ServoModel
 from ..observers._runtime import DisturbanceObserver
 from ..simulation._controller import PD

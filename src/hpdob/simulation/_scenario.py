@@ -10,13 +10,14 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from .._signals import Chirp, Constant, Noise, Ramp, Sine, SmoothStep, Step
+from .._signals import Constant, Ramp, SmoothStep, Step
 from .._validation import (
     ParameterTypeError,
     ParameterValueError,
     check_choice,
     check_keys,
 )
+from .._waveforms import Chirp, Noise, Sine
 from ..models._servo import ServoModel
 from ..models._two_mass import TwoMassServo
 from ..observers._families import FAMILIES, check_spec, design_from_spec

@@ -53,8 +53,35 @@ def impulse_rows(observer, *, rtol: float = 1e-20) -> np.ndarray:
 
 
 def error_amplification(observer) -> float:
-    r""":math:`\sum_j \|H_1 F^j\|_1`: the largest factor by which per-sample rounding
-    errors (bounded by the same number in every row) can add up in the estimate."""
+    r"""The error amplification :math:`A = \sum_j \|H_1 F^j\|_1` of an observer.
+
+    The largest factor by which per-sample rounding errors (bounded by the same number in
+    every row) can add up in the estimate: the l1 norm of the error impulse response, summed
+    until it has decayed by 1e-20 (``docs/deployment.md``).
+
+    Parameters
+    ----------
+    observer : LinearObserver, design or runtime observer
+
+    Returns
+    -------
+    float
+        ``A`` (>= 1 for the order-m family; grows quickly with the order and with poles
+        closer to 1).
+
+    Raises
+    ------
+    ParameterTypeError
+        If ``observer`` is not an observer.
+
+    Examples
+    --------
+    >>> from hpdob import ServoModel, design_observer
+    >>> from hpdob.testing import error_amplification
+    >>> dob = design_observer(ServoModel(J=2.8e-4).discretize(1e-3), order=0, poles=[0.9])
+    >>> round(error_amplification(dob), 9)   # sum_j 0.9^j = 1 / (1 - 0.9)
+    10.0
+    """
     return float(impulse_rows(observer).sum())
 
 

@@ -53,6 +53,11 @@ class TuningResult:
         of :func:`hpdob.simulate`).
     notes : tuple of str
         What was left out and why.
+    rows : list of dict
+        Every candidate with its figures (what :attr:`table` shows).
+    recommended : dict
+        The recommended row, with its design and controller (what :attr:`recommendation`
+        shows, and more).
     """
 
     rows: list = field(repr=False)
@@ -91,12 +96,32 @@ class TuningResult:
         return columns_to_pandas(columns, caller="TuningResult.table")
 
     def pareto(self):
-        """The Pareto front of (accuracy, noise) among the qualified candidates."""
+        """The Pareto front of (accuracy, noise) among the qualified candidates.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The rows of :attr:`table` on the front (no qualified candidate is both more
+            accurate and less noisy), renumbered from 0.
+
+        Raises
+        ------
+        ImportError
+            If pandas is not installed (``pip install hpdob[pandas]``).
+        """
         frame = self.table
         return frame[frame["pareto"]].reset_index(drop=True)
 
     def report(self) -> str:
-        """The recommendation and why, as text."""
+        """The recommendation and why, as text.
+
+        Returns
+        -------
+        str
+            The recommended observer and parameter, how many candidates qualified and on what
+            grounds, its accuracy, noise, spectral radius and simulated errors, the
+            nonlinear simulations at every corner of the uncertainty set, and notes.
+        """
         r, s = self.recommended, self.settings
         unit = "rad/s" if r["parameter"] == "bandwidth" else ""
         qualified = sum(row["robust"] and row["within_noise"] for row in self.rows)
@@ -125,7 +150,14 @@ class TuningResult:
         return "\n".join(lines + [f"  note: {n}" for n in self.notes[:5]])
 
     def to_dict(self) -> dict:
-        """JSON-ready: settings, recommendation, verification and every candidate."""
+        """The tuning run as plain Python data.
+
+        Returns
+        -------
+        dict
+            JSON-ready (non-finite values as None): ``settings``, ``recommendation``,
+            ``verification``, ``candidates`` (every row) and ``notes``.
+        """
         from ..simulation._result import json_ready
 
         rows = [{k: v for k, v in row.items() if not k.startswith("_")} for row in self.rows]
@@ -135,7 +167,18 @@ class TuningResult:
         })  # fmt: skip
 
     def to_json(self, path):
-        """Write :meth:`to_dict` as JSON (atomically)."""
+        """Write :meth:`to_dict` as JSON (atomically: a temporary file, then renamed).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (replaced if it exists).
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+        """
         from .._files import write_text_atomic
 
         return write_text_atomic(path, json.dumps(self.to_dict(), indent=2) + "\n")
