@@ -339,6 +339,17 @@ def compare_observers(
     References
     ----------
     ``docs/comparison.md`` (the findings and the theory of where the families coincide).
+
+    Examples
+    --------
+    >>> import math
+    >>> from hpdob import compare_observers
+    >>> table = compare_observers(sensors=("ideal",), duration=2.0)   # ~1 s
+    >>> [row["observer"] for row in table.rows][:3]
+    ['DOb', 'HPDOb', 'order 2']
+    >>> all(math.isclose(row["noise_gain"], table.noise_gain, rel_tol=1e-3)
+    ...     for row in table.rows if row["tuning"] == "matched")   # all at the same noise
+    True
     """
     from .. import paper
     from ..simulation import PD, ServoLoop, simulate

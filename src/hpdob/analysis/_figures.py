@@ -31,6 +31,20 @@ def bode_figure(designs, frequency, *, sensitivities=None, mark_frequency=None):
     Returns
     -------
     matplotlib.figure.Figure
+        Stacked panels sharing the frequency axis [Hz]: ``|Q|`` and ``|1 - Q|`` [dB], the
+        phase of ``Q`` [deg], and ``|S|`` [dB] if given.
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt, numpy as np
+    >>> from hpdob import ServoModel, design_observer
+    >>> from hpdob.analysis import bode_figure
+    >>> model = ServoModel(J=2.8e-4).discretize(1e-3)
+    >>> designs = [design_observer(model, order=m, bandwidth=100.0) for m in (0, 1)]
+    >>> fig = bode_figure(designs, np.geomspace(0.1, 500.0, 200), mark_frequency=2.0)
+    >>> len(fig.axes)
+    3
+    >>> plt.close(fig)
     """
     import matplotlib.pyplot as plt
 
@@ -80,6 +94,23 @@ def noise_figure(bandwidths, orders, gains):
     Returns
     -------
     matplotlib.figure.Figure
+        Four panels: the estimate's and the command's noise gains, per position and per
+        velocity noise, against bandwidth [rad/s].
+
+    Examples
+    --------
+    >>> import matplotlib.pyplot as plt
+    >>> from hpdob import PD, ServoModel, design_observer, noise_gains
+    >>> from hpdob.analysis import noise_figure
+    >>> nominal, bandwidths = ServoModel(J=2.8e-4), [50.0, 100.0, 200.0]
+    >>> def gains(m, g):
+    ...     obs = design_observer(nominal.discretize(1e-3), order=m, bandwidth=g)
+    ...     return noise_gains(plant=nominal, nominal=nominal, Ts=1e-3, controller=PD(50, 5),
+    ...                        observer=obs)
+    >>> fig = noise_figure(bandwidths, (0, 1), [[gains(m, g) for g in bandwidths] for m in (0, 1)])
+    >>> len(fig.axes)
+    4
+    >>> plt.close(fig)
     """
     import matplotlib.pyplot as plt
 

@@ -75,6 +75,22 @@ def reproduce(out_dir="hpdob-results", *, figures: bool = True) -> dict:
     -------
     dict
         ``{run name: SimulationResult}``.
+
+    Raises
+    ------
+    OSError
+        If ``out_dir`` cannot be created or written (the previous files are kept).
+
+    Examples
+    --------
+    >>> import json, tempfile
+    >>> from pathlib import Path
+    >>> from hpdob import paper
+    >>> with tempfile.TemporaryDirectory() as out:
+    ...     results = paper.reproduce(out, figures=False)
+    ...     metrics = json.loads(Path(out, "metrics.json").read_text())
+    >>> list(metrics) == list(paper.RUNS) == list(results)
+    True
     """
     out = Path(out_dir)
     results = {name: run(name) for name in RUNS}

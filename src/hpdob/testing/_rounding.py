@@ -116,6 +116,36 @@ def export_error_bound(observer, dtype: str, theta, omega, u, z, *, init=(0.0, 0
     Returns
     -------
     ndarray, shape (n,)
+        The bound [N m] at each sample (first order in the unit roundoff).
+
+    Raises
+    ------
+    ParameterTypeError, ParameterValueError
+        If ``observer`` is not an observer or ``dtype`` is not ``"double"`` or ``"float"``.
+
+    References
+    ----------
+    ``docs/deployment.md`` (the derivation); N. J. Higham, *Accuracy and Stability of
+    Numerical Algorithms*, 2nd ed., SIAM, 2002, section 3.1 (the :math:`\gamma_n` bounds).
+
+    Examples
+    --------
+    The bound of a ``float`` build along a trace of the Python observer's states (which a
+    ``double`` build reproduces bit for bit):
+
+    >>> import numpy as np
+    >>> from hpdob import ServoModel, design_observer, initial_state, update
+    >>> from hpdob.testing import export_error_bound
+    >>> design = design_observer(ServoModel(J=2.8e-4).discretize(1e-3), order=1,
+    ...                          bandwidth=100.0)
+    >>> rng = np.random.default_rng(0)
+    >>> theta, omega, u = rng.normal(0, 1, 200), rng.normal(0, 10, 200), rng.normal(0, 0.1, 200)
+    >>> states = [initial_state(design)]
+    >>> for k in range(199):
+    ...     states.append(update(design, states[-1], (theta[k], omega[k]), u[k]))
+    >>> bound = export_error_bound(design, "float", theta, omega, u, np.array(states))
+    >>> bound.shape, bool(0 < bound.min() and bound.max() < 1e-3)
+    ((200,), True)
     """
     system = as_system(observer)
     dtype = check_choice(dtype, "dtype", UNIT_ROUNDOFF)
