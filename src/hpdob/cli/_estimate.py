@@ -7,10 +7,12 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
+
 from ._design import _integer, _number_list
 from ._errors import CLIError
 from ._identify import _input_gain
-from ._options import finite
+from ._options import finite, output_path
 
 __all__ = ["register"]
 
@@ -83,7 +85,7 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--out",
-        type=Path,
+        type=output_path,
         default=None,
         metavar="DIR",
         help="output directory (default: hpdob-results/estimate-<log name>)",
@@ -140,7 +142,7 @@ def _nominal(args):
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .._files import atomic_path
+    from .._files import staged_outputs
     from ..identification import estimate_disturbance
     from ..observers._families import design_from_spec
 
@@ -159,42 +161,48 @@ def _run(args: argparse.Namespace) -> int:
         spec["bandwidth"] = 100.0 if args.bandwidth is None else args.bandwidth
     design = design_from_spec(nominal.discretize(log.Ts), spec)
     result = estimate_disturbance(design, theta=log.theta, u=log.u, t=log.t)
-    out = args.out or Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
-    out.mkdir(parents=True, exist_ok=True)
-    result.to_csv(out / "estimate.csv")
     tail = result.tau_hat[result.t >= result.t[0] + 0.1 * (result.t[-1] - result.t[0])]
+    with np.errstate(all="ignore"):  # a diverged estimate is refused below, not warned about
+        mean, std = float(tail.mean()), float(tail.std())
+    if not (np.all(np.isfinite(result.tau_hat)) and math.isfinite(mean) and math.isfinite(std)):
+        raise CLIError(
+            f"the estimate of {design.system.name} is not finite on {log.source}: the observer "
+            "diverged (or the log's values overflow it); nothing was written"
+        )
+    out = args.out or Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
     report = {
         "log": {"source": log.source, "names": dict(log.names), "samples": len(log),
                 "Ts": log.Ts, "input_gain": log.input_gain},
         "nominal": {"J": nominal.J, "b": nominal.b, "origin": origin},
         "observer": {**{k: list(v) if isinstance(v, list) else v for k, v in spec.items()
                         if k != "poles"}, "name": design.system.name},
-        "tau_hat": {"mean": float(tail.mean()), "std": float(tail.std()),
+        "tau_hat": {"mean": mean, "std": std,
                     "note": "over the last 90 % of the log (after the observer's transient)"},
     }  # fmt: skip
     if args.poles is not None:
         report["observer"]["poles"] = [[float(p.real), float(p.imag)] for p in args.poles]
-    with atomic_path(out / "estimate.json") as temporary:
-        temporary.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n")
-    written = ["estimate.csv", "estimate.json"]
-    if not args.no_plot:
-        import matplotlib
+    written = ["estimate.csv"]
+    # Staged and renamed together, estimate.json last (docs/reliability.md).
+    with staged_outputs(out, markers=["estimate.json"]) as files:
+        result.to_csv(files.path("estimate.csv"))
+        if not args.no_plot:
+            import matplotlib
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+            matplotlib.use("Agg")
+            import matplotlib.pyplot as plt
 
-        fig = result.plot(title=f"{design.system.name} on {log.source}")
-        with atomic_path(out / "estimate.png") as temporary:
-            fig.savefig(temporary, dpi=150, format="png")
-        plt.close(fig)
-        written.append("estimate.png")
+            fig = result.plot(title=f"{design.system.name} on {log.source}")
+            try:
+                files.save_figure("estimate.png", fig, dpi=150)
+            finally:
+                plt.close(fig)
+            written.append("estimate.png")
+        files.write_text("estimate.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
+        written.append("estimate.json")
     print(
         f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s; {design.system.name} on "
         f"J_n = {nominal.J:.6g}, b_n = {nominal.b:.6g} ({origin})"
     )
-    mean, std = report["tau_hat"]["mean"], report["tau_hat"]["std"]
-    if not (math.isfinite(mean) and math.isfinite(std)):
-        raise CLIError("the estimate is not finite: the observer diverged on this log")
     print(f"  tau_hat: mean {mean:.6g}, std {std:.6g} (last 90 % of the log)")
     print(f"wrote {', '.join(written)} to {out}")
     return 0
