@@ -38,9 +38,9 @@ def test_within_25_percent_of_brute_force(result):
     import bench_tune
 
     scenario = result.scenario
-    (best, _), count = bench_tune.brute_force(30, scenario)
+    (best, _), count, skipped = bench_tune.brute_force(30, scenario)
     recommended = bench_tune.simulated_error(result.design, scenario)
-    assert count == 360
+    assert count == 360 and skipped < 10  # a few slow ESOs are not realisable
     assert recommended <= 1.25 * best
 
 

@@ -87,6 +87,16 @@ def _tune(model, spec: dict, target: float, sigma: float):
     def mismatch(log_value):
         return math.log(_noise_gain(design(log_value)) / target)
 
+    def realisable(log_value) -> bool:
+        try:
+            design(log_value)
+        except ParameterValueError:  # e.g. the realised poles of a slow design are off
+            return False
+        return True
+
+    while not realisable(lo) and lo < hi:  # the low end: the slowest realisable design
+        lo = min(lo + 0.25, hi)
+
     f_lo, f_hi = mismatch(lo), mismatch(hi)
     if f_lo > 0:
         return design(lo), name, 10**lo, "noise gain above the target even at the lowest setting"

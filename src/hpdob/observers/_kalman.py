@@ -39,6 +39,8 @@ from .._validation import (
     readonly,
 )
 from ..models._servo import DiscreteServoModel, ServoModel
+from ._error_dynamics import schur_cohn_stable
+from ._realised import matrix_characteristic_polynomial
 from ._runtime import Observer
 from ._system import LinearObserver
 
@@ -166,7 +168,8 @@ def design_kalman(
     TypeError, ValueError
         Naming the parameter: a wrong model, a negative or too large order, a non-positive or
         non-finite noise level, or noise levels for which the Riccati equation has no
-        stabilising solution.
+        stabilising solution (also when the solver returns one whose filter, rounded to doubles,
+        is unstable: decided exactly by a Schur-Cohn test on the state matrix).
 
     References
     ----------
@@ -219,13 +222,24 @@ def design_kalman(
             f"process_noise_std={q!r}; the noise levels are too far apart"
         )
     I_KC = np.eye(n) - np.outer(K, C[0])
+    F = A @ I_KC
+    if not schur_cohn_stable(matrix_characteristic_polynomial(F)[0]):
+        with np.errstate(all="ignore"):
+            radius = float(np.abs(np.linalg.eigvals(F)).max())
+        raise ParameterValueError(
+            f"the Kalman observer for position_noise_std={r!r} and process_noise_std={q!r} "
+            f"(order {m}) is not stable in double precision (spectral radius about "
+            f"{radius:.6g}, exact Schur-Cohn test): the Riccati solver found no stabilising "
+            "solution for noise levels this far apart; bring them closer (see "
+            "kalman_process_noise)"
+        )
     outputs = np.zeros((2, n))
     outputs[0, 2] = 1.0  # tau_hat
     outputs[1, 1] = 1.0  # omega_hat
     N = np.zeros((n, 3))
     N[0, 0], N[1, 1], N[2, 2] = 1.0, 1.0, 1.0
     system = LinearObserver(
-        F=A @ I_KC,
+        F=F,
         G=np.column_stack([A @ K, B]),
         H=outputs @ I_KC,
         E=np.column_stack([outputs @ K, np.zeros(2)]),
