@@ -119,6 +119,7 @@ def _log(args):
 
 
 def _nominal(args):
+    from .._validation import ParameterValueError, as_real
     from ..models import ServoModel
 
     if args.from_identification is not None:
@@ -135,7 +136,14 @@ def _nominal(args):
             ) from None
         if args.b_n is not None:
             raise CLIError("--b-n and --from-identification both set b_n; give one")
-        return ServoModel(J, max(float(b), 0.0)), f"identified in {args.from_identification}"
+        where = f"of {args.from_identification}"
+        J = as_real(J, f"parameters.J {where}", "a finite inertia [kg m^2 or kg]")
+        b = as_real(b, f"parameters.b {where}", "a finite viscous friction [N m s/rad or N s/m]")
+        try:
+            model = ServoModel(J, max(b, 0.0))
+        except ParameterValueError as err:
+            raise CLIError(f"--from-identification {args.from_identification}: {err}") from None
+        return model, f"identified in {args.from_identification}"
     if args.J_n is None:
         raise CLIError("give the nominal model: --J-n (and --b-n), or --from-identification FILE")
     return ServoModel(args.J_n, 0.0 if args.b_n is None else args.b_n), "given"

@@ -89,7 +89,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.counts_per_rev is not None and args.counts_per_rev < 1:
         raise CLIError(f"--counts-per-rev must be a positive integer, got {args.counts_per_rev}")
     sensor = None
-    if args.counts_per_rev is not None or args.noise_std > 0:
+    if args.counts_per_rev is not None or args.noise_std != 0:  # Encoder checks the values
         sensor = Encoder(args.counts_per_rev or 2**31, noise_std=args.noise_std)
     families = None if args.families is None else [f.strip() for f in args.families.split(",")]
     result = tune(

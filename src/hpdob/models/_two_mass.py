@@ -248,7 +248,8 @@ class DiscreteTwoMassServo:
         augmented[:4, :4] = plant.A_C
         augmented[:4, 4] = plant.B_C
         augmented[:4, 5] = plant.D_C
-        E = expm(augmented * Ts)
+        with np.errstate(all="ignore"):  # an overflow is refused just below
+            E = expm(augmented * Ts)
         if not np.all(np.isfinite(E)):
             raise ParameterValueError(
                 f"the ZOH discretisation of {plant!r} with Ts={Ts!r} s is not finite"

@@ -88,6 +88,19 @@ def _check_order(order) -> int:
     return m
 
 
+def _noise(value, name: str, what: str) -> float:
+    """A noise std: positive, finite, and with a variance that neither underflows nor
+    overflows (the Riccati equation works with the variances)."""
+    value = positive(value, name, what)
+    if not 0.0 < value * value < math.inf:
+        how = "underflows to 0" if value < 1.0 else "overflows"
+        raise ParameterValueError(
+            f"{name}={value!r} is out of range: its variance {how} in double precision; give "
+            "the noise in units where it has a realistic size"
+        )
+    return value
+
+
 @dataclass(frozen=True, eq=False)
 class KalmanDesign:
     """A steady-state Kalman disturbance observer (immutable); see :func:`design_kalman`.
@@ -191,8 +204,8 @@ def design_kalman(
 
     model = _check_model(model)
     m = _check_order(order)
-    r = positive(position_noise_std, "position_noise_std", "a positive finite noise std [rad]")
-    q = positive(
+    r = _noise(position_noise_std, "position_noise_std", "a positive finite noise std [rad]")
+    q = _noise(
         process_noise_std, "process_noise_std", "a positive finite disturbance noise std [N m]"
     )
     A, B, C, G = augmented_model(model, m)
@@ -215,7 +228,8 @@ def design_kalman(
             f"and process_noise_std={q!r} (order {m}): {err}"
         ) from None
     P = P_s / np.outer(d, d)
-    K = (P @ C.T).ravel() / (float((C @ P @ C.T)[0, 0]) + r * r)
+    with np.errstate(all="ignore"):  # judged below
+        K = (P @ C.T).ravel() / (float((C @ P @ C.T)[0, 0]) + r * r)
     if not np.all(np.isfinite(K)):
         raise ParameterValueError(
             f"the Kalman gain is not finite for position_noise_std={r!r} and "
@@ -332,7 +346,7 @@ def kalman_process_noise(
     model = _check_model(model)
     m = _check_order(order)
     g = positive(bandwidth, "bandwidth", "a positive finite target bandwidth [rad/s]")
-    r = positive(position_noise_std, "position_noise_std", "a positive finite noise std [rad]")
+    r = _noise(position_noise_std, "position_noise_std", "a positive finite noise std [rad]")
     if not g < 0.5 * math.pi / model.Ts:
         raise ParameterValueError(
             f"bandwidth must be below half the Nyquist frequency pi/(2 Ts) = "
@@ -359,7 +373,14 @@ def kalman_process_noise(
         raise ParameterValueError(
             f"bandwidth={g!r} rad/s is not reachable with position_noise_std={r!r} (order {m})"
         )
-    return 10 ** brentq(mismatch, lo, hi, xtol=1e-6)
+    q = 10 ** brentq(mismatch, lo, hi, xtol=1e-6)
+    # brentq also "converges" on a jump between two ends that cannot be designed: verify
+    if not (math.isfinite(q) and q > 0.0 and abs(mismatch(math.log10(q))) < 0.01):
+        raise ParameterValueError(
+            f"bandwidth={g!r} rad/s is not reachable with position_noise_std={r!r} (order {m}): "
+            "no process noise that can be designed in double precision gives it"
+        )
+    return q
 
 
 class KalmanDisturbanceObserver(Observer):

@@ -35,7 +35,6 @@ import numpy as np
 from .._validation import (
     ParameterTypeError,
     ParameterValueError,
-    as_real,
     check_choice,
     nonnegative,
     positive,
@@ -72,15 +71,23 @@ def _range(value, name: str, what: str, *, allow_zero: bool) -> tuple[float, flo
     return low, high
 
 
-def _frequencies(disturbance_frequency) -> np.ndarray:
+def _frequencies(disturbance_frequency, Ts: float) -> np.ndarray:
     if disturbance_frequency is None:
-        return np.geomspace(0.1, 10.0, 25)
-    if np.ndim(disturbance_frequency) == 0:
-        return np.array([positive(disturbance_frequency, "disturbance_frequency",
-                                  "a positive frequency [Hz] or a (low, high) band")])  # fmt: skip
-    low, high = _range(disturbance_frequency, "disturbance_frequency",
-                       "positive frequencies [Hz]", allow_zero=False)  # fmt: skip
-    return np.geomspace(low, high, 25) if high > low else np.array([low])
+        frequencies = np.geomspace(0.1, 10.0, 25)
+    elif np.ndim(disturbance_frequency) == 0:
+        what = "a positive frequency [Hz] or a (low, high) band"
+        frequencies = np.array([positive(disturbance_frequency, "disturbance_frequency", what)])
+    else:
+        low, high = _range(disturbance_frequency, "disturbance_frequency",
+                           "positive frequencies [Hz]", allow_zero=False)  # fmt: skip
+        frequencies = np.geomspace(low, high, 25) if high > low else np.array([low])
+    nyquist = 0.5 / Ts
+    if not frequencies[-1] < nyquist:  # a sampled loop cannot tell it from its alias
+        raise ParameterValueError(
+            f"disturbance_frequency must be below the Nyquist frequency 1/(2 Ts) = {nyquist:.6g} "
+            f"Hz, got {disturbance_frequency!r}"
+        )
+    return frequencies
 
 
 def _sensor_noise(sensor) -> float:
@@ -90,7 +97,7 @@ def _sensor_noise(sensor) -> float:
     return math.hypot(sensor.resolution / math.sqrt(12.0), sensor.noise_std)
 
 
-def _scenario(nominal, disturbance_frequency, scenario):
+def _scenario(nominal, Ts, disturbance_frequency, scenario):
     """The verification run: the paper's reference and disturbance shape, with the sine at the
     disturbance frequency and the amplitudes scaled by J_n (the same disturbance acceleration
     as the paper's), unless given."""
@@ -113,7 +120,8 @@ def _scenario(nominal, disturbance_frequency, scenario):
     f = 2.0 if disturbance_frequency is None else float(np.atleast_1d(disturbance_frequency)[0])
     scale = nominal.J / _PAPER_J
     disturbance = Step(1.5005, 0.05 * scale) + Sine(0.02 * scale, f, start=2.5005)
-    return {"reference": paper.REFERENCE, "disturbance": disturbance, "duration": paper.DURATION}
+    duration = Ts * max(1, round(paper.DURATION / Ts))  # the paper's 10 s, in whole samples
+    return {"reference": paper.REFERENCE, "disturbance": disturbance, "duration": duration}
 
 
 def _candidates(model, families, sigma, notes):
@@ -244,10 +252,16 @@ def tune(
     from ..analysis._noise import noise_gains
     from ..analysis._sensitivity import loop_margins
     from ..simulation._loop import ServoLoop
-    from ..simulation._simulate import simulate
+    from ..simulation._simulate import _sample_count, sample_signals, simulate
 
     nominal = require_instance(nominal, ServoModel, "nominal")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
+    if not 0.4 * math.pi / Ts > MIN_BANDWIDTH:  # the grid of bandwidths, 5 rad/s .. 0.4 pi/Ts
+        raise ParameterValueError(
+            f"Ts must be below 0.4 pi / {MIN_BANDWIDTH:g} rad/s = "
+            f"{0.4 * math.pi / MIN_BANDWIDTH:.4g} s (the bandwidths searched run from "
+            f"{MIN_BANDWIDTH:g} rad/s to 0.4 pi/Ts), got {Ts!r}"
+        )
     controller = PD(50.0, 5.0, velocity="observer") if controller is None else require_instance(
         controller, PD, "controller")  # fmt: skip
     sensor = require_instance(sensor, Encoder, "sensor", optional=True)
@@ -258,7 +272,7 @@ def tune(
         b_low, b_high = _range(
             b_range, "b_range", "non-negative viscous frictions [N m s/rad]", allow_zero=True
         )
-    frequencies = _frequencies(disturbance_frequency)
+    frequencies = _frequencies(disturbance_frequency, Ts)
     if families is None:
         families = tuple(FAMILIES)
     if isinstance(families, str) or not families:
@@ -271,8 +285,11 @@ def tune(
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
     coulomb = nonnegative(coulomb, "coulomb", "a non-negative Coulomb friction [N m]")
-    run = _scenario(nominal, disturbance_frequency, scenario)
-    as_real(run["duration"], "scenario duration", "a duration [s]")
+    run = _scenario(nominal, Ts, disturbance_frequency, scenario)
+    # The verification run, checked before the search (not after it): duration, size, signals
+    duration = positive(run["duration"], "scenario duration", "a positive finite duration [s]")
+    _sample_count(Ts, duration)
+    sample_signals(run["reference"], run.get("disturbance"), Ts=Ts, n=2, substeps=1)
 
     model = nominal.discretize(Ts)
     sigma = _sensor_noise(sensor)
