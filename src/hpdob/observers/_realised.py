@@ -11,6 +11,12 @@ characteristic polynomial of the rounded gains is built exactly (integers: float
 rationals), shifted exactly to each requested pole, and only then solved in floating point,
 where the cluster's roots are well conditioned (checked against 80-digit ``mpmath`` roots in
 ``tests/test_synthesis.py``).
+
+The other families use the same check on their own exact polynomial: the position-only
+family's affine formula (:func:`polynomial_from_fractions` of its ``realised_polynomial``), the
+ESO's and the Kalman observer's state matrix (:func:`matrix_characteristic_polynomial`,
+Berkowitz's division-free algorithm on the matrix's exact binary values;
+``tests/test_realised_families.py``).
 """
 
 from __future__ import annotations
