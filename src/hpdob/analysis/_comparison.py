@@ -321,7 +321,9 @@ def compare_observers(
     noise_gain : float, optional
         Target noise gain [N m/rad]. Default 10 (see :data:`DEFAULT_NOISE_GAIN`).
     candidates : dict, optional
-        ``{name: family spec}`` (without the tuned parameter); default :data:`CANDIDATES`.
+        ``{name: family spec}`` with ``str`` names; default :data:`CANDIDATES`. A spec must not
+        give the tuned parameter (``bandwidth`` or ``poles``; for the Kalman observer
+        ``position_noise_std`` and ``process_noise_std``): it is refused, not replaced.
     duration : float, optional
         Simulated time [s]; default the scenario's 10 s.
 

@@ -378,7 +378,9 @@ def robust_stability_map(
         Any family instead of ``order``: a spec such as ``{"type": "eso", "extended_order":
         1}`` or ``{"type": "kalman", "order": 0, "position_noise_std": 1e-4}``, designed at
         every bandwidth (the Kalman observer's process noise chosen for that bandwidth by
-        :func:`hpdob.observers.kalman_process_noise`).
+        :func:`hpdob.observers.kalman_process_noise`). What the map sets is refused in the spec
+        (``bandwidth``, ``poles``, a Kalman ``process_noise_std``), and ``measurement`` and
+        ``gain_direction`` go in the spec, not beside it.
 
     Returns
     -------

@@ -189,7 +189,8 @@ def tune(
     nominal : ServoModel
         The nominal model (``J_n``, ``b_n``) of controller and observer.
     Ts : float
-        Sampling period [s].
+        Sampling period [s], below 0.25 s (the bandwidths searched run from 5 rad/s to
+        ``0.4 pi/Ts``).
     controller : PD, optional
         Outer loop; default ``PD(50, 5, velocity="observer")`` (the paper's gains). With
         ``velocity="observer"`` the derivative uses the observer's velocity estimate where it
@@ -205,8 +206,8 @@ def tune(
         True viscous frictions [N m s/rad]; default ``(b_n, b_n)``.
     disturbance_frequency : float or (float, float), optional
         Frequency [Hz] of the disturbance the accuracy is judged at (``|1 - Q|``), or a band
-        (RMS of ``|1 - Q|`` over it). Default: the band 0.1-10 Hz (and 2 Hz for the verification
-        scenario's sine).
+        (RMS of ``|1 - Q|`` over it), below the Nyquist frequency ``1/(2 Ts)``. Default: the band
+        0.1-10 Hz (and 2 Hz for the verification scenario's sine).
     families : sequence of str, optional
         Any of ``"state"``, ``"position"``, ``"eso"``, ``"kalman"`` (:data:`FAMILIES`). Default
         all.
@@ -221,7 +222,8 @@ def tune(
         The verification run: ``reference``, ``duration`` [s] and optionally ``disturbance``
         (as for :func:`hpdob.simulate`). Default: the paper's reference, a load step at 1.5 s and
         a sine at the disturbance frequency from 2.5 s, amplitudes scaled with ``J_n`` from the
-        paper's (0.05 and 0.02 N m at ``J_n`` = 2.8e-4 kg m^2); 10 s.
+        paper's (0.05 and 0.02 N m at ``J_n`` = 2.8e-4 kg m^2); 10 s (in whole samples). Its
+        duration and signals are checked before the search.
 
     Returns
     -------
