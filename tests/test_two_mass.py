@@ -117,7 +117,7 @@ def test_resonance_map_confirmed_by_simulation_on_both_sides():
 
 
 def test_scenario_file_and_sweep_paths(tmp_path):
-    from hpdob.simulation._scenario import load_scenario
+    from hpdob.simulation import load_scenario
 
     path = tmp_path / "drive.toml"
     path.write_text(

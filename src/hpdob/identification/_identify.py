@@ -107,8 +107,8 @@ def _check_excitation(theta: np.ndarray, u: np.ndarray, regression, settings) ->
         )
     if np.ptp(u) == 0.0:
         raise ParameterValueError(
-            f"u is constant (every sample is {float(u[0])!r}): the input must vary to identify J, b, "
-            "coulomb and offset"
+            f"u is constant (every sample is {float(u[0])!r}): the input must vary to identify "
+            "J, b, coulomb and offset"
         )
     rows = regression.X.shape[0]
     if rows < MIN_ROWS:
