@@ -550,6 +550,19 @@ def audit_estimate_cli(audit, tmp: Path) -> None:
         "--input-gain 0": ["--input-gain", "0"],
         "--input-gain unknown variable": ["--input-gain", "gtau"],
         "--axis angular": ["--axis", "angular"],
+        "--type eso valid": ["--type", "eso", "--bandwidth", "200"],
+        "--type kalman valid": ["--type", "kalman", "--position-noise-std", "1e-4"],
+        "--type eso --order 1": ["--type", "eso", "--order", "1"],
+        "--type eso --velocity-bandwidth (dob's)": ["--type", "eso", "--velocity-bandwidth",
+                                                    "100"],
+        "--type kalman without --position-noise-std": ["--type", "kalman"],
+        "--type kalman --form (eso's)": ["--type", "kalman", "--position-noise-std", "1e-4",
+                                         "--form", "current"],
+        "--type kalman noise 1e-9/1e-4 --order 2 (unstable)": [
+            "--type", "kalman", "--position-noise-std", "1e-9", "--process-noise-std", "1e-4",
+            "--order", "2"],
+        "--type eso --extended-order 2 --bandwidth 5 (poles off)": [
+            "--type", "eso", "--extended-order", "2", "--bandwidth", "5"],
     }.items():  # fmt: skip
         cli(label, [*ok, *extra])
     without_jn = ["estimate", log, *columns, "--out", tmp / "est", "--no-plot"]

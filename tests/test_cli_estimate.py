@@ -9,6 +9,7 @@ import pytest
 
 from hpdob import ServoModel, design_observer, estimate_disturbance, paper
 from hpdob.cli import main
+from hpdob.observers import design_eso, design_kalman
 
 
 def run(capsys, *argv):
@@ -66,8 +67,39 @@ def test_emps_with_an_identification_file(tmp_path, capsys):
 
 
 @pytest.mark.parametrize(
+    ("options", "design"),
+    [
+        (("--type", "eso", "--extended-order", 1, "--bandwidth", 80),
+         lambda m: design_eso(m, bandwidth=80.0, extended_order=1)),
+        (("--type", "kalman", "--position-noise-std", 1e-6, "--process-noise-std", 50.0),
+         lambda m: design_kalman(m, position_noise_std=1e-6, process_noise_std=50.0)),
+        (("--measurement", "position", "--bandwidth", 60),
+         lambda m: design_observer(m, order=1, bandwidth=60.0, measurement="position")),
+    ],
+    ids=["eso", "kalman", "position"],
+)  # fmt: skip
+def test_every_family_matches_the_library(tmp_path, capsys, log, options, design):
+    """``--type``/``--measurement`` build the same observer as the library's own design call."""
+    path, result, gain = log
+    code, _, err = run(
+        capsys, "estimate", path, "--time", "t", "--position", "q", "--input", "i",
+        "--input-gain", gain, "--J-n", 2.8e-4, *options, "--out", tmp_path / "o", "--no-plot",
+    )  # fmt: skip
+    assert code == 0 and err == "", err
+    table = np.genfromtxt(tmp_path / "o" / "estimate.csv", delimiter=",", names=True)
+    expected = estimate_disturbance(
+        design(ServoModel(2.8e-4).discretize(1e-3)), theta=result.theta_measured, u=result.u
+    )
+    np.testing.assert_allclose(table["tau_hat"], expected.tau_hat, rtol=1e-9, atol=1e-12)
+    report = json.loads((tmp_path / "o" / "estimate.json").read_text())
+    assert report["observer"]["type"] == options[1] if options[0] == "--type" else "dob"
+
+
+@pytest.mark.parametrize(
     ("extra", "needle"),
     [
+        (("--J-n", 2.8e-4, "--type", "eso", "--order", 1), "--type eso takes --extended-order"),
+        (("--J-n", 2.8e-4, "--type", "kalman"), "--type kalman needs --position-noise-std"),
         ((), "give the nominal model: --J-n (and --b-n), or --from-identification FILE"),
         (("--J-n", 2.8e-4, "--position", "nope"), "nope"),
         (("--J-n", -1), "J must be a positive finite inertia"),

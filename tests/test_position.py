@@ -573,7 +573,7 @@ def test_estimate_cli_runs_a_position_only_observer_over_a_log(tmp_path, capsys)
     report = json.loads((tmp_path / "out" / "estimate.json").read_text())
     assert report["observer"]["measurement"] == "position"
     assert main([*argv, "--gain-direction", "0,1"]) == 2
-    assert "--gain-direction applies to --measurement state only" in capsys.readouterr().err
+    assert "gain_direction applies to measurement='state' only" in capsys.readouterr().err
 
 
 def test_mujoco_loop_runs_the_position_only_observer():

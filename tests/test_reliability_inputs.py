@@ -115,7 +115,7 @@ def test_runtime_observer_rejects_overflow_without_changing_state():
 
 
 def test_huge_integers_in_toml(tmp_path):
-    from hpdob.simulation._scenario import load_scenario
+    from hpdob.simulation import load_scenario
 
     text = (
         "Ts = 1e-3\nduration = 0.1\n[plant]\nJ = 1" + "0" * 400 + "\n[nominal]\nJ = 2.8e-4\n"
@@ -301,7 +301,7 @@ def test_gains_that_overflow_are_refused(J, Ts):
     ids=["UTF-16", "Latin-1", "500 nested inline tables"],
 )
 def test_unreadable_scenario_files(tmp_path, payload, pattern):
-    from hpdob.simulation._scenario import load_scenario
+    from hpdob.simulation import load_scenario
 
     path = tmp_path / "s.toml"
     path.write_bytes(payload)
@@ -330,3 +330,21 @@ def test_overflowing_signals_are_reported_by_time_without_warnings():
         )  # fmt: skip
     with pytest.raises(ValueError, match=r"^frequency must be a positive frequency \[Hz\] whose"):
         Sine(1.0, 1e308)
+
+
+def test_written_files_have_the_usual_permissions(tmp_path):
+    """Atomic writes go through mkstemp (mode 0600); the renamed file must get the mode a plain
+    open() would give it under the process's umask, so that others can read the results."""
+    import os
+    import stat
+
+    from hpdob import ServoModel, design_observer, export_c
+
+    old = os.umask(0o022)
+    try:
+        paths = export_c(design_observer(ServoModel(2.8e-4).discretize(1e-3), order=1,
+                                         bandwidth=100.0), tmp_path)  # fmt: skip
+    finally:
+        os.umask(old)
+    for path in paths:
+        assert stat.S_IMODE(path.stat().st_mode) == 0o644, path

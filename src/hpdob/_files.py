@@ -44,11 +44,35 @@ def _check_target(path: Path) -> Path:
     return path
 
 
+def _umask() -> int:
+    """The process's file-creation mask (read without changing it, where the OS allows)."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    with _UMASK_LOCK:  # portable fallback: set and restore at once
+        mask = os.umask(0o022)
+        os.umask(mask)
+    return mask
+
+
+_UMASK_LOCK = threading.Lock()
+
+
 def _temporary_beside(path: Path) -> Path:
     handle, name = tempfile.mkstemp(
         prefix=f"{TEMPORARY_PREFIX}{path.name}.", suffix=path.suffix, dir=path.parent
     )
-    os.close(handle)
+    try:
+        # mkstemp creates 0600; the renamed file must have the mode an open() would give it
+        os.fchmod(handle, 0o666 & ~_umask())
+    except (OSError, AttributeError):  # pragma: no cover - no fchmod (Windows)
+        pass
+    finally:
+        os.close(handle)
     return Path(name)
 
 

@@ -37,6 +37,11 @@ def add_design_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the model and observer options shared by commands that design an observer."""
     add_nominal_arguments(parser.add_argument_group("nominal model"))
     reject_plant_arguments(parser)
+    add_observer_arguments(parser)
+
+
+def add_observer_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the observer options: family, order, bandwidth or poles, and each family's own."""
     obs = parser.add_argument_group("observer")
     obs.add_argument(
         "--type",
@@ -122,9 +127,13 @@ _FAMILY_OPTIONS = {
 
 def design_from_args(args: argparse.Namespace):
     """Build the design described by parsed ``add_design_arguments``."""
+    return design_on(args, ServoModel(args.J_n, args.b_n).discretize(args.Ts))
+
+
+def design_on(args: argparse.Namespace, model):
+    """The design parsed ``add_observer_arguments`` describe, on the discrete ``model``."""
     from ._errors import CLIError
 
-    model = ServoModel(args.J_n, args.b_n).discretize(args.Ts)
     bandwidth = args.bandwidth
     if bandwidth is None and args.poles is None:
         bandwidth = 100.0

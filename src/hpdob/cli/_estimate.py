@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._design import _integer, _number_list
+from ._design import add_observer_arguments, design_on
 from ._errors import CLIError
 from ._identify import _input_gain
 from ._options import finite, output_path
@@ -58,31 +58,7 @@ def register(subparsers) -> None:
     model.add_argument(
         "--b-n", type=finite, default=None, help="nominal viscous friction (default: 0)"
     )
-    obs = parser.add_argument_group("observer")
-    obs.add_argument("--order", type=_integer, default=1, help="truncation order (default: 1)")
-    choice = obs.add_mutually_exclusive_group()
-    choice.add_argument("--bandwidth", type=finite, help="bandwidth [rad/s] (default: 100)")
-    choice.add_argument("--poles", type=_number_list(complex), help="comma-separated poles")
-    obs.add_argument(
-        "--measurement",
-        choices=("state", "position"),
-        default="state",
-        help="the observer family: the paper's, which measures the velocity too (here the log's "
-        "differenced position), or the position-only one (default: %(default)s)",
-    )
-    obs.add_argument(
-        "--velocity-bandwidth",
-        type=finite,
-        default=None,
-        help="--measurement position: bandwidth of the velocity poles [rad/s] (default: the "
-        "bandwidth)",
-    )
-    obs.add_argument(
-        "--gain-direction",
-        type=_number_list(float),
-        default=None,
-        help="gain direction d of the state-measuring family (default: 1,1)",
-    )
+    add_observer_arguments(parser)
     parser.add_argument(
         "--out",
         type=output_path,
@@ -149,25 +125,41 @@ def _nominal(args):
     return ServoModel(args.J_n, 0.0 if args.b_n is None else args.b_n), "given"
 
 
+_FAMILY_OPTIONS = {
+    "dob": ("order", "measurement", "velocity_bandwidth", "gain_direction"),
+    "eso": ("extended_order", "form"),
+    "kalman": ("order", "position_noise_std", "process_noise_std"),
+}
+
+
+#: What an option not given means (``design_on``'s defaults), reported as in effect.
+_DEFAULTS = {"dob": {"order": 1}, "eso": {"extended_order": 0, "form": "current"},
+             "kalman": {"order": 0}}  # fmt: skip
+
+
+def _observer_settings(args: argparse.Namespace) -> dict:
+    """The observer options in effect for ``args.type``, as JSON-ready values."""
+    settings = {"type": args.type}
+    if args.poles is not None:
+        settings["poles"] = [[float(p.real), float(p.imag)] for p in args.poles]
+    else:
+        settings["bandwidth"] = 100.0 if args.bandwidth is None else args.bandwidth
+    defaults = _DEFAULTS[args.type]
+    for name in _FAMILY_OPTIONS[args.type]:
+        value = getattr(args, name)
+        value = defaults.get(name) if value is None else value
+        if value is not None:
+            settings[name] = list(value) if isinstance(value, list) else value
+    return settings
+
+
 def _run(args: argparse.Namespace) -> int:
     from .._files import staged_outputs
     from ..identification import estimate_disturbance
-    from ..observers._families import design_from_spec
 
     log = _log(args)
     nominal, origin = _nominal(args)
-    spec = {"order": args.order, "measurement": args.measurement}
-    if args.measurement == "state":
-        spec["gain_direction"] = [1.0, 1.0] if args.gain_direction is None else args.gain_direction
-    elif args.gain_direction is not None:
-        raise CLIError("--gain-direction applies to --measurement state only")
-    if args.velocity_bandwidth is not None:
-        spec["velocity_bandwidth"] = args.velocity_bandwidth
-    if args.poles is not None:
-        spec["poles"] = args.poles
-    else:
-        spec["bandwidth"] = 100.0 if args.bandwidth is None else args.bandwidth
-    design = design_from_spec(nominal.discretize(log.Ts), spec)
+    design = design_on(args, nominal.discretize(log.Ts))
     result = estimate_disturbance(design, theta=log.theta, u=log.u, t=log.t)
     tail = result.tau_hat[result.t >= result.t[0] + 0.1 * (result.t[-1] - result.t[0])]
     with np.errstate(all="ignore"):  # a diverged estimate is refused below, not warned about
@@ -182,13 +174,10 @@ def _run(args: argparse.Namespace) -> int:
         "log": {"source": log.source, "names": dict(log.names), "samples": len(log),
                 "Ts": log.Ts, "input_gain": log.input_gain},
         "nominal": {"J": nominal.J, "b": nominal.b, "origin": origin},
-        "observer": {**{k: list(v) if isinstance(v, list) else v for k, v in spec.items()
-                        if k != "poles"}, "name": design.system.name},
+        "observer": {**_observer_settings(args), "name": design.system.name},
         "tau_hat": {"mean": mean, "std": std,
                     "note": "over the last 90 % of the log (after the observer's transient)"},
     }  # fmt: skip
-    if args.poles is not None:
-        report["observer"]["poles"] = [[float(p.real), float(p.imag)] for p in args.poles]
     written = ["estimate.csv"]
     # Staged and renamed together, estimate.json last (docs/reliability.md).
     with staged_outputs(out, markers=["estimate.json"]) as files:

@@ -46,7 +46,8 @@ def register(subparsers) -> None:
     loop.add_argument("--noise-std", type=finite, default=0.0, help="angle noise std [rad] (0)")
     loop.add_argument("--delay", type=int, default=0, help="actuator delay [samples] (0)")
     loop.add_argument("--torque-limit", type=finite, default=None, help="torque limit [N m]")
-    loop.add_argument("--coulomb", type=finite, default=0.0, help="simulated Coulomb friction")
+    loop.add_argument("--coulomb", type=finite, default=None,
+                      help="simulated Coulomb friction [N m] (0.01 J_n/2.8e-4)")  # fmt: skip
     search = parser.add_argument_group("search")
     search.add_argument("--J-range", type=_pair, default=(1.0, 1.0), metavar="LOW,HIGH",
                         help="true/nominal inertia ratios (default: 1,1)")  # fmt: skip

@@ -57,8 +57,13 @@ FAMILIES = {
 OBJECTIVES = ("estimation", "position")
 N_BANDWIDTHS = 24
 MIN_BANDWIDTH = 5.0  # rad/s
-#: The paper's nominal inertia [kg m^2]: the default verification disturbance scales with J_n.
+#: The paper's nominal inertia [kg m^2]: the default verification disturbance and Coulomb
+#: friction scale with J_n.
 _PAPER_J = 2.8e-4
+#: The paper's Coulomb friction [N m] (its plant, section 5), scaled by J_n/_PAPER_J by default.
+_PAPER_COULOMB = 0.01
+#: The delay margin scan stops here [extra samples]: a margin reported as this is "at least".
+MAX_EXTRA_DELAY = 20
 
 
 def _range(value, name: str, what: str, *, allow_zero: bool) -> tuple[float, float]:
@@ -166,6 +171,16 @@ def _radius(loop) -> float:
     return float(np.abs(closed_loop_poles(loop)).max())
 
 
+def _delay_margin(base, corners, plant, delay: int) -> int:
+    """Largest d <= MAX_EXTRA_DELAY such that the loop is stable at every corner with every
+    extra delay of 0..d samples (a robust candidate is known to be stable with 0 and 1)."""
+    for extra in range(2, MAX_EXTRA_DELAY + 1):
+        actuator = Actuator(delay_samples=delay + extra)
+        if any(_radius(base.replace(plant=plant(*c), actuator=actuator)) >= 1.0 for c in corners):
+            return extra - 1
+    return MAX_EXTRA_DELAY
+
+
 def tune(
     *,
     nominal: ServoModel,
@@ -179,7 +194,7 @@ def tune(
     families=None,
     objective: str = "estimation",
     noise_limit: float | None = None,
-    coulomb: float = 0.0,
+    coulomb: float | None = None,
     scenario: dict | None = None,
 ) -> TuningResult:
     r"""Recommend an observer for a motor, a sensor and an uncertainty, verified by simulation.
@@ -217,7 +232,9 @@ def tune(
     noise_limit : float, optional
         Largest RMS noise the sensor may cause in the estimate [N m]. Default: no limit.
     coulomb : float, optional
-        Coulomb friction of the simulated plant [N m] (``tanh`` scale 0.01 rad/s). Default 0.
+        Coulomb friction of the simulated plant [N m] (``tanh`` scale 0.01 rad/s). Default: the
+        paper's 0.01 N m scaled by ``J_n / 2.8e-4 kg m^2`` (as the default disturbance is); 0
+        for none.
     scenario : dict, optional
         The verification run: ``reference``, ``duration`` [s] and optionally ``disturbance``
         (as for :func:`hpdob.simulate`). Default: the paper's reference, a load step at 1.5 s and
@@ -286,6 +303,8 @@ def tune(
     objective = check_choice(objective, "objective", OBJECTIVES)
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
+    if coulomb is None:
+        coulomb = _PAPER_COULOMB * nominal.J / _PAPER_J
     coulomb = nonnegative(coulomb, "coulomb", "a non-negative Coulomb friction [N m]")
     run = _scenario(nominal, Ts, disturbance_frequency, scenario)
     # The verification run, checked before the search (not after it): duration, size, signals
@@ -328,11 +347,16 @@ def tune(
                 tau_noise = u_noise = math.inf
         elif radius >= 1.0:
             tau_noise = u_noise = math.inf
+        robust = radius < 1.0 and radius_margin < 1.0
+        if robust:
+            delay_margin = _delay_margin(base, corners, plant, actuator.delay_samples)
+        else:
+            delay_margin = 0 if radius < 1.0 else -1
         rows.append({
             "family": family, "order": m, "name": design.system.name, "parameter": parameter,
             "value": value, "accuracy": accuracy, "tau_noise": tau_noise, "u_noise": u_noise,
-            "radius": radius, "radius_margin": radius_margin,
-            "robust": radius_margin < 1.0,
+            "radius": radius, "radius_margin": radius_margin, "delay_margin_samples": delay_margin,
+            "robust": robust,
             "within_noise": noise_limit is None or tau_noise <= noise_limit,
             "pareto": False, "simulated": math.nan, "_design": design, "_controller": ctrl,
         })  # fmt: skip
@@ -431,6 +455,12 @@ def tune(
             "noise_limit": noise_limit,
             "coulomb": coulomb,
             "margin": "stable at every corner with one extra sample of delay",
+            "max_extra_delay": MAX_EXTRA_DELAY,
+            "bandwidth_grid": {
+                "low": MIN_BANDWIDTH,
+                "high": 0.4 * math.pi / Ts,
+                "points": N_BANDWIDTHS,
+            },
         },
         notes=tuple(notes),
         scenario=run,
