@@ -54,7 +54,7 @@ from .._validation import (
 from ..models._servo import DiscreteServoModel, ServoModel
 from ._error_dynamics import schur_cohn_stable
 from ._realised import POLE_TOLERANCE, check_realised, matrix_characteristic_polynomial
-from ._runtime import Observer
+from ._runtime import _DesignedObserver
 from ._system import LinearObserver
 
 __all__ = ["ESO_FORMS", "ESODesign", "ExtendedStateObserver", "design_eso", "observer_gain", "zoh"]
@@ -313,7 +313,7 @@ def _realised(F, poles, pole_tolerance, bandwidth, m) -> np.ndarray:
     return check_realised(numbers, e, poles, pole_tolerance, asked=asked, what=what)
 
 
-class ExtendedStateObserver(Observer):
+class ExtendedStateObserver(_DesignedObserver):
     """The linear ESO of ADRC as a runtime object (see :func:`design_eso`).
 
     The sample loop is that of the position-only observers::
@@ -348,7 +348,7 @@ class ExtendedStateObserver(Observer):
     (0.01, 0.0)
     """
 
-    __slots__ = ("_design",)
+    __slots__ = ()
 
     def __init__(
         self, model, *, bandwidth, extended_order=0, form="current", pole_tolerance=POLE_TOLERANCE
@@ -360,13 +360,7 @@ class ExtendedStateObserver(Observer):
             form=form,
             pole_tolerance=pole_tolerance,
         )
-        self._design = design
-        Observer.__init__(self, design.system)
-
-    @property
-    def design(self) -> ESODesign:
-        """The immutable design."""
-        return self._design
+        self._start(design)
 
     def __repr__(self) -> str:
         d = self._design

@@ -41,7 +41,7 @@ from .._validation import (
 from ..models._servo import DiscreteServoModel, ServoModel
 from ._error_dynamics import schur_cohn_stable
 from ._realised import matrix_characteristic_polynomial
-from ._runtime import Observer
+from ._runtime import _DesignedObserver
 from ._system import LinearObserver
 
 __all__ = ["KalmanDesign", "KalmanDisturbanceObserver", "design_kalman", "kalman_process_noise"]
@@ -383,7 +383,7 @@ def kalman_process_noise(
     return q
 
 
-class KalmanDisturbanceObserver(Observer):
+class KalmanDisturbanceObserver(_DesignedObserver):
     r"""The steady-state Kalman disturbance observer as a runtime object (see
     :func:`design_kalman`).
 
@@ -415,7 +415,7 @@ class KalmanDisturbanceObserver(Observer):
     0.02
     """
 
-    __slots__ = ("_design",)
+    __slots__ = ()
 
     def __init__(self, model, *, order=0, position_noise_std, process_noise_std):
         design = design_kalman(
@@ -424,13 +424,7 @@ class KalmanDisturbanceObserver(Observer):
             position_noise_std=position_noise_std,
             process_noise_std=process_noise_std,
         )
-        self._design = design
-        Observer.__init__(self, design.system)
-
-    @property
-    def design(self) -> KalmanDesign:
-        """The immutable design."""
-        return self._design
+        self._start(design)
 
     def __repr__(self) -> str:
         d = self._design

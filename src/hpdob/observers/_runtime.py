@@ -109,8 +109,7 @@ class Observer:
             (KalmanDesign, KalmanDisturbanceObserver),
         ):
             if isinstance(design, design_class):
-                state = _core.initial_state(design, x0, tau0)
-                return runtime._with_state(design.system, state, ("_design", design))
+                return runtime._of(design, x0, tau0)
         return Observer(design, x0=x0, tau0=tau0)
 
     @classmethod
@@ -219,7 +218,29 @@ class Observer:
         return f"Observer({self._system!r})"
 
 
-class DisturbanceObserver(Observer):
+class _DesignedObserver(Observer):
+    """An :class:`Observer` that keeps the design it was built from (``.design``)."""
+
+    __slots__ = ("_design",)
+
+    def _start(self, design) -> None:
+        """Initialise from ``design``, reset at rest."""
+        self._design = design
+        Observer.__init__(self, design.system)
+
+    @classmethod
+    def _of(cls, design, x0, tau0):
+        """A runtime object of ``design``, reset at ``x0, tau0``."""
+        state = _core.initial_state(design, x0, tau0)
+        return cls._with_state(design.system, state, ("_design", design))
+
+    @property
+    def design(self):
+        """The immutable design."""
+        return self._design
+
+
+class DisturbanceObserver(_DesignedObserver):
     r"""Discrete disturbance observer of truncation order ``order`` with its runtime state.
 
     ``order=0`` is the conventional DOb (eqs. 9-13), ``order=1`` the HPDOb (eqs. 14-24) and
@@ -295,7 +316,7 @@ class DisturbanceObserver(Observer):
     0.01
     """
 
-    __slots__ = ("_design",)
+    __slots__ = ()
 
     def __init__(
         self,
@@ -317,8 +338,7 @@ class DisturbanceObserver(Observer):
             velocity_bandwidth=velocity_bandwidth,
             gain_direction=gain_direction,
         )
-        self._design = design
-        Observer.__init__(self, design.system)
+        self._start(design)
 
     @classmethod
     def from_design(cls, design, *, x0=(0.0, 0.0), tau0: float = 0.0) -> DisturbanceObserver:
@@ -328,14 +348,9 @@ class DisturbanceObserver(Observer):
             raise ParameterTypeError(
                 f"design must be an ObserverDesign, got {type(design).__name__}"
             )
-        state = _core.initial_state(design, x0, tau0)
-        return cls._with_state(design.system, state, ("_design", design))
+        return cls._of(design, x0, tau0)
 
     # -- the design, read-only ---------------------------------------------------------
-    @property
-    def design(self):
-        """The immutable synthesis result."""
-        return self._design
 
     @property
     def measurement(self) -> str:
