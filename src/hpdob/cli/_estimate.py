@@ -11,7 +11,7 @@ import numpy as np
 
 from ._design import add_observer_arguments, design_on
 from ._errors import CLIError
-from ._identify import _input_gain
+from ._logs import add_log_arguments, log_from_args
 from ._options import finite, output_path
 
 __all__ = ["register"]
@@ -27,25 +27,7 @@ def register(subparsers) -> None:
         "and estimate.png. A linear axis (m, N, kg) works like a rotary one. See "
         "docs/real-data.md.",
     )
-    parser.add_argument("log", type=Path, nargs="?", help="log file (.csv, .parquet, .mat)")
-    parser.add_argument(
-        "--emps", action="store_true", help="use the EMPS benchmark's measured run instead of LOG"
-    )
-    columns = parser.add_argument_group("columns of LOG")
-    columns.add_argument("--time", metavar="NAME", help="time column [s] (or give --Ts)")
-    columns.add_argument("--position", metavar="NAME", help="position column [rad or m]")
-    columns.add_argument("--input", metavar="NAME", help="input column (torque/force or command)")
-    columns.add_argument(
-        "--input-gain",
-        default="1",
-        metavar="GAIN",
-        help="factor from the input column to torque/force, or the name of a scalar variable "
-        "of a .mat file holding it (default: 1)",
-    )
-    columns.add_argument("--Ts", type=finite, help="sampling period [s] of a log without time")
-    columns.add_argument(
-        "--axis", choices=("rotary", "linear"), help="units of the report (default: unstated)"
-    )
+    add_log_arguments(parser, emps_help="use the EMPS benchmark's measured run instead of LOG")
     model = parser.add_argument_group("nominal model")
     which = model.add_mutually_exclusive_group()
     which.add_argument("--J-n", type=finite, help="nominal inertia [kg m^2 or kg]")
@@ -68,30 +50,6 @@ def register(subparsers) -> None:
     )
     parser.add_argument("--no-plot", action="store_true", help="skip the figure")
     parser.set_defaults(handler=_run)
-
-
-def _log(args):
-    from ..identification import emps, read_log
-
-    if args.emps == (args.log is not None):
-        raise CLIError("give a LOG file or --emps (the shipped EMPS run), exactly one")
-    if args.emps:
-        given = [f"--{k}" for k in ("time", "position", "input") if getattr(args, k)]
-        if given:
-            raise CLIError(f"--emps uses the EMPS file's own columns; drop {', '.join(given)}")
-        return emps()
-    for name in ("position", "input"):
-        if getattr(args, name) is None:
-            raise CLIError(f"--{name} is required: the name of the log's {name} column")
-    return read_log(
-        args.log,
-        time=args.time,
-        position=args.position,
-        input=args.input,
-        input_gain=_input_gain(args.input_gain),
-        Ts=args.Ts,
-        axis=args.axis,
-    )
 
 
 def _nominal(args):
@@ -157,7 +115,7 @@ def _run(args: argparse.Namespace) -> int:
     from .._files import staged_outputs
     from ..identification import estimate_disturbance
 
-    log = _log(args)
+    log = log_from_args(args)
     nominal, origin = _nominal(args)
     design = design_on(args, nominal.discretize(log.Ts))
     result = estimate_disturbance(design, theta=log.theta, u=log.u, t=log.t)
