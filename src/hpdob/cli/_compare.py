@@ -60,16 +60,7 @@ def _run(args: argparse.Namespace) -> int:
         comparison.to_csv(files.path("comparison.csv"))
         files.write_text("comparison.md", comparison.to_markdown())
         if not args.no_plot:
-            import matplotlib
-
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-
-            fig = comparison.plot()
-            try:
-                files.save_figure("comparison.png", fig, dpi=150)
-            finally:
-                plt.close(fig)
+            files.plot("comparison.png", lambda: comparison.plot())
             written.append("comparison.png")
         files.write_text("comparison.json", json.dumps(comparison.to_dict(), indent=2) + "\n")
         written.append("comparison.json")

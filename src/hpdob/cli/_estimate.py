@@ -141,16 +141,9 @@ def _run(args: argparse.Namespace) -> int:
     with staged_outputs(out, markers=["estimate.json"]) as files:
         result.to_csv(files.path("estimate.csv"))
         if not args.no_plot:
-            import matplotlib
-
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-
-            fig = result.plot(title=f"{design.system.name} on {log.source}")
-            try:
-                files.save_figure("estimate.png", fig, dpi=150)
-            finally:
-                plt.close(fig)
+            files.plot(
+                "estimate.png", lambda: result.plot(title=f"{design.system.name} on {log.source}")
+            )
             written.append("estimate.png")
         files.write_text("estimate.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
         written.append("estimate.json")

@@ -123,16 +123,10 @@ def _run(args: argparse.Namespace) -> int:
     with staged_outputs(out, markers=["identification.json"]) as files:
         result.to_csv(files.path("identification.csv"))
         if not args.no_plot:
-            import matplotlib
-
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-
-            fig = result.plot(title=f"{result.method.upper()} on {log.source}")
-            try:
-                files.save_figure("identification.png", fig, dpi=150)
-            finally:
-                plt.close(fig)
+            files.plot(
+                "identification.png",
+                lambda: result.plot(title=f"{result.method.upper()} on {log.source}"),
+            )
             written.append("identification.png")
         files.write_text(
             "identification.json", json.dumps(report, indent=2, allow_nan=False) + "\n"

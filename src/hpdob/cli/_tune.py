@@ -114,16 +114,7 @@ def _run(args: argparse.Namespace) -> int:
     with staged_outputs(args.out, markers=["tune.json"]) as files:
         result.table.to_csv(files.path("tune.csv"), index=False)
         if not args.no_plot:
-            import matplotlib
-
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-
-            fig = result.plot()
-            try:
-                files.save_figure("tune.png", fig, dpi=150)
-            finally:
-                plt.close(fig)
+            files.plot("tune.png", lambda: result.plot())
             written.append("tune.png")
         if args.export_c is not None:
             from ..export import export_c
