@@ -20,7 +20,15 @@ import warnings
 
 import numpy as np
 
-from hpdob import PD, ServoModel, SimulationDivergedWarning, paper, simulate, tune
+from hpdob import (
+    PD,
+    ParameterValueError,
+    ServoModel,
+    SimulationDivergedWarning,
+    paper,
+    simulate,
+    tune,
+)
 from hpdob.observers import design_eso, design_kalman, design_observer, kalman_process_noise
 
 NOMINAL = paper.NOMINAL
@@ -38,8 +46,18 @@ SETTINGS = {
 }
 
 
+def _realisable(design, *args, **kwargs):
+    """The design, or None where it cannot be realised in double precision (its realised
+    poles off by more than the default pole_tolerance: the tuner skips those too)."""
+    try:
+        return design(*args, **kwargs)
+    except ParameterValueError:
+        return None
+
+
 def candidates(n: int):
-    """Every family, orders 0-2, ``n`` bandwidths (or process noises) each."""
+    """Every family, orders 0-2, ``n`` bandwidths (or process noises) each; ``None`` for a
+    design that cannot be realised."""
     model = NOMINAL.discretize(TS)
     sigma = paper.VIRTUAL_SENSOR.resolution / math.sqrt(12.0)
     bandwidths = np.geomspace(5.0, 0.4 * math.pi / TS, n)
@@ -48,16 +66,18 @@ def candidates(n: int):
             for measurement in ("state", "position"):
                 yield (
                     (f"{measurement} m={m}", g),
-                    design_observer(model, order=m, bandwidth=g, measurement=measurement),
-                )
-            yield (f"eso m={m}", g), design_eso(model, bandwidth=g, extended_order=m)
+                    _realisable(design_observer, model, order=m, bandwidth=g,
+                                measurement=measurement),
+                )  # fmt: skip
+            yield (f"eso m={m}", g), _realisable(design_eso, model, bandwidth=g, extended_order=m)
         ends = [kalman_process_noise(model, bandwidth=g, position_noise_std=sigma, order=m)
                 for g in (bandwidths[0], 0.45 * math.pi / TS)]  # fmt: skip
         for q in np.geomspace(*ends, n):
             yield (
                 (f"kalman m={m}", q),
-                design_kalman(model, order=m, position_noise_std=sigma, process_noise_std=q),
-            )
+                _realisable(design_kalman, model, order=m, position_noise_std=sigma,
+                            process_noise_std=q),
+            )  # fmt: skip
 
 
 def simulated_error(design, scenario) -> float:
@@ -73,14 +93,18 @@ def simulated_error(design, scenario) -> float:
 
 
 def brute_force(n: int, scenario) -> tuple:
+    """``((best error, its label), candidates, skipped)``: skipped are the unrealisable."""
     best = (math.inf, None)
-    count = 0
+    count = skipped = 0
     for label, design in candidates(n):
         count += 1
+        if design is None:
+            skipped += 1
+            continue
         error = simulated_error(design, scenario)
         if error < best[0]:
             best = (error, label)
-    return best, count
+    return best, count, skipped
 
 
 def main(n: int = 60) -> dict:
@@ -90,12 +114,13 @@ def main(n: int = 60) -> dict:
     scenario = result.scenario
     recommended = simulated_error(result.design, scenario)
     start = time.perf_counter()
-    (best, label), count = brute_force(n, scenario)
+    (best, label), count, skipped = brute_force(n, scenario)
     brute = time.perf_counter() - start
     print(result.report())
     print(f"\ntune: {elapsed:.1f} s; recommended simulated RMS estimation error {recommended:.4g}")
     print(
-        f"brute force: {count} simulations in {brute:.0f} s; best {best:.4g} N m "
+        f"brute force: {count - skipped} simulations ({skipped} of {count} candidates not "
+        f"realisable) in {brute:.0f} s; best {best:.4g} N m "
         f"({label[0]} at {label[1]:.4g}); recommended / best = {recommended / best:.3f}"
     )
     stable = all(not c["diverged"] and c["radius"] < 1 for c in result.verification)

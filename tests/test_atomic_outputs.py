@@ -283,6 +283,10 @@ def test_simulate_writes_staged_outputs(capsys, tmp_path):
         ["analyze", "bode", "--out", " "],
         ["export-c", "--out", ""],
         ["identify", "--emps", "--out", ""],
+        ["estimate", "--emps", "--J-n", "1", "--out", ""],
+        ["compare", "--out", ""],
+        ["tune", "--out", ""],
+        ["tune", "--export-c", " "],
     ],
 )
 def test_empty_out_is_refused(capsys, tmp_path, monkeypatch, argv):
@@ -311,3 +315,132 @@ def test_sweep_output_on_a_full_disk_keeps_the_previous_table(capsys, tmp_path, 
     code, _, err = run_cli(capsys, "sweep", spec, "--out", out, "--workers", "1")
     assert code == 2 and "No space left" in err
     assert out.read_bytes() == before and no_temporaries(tmp_path)
+
+
+# -- hpdob estimate, compare and tune: staged like the others, their JSON last ---------------
+def write_log(path: Path, n: int = 400) -> Path:
+    t = np.arange(n) * 1e-3
+    rows = ["t,q,i"] + [f"{float(v)!r},{0.1 * float(np.sin(v))!r},0.02" for v in t]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+ESTIMATE = ["--time", "t", "--position", "q", "--input", "i", "--J-n", "2.8e-4"]
+
+
+def previous_outputs(out: Path, names) -> dict:
+    out.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        (out / name).write_text("previous\n")
+    return snapshot(out)
+
+
+def fail_to_draw(*args, **kwargs):
+    raise OSError(errno.ENOSPC, "No space left on device")
+
+
+def test_estimate_writes_a_staged_set_with_its_json_last(capsys, tmp_path, monkeypatch):
+    log, out = write_log(tmp_path / "log.csv"), tmp_path / "out"
+    assert run_cli(capsys, "estimate", log, *ESTIMATE, "--out", out)[0] == 0
+    assert sorted(snapshot(out)) == ["estimate.csv", "estimate.json", "estimate.png"]
+    before = previous_outputs(out, ["estimate.csv", "estimate.json", "estimate.png"])
+    import hpdob.identification._estimate as module
+
+    monkeypatch.setattr(module.EstimationResult, "plot", fail_to_draw)  # fails after the CSV
+    code, _, err = run_cli(capsys, "estimate", log, *ESTIMATE, "--out", out)
+    assert code == 2 and "No space left" in err and err.count("\n") == 1
+    assert snapshot(out) == before and no_temporaries(out)
+
+
+def test_estimate_that_diverges_writes_nothing(capsys, tmp_path):
+    log = tmp_path / "log.csv"
+    log.write_text("t,q,i\n" + "".join(f"{k / 1000},1e300,1e300\n" for k in range(50)))
+    code, _, err = run_cli(capsys, "estimate", log, *ESTIMATE, "--out", tmp_path / "out")
+    assert code == 2 and "the estimate of" in err and "not finite" in err, err
+    assert not (tmp_path / "out").exists()
+
+
+class FakeComparison:
+    """What ``hpdob compare`` needs of a Comparison, instantly."""
+
+    def __init__(self):
+        self.rows = [{"observer": "DOb", "sensor": "ideal"}]
+
+    def to_csv(self, path):
+        Path(path).write_text("observer,sensor\nDOb,ideal\n")
+
+    def to_markdown(self):
+        return "| DOb |\n"
+
+    def to_dict(self):
+        return {"rows": self.rows}
+
+    def plot(self):
+        import matplotlib.pyplot as plt
+
+        return plt.figure(figsize=(1, 1))
+
+
+def test_compare_writes_a_staged_set_with_its_json_last(capsys, tmp_path, monkeypatch):
+    import hpdob.analysis
+
+    monkeypatch.setattr(hpdob.analysis, "compare_observers", lambda **kw: FakeComparison())
+    out = tmp_path / "out"
+    assert run_cli(capsys, "compare", "--out", out)[0] == 0
+    names = ["comparison.csv", "comparison.json", "comparison.md", "comparison.png"]
+    assert sorted(snapshot(out)) == names
+    before = previous_outputs(out, names)
+    monkeypatch.setattr(FakeComparison, "plot", fail_to_draw)
+    code, _, err = run_cli(capsys, "compare", "--out", out)
+    assert code == 2 and "No space left" in err
+    assert snapshot(out) == before and no_temporaries(out)
+
+
+class FakeTuning:
+    """What ``hpdob tune`` needs of a TuningResult, instantly."""
+
+    def __init__(self):
+        import pandas as pd
+
+        self.table = pd.DataFrame({"family": ["state"], "order": [1]})
+        self.design = design_observer(ServoModel(2.8e-4).discretize(1e-3), order=1,
+                                      bandwidth=100.0)  # fmt: skip
+
+    def plot(self):
+        import matplotlib.pyplot as plt
+
+        return plt.figure(figsize=(1, 1))
+
+    def to_dict(self):
+        return {"recommendation": "HPDOb"}
+
+    def report(self):
+        return "Recommended: HPDOb"
+
+
+def test_tune_writes_a_staged_set_and_checks_the_c_options_first(capsys, tmp_path, monkeypatch):
+    import hpdob.tuning
+
+    calls = []
+    monkeypatch.setattr(hpdob.tuning, "tune", lambda **kw: calls.append(kw) or FakeTuning())
+    out, c = tmp_path / "out", tmp_path / "c"
+    assert run_cli(capsys, "tune", "--out", out, "--export-c", c)[0] == 0
+    assert sorted(snapshot(out)) == ["tune.csv", "tune.json", "tune.png"]
+    assert sorted(snapshot(c)) == ["dob.c", "dob.h"]
+    before = previous_outputs(out, ["tune.csv", "tune.json", "tune.png"])
+    # a C export that fails (the directory is a file) leaves the previous tune.* as they were
+    monkeypatch.setattr(hpdob.export, "export_c", fail_to_draw)
+    code, _, err = run_cli(capsys, "tune", "--out", out, "--export-c", c)
+    assert code == 2 and "No space left" in err
+    assert snapshot(out) == before and no_temporaries(out)
+    # bad C options are refused before the (long) search runs
+    calls.clear()
+    for argv, needle in [
+        (["--export-c", c, "--prefix", "math"], "shadows the C standard header"),
+        (["--export-c", c, "--dtype", "half"], "dtype must be one of"),
+        (["--export-c", out / "tune.csv"], "must be a directory"),
+        (["--prefix", "axis1"], "apply to --export-c only"),
+    ]:
+        code, _, err = run_cli(capsys, "tune", "--out", out, *argv)
+        assert code == 2 and needle in err and err.count("\n") == 1, err
+    assert calls == []

@@ -127,7 +127,7 @@ def test_bad_arguments():
         compare_observers(sensors=("lab",))
     with pytest.raises(ValueError, match="noise_gain must be a positive"):
         compare_observers(noise_gain=0.0)
-    with pytest.raises(TypeError, match="candidates must be a non-empty dict"):
+    with pytest.raises(TypeError, match=r"candidates\[.x.\] must be a family spec"):
         compare_observers(candidates={"x": 3})
 
 

@@ -250,3 +250,118 @@ def test_guard_keeps_the_last_velocity_estimate(tmp_path):
     assert c.velocity(math.nan, 3.0) == 2.0 and c.fault == 1  # omega0 of init
     assert c.velocity(0.0, 3.0) == 3.0 and c.fault == 0
     assert c.velocity(0.0, math.inf) == 3.0 and c.fault == 1
+
+
+# -- the other families: position-only, ESO, Kalman (issue 16's leftover) -----------------------
+def _families():
+    from hpdob.observers import design_eso, design_kalman
+
+    return {
+        "position m=1": design_observer(MODEL, order=1, bandwidth=100.0, measurement="position"),
+        "position m=2, g_v": design_observer(
+            MODEL, order=2, bandwidth=80.0, measurement="position", velocity_bandwidth=300.0
+        ),
+        "ESO m=0 current": design_eso(MODEL, bandwidth=200.0),
+        "GESO m=1 predictive": design_eso(
+            MODEL, bandwidth=150.0, extended_order=1, form="predictive"
+        ),
+        "Kalman m=0": design_kalman(MODEL, position_noise_std=1e-4, process_noise_std=1e-3),
+        "Kalman m=1": design_kalman(
+            MODEL, order=1, position_noise_std=1e-4, process_noise_std=1e-5
+        ),
+    }
+
+
+FAMILIES = tuple(_families())
+
+
+def guarded_position_reference(system, theta, u, init=(0.0, 0.0, 0.0)):
+    """:func:`guarded_reference` for an observer that measures the angle alone."""
+    state, last, skipped, fault = initial_state(system, init[:2], init[2]), init[2], 0, 0
+    tau, states = [], []
+    for th, uk in zip(theta.tolist(), u.tolist(), strict=True):
+        states.append(state)
+        y = estimate(system, state, th) if math.isfinite(th) else math.nan
+        if math.isfinite(y):
+            last, fault = y, 0
+        else:
+            fault = 1
+        tau.append(last)
+        nxt = update(system, state, th, uk) if math.isfinite(th) and math.isfinite(uk) else None
+        if nxt is not None and all(math.isfinite(v) for v in nxt):
+            state, fault = nxt, 0
+        else:
+            skipped, fault = skipped + 1, 1
+    return np.array(tau), np.array(states), skipped, fault
+
+
+def position_trace(n=3000, seed=11):
+    """A plausible encoder trace (small angles, torques) with non-finite samples in it."""
+    rng = np.random.default_rng(seed)
+    theta = np.cumsum(rng.normal(scale=1e-3, size=n))
+    u = rng.normal(scale=0.02, size=n)
+    theta[[50, 51, 1700]] = math.nan
+    theta[900] = math.inf
+    u[[400, 2200]] = [math.nan, -math.inf]
+    return theta, u
+
+
+@pytest.fixture(scope="module")
+def guarded_family(tmp_path_factory):
+    designs, cache = _families(), {}
+
+    def get(name, dtype):
+        if (name, dtype) not in cache:
+            design = designs[name]
+            out = tmp_path_factory.mktemp("family")
+            header, source = export_c(design, out, dtype=dtype, nan_guard=True)
+            c = CObserver(
+                header, source, prefix="dob", dtype=dtype, observer=design,
+                build_dir=out / "lib", nan_guard=True,
+            )  # fmt: skip
+            cache[name, dtype] = (design, source, c)
+        return cache[name, dtype]
+
+    return get
+
+
+@needs_cc
+@pytest.mark.parametrize("name", FAMILIES)
+def test_guard_of_the_other_families_matches_python(guarded_family, name):
+    design, _, c = guarded_family(name, "double")
+    theta, u = position_trace()
+    init = (0.01, 0.0, 0.005)
+    tau_c, z_c = c.drive(theta, np.zeros_like(theta), u, init=init)
+    tau_r, z_r, _, _ = guarded_position_reference(design.system, theta, u, init=init)
+    assert np.all(np.isfinite(tau_c)) and np.all(np.isfinite(z_c))
+    np.testing.assert_array_equal(z_c, z_r)  # bit for bit, skipped samples included
+    np.testing.assert_array_equal(tau_c, tau_r)
+    bad = np.flatnonzero(~(np.isfinite(theta) & np.isfinite(u))[:-1])
+    np.testing.assert_array_equal(z_c[bad + 1], z_c[bad])  # the state is left as it was
+    # per call: a NaN angle returns the last estimate and velocity, flags, skips the update
+    c.init(0.0, 0.5, 0.01)
+    tau, omega = c.estimate(0.0), c.velocity(0.0)
+    state = c.state
+    assert c.estimate(math.nan) == tau and c.velocity(math.inf) == omega and c.fault == 1
+    c.update(math.nan, 0.0)
+    assert c.state == state and (c.fault, c.skipped) == (1, 1)
+    c.update(1e-4, 0.0)
+    assert c.state != state and c.fault == 0
+
+
+@needs_cc
+@pytest.mark.parametrize("name", FAMILIES)
+@pytest.mark.parametrize("dtype", ["double", "float"])
+def test_guard_of_the_other_families_under_the_sanitizers(
+    guarded_family, sanitizer, tmp_path, name, dtype
+):
+    design, source, c = guarded_family(name, dtype)
+    theta, u = position_trace()
+    omega = np.zeros_like(theta)
+    tau_s, z_s = sanitized_run(
+        source, prefix="dob", dtype=dtype, observer=design, build_dir=tmp_path,
+        theta=theta, omega=omega, u=u,
+    )  # fmt: skip
+    tau_c, z_c = c.drive(theta, omega, u)
+    assert np.array_equal(tau_s, tau_c) and np.array_equal(z_s, z_c)
+    assert np.all(np.isfinite(tau_s)) and np.all(np.isfinite(z_s))

@@ -126,3 +126,34 @@ def test_ctrl_c_during_reproduce_leaves_the_previous_outputs(tmp_path):
         assert code == 0, err
         assert (out / "metrics.json").read_text() != "previous\n"
         assert all(p.read_bytes() != b"previous\n" for p in files.values())
+
+
+@pytest.mark.parametrize(
+    ("command", "module", "name", "marker"),
+    [
+        ("compare", "hpdob.analysis", "compare_observers", "comparison.json"),
+        ("tune", "hpdob.tuning", "tune", "tune.json"),
+        ("estimate", "hpdob.identification", "estimate_disturbance", "estimate.json"),
+    ],
+)
+def test_ctrl_c_in_compare_tune_estimate(capsys, tmp_path, monkeypatch, command, module, name,
+                                         marker):  # fmt: skip
+    import importlib
+
+    from hpdob.cli import main
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(importlib.import_module(module), name, interrupted)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / marker).write_text("previous\n")
+    argv = [command, "--out", str(out)]
+    if command == "estimate":
+        argv += ["--emps", "--J-n", "95"]
+    assert main(argv) == 130
+    assert capsys.readouterr().err == f"hpdob {command}: interrupted\n"
+    assert [p.name for p in out.iterdir()] == [marker] and (out / marker).read_text() == (
+        "previous\n"
+    )

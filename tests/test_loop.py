@@ -89,8 +89,12 @@ def test_loop_or_keywords_not_both(loop):
         closed_loop_poles(loop, Ts=1e-3)
     with pytest.raises(TypeError, match=r"needs a ServoLoop .* \(missing: nominal, Ts\)"):
         closed_loop(plant=KW["plant"], controller=KW["controller"])
-    with pytest.raises(TypeError, match="loop must be a ServoLoop, got dict"):
+    with pytest.raises(TypeError, match="takes a ServoLoop as its first argument, got dict"):
         noise_gains(KW)
+    # A plant given positionally (the pre-loop habit) says how to pass it.
+    rest = {k: v for k, v in KW.items() if k != "plant"}
+    with pytest.raises(TypeError, match=r"got ServoModel; pass a plant as plant=\.\.\."):
+        closed_loop_poles(KW["plant"], **rest)
 
 
 @pytest.mark.parametrize(

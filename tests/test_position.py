@@ -183,8 +183,12 @@ def test_repeated_poles_are_placed_exactly(order):
 
 
 def test_low_bandwidths_are_realisable_or_refused_clearly():
-    for order in range(4):  # the exact Schur-Cohn test passes down to 0.1 rad/s here
+    for order in range(3):  # realised within pole_tolerance down to 0.1 rad/s here
         design_observer(MODEL, order=order, bandwidth=0.1, measurement="position")
+    # order 3: stable (exact Schur-Cohn) but its poles are off: accepted only on request
+    design_observer(MODEL, order=3, bandwidth=0.1, measurement="position", pole_tolerance=None)
+    with pytest.raises(ParameterValueError, match=r"order 3 .* off by .* pole_tolerance=0.05"):
+        design_observer(MODEL, order=3, bandwidth=0.1, measurement="position")
     with pytest.raises(ParameterValueError, match=r"cannot be realised .* exact Schur-Cohn"):
         design_observer(MODEL, order=12, bandwidth=1.0, measurement="position")
 

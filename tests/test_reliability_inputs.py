@@ -115,7 +115,7 @@ def test_runtime_observer_rejects_overflow_without_changing_state():
 
 
 def test_huge_integers_in_toml(tmp_path):
-    from hpdob.simulation._scenario import load_scenario
+    from hpdob.simulation import load_scenario
 
     text = (
         "Ts = 1e-3\nduration = 0.1\n[plant]\nJ = 1" + "0" * 400 + "\n[nominal]\nJ = 2.8e-4\n"
@@ -301,7 +301,7 @@ def test_gains_that_overflow_are_refused(J, Ts):
     ids=["UTF-16", "Latin-1", "500 nested inline tables"],
 )
 def test_unreadable_scenario_files(tmp_path, payload, pattern):
-    from hpdob.simulation._scenario import load_scenario
+    from hpdob.simulation import load_scenario
 
     path = tmp_path / "s.toml"
     path.write_bytes(payload)

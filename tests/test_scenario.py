@@ -10,9 +10,9 @@ import pytest
 
 from hpdob import paper, simulate
 from hpdob.cli import main
+from hpdob.simulation import load_scenario
 from hpdob.simulation._scenario import (
     load_metric_windows,
-    load_scenario,
     load_sweep,
     metric_windows,
     scenario_from_dict,

@@ -194,6 +194,20 @@ class OutputSet:
         kwargs.setdefault("format", Path(name).suffix.lstrip(".") or None)
         fig.savefig(self.path(name), **kwargs)
 
+    def plot(self, name, draw, *, dpi: int = 150) -> None:
+        """Stage the figure ``draw()`` returns as ``directory/name``, drawn off-screen (Agg)
+        and closed even if saving fails."""
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig = draw()
+        try:
+            self.save_figure(name, fig, dpi=dpi)
+        finally:
+            plt.close(fig)
+
     @property
     def targets(self) -> list[Path]:
         """The final paths, in commit order."""

@@ -87,6 +87,16 @@ def _tune(model, spec: dict, target: float, sigma: float):
     def mismatch(log_value):
         return math.log(_noise_gain(design(log_value)) / target)
 
+    def realisable(log_value) -> bool:
+        try:
+            design(log_value)
+        except ParameterValueError:  # e.g. the realised poles of a slow design are off
+            return False
+        return True
+
+    while not realisable(lo) and lo < hi:  # the low end: the slowest realisable design
+        lo = min(lo + 0.25, hi)
+
     f_lo, f_hi = mismatch(lo), mismatch(hi)
     if f_lo > 0:
         return design(lo), name, 10**lo, "noise gain above the target even at the lowest setting"
@@ -94,6 +104,44 @@ def _tune(model, spec: dict, target: float, sigma: float):
         return design(hi), name, 10**hi, "noise gain below the target even at the highest setting"
     best = brentq(mismatch, lo, hi, xtol=1e-7)
     return design(best), name, 10**best, "matched"
+
+
+#: The design arguments the comparison tunes, by family: a candidate must not give them.
+_TUNED = {"dob": ("bandwidth", "poles"), "eso": ("bandwidth",),
+          "kalman": ("position_noise_std", "process_noise_std")}  # fmt: skip
+
+
+def _check_candidates(candidates) -> dict:
+    """``{name: spec}`` with string names and family specs that leave the tuned parameter to
+    the comparison (a bandwidth or noise given in a spec would be silently replaced)."""
+    from ..observers._families import check_spec
+
+    if not isinstance(candidates, dict) or not candidates:
+        raise ParameterTypeError(
+            f"candidates must be a non-empty dict of name -> family spec, got {candidates!r}"
+        )
+    for name, spec in candidates.items():
+        if not isinstance(name, str) or not name:
+            raise ParameterTypeError(f"candidates names must be non-empty str, got {name!r}")
+        if not isinstance(spec, dict):
+            raise ParameterTypeError(
+                f"candidates[{name!r}] must be a family spec (a dict), got {spec!r}"
+            )
+        kind = spec.get("type", "dob")
+        given = [k for k in _TUNED.get(kind, ()) if k in spec]
+        if given:
+            tuned = (
+                "the process noise (at the encoder's noise)"
+                if kind == "kalman"
+                else "the bandwidth"
+            )
+            raise ParameterValueError(
+                f"candidates[{name!r}] must not give {', '.join(given)}: the comparison tunes "
+                f"{tuned} to the target noise gain, got {spec!r}"
+            )
+        placeholder = {k: 1.0 for k in _TUNED.get(kind, ()) if k != "poles"}
+        check_spec({**spec, **placeholder}, f"candidates[{name!r}]")
+    return dict(candidates)
 
 
 def _inertia_range(loop) -> tuple[float, float]:
@@ -323,7 +371,9 @@ def compare_observers(
     noise_gain : float, optional
         Target noise gain [N m/rad]. Default 10 (see :data:`DEFAULT_NOISE_GAIN`).
     candidates : dict, optional
-        ``{name: family spec}`` (without the tuned parameter); default :data:`CANDIDATES`.
+        ``{name: family spec}`` with ``str`` names; default :data:`CANDIDATES`. A spec must not
+        give the tuned parameter (``bandwidth`` or ``poles``; for the Kalman observer
+        ``position_noise_std`` and ``process_noise_std``): it is refused, not replaced.
     duration : float, optional
         Simulated time [s]; default the scenario's 10 s.
 
@@ -353,21 +403,26 @@ def compare_observers(
     """
     from .. import paper
     from ..simulation import PD, ServoLoop, simulate
+    from ..simulation._simulate import _sample_count
     from ._noise import noise_gains
     from ._sensitivity import loop_margins
 
     if isinstance(sensors, str):
         sensors = (sensors,)
-    sensors = tuple(check_choice(s, "sensors", SENSORS) for s in sensors)
+    if not isinstance(sensors, (tuple, list)):
+        raise ParameterTypeError(
+            f"sensors must be a sequence of 'ideal', 'encoder', got {sensors!r} of type "
+            f"{type(sensors).__name__}"
+        )
+    sensors = tuple(dict.fromkeys(check_choice(s, "sensors", SENSORS) for s in sensors))
     if not sensors:
         raise ParameterValueError("sensors must name at least one of 'ideal', 'encoder'")
     target = positive(noise_gain, "noise_gain", "a positive finite noise gain [N m/rad]")
-    candidates = dict(CANDIDATES if candidates is None else candidates)
-    if not candidates or not all(isinstance(v, dict) for v in candidates.values()):
-        raise ParameterTypeError("candidates must be a non-empty dict of name -> family spec")
+    candidates = _check_candidates(CANDIDATES if candidates is None else candidates)
     scenario = paper.scenario()
     if duration is not None:
         scenario["duration"] = positive(duration, "duration", "a positive duration [s]")
+        _sample_count(scenario["Ts"], scenario["duration"])  # before the tuning, not after
     nominal, Ts = scenario["nominal"], scenario["Ts"]
     model = nominal.discretize(Ts)
     encoder, actuator = paper.VIRTUAL_SENSOR, paper.VIRTUAL_ACTUATOR
@@ -375,7 +430,10 @@ def compare_observers(
     linear_plant = scenario["plant"].replace(coulomb=0.0)
     rows, results = [], {}
     for name, spec in candidates.items():
-        design, parameter, value, tuning = _tune(model, spec, target, sigma)
+        try:
+            design, parameter, value, tuning = _tune(model, spec, target, sigma)
+        except (ParameterTypeError, ParameterValueError) as err:
+            raise type(err)(f"candidates[{name!r}]: {err}") from None
         velocity = "observer" if design.system.has_velocity else "measured"
         controller = PD(scenario["controller"].kp, scenario["controller"].kd, velocity=velocity)
         for sensor in sensors:

@@ -8,11 +8,13 @@ discretised is named instead of failing later inside the linear algebra.
 
 from __future__ import annotations
 
-from .._validation import ParameterValueError, as_int
+import numpy as np
+
+from .._validation import ParameterTypeError, ParameterValueError, as_int
 from ..models._servo import ServoModel
 from ._linear_loop import MAX_DELAY_SAMPLES
 
-__all__ = ["MAX_MAP_POINTS", "check_delay", "check_map_size", "check_plants"]
+__all__ = ["MAX_MAP_POINTS", "check_delay", "check_map_size", "check_plants", "observer_spec"]
 
 #: Most grid points (values x bandwidths) of one map.
 MAX_MAP_POINTS = 1_000_000
@@ -51,3 +53,42 @@ def check_plants(values, ratio_grid: bool, ratios, frictions, nominal, Ts: float
                 f"ServoModel(J={J_r * nominal.J!r}, b={b_r!r}) that cannot be discretised at "
                 f"Ts={Ts!r}: {err}"
             ) from None
+
+
+#: What the map sets at every grid point, by family: a spec must leave it out.
+_SET_BY_THE_MAP = {"dob": ("bandwidth", "poles"), "eso": ("bandwidth",),
+                   "kalman": ("process_noise_std",)}  # fmt: skip
+
+
+def observer_spec(observer, measurement, gain_direction) -> tuple[dict, int]:
+    """``(spec, order)`` of ``robust_stability_map(observer=...)``, validated before any work.
+
+    The spec's keys are checked for its family (``observer.<key>``), its order is an integer,
+    and what the map sets itself is refused instead of silently replaced: the bandwidth (or
+    poles; for the Kalman observer the process noise, chosen per bandwidth), and the
+    ``measurement``/``gain_direction`` arguments, which describe the paper's family only.
+    """
+    from ..observers._families import check_spec
+
+    if not isinstance(observer, dict):
+        raise ParameterTypeError(
+            f"observer must be a dict of design arguments (a family spec), got {observer!r}"
+        )
+    kind = observer.get("type", "dob")
+    placeholder = {"process_noise_std": 1.0} if kind == "kalman" else {"bandwidth": 1.0}
+    check_spec({**observer, **placeholder}, "observer")
+    given = [k for k in _SET_BY_THE_MAP.get(kind, ()) if k in observer]
+    if given:
+        raise ParameterValueError(
+            f"observer must not give {', '.join(given)}: the map designs the observer at every "
+            f"bandwidth of its grid, got {observer!r}"
+        )
+    if measurement != "state" or tuple(np.ravel(gain_direction).tolist()) != (1.0, 1.0):
+        raise ParameterValueError(
+            "measurement and gain_direction apply with order (the paper's family); with "
+            f"observer give them in the spec, got measurement={measurement!r}, "
+            f"gain_direction={gain_direction!r}"
+        )
+    key = "extended_order" if kind == "eso" else "order"
+    m = as_int(observer.get(key, 0), f"observer.{key}", "a non-negative integer", minimum=0)
+    return dict(observer), m

@@ -30,7 +30,7 @@ from ..observers._system import MEASUREMENTS
 from ..simulation._controller import PD
 from ..simulation._devices import Encoder
 from ._linear_loop import LoopSpec, loop_matrices
-from ._map_limits import check_delay, check_map_size, check_plants
+from ._map_limits import check_delay, check_map_size, check_plants, observer_spec
 
 __all__ = ["StabilityMap", "robust_stability_map"]
 
@@ -329,7 +329,9 @@ def robust_stability_map(
         Any family instead of ``order``: a spec such as ``{"type": "eso", "extended_order":
         1}`` or ``{"type": "kalman", "order": 0, "position_noise_std": 1e-4}``, designed at
         every bandwidth (the Kalman observer's process noise chosen for that bandwidth by
-        :func:`hpdob.observers.kalman_process_noise`).
+        :func:`hpdob.observers.kalman_process_noise`). What the map sets is refused in the spec
+        (``bandwidth``, ``poles``, a Kalman ``process_noise_std``), and ``measurement`` and
+        ``gain_direction`` go in the spec, not beside it.
 
     Returns
     -------
@@ -383,14 +385,7 @@ def robust_stability_map(
                 as_real_vector(gain_direction, "gain_direction", "a direction vector", length=2)
             )
     else:
-        if not isinstance(observer, dict):
-            raise ParameterTypeError(
-                f"observer must be a dict of design arguments (a family spec), got {observer!r}"
-            )
-        spec = {k: v for k, v in observer.items() if k not in ("bandwidth", "poles")}
-        if spec.get("type") == "kalman":
-            spec.pop("process_noise_std", None)
-        m = int(spec.get("order", spec.get("extended_order", 0)))
+        spec, m = observer_spec(observer, measurement, gain_direction)
     delay = check_delay(delay_samples)
     ratios, ratio_grid = _grid_or_scalar(
         J_ratio, "J_ratio", "positive true/nominal inertia ratios J/J_n", allow_zero=False

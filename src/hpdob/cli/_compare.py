@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ._options import finite
+from ._options import finite, output_path
 
 __all__ = ["register"]
 
@@ -35,7 +35,7 @@ def register(subparsers) -> None:
     )
     parser.add_argument(
         "--out",
-        type=Path,
+        type=output_path,
         default=Path("hpdob-comparison"),
         metavar="DIR",
         help="output directory (default: %(default)s)",
@@ -45,30 +45,25 @@ def register(subparsers) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .._files import atomic_path, write_text_atomic
+    import json
+
+    from .._files import staged_outputs
     from ..analysis import compare_observers
     from ..analysis._comparison import DEFAULT_NOISE_GAIN
 
     sensors = ("ideal", "encoder") if args.sensor == "both" else (args.sensor,)
     gain = DEFAULT_NOISE_GAIN if args.noise_gain is None else args.noise_gain
     comparison = compare_observers(sensors=sensors, noise_gain=gain)
-    args.out.mkdir(parents=True, exist_ok=True)
-    comparison.to_csv(args.out / "comparison.csv")
-    write_text_atomic(args.out / "comparison.md", comparison.to_markdown())
     written = ["comparison.csv", "comparison.md"]
-    if not args.no_plot:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig = comparison.plot()
-        with atomic_path(args.out / "comparison.png") as temporary:
-            fig.savefig(temporary, dpi=150, format="png")
-        plt.close(fig)
-        written.append("comparison.png")
-    comparison.to_json(args.out / "comparison.json")  # last: its presence means complete
-    written.append("comparison.json")
+    # Staged and renamed together, comparison.json last (docs/reliability.md).
+    with staged_outputs(args.out, markers=["comparison.json"]) as files:
+        comparison.to_csv(files.path("comparison.csv"))
+        files.write_text("comparison.md", comparison.to_markdown())
+        if not args.no_plot:
+            files.plot("comparison.png", lambda: comparison.plot())
+            written.append("comparison.png")
+        files.write_text("comparison.json", json.dumps(comparison.to_dict(), indent=2) + "\n")
+        written.append("comparison.json")
     print(comparison.to_markdown())
     print(f"wrote {', '.join(written)} to {args.out}")
     return 0

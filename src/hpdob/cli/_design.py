@@ -60,14 +60,14 @@ def add_observer_arguments(parser: argparse.ArgumentParser) -> None:
     obs.add_argument(
         "--extended-order",
         type=_integer,
-        default=0,
+        default=None,
         help="eso: f^(m+1) = 0 (0 the classical ESO, default)",
     )
     obs.add_argument(
         "--form",
         choices=("current", "predictive"),
-        default="current",
-        help="eso: discrete implementation (default: %(default)s)",
+        default=None,
+        help="eso: discrete implementation (default: current)",
     )
     obs.add_argument(
         "--position-noise-std",
@@ -117,6 +117,14 @@ def add_observer_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
+#: The options of each family (the others refuse them); --order is dob's and kalman's.
+_FAMILY_OPTIONS = {
+    "dob": ("poles", "velocity_bandwidth", "gain_direction"),
+    "eso": ("extended_order", "form"),
+    "kalman": ("position_noise_std", "process_noise_std"),
+}
+
+
 def design_from_args(args: argparse.Namespace):
     """Build the design described by parsed ``add_design_arguments``."""
     return design_on(args, ServoModel(args.J_n, args.b_n).discretize(args.Ts))
@@ -130,20 +138,24 @@ def design_on(args: argparse.Namespace, model):
     if bandwidth is None and args.poles is None:
         bandwidth = 100.0
     kind = getattr(args, "type", "dob")
-    if kind != "dob":
-        given = [f"--{k.replace('_', '-')}" for k in ("poles", "velocity_bandwidth",
-                 "gain_direction") if getattr(args, k) is not None]  # fmt: skip
-        if args.measurement != "state":
+    if kind == "eso" and args.order is not None:
+        raise CLIError("--type eso takes --extended-order, not --order")
+    # options of another family are refused, not silently ignored
+    for family, names in _FAMILY_OPTIONS.items():
+        given = [f"--{k.replace('_', '-')}" for k in names if getattr(args, k) is not None]
+        if family == "dob" and args.measurement != "state":
             given.append("--measurement")
-        if given:
-            raise CLIError(f"{', '.join(given)} apply to --type dob only, not --type {kind}")
+        if given and family != kind:
+            verb = "applies" if len(given) == 1 else "apply"
+            raise CLIError(f"{', '.join(given)} {verb} to --type {family} only, not --type {kind}")
     if kind == "eso":
         from ..observers._eso import design_eso
 
-        if args.order is not None:
-            raise CLIError("--type eso takes --extended-order, not --order")
         return design_eso(
-            model, bandwidth=bandwidth, extended_order=args.extended_order, form=args.form
+            model,
+            bandwidth=bandwidth,
+            extended_order=0 if args.extended_order is None else args.extended_order,
+            form=args.form or "current",
         )
     if kind == "kalman":
         from ..observers._kalman import design_kalman, kalman_process_noise
@@ -152,6 +164,11 @@ def design_on(args: argparse.Namespace, model):
             raise CLIError("--type kalman needs --position-noise-std (the angle noise [rad])")
         order = 0 if args.order is None else args.order
         q = args.process_noise_std
+        if q is not None and args.bandwidth is not None:
+            raise CLIError(
+                "--type kalman takes --bandwidth (the process noise is chosen for it) or "
+                "--process-noise-std, not both"
+            )
         if q is None:
             r = args.position_noise_std
             q = kalman_process_noise(model, bandwidth=bandwidth, position_noise_std=r, order=order)

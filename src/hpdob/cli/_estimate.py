@@ -7,10 +7,12 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
+
 from ._design import add_observer_arguments, design_on
 from ._errors import CLIError
-from ._identify import _input_gain
-from ._options import finite
+from ._logs import add_log_arguments, log_from_args
+from ._options import finite, output_path
 
 __all__ = ["register"]
 
@@ -25,25 +27,7 @@ def register(subparsers) -> None:
         "and estimate.png. A linear axis (m, N, kg) works like a rotary one. See "
         "docs/real-data.md.",
     )
-    parser.add_argument("log", type=Path, nargs="?", help="log file (.csv, .parquet, .mat)")
-    parser.add_argument(
-        "--emps", action="store_true", help="use the EMPS benchmark's measured run instead of LOG"
-    )
-    columns = parser.add_argument_group("columns of LOG")
-    columns.add_argument("--time", metavar="NAME", help="time column [s] (or give --Ts)")
-    columns.add_argument("--position", metavar="NAME", help="position column [rad or m]")
-    columns.add_argument("--input", metavar="NAME", help="input column (torque/force or command)")
-    columns.add_argument(
-        "--input-gain",
-        default="1",
-        metavar="GAIN",
-        help="factor from the input column to torque/force, or the name of a scalar variable "
-        "of a .mat file holding it (default: 1)",
-    )
-    columns.add_argument("--Ts", type=finite, help="sampling period [s] of a log without time")
-    columns.add_argument(
-        "--axis", choices=("rotary", "linear"), help="units of the report (default: unstated)"
-    )
+    add_log_arguments(parser, emps_help="use the EMPS benchmark's measured run instead of LOG")
     model = parser.add_argument_group("nominal model")
     which = model.add_mutually_exclusive_group()
     which.add_argument("--J-n", type=finite, help="nominal inertia [kg m^2 or kg]")
@@ -59,7 +43,7 @@ def register(subparsers) -> None:
     add_observer_arguments(parser)
     parser.add_argument(
         "--out",
-        type=Path,
+        type=output_path,
         default=None,
         metavar="DIR",
         help="output directory (default: hpdob-results/estimate-<log name>)",
@@ -68,31 +52,8 @@ def register(subparsers) -> None:
     parser.set_defaults(handler=_run)
 
 
-def _log(args):
-    from ..identification import emps, read_log
-
-    if args.emps == (args.log is not None):
-        raise CLIError("give a LOG file or --emps (the shipped EMPS run), exactly one")
-    if args.emps:
-        given = [f"--{k}" for k in ("time", "position", "input") if getattr(args, k)]
-        if given:
-            raise CLIError(f"--emps uses the EMPS file's own columns; drop {', '.join(given)}")
-        return emps()
-    for name in ("position", "input"):
-        if getattr(args, name) is None:
-            raise CLIError(f"--{name} is required: the name of the log's {name} column")
-    return read_log(
-        args.log,
-        time=args.time,
-        position=args.position,
-        input=args.input,
-        input_gain=_input_gain(args.input_gain),
-        Ts=args.Ts,
-        axis=args.axis,
-    )
-
-
 def _nominal(args):
+    from .._validation import ParameterValueError, as_real
     from ..models import ServoModel
 
     if args.from_identification is not None:
@@ -109,7 +70,14 @@ def _nominal(args):
             ) from None
         if args.b_n is not None:
             raise CLIError("--b-n and --from-identification both set b_n; give one")
-        return ServoModel(J, max(float(b), 0.0)), f"identified in {args.from_identification}"
+        where = f"of {args.from_identification}"
+        J = as_real(J, f"parameters.J {where}", "a finite inertia [kg m^2 or kg]")
+        b = as_real(b, f"parameters.b {where}", "a finite viscous friction [N m s/rad or N s/m]")
+        try:
+            model = ServoModel(J, max(b, 0.0))
+        except ParameterValueError as err:
+            raise CLIError(f"--from-identification {args.from_identification}: {err}") from None
+        return model, f"identified in {args.from_identification}"
     if args.J_n is None:
         raise CLIError("give the nominal model: --J-n (and --b-n), or --from-identification FILE")
     return ServoModel(args.J_n, 0.0 if args.b_n is None else args.b_n), "given"
@@ -122,6 +90,11 @@ _FAMILY_OPTIONS = {
 }
 
 
+#: What an option not given means (``design_on``'s defaults), reported as in effect.
+_DEFAULTS = {"dob": {"order": 1}, "eso": {"extended_order": 0, "form": "current"},
+             "kalman": {"order": 0}}  # fmt: skip
+
+
 def _observer_settings(args: argparse.Namespace) -> dict:
     """The observer options in effect for ``args.type``, as JSON-ready values."""
     settings = {"type": args.type}
@@ -129,54 +102,55 @@ def _observer_settings(args: argparse.Namespace) -> dict:
         settings["poles"] = [[float(p.real), float(p.imag)] for p in args.poles]
     else:
         settings["bandwidth"] = 100.0 if args.bandwidth is None else args.bandwidth
+    defaults = _DEFAULTS[args.type]
     for name in _FAMILY_OPTIONS[args.type]:
         value = getattr(args, name)
+        value = defaults.get(name) if value is None else value
         if value is not None:
             settings[name] = list(value) if isinstance(value, list) else value
     return settings
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .._files import atomic_path
+    from .._files import staged_outputs
     from ..identification import estimate_disturbance
 
-    log = _log(args)
+    log = log_from_args(args)
     nominal, origin = _nominal(args)
     design = design_on(args, nominal.discretize(log.Ts))
     result = estimate_disturbance(design, theta=log.theta, u=log.u, t=log.t)
-    out = args.out or Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
-    out.mkdir(parents=True, exist_ok=True)
-    result.to_csv(out / "estimate.csv")
     tail = result.tau_hat[result.t >= result.t[0] + 0.1 * (result.t[-1] - result.t[0])]
+    with np.errstate(all="ignore"):  # a diverged estimate is refused below, not warned about
+        mean, std = float(tail.mean()), float(tail.std())
+    if not (np.all(np.isfinite(result.tau_hat)) and math.isfinite(mean) and math.isfinite(std)):
+        raise CLIError(
+            f"the estimate of {design.system.name} is not finite on {log.source}: the observer "
+            "diverged (or the log's values overflow it); nothing was written"
+        )
+    out = args.out or Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
     report = {
         "log": {"source": log.source, "names": dict(log.names), "samples": len(log),
                 "Ts": log.Ts, "input_gain": log.input_gain},
         "nominal": {"J": nominal.J, "b": nominal.b, "origin": origin},
         "observer": {**_observer_settings(args), "name": design.system.name},
-        "tau_hat": {"mean": float(tail.mean()), "std": float(tail.std()),
+        "tau_hat": {"mean": mean, "std": std,
                     "note": "over the last 90 % of the log (after the observer's transient)"},
     }  # fmt: skip
-    with atomic_path(out / "estimate.json") as temporary:
-        temporary.write_text(json.dumps(report, indent=2, allow_nan=False) + "\n")
-    written = ["estimate.csv", "estimate.json"]
-    if not args.no_plot:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig = result.plot(title=f"{design.system.name} on {log.source}")
-        with atomic_path(out / "estimate.png") as temporary:
-            fig.savefig(temporary, dpi=150, format="png")
-        plt.close(fig)
-        written.append("estimate.png")
+    written = ["estimate.csv"]
+    # Staged and renamed together, estimate.json last (docs/reliability.md).
+    with staged_outputs(out, markers=["estimate.json"]) as files:
+        result.to_csv(files.path("estimate.csv"))
+        if not args.no_plot:
+            files.plot(
+                "estimate.png", lambda: result.plot(title=f"{design.system.name} on {log.source}")
+            )
+            written.append("estimate.png")
+        files.write_text("estimate.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
+        written.append("estimate.json")
     print(
         f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s; {design.system.name} on "
         f"J_n = {nominal.J:.6g}, b_n = {nominal.b:.6g} ({origin})"
     )
-    mean, std = report["tau_hat"]["mean"], report["tau_hat"]["std"]
-    if not (math.isfinite(mean) and math.isfinite(std)):
-        raise CLIError("the estimate is not finite: the observer diverged on this log")
     print(f"  tau_hat: mean {mean:.6g}, std {std:.6g} (last 90 % of the log)")
     print(f"wrote {', '.join(written)} to {out}")
     return 0

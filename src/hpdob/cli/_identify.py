@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 
 from ._design import _integer, _number_list
 from ._errors import CLIError
+from ._logs import add_log_arguments, log_from_args
 from ._options import finite as _real
 from ._options import output_path
 
@@ -25,28 +25,11 @@ def register(subparsers) -> None:
         "directory and prints a summary. A linear axis (m, N, kg) works like a rotary one "
         "(rad, N m, kg m^2): --axis sets the units of the report. See docs/real-data.md.",
     )
-    parser.add_argument("log", type=Path, nargs="?", help="log file (.csv, .parquet, .mat)")
-    parser.add_argument(
-        "--emps",
-        action="store_true",
-        help="use the EMPS benchmark's measured run shipped with hpdob (and its controller "
-        "for --method idim-iv) instead of LOG",
-    )
-    columns = parser.add_argument_group("columns of LOG")
-    columns.add_argument("--time", metavar="NAME", help="time column [s] (or give --Ts)")
-    columns.add_argument("--position", metavar="NAME", help="position column [rad or m]")
-    columns.add_argument("--input", metavar="NAME", help="input column (torque/force or command)")
-    columns.add_argument(
-        "--input-gain",
-        default="1",
-        metavar="GAIN",
-        help="factor from the input column to torque/force, or the name of a scalar variable "
-        "of a .mat file holding it (default: 1)",
-    )
-    columns.add_argument("--reference", metavar="NAME", help="reference position column")
-    columns.add_argument("--Ts", type=_real, help="sampling period [s] of a log without time")
-    columns.add_argument(
-        "--axis", choices=("rotary", "linear"), help="units of the report (default: unstated)"
+    add_log_arguments(
+        parser,
+        emps_help="use the EMPS benchmark's measured run shipped with hpdob (and its "
+        "controller for --method idim-iv) instead of LOG",
+        reference=True,
     )
     method = parser.add_argument_group("method")
     method.add_argument(
@@ -86,41 +69,13 @@ def register(subparsers) -> None:
     parser.set_defaults(handler=_run)
 
 
-def _input_gain(text: str):
-    try:
-        value = float(text)
-    except ValueError:
-        return text  # the name of a scalar variable
-    if not math.isfinite(value):
-        raise CLIError(f"--input-gain must be a finite number or a variable name, got {text!r}")
-    return value
-
-
 def _load(args):
-    from ..identification import emps, emps_loop, read_log
+    from ..identification import emps_loop
     from ..identification._loop import FeedbackLoop
 
-    if args.emps == (args.log is not None):
-        raise CLIError("give a LOG file or --emps (the shipped EMPS run), exactly one")
+    log = log_from_args(args)
     if args.emps:
-        given = [f"--{k}" for k in ("time", "position", "input", "reference") if getattr(args, k)]
-        if given:
-            raise CLIError(f"--emps uses the EMPS file's own columns; drop {', '.join(given)}")
-        log = emps()
         return log, emps_loop(log) if args.method == "idim-iv" else None
-    for name in ("position", "input"):
-        if getattr(args, name) is None:
-            raise CLIError(f"--{name} is required: the name of the log's {name} column")
-    log = read_log(
-        args.log,
-        time=args.time,
-        position=args.position,
-        input=args.input,
-        input_gain=_input_gain(args.input_gain),
-        reference=args.reference,
-        Ts=args.Ts,
-        axis=args.axis,
-    )
     loop = None
     if args.method == "idim-iv":
         missing = [f"--{k}" for k in ("reference", "kp", "kd") if getattr(args, k) is None]
@@ -168,16 +123,10 @@ def _run(args: argparse.Namespace) -> int:
     with staged_outputs(out, markers=["identification.json"]) as files:
         result.to_csv(files.path("identification.csv"))
         if not args.no_plot:
-            import matplotlib
-
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-
-            fig = result.plot(title=f"{result.method.upper()} on {log.source}")
-            try:
-                files.save_figure("identification.png", fig, dpi=150)
-            finally:
-                plt.close(fig)
+            files.plot(
+                "identification.png",
+                lambda: result.plot(title=f"{result.method.upper()} on {log.source}"),
+            )
             written.append("identification.png")
         files.write_text(
             "identification.json", json.dumps(report, indent=2, allow_nan=False) + "\n"

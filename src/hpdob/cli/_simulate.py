@@ -88,16 +88,7 @@ def _run(args: argparse.Namespace) -> int:
     with staged_outputs(out, markers=["metrics.json"]) as files:
         result.to_csv(files.path(f"{stem}.csv"))
         if not args.no_plot:
-            import matplotlib
-
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-
-            fig = result.plot()
-            try:
-                files.save_figure(f"{stem}.png", fig, dpi=150)
-            finally:
-                plt.close(fig)
+            files.plot(f"{stem}.png", lambda: result.plot())
         files.write_text("metrics.json", metrics_json({stem: metrics}))
     for name, value in metrics.items():
         print(f"{name:<32}{value:.6e}")

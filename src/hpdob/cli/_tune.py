@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 
 from ._errors import CLIError
-from ._options import add_nominal_arguments, finite, reject_plant_arguments
+from ._options import add_nominal_arguments, finite, output_path, reject_plant_arguments
 
 __all__ = ["register"]
 
@@ -45,7 +46,8 @@ def register(subparsers) -> None:
     loop.add_argument("--noise-std", type=finite, default=0.0, help="angle noise std [rad] (0)")
     loop.add_argument("--delay", type=int, default=0, help="actuator delay [samples] (0)")
     loop.add_argument("--torque-limit", type=finite, default=None, help="torque limit [N m]")
-    loop.add_argument("--coulomb", type=finite, default=0.0, help="simulated Coulomb friction")
+    loop.add_argument("--coulomb", type=finite, default=None,
+                      help="simulated Coulomb friction [N m] (0.01 J_n/2.8e-4)")  # fmt: skip
     search = parser.add_argument_group("search")
     search.add_argument("--J-range", type=_pair, default=(1.0, 1.0), metavar="LOW,HIGH",
                         help="true/nominal inertia ratios (default: 1,1)")  # fmt: skip
@@ -60,9 +62,9 @@ def register(subparsers) -> None:
     search.add_argument("--noise-limit", type=finite, default=None,
                         help="largest sensor noise in the estimate [N m RMS]")  # fmt: skip
     out = parser.add_argument_group("output")
-    out.add_argument("--out", type=Path, default=Path("hpdob-tune"), metavar="DIR",
+    out.add_argument("--out", type=output_path, default=Path("hpdob-tune"), metavar="DIR",
                      help="output directory (default: %(default)s)")  # fmt: skip
-    out.add_argument("--export-c", type=Path, default=None, metavar="DIR",
+    out.add_argument("--export-c", type=output_path, default=None, metavar="DIR",
                      help="also export the recommended observer as C99 into DIR")  # fmt: skip
     out.add_argument("--prefix", default="dob", help="C prefix with --export-c (dob)")
     out.add_argument("--dtype", default="double", help="C scalar type with --export-c")
@@ -71,15 +73,24 @@ def register(subparsers) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .._files import atomic_path
+    from .._files import staged_outputs
     from ..models import ServoModel
     from ..simulation import PD, Actuator, Encoder
     from ..tuning import tune
 
+    if args.export_c is not None:  # checked before the search, not after it
+        from .._validation import check_choice
+        from ..export._c import DTYPES, _check_directory, _check_prefix
+
+        _check_prefix(args.prefix)
+        check_choice(args.dtype, "dtype", DTYPES)
+        _check_directory(args.export_c)
+    elif (args.prefix, args.dtype) != ("dob", "double"):
+        raise CLIError("--prefix and --dtype apply to --export-c only")
     if args.counts_per_rev is not None and args.counts_per_rev < 1:
         raise CLIError(f"--counts-per-rev must be a positive integer, got {args.counts_per_rev}")
     sensor = None
-    if args.counts_per_rev is not None or args.noise_std > 0:
+    if args.counts_per_rev is not None or args.noise_std != 0:  # Encoder checks the values
         sensor = Encoder(args.counts_per_rev or 2**31, noise_std=args.noise_std)
     families = None if args.families is None else [f.strip() for f in args.families.split(",")]
     result = tune(
@@ -96,29 +107,22 @@ def _run(args: argparse.Namespace) -> int:
         noise_limit=args.noise_limit,
         coulomb=args.coulomb,
     )
-    args.out.mkdir(parents=True, exist_ok=True)
-    frame = result.table
-    with atomic_path(args.out / "tune.csv") as temporary:
-        frame.to_csv(temporary, index=False)
     written = ["tune.csv"]
-    if not args.no_plot:
-        import matplotlib
+    # Staged and renamed together, tune.json last (docs/reliability.md); the C files (their own
+    # atomic pair, in their own directory) are written before the commit, so a failed export
+    # leaves the previous tune.* untouched.
+    with staged_outputs(args.out, markers=["tune.json"]) as files:
+        result.table.to_csv(files.path("tune.csv"), index=False)
+        if not args.no_plot:
+            files.plot("tune.png", lambda: result.plot())
+            written.append("tune.png")
+        if args.export_c is not None:
+            from ..export import export_c
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        fig = result.plot()
-        with atomic_path(args.out / "tune.png") as temporary:
-            fig.savefig(temporary, dpi=150, format="png")
-        plt.close(fig)
-        written.append("tune.png")
-    if args.export_c is not None:
-        from ..export import export_c
-
-        paths = export_c(result.design, args.export_c, prefix=args.prefix, dtype=args.dtype)
-        written += [str(p) for p in paths]
-    result.to_json(args.out / "tune.json")  # last: its presence means a complete run
-    written.append("tune.json")
+            paths = export_c(result.design, args.export_c, prefix=args.prefix, dtype=args.dtype)
+            written += [str(p) for p in paths]
+        files.write_text("tune.json", json.dumps(result.to_dict(), indent=2) + "\n")
+        written.append("tune.json")
     print(result.report())
     print(f"wrote {', '.join(written)} (in {args.out})")
     return 0

@@ -117,8 +117,8 @@ def check_time(t: np.ndarray, name: str = "t", tolerance: float = DEFAULT_TIME_T
     if bad.size:
         i = int(bad[0]) + 1
         raise ParameterValueError(
-            f"{name} must increase strictly (time [s]), but {name}[{i}] = {t[i]!r} s is not "
-            f"after {name}[{i - 1}] = {t[i - 1]!r} s"
+            f"{name} must increase strictly (time [s]), but {name}[{i}] = {float(t[i])!r} s is not "
+            f"after {name}[{i - 1}] = {float(t[i - 1])!r} s"
         )
     median = float(np.median(steps))
     deviation = np.abs(steps - median) / median

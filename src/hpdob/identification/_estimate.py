@@ -95,7 +95,7 @@ class EstimationResult:
         keep = self.t >= start
         if not keep.any():
             raise ParameterValueError(
-                f"start = {start!r} s leaves no sample (t ends at {self.t[-1]!r} s)"
+                f"start = {start!r} s leaves no sample (t ends at {float(self.t[-1])!r} s)"
             )
         return float(np.sqrt(np.mean((self.tau_hat[keep] - reference[keep]) ** 2)))
 
@@ -254,8 +254,8 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
             step = check_time(t, "t", 1e-3)
             if not math.isclose(step, Ts, rel_tol=1e-6):
                 raise ParameterValueError(
-                    f"t must advance by the observer's sampling period Ts = {Ts!r} s, got a "
-                    f"step of {step!r} s"
+                    f"t must advance by the observer's sampling period Ts = {float(Ts)!r} s, got a "
+                    f"step of {float(step)!r} s"
                 )
     else:
         t = np.arange(n) * Ts

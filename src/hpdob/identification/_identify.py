@@ -102,13 +102,13 @@ def _check_excitation(theta: np.ndarray, u: np.ndarray, regression, settings) ->
     """Refuse logs that cannot identify the four parameters, saying why."""
     if np.ptp(theta) == 0.0:
         raise ParameterValueError(
-            f"theta does not move (every sample is {theta[0]!r}): a log at rest cannot "
+            f"theta does not move (every sample is {float(theta[0])!r}): a log at rest cannot "
             "identify J, b, coulomb and offset; log a run that moves both ways"
         )
     if np.ptp(u) == 0.0:
         raise ParameterValueError(
-            f"u is constant (every sample is {u[0]!r}): the input must vary to identify J, b, "
-            "coulomb and offset"
+            f"u is constant (every sample is {float(u[0])!r}): the input must vary to identify "
+            "J, b, coulomb and offset"
         )
     rows = regression.X.shape[0]
     if rows < MIN_ROWS:

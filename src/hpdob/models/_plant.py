@@ -17,13 +17,14 @@ A plant (:class:`Plant`) gives the loop
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
 
-from .._validation import ParameterValueError, as_int
+from .._validation import ParameterTypeError, ParameterValueError, as_int
 
 __all__ = [
     "DEFAULT_SUBSTEPS",
@@ -105,6 +106,45 @@ class ExactSubsteps:
     coulomb: float
     coulomb_velocity: float
     velocity_index: int = 1
+
+    @classmethod
+    def of(cls, plant, Ts: float, substeps: int, **structure) -> ExactSubsteps:
+        """The sub-step matrices of a plant with a linear model.
+
+        Parameters
+        ----------
+        plant : Plant
+            A plant whose ``discretize`` gives its ZOH model, with ``coulomb`` and
+            ``coulomb_velocity``.
+        Ts : float
+            Sampling period [s].
+        substeps : int
+            Sub-steps per sample.
+        **structure
+            ``shared``, ``internal`` and ``J_motor`` (see the attributes).
+
+        Returns
+        -------
+        ExactSubsteps
+            With the matrices of ``plant.discretize`` over ``h = Ts/substeps`` and ``h/2``.
+        """
+        h = Ts / substeps
+        full, half = plant.discretize(h), plant.discretize(h / 2)
+        return cls(A_h=full.A, B_h=full.B, D_h=full.D, A_half=half.A, B_half=half.B,
+                   D_half=half.D, coulomb=plant.coulomb,
+                   coulomb_velocity=plant.coulomb_velocity, **structure)  # fmt: skip
+
+
+def replace_parameters(plant, changes: dict):
+    """A copy of the dataclass ``plant`` with ``changes`` applied, through its constructor
+    (validated like it); an unknown name is a TypeError listing the valid ones."""
+    names = [f.name for f in dataclasses.fields(plant) if f.init and f.name != "_"]
+    unknown = sorted(set(changes) - set(names))
+    if unknown:
+        raise ParameterTypeError(
+            f"replace() got unknown parameter(s) {unknown}; valid: {sorted(names)}"
+        )
+    return type(plant)(**{**{name: getattr(plant, name) for name in names}, **changes})
 
 
 class PlantSession(ABC):

@@ -8,7 +8,7 @@ from dataclasses import KW_ONLY, dataclass, field
 import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive, readonly
-from ._plant import ExactSubsteps, Plant, coulomb_substeps
+from ._plant import ExactSubsteps, Plant, coulomb_substeps, replace_parameters
 
 __all__ = ["DiscreteServoModel", "ServoModel"]
 
@@ -172,21 +172,8 @@ class ServoModel(Plant):
         ExactSubsteps
             The ZOH matrices over ``h = Ts/substeps`` and ``h/2``, and the friction data.
         """
-        h = Ts / substeps
-        full, half = self.discretize(h), self.discretize(h / 2)
-        return ExactSubsteps(
-            A_h=full.A,
-            B_h=full.B,
-            D_h=full.D,
-            A_half=half.A,
-            B_half=half.B,
-            D_half=half.D,
-            shared=True,
-            internal=np.array([0.0, self.b]),
-            J_motor=self.J,
-            coulomb=self.coulomb,
-            coulomb_velocity=self.coulomb_velocity,
-        )
+        return ExactSubsteps.of(self, Ts, substeps, shared=True,
+                                internal=np.array([0.0, self.b]), J_motor=self.J)  # fmt: skip
 
     def replace(self, **changes) -> ServoModel:
         """Return a copy with some parameters changed (validated like the constructor).
@@ -211,19 +198,7 @@ class ServoModel(Plant):
         >>> ServoModel(2.8e-4).replace(b=1e-4)
         ServoModel(J=0.00028, b=0.0001, coulomb=0.0, coulomb_velocity=0.01)
         """
-        values = {
-            "J": self.J,
-            "b": self.b,
-            "coulomb": self.coulomb,
-            "coulomb_velocity": self.coulomb_velocity,
-        }
-        unknown = sorted(set(changes) - set(values))
-        if unknown:
-            raise ParameterTypeError(
-                f"replace() got unknown parameter(s) {unknown}; valid: {sorted(values)}"
-            )
-        values.update(changes)
-        return ServoModel(values.pop("J"), values.pop("b"), **values)
+        return replace_parameters(self, changes)
 
 
 _EYE2 = readonly(np.eye(2))

@@ -3,12 +3,12 @@ r"""A two-mass drive: motor and load coupled by a torsional spring and damper.""
 from __future__ import annotations
 
 import math
-from dataclasses import KW_ONLY, dataclass, field, fields
+from dataclasses import KW_ONLY, dataclass, field
 
 import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive, readonly
-from ._plant import ExactSubsteps, Plant, coulomb_substeps
+from ._plant import ExactSubsteps, Plant, coulomb_substeps, replace_parameters
 
 __all__ = ["DiscreteTwoMassServo", "TwoMassServo"]
 
@@ -206,15 +206,7 @@ class TwoMassServo(Plant):
         ParameterTypeError, ParameterValueError
             For an unknown parameter or a value the constructor rejects.
         """
-        names = [f.name for f in fields(self) if f.init and f.name != "_"]
-        unknown = sorted(set(changes) - set(names))
-        if unknown:
-            raise ParameterTypeError(
-                f"replace() got unknown parameter(s) {unknown}; valid: {sorted(names)}"
-            )
-        values = {name: getattr(self, name) for name in names}
-        values.update(changes)
-        return TwoMassServo(**values)
+        return replace_parameters(self, changes)
 
     # -- the plant protocol (hpdob.models.Plant) ----------------------------------------------
     def initial_state(self, x0) -> np.ndarray:
@@ -262,22 +254,10 @@ class TwoMassServo(Plant):
         -------
         ExactSubsteps
         """
-        h = Ts / substeps
-        full, half = self.discretize(h), self.discretize(h / 2)
-        c = self.damping
-        return ExactSubsteps(
-            A_h=full.A,
-            B_h=full.B,
-            D_h=full.D,
-            A_half=half.A,
-            B_half=half.B,
-            D_half=half.D,
-            shared=False,
-            internal=np.array([self.stiffness, c + self.b_motor, -self.stiffness, -c]),
-            J_motor=self.J_motor,
-            coulomb=self.coulomb,
-            coulomb_velocity=self.coulomb_velocity,
-        )
+        k, c = self.stiffness, self.damping
+        return ExactSubsteps.of(self, Ts, substeps, shared=False,
+                                internal=np.array([k, c + self.b_motor, -k, -c]),
+                                J_motor=self.J_motor)  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)
@@ -325,7 +305,8 @@ class DiscreteTwoMassServo:
         augmented[:4, :4] = plant.A_C
         augmented[:4, 4] = plant.B_C
         augmented[:4, 5] = plant.D_C
-        E = expm(augmented * Ts)
+        with np.errstate(all="ignore"):  # an overflow is refused just below
+            E = expm(augmented * Ts)
         if not np.all(np.isfinite(E)):
             raise ParameterValueError(
                 f"the ZOH discretisation of {plant!r} with Ts={Ts!r} s is not finite"

@@ -39,7 +39,9 @@ from .._validation import (
     readonly,
 )
 from ..models._servo import DiscreteServoModel, ServoModel
-from ._runtime import Observer
+from ._error_dynamics import schur_cohn_stable
+from ._realised import matrix_characteristic_polynomial
+from ._runtime import _DesignedObserver
 from ._system import LinearObserver
 
 __all__ = ["KalmanDesign", "KalmanDisturbanceObserver", "design_kalman", "kalman_process_noise"]
@@ -84,6 +86,19 @@ def _check_order(order) -> int:
     if m > MAX_ORDER:
         raise ParameterValueError(f"order must be at most {MAX_ORDER}, got {m}")
     return m
+
+
+def _noise(value, name: str, what: str) -> float:
+    """A noise std: positive, finite, and with a variance that neither underflows nor
+    overflows (the Riccati equation works with the variances)."""
+    value = positive(value, name, what)
+    if not 0.0 < value * value < math.inf:
+        how = "underflows to 0" if value < 1.0 else "overflows"
+        raise ParameterValueError(
+            f"{name}={value!r} is out of range: its variance {how} in double precision; give "
+            "the noise in units where it has a realistic size"
+        )
+    return value
 
 
 @dataclass(frozen=True, eq=False)
@@ -173,7 +188,8 @@ def design_kalman(
     TypeError, ValueError
         Naming the parameter: a wrong model, a negative or too large order, a non-positive or
         non-finite noise level, or noise levels for which the Riccati equation has no
-        stabilising solution.
+        stabilising solution (also when the solver returns one whose filter, rounded to doubles,
+        is unstable: decided exactly by a Schur-Cohn test on the state matrix).
 
     References
     ----------
@@ -195,8 +211,8 @@ def design_kalman(
 
     model = _check_model(model)
     m = _check_order(order)
-    r = positive(position_noise_std, "position_noise_std", "a positive finite noise std [rad]")
-    q = positive(
+    r = _noise(position_noise_std, "position_noise_std", "a positive finite noise std [rad]")
+    q = _noise(
         process_noise_std, "process_noise_std", "a positive finite disturbance noise std [N m]"
     )
     A, B, C, G = augmented_model(model, m)
@@ -219,20 +235,32 @@ def design_kalman(
             f"and process_noise_std={q!r} (order {m}): {err}"
         ) from None
     P = P_s / np.outer(d, d)
-    K = (P @ C.T).ravel() / (float((C @ P @ C.T)[0, 0]) + r * r)
+    with np.errstate(all="ignore"):  # judged below
+        K = (P @ C.T).ravel() / (float((C @ P @ C.T)[0, 0]) + r * r)
     if not np.all(np.isfinite(K)):
         raise ParameterValueError(
             f"the Kalman gain is not finite for position_noise_std={r!r} and "
             f"process_noise_std={q!r}; the noise levels are too far apart"
         )
     I_KC = np.eye(n) - np.outer(K, C[0])
+    F = A @ I_KC
+    if not schur_cohn_stable(matrix_characteristic_polynomial(F)[0]):
+        with np.errstate(all="ignore"):
+            radius = float(np.abs(np.linalg.eigvals(F)).max())
+        raise ParameterValueError(
+            f"the Kalman observer for position_noise_std={r!r} and process_noise_std={q!r} "
+            f"(order {m}) is not stable in double precision (spectral radius about "
+            f"{radius:.6g}, exact Schur-Cohn test): the Riccati solver found no stabilising "
+            "solution for noise levels this far apart; bring them closer (see "
+            "kalman_process_noise)"
+        )
     outputs = np.zeros((2, n))
     outputs[0, 2] = 1.0  # tau_hat
     outputs[1, 1] = 1.0  # omega_hat
     N = np.zeros((n, 3))
     N[0, 0], N[1, 1], N[2, 2] = 1.0, 1.0, 1.0
     system = LinearObserver(
-        F=A @ I_KC,
+        F=F,
         G=np.column_stack([A @ K, B]),
         H=outputs @ I_KC,
         E=np.column_stack([outputs @ K, np.zeros(2)]),
@@ -325,7 +353,7 @@ def kalman_process_noise(
     model = _check_model(model)
     m = _check_order(order)
     g = positive(bandwidth, "bandwidth", "a positive finite target bandwidth [rad/s]")
-    r = positive(position_noise_std, "position_noise_std", "a positive finite noise std [rad]")
+    r = _noise(position_noise_std, "position_noise_std", "a positive finite noise std [rad]")
     if not g < 0.5 * math.pi / model.Ts:
         raise ParameterValueError(
             f"bandwidth must be below half the Nyquist frequency pi/(2 Ts) = "
@@ -352,10 +380,17 @@ def kalman_process_noise(
         raise ParameterValueError(
             f"bandwidth={g!r} rad/s is not reachable with position_noise_std={r!r} (order {m})"
         )
-    return 10 ** brentq(mismatch, lo, hi, xtol=1e-6)
+    q = 10 ** brentq(mismatch, lo, hi, xtol=1e-6)
+    # brentq also "converges" on a jump between two ends that cannot be designed: verify
+    if not (math.isfinite(q) and q > 0.0 and abs(mismatch(math.log10(q))) < 0.01):
+        raise ParameterValueError(
+            f"bandwidth={g!r} rad/s is not reachable with position_noise_std={r!r} (order {m}): "
+            "no process noise that can be designed in double precision gives it"
+        )
+    return q
 
 
-class KalmanDisturbanceObserver(Observer):
+class KalmanDisturbanceObserver(_DesignedObserver):
     r"""The steady-state Kalman disturbance observer as a runtime object (see
     :func:`design_kalman`).
 
@@ -387,7 +422,7 @@ class KalmanDisturbanceObserver(Observer):
     0.02
     """
 
-    __slots__ = ("_design",)
+    __slots__ = ()
 
     def __init__(self, model, *, order=0, position_noise_std, process_noise_std):
         design = design_kalman(
@@ -396,13 +431,7 @@ class KalmanDisturbanceObserver(Observer):
             position_noise_std=position_noise_std,
             process_noise_std=process_noise_std,
         )
-        self._design = design
-        Observer.__init__(self, design.system)
-
-    @property
-    def design(self) -> KalmanDesign:
-        """The immutable design."""
-        return self._design
+        self._start(design)
 
     def __repr__(self) -> str:
         d = self._design

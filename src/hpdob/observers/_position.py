@@ -43,6 +43,7 @@ from ._error_dynamics import (
     schur_cohn_stable,
     unit_root_polynomial,
 )
+from ._realised import POLE_TOLERANCE, check_realised, polynomial_from_fractions
 from ._system import ErrorDynamics, LinearObserver
 
 __all__ = ["PositionObserverDesign", "augmented_model", "design_position_observer"]
@@ -186,6 +187,10 @@ class PositionObserverDesign:
     error_matrix : ndarray, shape (order + 3, order + 3)
         :math:`A_a - L c^T`: the prior estimation error obeys
         :math:`\epsilon_{k+1} = (A_a - L c^T)\epsilon_k + e\,\Delta^{m+1}\tau_{k+1}`.
+    realised_poles : ndarray, shape (order + 3,)
+        The eigenvalues the gains, rounded to doubles, really place (roots of the exact
+        characteristic polynomial of ``error_matrix``), paired with ``poles``; within
+        ``pole_tolerance (1 - |p|)`` of them (:func:`hpdob.design_observer`).
     system : LinearObserver
         The observer as the linear system every consumer runs: measures ``("theta",)``,
         outputs ``("tau_hat", "omega_hat")``, ``F = A_a - L c^T``, ``G = [L, B_a]``,
@@ -203,6 +208,7 @@ class PositionObserverDesign:
     augmented_matrix: np.ndarray
     error_matrix: np.ndarray
     system: LinearObserver = field(repr=False)
+    realised_poles: np.ndarray = field(default=None, repr=False)
 
     #: What the observer measures.
     measurement = "position"
@@ -241,7 +247,13 @@ _NAMES = {0: "position-only DOb (order 0)", 1: "position-only HPDOb (order 1)"}
 
 
 def design_position_observer(
-    model, m: int, *, poles=None, bandwidth=None, velocity_bandwidth=None
+    model,
+    m: int,
+    *,
+    poles=None,
+    bandwidth=None,
+    velocity_bandwidth=None,
+    pole_tolerance=POLE_TOLERANCE,
 ) -> PositionObserverDesign:
     """The position-only observer of order ``m`` (validated arguments; see
     :func:`hpdob.design_observer`, which is the public entry point)."""
@@ -295,12 +307,12 @@ def design_position_observer(
             f"{_show(np.asarray(placed))}"
         )
     exact = realised_polynomial(F, m)
+    asked = (
+        f"bandwidth={g_out!r}, velocity_bandwidth={gv_out!r} rad/s"
+        if g_out is not None
+        else f"poles={_show(poles)}"
+    )
     if not schur_cohn_stable(exact):
-        asked = (
-            f"bandwidth={g_out!r}, velocity_bandwidth={gv_out!r} rad/s"
-            if g_out is not None
-            else f"poles={_show(poles)}"
-        )
         raise ParameterValueError(
             f"{asked} cannot be realised for a position-only observer of order {m} in double "
             "precision: with the gains rounded to doubles the error matrix is not stable (an "
@@ -308,6 +320,15 @@ def design_position_observer(
             "near 1 are too ill-conditioned. Use a lower order, a higher bandwidth or distinct "
             "poles"
         )
+    numbers, e = polynomial_from_fractions(exact)
+    realised = check_realised(
+        numbers,
+        e,
+        np.asarray(placed),
+        pole_tolerance,
+        asked=asked,
+        what=f"a position-only observer of order {m}",
+    )
     a01, a11 = float(Aa[0, 1]), float(Aa[1, 1])
     trace = 1.0 - K[0] + a11 - a01 * K[1]
     zeros = np.roots([1.0, -trace, (1.0 - K[0]) * a11])
@@ -361,4 +382,5 @@ def design_position_observer(
         augmented_matrix=readonly(Aa),
         error_matrix=readonly(F.copy()),
         system=system,
+        realised_poles=readonly(realised),
     )

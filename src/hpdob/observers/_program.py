@@ -18,7 +18,15 @@ import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError
 
-__all__ = ["RESET_OPERANDS", "Program", "Term", "check_program", "compile_python", "render_sum"]
+__all__ = [
+    "RESET_OPERANDS",
+    "Program",
+    "Term",
+    "check_program",
+    "compile_python",
+    "render_sum",
+    "structured_program",
+]
 
 #: Operands of the reset rows: :math:`s_0 = N [\theta_0, \omega_0, \tau_0]`.
 RESET_OPERANDS = ("theta0", "omega0", "tau0")
@@ -291,3 +299,80 @@ def compile_python(system):
     namespace: dict = {}
     exec(_compiled("\n".join(source)), namespace)  # source generated above from floats
     return (namespace["reset"], namespace["outputs"], namespace["estimate"], namespace["update"])
+
+
+def structured_program(k, G, Kx, Ku, p) -> Program:
+    r"""The order-m observer's recurrence in companion form, term by term (``docs/theory.md``).
+
+    With ``z`` the auxiliary variables (state), ``x = (theta, omega)`` and ``n = m + 1``:
+
+    - rows ``i < m``: :math:`z_{i+1} - k_i z_n + K_{x,i} x + K_{u,i} u` (the shift of the
+      disturbance history, eqs. 16 and 20 for the HPDOb);
+    - row ``n``: :math:`-k_n z_n + K_{x,n} x + K_{u,n} u + \sum_j p_j z_j` (the degree-m
+      extrapolation, eqs. 19 and 21), with the integer weights :math:`p_j` exact;
+    - the estimate :math:`z_n - L_n^T x` (eqs. 13, 23); the reset :math:`\tau_0 + L_i^T x_0`.
+
+    Keeping :math:`1` and :math:`p_j` apart from :math:`k_i` (instead of the rounded entries of
+    ``M``) means every executable form runs exactly the polynomial the synthesis certified.
+    Terms whose constant is exactly zero are left out.
+    """
+    n = len(k)
+    last = n - 1
+    theta, omega, u = n, n + 1, n + 2
+
+    zero = []
+
+    def product(value, operand, name, *, negated=False):
+        value = float(value)
+        if value == 0.0:
+            if name not in zero:
+                zero.append(name)
+            return []
+        return [Term(-value if negated else value, operand, name, negated)]
+
+    def inputs(i):
+        return (
+            product(Kx[i, 0], theta, f"KX{i + 1}_THETA")
+            + product(Kx[i, 1], omega, f"KX{i + 1}_OMEGA")
+            + product(Ku[i], u, f"KU{i + 1}")
+        )
+
+    update = []
+    for i in range(n - 1):
+        terms = [Term(1.0, i + 1), *product(k[i], last, f"K{i + 1}", negated=True), *inputs(i)]
+        update.append(tuple(terms))
+    terms = [*product(k[last], last, f"K{n}", negated=True), *inputs(last)]
+    terms += [Term(float(w), j) for j, w in enumerate(p)]
+    update.append(tuple(terms))
+    output = (
+        (
+            Term(1.0, last),
+            *product(G[last, 0], theta, f"L{n}_THETA", negated=True),
+            *product(G[last, 1], omega, f"L{n}_OMEGA", negated=True),
+        ),
+    )
+    reset = tuple(
+        (
+            Term(1.0, 2),
+            *product(G[i, 0], 0, f"L{i + 1}_THETA"),
+            *product(G[i, 1], 1, f"L{i + 1}_OMEGA"),
+        )
+        for i in range(n)
+    )
+    constants = []
+    for i in range(1, n + 1):
+        constants += [
+            (f"K{i}", f"k_{i} = L_{i}^T D_Dn"),
+            (f"L{i}_THETA", f"L_{i}, theta entry [N m/rad]"),
+            (f"L{i}_OMEGA", f"L_{i}, omega entry [N m s/rad]"),
+            (f"KX{i}_THETA", f"(G A - M G)[{i - 1}][0]"),
+            (f"KX{i}_OMEGA", f"(G A - M G)[{i - 1}][1]"),
+            (f"KU{i}", f"(G B)[{i - 1}]"),
+        ]
+    return Program(
+        update=tuple(update),
+        output=output,
+        reset=reset,
+        constants=tuple(constants),
+        zero_constants=tuple(sorted(zero, key=[name for name, _ in constants].index)),
+    )

@@ -11,11 +11,18 @@ characteristic polynomial of the rounded gains is built exactly (integers: float
 rationals), shifted exactly to each requested pole, and only then solved in floating point,
 where the cluster's roots are well conditioned (checked against 80-digit ``mpmath`` roots in
 ``tests/test_synthesis.py``).
+
+The other families use the same check on their own exact polynomial: the position-only
+family's affine formula (:func:`polynomial_from_fractions` of its ``realised_polynomial``), the
+ESO's and the Kalman observer's state matrix (:func:`matrix_characteristic_polynomial`,
+Berkowitz's division-free algorithm on the matrix's exact binary values;
+``tests/test_realised_families.py``).
 """
 
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
 import numpy as np
 
@@ -24,9 +31,11 @@ from ._error_dynamics import characteristic_basis, unit_root_polynomial
 
 __all__ = [
     "POLE_TOLERANCE",
+    "check_realised",
     "exact_characteristic_polynomial",
     "finite_gains",
-    "position_tolerance",
+    "matrix_characteristic_polynomial",
+    "polynomial_from_fractions",
     "realised_poles",
     "realised_roots",
 ]
@@ -106,11 +115,60 @@ def realised_roots(k: np.ndarray, centers, multiplicities) -> list[np.ndarray]:
     Cross-checked against 80-digit ``mpmath.polyroots`` in ``tests/test_synthesis.py``.
     """
     numbers, e = exact_characteristic_polynomial(np.asarray(k, dtype=float))
+    return roots_near(numbers, e, centers, multiplicities)
+
+
+def roots_near(numbers: list[int], e: int, centers, multiplicities) -> list[np.ndarray]:
+    """:func:`realised_roots` for the polynomial with ascending coefficients
+    ``numbers[i] / 2**e`` (exact)."""
     found = []
     for center, n in zip(centers, multiplicities, strict=True):
         s = _shifted(numbers, e, complex(center))
         found.append(complex(center) + _nearest_roots(s, n))
     return found
+
+
+def _integer_characteristic_polynomial(N: list[list[int]]) -> list[int]:
+    r"""Descending coefficients of :math:`\det(zI - N)` for an integer matrix ``N``, exactly.
+
+    Berkowitz's division-free algorithm: with :math:`N_k` the leading ``k x k`` block,
+    partitioned as ``[[N_(k-1), c], [r, a]]``, the polynomial of :math:`N_k` is the Toeplitz
+    matrix with first column ``[1, -a, -r c, -r N_(k-1) c, ..., -r N_(k-1)^(k-2) c]`` times
+    that of :math:`N_{k-1}`.
+    """
+    n = len(N)
+    p = [1]
+    for k in range(1, n + 1):
+        col = [1, -N[k - 1][k - 1]]
+        v = [N[i][k - 1] for i in range(k - 1)]
+        for _ in range(k - 1):
+            col.append(-sum(N[k - 1][j] * v[j] for j in range(k - 1)))
+            v = [sum(N[i][j] * v[j] for j in range(k - 1)) for i in range(k - 1)]
+        p = [sum(col[i - j] * p[j] for j in range(min(i, k - 1) + 1)) for i in range(k + 1)]
+    return p
+
+
+def matrix_characteristic_polynomial(F) -> tuple[list[int], int]:
+    r""":math:`\det(zI - F)` of a double-precision matrix ``F``, exactly: ascending integer
+    coefficients ``c`` and an exponent ``e`` with coefficient ``i`` equal to ``c[i] / 2**e``
+    (like :func:`exact_characteristic_polynomial`; floats are dyadic rationals)."""
+    F = np.asarray(F, dtype=float)
+    n = F.shape[0]
+    flat, E = _dyadic(F.ravel().tolist())
+    N = [flat[i * n : (i + 1) * n] for i in range(n)]
+    descending = _integer_characteristic_polynomial(N)  # of N = 2^E F
+    # coefficient of z^j in det(zI - F) is c_(n-j)(N) / 2^(E (n-j)) = c_(n-j)(N) 2^(E j) / 2^(nE)
+    return [descending[n - j] << (E * j) for j in range(n + 1)], n * E
+
+
+def polynomial_from_fractions(coefficients) -> tuple[list[int], int]:
+    """Dyadic rationals (ascending, e.g. :func:`~hpdob.observers._position.realised_polynomial`)
+    as integers over one power of two: ``(c, e)`` with coefficient ``i`` ``c[i] / 2**e``."""
+    fractions = [Fraction(c) for c in coefficients]
+    if any(f.denominator & (f.denominator - 1) for f in fractions):
+        raise ValueError("the coefficients must be dyadic rationals")
+    e = max(f.denominator.bit_length() - 1 for f in fractions)
+    return [f.numerator << (e - f.denominator.bit_length() + 1) for f in fractions], e
 
 
 def _nearest_roots(s: np.ndarray, n: int) -> np.ndarray:
@@ -167,18 +225,9 @@ def finite_gains(k, unit, dD: float, model) -> np.ndarray:
     return G
 
 
-def position_tolerance(pole_tolerance) -> None:
-    """``pole_tolerance`` of a position-only design: only the default (unchecked) is accepted."""
-    if pole_tolerance != POLE_TOLERANCE:
-        raise ParameterValueError(
-            "pole_tolerance applies to measurement='state' only (the realised poles of a "
-            f"position-only design are not computed yet), got {pole_tolerance!r}"
-        )
-
-
 def realised_poles(k, placed, pole_tolerance, bandwidth, poles) -> np.ndarray:
-    r"""The poles the gains ``k`` realise, paired with the requested ``placed`` entry by entry
-    (float if all real, else complex).
+    r"""The poles the gains ``k`` of an order-m design measuring the state realise, paired with
+    the requested ``placed`` entry by entry (float if all real, else complex).
 
     A ParameterValueError if one lies further than ``pole_tolerance (1 - |p|)`` from its
     requested pole ``p`` (None: no check). ``bandwidth`` or ``poles`` (the request) are named
@@ -187,16 +236,30 @@ def realised_poles(k, placed, pole_tolerance, bandwidth, poles) -> np.ndarray:
     within 0.23% of ``1 - |p|``.
     """
     asked = f"bandwidth={bandwidth!r} rad/s" if bandwidth is not None else f"poles={_show(poles)}"
-    default = POLE_TOLERANCE
-    m = len(placed) - 1
+    numbers, e = exact_characteristic_polynomial(np.asarray(k, dtype=float))
+    return check_realised(
+        numbers, e, placed, pole_tolerance, asked=asked, what=f"order {len(placed) - 1}"
+    )
+
+
+def check_realised(numbers, e, placed, pole_tolerance, *, asked: str, what: str) -> np.ndarray:
+    r"""The roots of the exact polynomial ``numbers[i] / 2**e`` (the realised characteristic
+    polynomial of a design), paired with the requested poles ``placed``.
+
+    A ParameterValueError naming ``asked`` (the request, e.g. ``"bandwidth=100.0 rad/s"``) and
+    ``what`` (the design, e.g. ``"order 2"``) if a realised pole lies further than
+    ``pole_tolerance (1 - |p|)`` from its requested pole ``p``; ``pole_tolerance`` None skips
+    the check (the caller then decides stability, e.g. by :func:`stable`).
+    """
+    placed = np.asarray(placed)
     if pole_tolerance is None:
         tolerance = None
     else:
         tolerance = nonnegative(pole_tolerance, "pole_tolerance", "a fraction >= 0 or None")
-    groups = _clusters(placed, default if tolerance is None else tolerance)
+    groups = _clusters(placed, POLE_TOLERANCE if tolerance is None else tolerance)
     centers = [placed[g[0]] for g in groups]
-    found = realised_roots(k, centers, [len(g) for g in groups])
-    realised = np.empty(m + 1, dtype=complex)
+    found = roots_near(numbers, e, centers, [len(g) for g in groups])
+    realised = np.empty(placed.size, dtype=complex)
     for group, roots in zip(groups, found, strict=True):
         if np.all(placed[group] == placed[group[0]]):  # a repeated pole: any pairing is one
             realised[group] = roots
@@ -210,7 +273,7 @@ def realised_poles(k, placed, pole_tolerance, bandwidth, poles) -> np.ndarray:
     worst = int(np.argmax(off))
     if tolerance is not None and off[worst] > tolerance:
         raise ParameterValueError(
-            f"{asked} cannot be realised for order {m} in double precision: with the gains "
+            f"{asked} cannot be realised for {what} in double precision: with the gains "
             f"rounded to doubles the pole {_fmt(placed[worst])} is realised at "
             f"{_fmt(realised[worst])} (|z| = {abs(realised[worst]):.6g}), off by "
             f"{off[worst]:.3g} of its distance to the unit circle, more than pole_tolerance="

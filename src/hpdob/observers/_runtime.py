@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._validation import ParameterTypeError, ParameterValueError
+from .._validation import ParameterTypeError
 from . import _core
 from ._position import PositionObserverDesign
 from ._synthesis import ObserverDesign, design_observer
 from ._system import LinearObserver, as_system
 
-__all__ = ["DisturbanceObserver", "Observer", "as_design", "check_designed_on"]
+__all__ = ["DisturbanceObserver", "Observer", "as_design"]
 
 
 #: The design types of the order-m families (what :func:`hpdob.design_observer` returns).
@@ -27,28 +27,6 @@ def as_design(observer, name: str = "observer"):
     raise ParameterTypeError(
         f"{name} must be a DisturbanceObserver or an ObserverDesign, got {type(observer).__name__}"
     )
-
-
-def check_designed_on(system, nominal, Ts: float, name: str = "observer") -> None:
-    """Raise unless ``system`` was synthesised on ``nominal.discretize(Ts)`` (same J, b, Ts).
-
-    ``system`` is a :class:`LinearObserver` or anything with one (``.system``); an observer
-    without a nominal model (``model=None``) is checked for ``Ts`` only.
-    """
-    system = as_system(system, name)
-    model = system.model
-    if model is None:
-        if system.Ts != Ts:
-            raise ParameterValueError(
-                f"{name} must run at the loop's sampling period: its Ts={system.Ts} but the "
-                f"loop has Ts={Ts}"
-            )
-        return
-    if (model.J, model.b, model.Ts) != (nominal.J, nominal.b, Ts):
-        raise ParameterValueError(
-            f"{name} must be designed on nominal.discretize(Ts): its model has J={model.J}, "
-            f"b={model.b}, Ts={model.Ts} but nominal has J={nominal.J}, b={nominal.b} and Ts={Ts}"
-        )
 
 
 class Observer:
@@ -125,8 +103,7 @@ class Observer:
             (KalmanDesign, KalmanDisturbanceObserver),
         ):
             if isinstance(design, design_class):
-                state = _core.initial_state(design, x0, tau0)
-                return runtime._with_state(design.system, state, ("_design", design))
+                return runtime._of(design, x0, tau0)
         return Observer(design, x0=x0, tau0=tau0)
 
     @classmethod
@@ -284,7 +261,29 @@ class Observer:
         return f"Observer({self._system!r})"
 
 
-class DisturbanceObserver(Observer):
+class _DesignedObserver(Observer):
+    """An :class:`Observer` that keeps the design it was built from (``.design``)."""
+
+    __slots__ = ("_design",)
+
+    def _start(self, design) -> None:
+        """Initialise from ``design``, reset at rest."""
+        self._design = design
+        Observer.__init__(self, design.system)
+
+    @classmethod
+    def _of(cls, design, x0, tau0):
+        """A runtime object of ``design``, reset at ``x0, tau0``."""
+        state = _core.initial_state(design, x0, tau0)
+        return cls._with_state(design.system, state, ("_design", design))
+
+    @property
+    def design(self):
+        """The immutable design."""
+        return self._design
+
+
+class DisturbanceObserver(_DesignedObserver):
     r"""Discrete disturbance observer of truncation order ``order`` with its runtime state.
 
     ``order=0`` is the conventional DOb (eqs. 9-13), ``order=1`` the HPDOb (eqs. 14-24) and
@@ -360,7 +359,7 @@ class DisturbanceObserver(Observer):
     0.01
     """
 
-    __slots__ = ("_design",)
+    __slots__ = ()
 
     def __init__(
         self,
@@ -382,8 +381,7 @@ class DisturbanceObserver(Observer):
             velocity_bandwidth=velocity_bandwidth,
             gain_direction=gain_direction,
         )
-        self._design = design
-        Observer.__init__(self, design.system)
+        self._start(design)
 
     @classmethod
     def from_design(cls, design, *, x0=(0.0, 0.0), tau0: float = 0.0) -> DisturbanceObserver:
@@ -411,14 +409,9 @@ class DisturbanceObserver(Observer):
             raise ParameterTypeError(
                 f"design must be an ObserverDesign, got {type(design).__name__}"
             )
-        state = _core.initial_state(design, x0, tau0)
-        return cls._with_state(design.system, state, ("_design", design))
+        return cls._of(design, x0, tau0)
 
     # -- the design, read-only ---------------------------------------------------------
-    @property
-    def design(self):
-        """The immutable synthesis result."""
-        return self._design
 
     @property
     def measurement(self) -> str:

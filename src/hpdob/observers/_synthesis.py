@@ -43,8 +43,8 @@ from ._error_dynamics import (
     schur_stable,
     unit_root_polynomial,
 )
-from ._program import Program, Term
-from ._realised import POLE_TOLERANCE, finite_gains, position_tolerance, realised_poles
+from ._program import structured_program
+from ._realised import POLE_TOLERANCE, finite_gains, realised_poles
 from ._system import MEASUREMENTS, ErrorDynamics, LinearObserver
 
 __all__ = [
@@ -234,7 +234,10 @@ def design_observer(
         ``L_i = k_i d / (d^T D_Dn)``. The default ``(1, 1)`` is the paper's eq. (25).
         ``(0, 1)`` makes the estimate independent of the absolute position.
     pole_tolerance : float or None, optional
-        State only: refuse realised poles beyond ``pole_tolerance (1 - |p|)`` (0.05; None: off).
+        Refuse a design whose realised poles (``design.realised_poles``: the eigenvalues the
+        gains rounded to doubles really place, from the exact characteristic polynomial) lie
+        further than ``pole_tolerance (1 - |p|)`` from a requested pole ``p`` (default 0.05;
+        None: accept any design that is stable, decided exactly). Both families.
 
     Returns
     -------
@@ -302,7 +305,6 @@ def design_observer(
         )
     check_choice(measurement, "measurement", MEASUREMENTS)
     if measurement == "position":
-        position_tolerance(pole_tolerance)
         if gain_direction is not None:
             raise ParameterValueError(
                 "gain_direction applies to measurement='state' only (a position-only "
@@ -311,7 +313,12 @@ def design_observer(
         from ._position import design_position_observer
 
         return design_position_observer(
-            model, m, poles=poles, bandwidth=bandwidth, velocity_bandwidth=velocity_bandwidth
+            model,
+            m,
+            poles=poles,
+            bandwidth=bandwidth,
+            velocity_bandwidth=velocity_bandwidth,
+            pole_tolerance=pole_tolerance,
         )
     if velocity_bandwidth is not None:
         raise ParameterValueError(
@@ -421,80 +428,3 @@ def _design_info(model, m, poles, bandwidth, d) -> tuple:
 def _fmt_complex(p) -> str:
     p = complex(p)
     return repr(p.real) if p.imag == 0.0 else f"{p.real!r}{p.imag:+}j"
-
-
-def structured_program(k, G, Kx, Ku, p) -> Program:
-    r"""The order-m observer's recurrence in companion form, term by term (``docs/theory.md``).
-
-    With ``z`` the auxiliary variables (state), ``x = (theta, omega)`` and ``n = m + 1``:
-
-    - rows ``i < m``: :math:`z_{i+1} - k_i z_n + K_{x,i} x + K_{u,i} u` (the shift of the
-      disturbance history, eqs. 16 and 20 for the HPDOb);
-    - row ``n``: :math:`-k_n z_n + K_{x,n} x + K_{u,n} u + \sum_j p_j z_j` (the degree-m
-      extrapolation, eqs. 19 and 21), with the integer weights :math:`p_j` exact;
-    - the estimate :math:`z_n - L_n^T x` (eqs. 13, 23); the reset :math:`\tau_0 + L_i^T x_0`.
-
-    Keeping :math:`1` and :math:`p_j` apart from :math:`k_i` (instead of the rounded entries of
-    ``M``) means every executable form runs exactly the polynomial the synthesis certified.
-    Terms whose constant is exactly zero are left out.
-    """
-    n = len(k)
-    last = n - 1
-    theta, omega, u = n, n + 1, n + 2
-
-    zero = []
-
-    def product(value, operand, name, *, negated=False):
-        value = float(value)
-        if value == 0.0:
-            if name not in zero:
-                zero.append(name)
-            return []
-        return [Term(-value if negated else value, operand, name, negated)]
-
-    def inputs(i):
-        return (
-            product(Kx[i, 0], theta, f"KX{i + 1}_THETA")
-            + product(Kx[i, 1], omega, f"KX{i + 1}_OMEGA")
-            + product(Ku[i], u, f"KU{i + 1}")
-        )
-
-    update = []
-    for i in range(n - 1):
-        terms = [Term(1.0, i + 1), *product(k[i], last, f"K{i + 1}", negated=True), *inputs(i)]
-        update.append(tuple(terms))
-    terms = [*product(k[last], last, f"K{n}", negated=True), *inputs(last)]
-    terms += [Term(float(w), j) for j, w in enumerate(p)]
-    update.append(tuple(terms))
-    output = (
-        (
-            Term(1.0, last),
-            *product(G[last, 0], theta, f"L{n}_THETA", negated=True),
-            *product(G[last, 1], omega, f"L{n}_OMEGA", negated=True),
-        ),
-    )
-    reset = tuple(
-        (
-            Term(1.0, 2),
-            *product(G[i, 0], 0, f"L{i + 1}_THETA"),
-            *product(G[i, 1], 1, f"L{i + 1}_OMEGA"),
-        )
-        for i in range(n)
-    )
-    constants = []
-    for i in range(1, n + 1):
-        constants += [
-            (f"K{i}", f"k_{i} = L_{i}^T D_Dn"),
-            (f"L{i}_THETA", f"L_{i}, theta entry [N m/rad]"),
-            (f"L{i}_OMEGA", f"L_{i}, omega entry [N m s/rad]"),
-            (f"KX{i}_THETA", f"(G A - M G)[{i - 1}][0]"),
-            (f"KX{i}_OMEGA", f"(G A - M G)[{i - 1}][1]"),
-            (f"KU{i}", f"(G B)[{i - 1}]"),
-        ]
-    return Program(
-        update=tuple(update),
-        output=output,
-        reset=reset,
-        constants=tuple(constants),
-        zero_constants=tuple(sorted(zero, key=[name for name, _ in constants].index)),
-    )

@@ -53,6 +53,7 @@ __all__ = [
     "Program",
     "Term",
     "as_system",
+    "check_designed_on",
 ]
 
 #: Measured signals of the two observer kinds: ``"state"`` (angle and velocity) and
@@ -412,3 +413,25 @@ def as_system(observer, name: str = "observer") -> LinearObserver:
         f"{name} must be a DisturbanceObserver, an ObserverDesign or another observer (a "
         f"LinearObserver, or an object whose .system is one), got {type(observer).__name__}"
     )
+
+
+def check_designed_on(system, nominal, Ts: float, name: str = "observer") -> None:
+    """Raise unless ``system`` was synthesised on ``nominal.discretize(Ts)`` (same J, b, Ts).
+
+    ``system`` is a :class:`LinearObserver` or anything with one (``.system``); an observer
+    without a nominal model (``model=None``) is checked for ``Ts`` only.
+    """
+    system = as_system(system, name)
+    model = system.model
+    if model is None:
+        if system.Ts != Ts:
+            raise ParameterValueError(
+                f"{name} must run at the loop's sampling period: its Ts={system.Ts} but the "
+                f"loop has Ts={Ts}"
+            )
+        return
+    if (model.J, model.b, model.Ts) != (nominal.J, nominal.b, Ts):
+        raise ParameterValueError(
+            f"{name} must be designed on nominal.discretize(Ts): its model has J={model.J}, "
+            f"b={model.b}, Ts={model.Ts} but nominal has J={nominal.J}, b={nominal.b} and Ts={Ts}"
+        )

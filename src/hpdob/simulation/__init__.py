@@ -7,6 +7,8 @@ PD, Encoder, Actuator
     Outer-loop controller, sensor and actuator models.
 simulate, SimulationResult, SimulationDivergedWarning
     One closed-loop run (continuous plant, sampled PD, observer inner loop).
+load_scenario
+    A TOML scenario file read into :func:`simulate`'s keyword arguments.
 sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
 """
@@ -15,6 +17,7 @@ from ._controller import PD
 from ._devices import Actuator, Encoder
 from ._loop import ServoLoop
 from ._result import SimulationResult
+from ._scenario import load_scenario
 from ._simulate import SimulationDivergedWarning, simulate
 from ._sweep import sweep
 
@@ -25,6 +28,7 @@ __all__ = [
     "ServoLoop",
     "SimulationDivergedWarning",
     "SimulationResult",
+    "load_scenario",
     "simulate",
     "sweep",
 ]

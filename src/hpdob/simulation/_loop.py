@@ -10,8 +10,8 @@ from .._validation import ParameterTypeError, ParameterValueError, positive, req
 from ..models._plant import Plant
 from ..models._servo import ServoModel
 from ..observers._core import initial_state
-from ..observers._runtime import Observer, check_designed_on
-from ..observers._system import LinearObserver, as_system
+from ..observers._runtime import Observer
+from ..observers._system import LinearObserver, as_system, check_designed_on
 from ._controller import PD
 from ._devices import Actuator, Encoder
 
@@ -185,6 +185,12 @@ def resolve_loop(loop, legacy: dict, where: str) -> ServoLoop:
     """``loop``, or a :class:`ServoLoop` built from the keyword arguments in ``legacy``."""
     given = {k: v for k, v in legacy.items() if v is not _MISSING}
     if loop is not None:
+        if not isinstance(loop, ServoLoop) and "plant" not in given:
+            raise ParameterTypeError(
+                f"{where}() takes a ServoLoop as its first argument, got "
+                f"{type(loop).__name__}; pass a plant as plant=... with the loop's other "
+                f"keyword arguments ({', '.join(LOOP_KEYS)}), or build a ServoLoop"
+            )
         if given:
             raise ParameterTypeError(
                 f"{where}() takes a ServoLoop or the loop's keyword arguments "

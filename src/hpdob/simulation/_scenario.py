@@ -294,7 +294,41 @@ def load_sweep(path) -> tuple[dict, dict]:
 
 
 def load_scenario(path) -> dict:
-    """Read a TOML scenario file; return the keyword arguments of :func:`hpdob.simulate`."""
+    """Read a TOML scenario file: the keyword arguments of :func:`hpdob.simulate`.
+
+    The format (``[plant]`` rigid or two-mass, ``[nominal]``, ``[controller]``,
+    ``[observer]`` of any family, ``[sensor]``, ``[actuator]``, ``reference`` and
+    ``disturbance`` signal lists, ``Ts``, ``duration``) is documented in
+    ``docs/simulation.md``; ``examples/*.toml`` are runnable examples; ``hpdob simulate FILE``
+    runs one from the command line.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.toml`` file (UTF-8).
+
+    Returns
+    -------
+    dict
+        ``plant``, ``nominal``, ``Ts``, ``controller``, ``reference``, ``duration`` and, when
+        the file gives them, ``observer`` (a reset runtime object), ``sensor``, ``actuator``,
+        ``disturbance``, ``substeps``, ``x0``; ``label`` (default: the file's stem). Pass them
+        as ``simulate(**kwargs)``.
+
+    Raises
+    ------
+    ValueError
+        If the file cannot be read, is not UTF-8 TOML, or a key or value is wrong; the message
+        names the key (``plant.J``, ``disturbance[2].type``, ...) and the value.
+    TypeError
+        If a value has the wrong type (named the same way).
+
+    Examples
+    --------
+    >>> from hpdob.simulation import load_scenario, simulate
+    >>> kwargs = load_scenario("examples/canonical_hpdob.toml")  # doctest: +SKIP
+    >>> result = simulate(**kwargs)                                        # doctest: +SKIP
+    """
     path = Path(path)
     kwargs = scenario_from_dict(_read_toml(path))
     kwargs.setdefault("label", path.stem)

@@ -28,7 +28,7 @@ from ._controller import PD
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import _sample_count, check_run_arguments, run_loop, sample_signals
-from ._sweep_spec import expand_scenarios
+from ._sweep_spec import check_paths_apply, expand_scenarios
 
 __all__ = ["sweep"]
 
@@ -476,6 +476,7 @@ def sweep(
     progress = _check_progress(progress)
     # Validate the shared part once, loudly, before spending time on scenarios.
     scenario_loop(resolved, {})
+    check_paths_apply([*(grid or {}), *(vary or {})], resolved["loop"], resolved["observer_spec"])
     sample_signals(
         resolved["reference"], resolved["disturbance"], Ts=resolved["loop"].Ts, n=2, substeps=1
     )

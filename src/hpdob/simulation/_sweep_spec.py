@@ -9,7 +9,7 @@ import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, as_int, as_real, check_choice
 
-__all__ = ["DISTRIBUTIONS", "MAX_SCENARIOS", "PATHS", "expand_scenarios"]
+__all__ = ["DISTRIBUTIONS", "MAX_SCENARIOS", "PATHS", "check_paths_apply", "expand_scenarios"]
 
 #: Most scenarios one sweep may expand to (rows and draws are held in memory): checked up front.
 MAX_SCENARIOS = 1_000_000
@@ -130,3 +130,53 @@ def expand_scenarios(grid=None, vary=None, n=None, seed=0) -> list[dict]:
         for i in range(n or 1):
             scenarios.append({**fixed, **{path: float(v[i]) for path, v in draws.items()}})
     return scenarios
+
+
+def _replaceable(model) -> set:
+    """The parameters ``model.replace`` accepts (a MujocoServo says; dataclasses by fields)."""
+    import dataclasses
+
+    if hasattr(model, "_replaceable"):
+        return set(model._replaceable())
+    return {f.name for f in dataclasses.fields(model) if f.init and f.name != "_"}
+
+
+def check_paths_apply(paths, loop, spec) -> None:
+    """Refuse, before any scenario runs, a path that could not apply to any scenario of this
+    base: a plant parameter the plant does not have (``plant.J`` of a :class:`TwoMassServo`,
+    ``plant.stiffness`` of a rigid servo), a design argument the observer's family does not
+    take (``observer.bandwidth`` of a Kalman spec, ``observer.order`` of an ESO), or
+    ``observer.velocity_bandwidth`` of an observer that measures the state. (Bad *values* are
+    reported per scenario, in the ``error`` column.)"""
+    from ..observers._families import FAMILIES
+
+    paths = list(paths)
+    for path in paths:
+        kind, _, name = path.partition(".")
+        why = None
+        if kind in ("plant", "nominal"):
+            model = loop.plant if kind == "plant" else loop.nominal
+            valid = _replaceable(model)
+            if name not in valid:
+                why = (
+                    f"a {type(model).__name__} has no parameter {name!r} (it has "
+                    f"{', '.join(sorted(valid))})"
+                )
+        elif kind == "observer" and spec is None:
+            why = (
+                "observer.* parameters need base['observer'] as a dict of design arguments (or a "
+                "design of a known family)"
+            )
+        elif kind == "observer":
+            family = spec.get("type", "dob")
+            keys = FAMILIES[family][1]
+            if name not in keys:
+                why = (
+                    f"an observer spec of type {family!r} has no design argument {name!r} (it "
+                    f"takes {', '.join(keys)})"
+                )
+            state = spec.get("measurement", "state") != "position"
+            if name == "velocity_bandwidth" and state and "observer.measurement" not in paths:
+                why = "the observer measures the state (velocity_bandwidth is position-only)"
+        if why is not None:
+            raise ParameterValueError(f"sweep path {path!r} does not apply to this base: {why}")

@@ -22,6 +22,8 @@ COLUMNS = {
     "u_noise": "N m RMS",
     "radius": "worst closed-loop spectral radius over the corners",
     "radius_margin": "the same with one extra sample of delay",
+    "delay_margin_samples": "extra samples of delay the loop stays stable with at every corner "
+    "(-1 unstable, capped at 20)",
     "robust": "",
     "within_noise": "",
     "pareto": "",
@@ -124,6 +126,9 @@ class TuningResult:
         """
         r, s = self.recommended, self.settings
         unit = "rad/s" if r["parameter"] == "bandwidth" else ""
+        margin = str(r["delay_margin_samples"])
+        if r["delay_margin_samples"] >= s["max_extra_delay"]:
+            margin = f"at least {margin}"
         qualified = sum(row["robust"] and row["within_noise"] for row in self.rows)
         lines = [
             f"Recommended: {r['name']}, {r['parameter']} = {r['value']:.4g} {unit}".rstrip(),
@@ -135,7 +140,8 @@ class TuningResult:
             f"  accuracy |1 - Q| {r['accuracy']:.3g}; sensor noise in the estimate "
             f"{r['tau_noise']:.3g} N m, in u {r['u_noise']:.3g} N m RMS",
             f"  worst spectral radius {r['radius']:.5f} (with one more sample of delay "
-            f"{r['radius_margin']:.5f})",
+            f"{r['radius_margin']:.5f}); stable at every corner with up to {margin} extra "
+            "samples of delay",
             f"  simulated at the centre: RMS estimation error {r['simulated_estimation']:.3g} N m, "
             f"RMS position error {r['simulated_position']:.3g} rad",
             "  verified by nonlinear simulation at every corner:",

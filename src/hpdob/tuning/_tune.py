@@ -35,7 +35,6 @@ import numpy as np
 from .._validation import (
     ParameterTypeError,
     ParameterValueError,
-    as_real,
     check_choice,
     nonnegative,
     positive,
@@ -58,8 +57,13 @@ FAMILIES = {
 OBJECTIVES = ("estimation", "position")
 N_BANDWIDTHS = 24
 MIN_BANDWIDTH = 5.0  # rad/s
-#: The paper's nominal inertia [kg m^2]: the default verification disturbance scales with J_n.
+#: The paper's nominal inertia [kg m^2]: the default verification disturbance and Coulomb
+#: friction scale with J_n.
 _PAPER_J = 2.8e-4
+#: The paper's Coulomb friction [N m] (its plant, section 5), scaled by J_n/_PAPER_J by default.
+_PAPER_COULOMB = 0.01
+#: The delay margin scan stops here [extra samples]: a margin reported as this is "at least".
+MAX_EXTRA_DELAY = 20
 
 
 def _range(value, name: str, what: str, *, allow_zero: bool) -> tuple[float, float]:
@@ -72,15 +76,23 @@ def _range(value, name: str, what: str, *, allow_zero: bool) -> tuple[float, flo
     return low, high
 
 
-def _frequencies(disturbance_frequency) -> np.ndarray:
+def _frequencies(disturbance_frequency, Ts: float) -> np.ndarray:
     if disturbance_frequency is None:
-        return np.geomspace(0.1, 10.0, 25)
-    if np.ndim(disturbance_frequency) == 0:
-        return np.array([positive(disturbance_frequency, "disturbance_frequency",
-                                  "a positive frequency [Hz] or a (low, high) band")])  # fmt: skip
-    low, high = _range(disturbance_frequency, "disturbance_frequency",
-                       "positive frequencies [Hz]", allow_zero=False)  # fmt: skip
-    return np.geomspace(low, high, 25) if high > low else np.array([low])
+        frequencies = np.geomspace(0.1, 10.0, 25)
+    elif np.ndim(disturbance_frequency) == 0:
+        what = "a positive frequency [Hz] or a (low, high) band"
+        frequencies = np.array([positive(disturbance_frequency, "disturbance_frequency", what)])
+    else:
+        low, high = _range(disturbance_frequency, "disturbance_frequency",
+                           "positive frequencies [Hz]", allow_zero=False)  # fmt: skip
+        frequencies = np.geomspace(low, high, 25) if high > low else np.array([low])
+    nyquist = 0.5 / Ts
+    if not frequencies[-1] < nyquist:  # a sampled loop cannot tell it from its alias
+        raise ParameterValueError(
+            f"disturbance_frequency must be below the Nyquist frequency 1/(2 Ts) = {nyquist:.6g} "
+            f"Hz, got {disturbance_frequency!r}"
+        )
+    return frequencies
 
 
 def _sensor_noise(sensor) -> float:
@@ -90,7 +102,7 @@ def _sensor_noise(sensor) -> float:
     return math.hypot(sensor.resolution / math.sqrt(12.0), sensor.noise_std)
 
 
-def _scenario(nominal, disturbance_frequency, scenario):
+def _scenario(nominal, Ts, disturbance_frequency, scenario):
     """The verification run: the paper's reference and disturbance shape, with the sine at the
     disturbance frequency and the amplitudes scaled by J_n (the same disturbance acceleration
     as the paper's), unless given."""
@@ -113,7 +125,8 @@ def _scenario(nominal, disturbance_frequency, scenario):
     f = 2.0 if disturbance_frequency is None else float(np.atleast_1d(disturbance_frequency)[0])
     scale = nominal.J / _PAPER_J
     disturbance = Step(1.5005, 0.05 * scale) + Sine(0.02 * scale, f, start=2.5005)
-    return {"reference": paper.REFERENCE, "disturbance": disturbance, "duration": paper.DURATION}
+    duration = Ts * max(1, round(paper.DURATION / Ts))  # the paper's 10 s, in whole samples
+    return {"reference": paper.REFERENCE, "disturbance": disturbance, "duration": duration}
 
 
 def _candidates(model, families, sigma, notes):
@@ -158,6 +171,16 @@ def _radius(loop) -> float:
     return float(np.abs(closed_loop_poles(loop)).max())
 
 
+def _delay_margin(base, corners, plant, delay: int) -> int:
+    """Largest d <= MAX_EXTRA_DELAY such that the loop is stable at every corner with every
+    extra delay of 0..d samples (a robust candidate is known to be stable with 0 and 1)."""
+    for extra in range(2, MAX_EXTRA_DELAY + 1):
+        actuator = Actuator(delay_samples=delay + extra)
+        if any(_radius(base.replace(plant=plant(*c), actuator=actuator)) >= 1.0 for c in corners):
+            return extra - 1
+    return MAX_EXTRA_DELAY
+
+
 def tune(
     *,
     nominal: ServoModel,
@@ -171,7 +194,7 @@ def tune(
     families=None,
     objective: str = "estimation",
     noise_limit: float | None = None,
-    coulomb: float = 0.0,
+    coulomb: float | None = None,
     scenario: dict | None = None,
 ) -> TuningResult:
     r"""Recommend an observer for a motor, a sensor and an uncertainty, verified by simulation.
@@ -181,7 +204,8 @@ def tune(
     nominal : ServoModel
         The nominal model (``J_n``, ``b_n``) of controller and observer.
     Ts : float
-        Sampling period [s].
+        Sampling period [s], below 0.25 s (the bandwidths searched run from 5 rad/s to
+        ``0.4 pi/Ts``).
     controller : PD, optional
         Outer loop; default ``PD(50, 5, velocity="observer")`` (the paper's gains). With
         ``velocity="observer"`` the derivative uses the observer's velocity estimate where it
@@ -197,8 +221,8 @@ def tune(
         True viscous frictions [N m s/rad]; default ``(b_n, b_n)``.
     disturbance_frequency : float or (float, float), optional
         Frequency [Hz] of the disturbance the accuracy is judged at (``|1 - Q|``), or a band
-        (RMS of ``|1 - Q|`` over it). Default: the band 0.1-10 Hz (and 2 Hz for the verification
-        scenario's sine).
+        (RMS of ``|1 - Q|`` over it), below the Nyquist frequency ``1/(2 Ts)``. Default: the band
+        0.1-10 Hz (and 2 Hz for the verification scenario's sine).
     families : sequence of str, optional
         Any of ``"state"``, ``"position"``, ``"eso"``, ``"kalman"`` (:data:`FAMILIES`). Default
         all.
@@ -208,12 +232,15 @@ def tune(
     noise_limit : float, optional
         Largest RMS noise the sensor may cause in the estimate [N m]. Default: no limit.
     coulomb : float, optional
-        Coulomb friction of the simulated plant [N m] (``tanh`` scale 0.01 rad/s). Default 0.
+        Coulomb friction of the simulated plant [N m] (``tanh`` scale 0.01 rad/s). Default: the
+        paper's 0.01 N m scaled by ``J_n / 2.8e-4 kg m^2`` (as the default disturbance is); 0
+        for none.
     scenario : dict, optional
         The verification run: ``reference``, ``duration`` [s] and optionally ``disturbance``
         (as for :func:`hpdob.simulate`). Default: the paper's reference, a load step at 1.5 s and
         a sine at the disturbance frequency from 2.5 s, amplitudes scaled with ``J_n`` from the
-        paper's (0.05 and 0.02 N m at ``J_n`` = 2.8e-4 kg m^2); 10 s.
+        paper's (0.05 and 0.02 N m at ``J_n`` = 2.8e-4 kg m^2); 10 s (in whole samples). Its
+        duration and signals are checked before the search.
 
     Returns
     -------
@@ -244,10 +271,16 @@ def tune(
     from ..analysis._noise import noise_gains
     from ..analysis._sensitivity import loop_margins
     from ..simulation._loop import ServoLoop
-    from ..simulation._simulate import simulate
+    from ..simulation._simulate import _sample_count, sample_signals, simulate
 
     nominal = require_instance(nominal, ServoModel, "nominal")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
+    if not 0.4 * math.pi / Ts > MIN_BANDWIDTH:  # the grid of bandwidths, 5 rad/s .. 0.4 pi/Ts
+        raise ParameterValueError(
+            f"Ts must be below 0.4 pi / {MIN_BANDWIDTH:g} rad/s = "
+            f"{0.4 * math.pi / MIN_BANDWIDTH:.4g} s (the bandwidths searched run from "
+            f"{MIN_BANDWIDTH:g} rad/s to 0.4 pi/Ts), got {Ts!r}"
+        )
     controller = PD(50.0, 5.0, velocity="observer") if controller is None else require_instance(
         controller, PD, "controller")  # fmt: skip
     sensor = require_instance(sensor, Encoder, "sensor", optional=True)
@@ -258,7 +291,7 @@ def tune(
         b_low, b_high = _range(
             b_range, "b_range", "non-negative viscous frictions [N m s/rad]", allow_zero=True
         )
-    frequencies = _frequencies(disturbance_frequency)
+    frequencies = _frequencies(disturbance_frequency, Ts)
     if families is None:
         families = tuple(FAMILIES)
     if isinstance(families, str) or not families:
@@ -270,9 +303,14 @@ def tune(
     objective = check_choice(objective, "objective", OBJECTIVES)
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
+    if coulomb is None:
+        coulomb = _PAPER_COULOMB * nominal.J / _PAPER_J
     coulomb = nonnegative(coulomb, "coulomb", "a non-negative Coulomb friction [N m]")
-    run = _scenario(nominal, disturbance_frequency, scenario)
-    as_real(run["duration"], "scenario duration", "a duration [s]")
+    run = _scenario(nominal, Ts, disturbance_frequency, scenario)
+    # The verification run, checked before the search (not after it): duration, size, signals
+    duration = positive(run["duration"], "scenario duration", "a positive finite duration [s]")
+    _sample_count(Ts, duration)
+    sample_signals(run["reference"], run.get("disturbance"), Ts=Ts, n=2, substeps=1)
 
     model = nominal.discretize(Ts)
     sigma = _sensor_noise(sensor)
@@ -309,11 +347,16 @@ def tune(
                 tau_noise = u_noise = math.inf
         elif radius >= 1.0:
             tau_noise = u_noise = math.inf
+        robust = radius < 1.0 and radius_margin < 1.0
+        if robust:
+            delay_margin = _delay_margin(base, corners, plant, actuator.delay_samples)
+        else:
+            delay_margin = 0 if radius < 1.0 else -1
         rows.append({
             "family": family, "order": m, "name": design.system.name, "parameter": parameter,
             "value": value, "accuracy": accuracy, "tau_noise": tau_noise, "u_noise": u_noise,
-            "radius": radius, "radius_margin": radius_margin,
-            "robust": radius_margin < 1.0,
+            "radius": radius, "radius_margin": radius_margin, "delay_margin_samples": delay_margin,
+            "robust": robust,
             "within_noise": noise_limit is None or tau_noise <= noise_limit,
             "pareto": False, "simulated": math.nan, "_design": design, "_controller": ctrl,
         })  # fmt: skip
@@ -412,6 +455,12 @@ def tune(
             "noise_limit": noise_limit,
             "coulomb": coulomb,
             "margin": "stable at every corner with one extra sample of delay",
+            "max_extra_delay": MAX_EXTRA_DELAY,
+            "bandwidth_grid": {
+                "low": MIN_BANDWIDTH,
+                "high": 0.4 * math.pi / Ts,
+                "points": N_BANDWIDTHS,
+            },
         },
         notes=tuple(notes),
         scenario=run,

@@ -1,0 +1,72 @@
+"""The log a subcommand reads (``hpdob identify``, ``hpdob estimate``): a file with named
+columns, or the shipped EMPS run; the options are defined once so that they mean one thing."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from ._errors import CLIError
+from ._options import finite
+
+__all__ = ["add_log_arguments", "log_from_args"]
+
+
+def add_log_arguments(
+    parser: argparse.ArgumentParser, *, emps_help: str, reference: bool = False
+) -> None:
+    """``LOG`` or ``--emps``, and the column options (``--reference`` with ``reference``)."""
+    parser.add_argument("log", type=Path, nargs="?", help="log file (.csv, .parquet, .mat)")
+    parser.add_argument("--emps", action="store_true", help=emps_help)
+    columns = parser.add_argument_group("columns of LOG")
+    columns.add_argument("--time", metavar="NAME", help="time column [s] (or give --Ts)")
+    columns.add_argument("--position", metavar="NAME", help="position column [rad or m]")
+    columns.add_argument("--input", metavar="NAME", help="input column (torque/force or command)")
+    columns.add_argument(
+        "--input-gain",
+        default="1",
+        metavar="GAIN",
+        help="factor from the input column to torque/force, or the name of a scalar variable "
+        "of a .mat file holding it (default: 1)",
+    )
+    if reference:
+        columns.add_argument("--reference", metavar="NAME", help="reference position column")
+    columns.add_argument("--Ts", type=finite, help="sampling period [s] of a log without time")
+    columns.add_argument(
+        "--axis", choices=("rotary", "linear"), help="units of the report (default: unstated)"
+    )
+
+
+def _input_gain(text: str):
+    try:
+        value = float(text)
+    except ValueError:
+        return text  # the name of a scalar variable
+    if not math.isfinite(value):
+        raise CLIError(f"--input-gain must be a finite number or a variable name, got {text!r}")
+    return value
+
+
+def log_from_args(args: argparse.Namespace):
+    """The :class:`~hpdob.identification.Log` that ``add_log_arguments`` options describe."""
+    from ..identification import emps, read_log
+
+    roles = [r for r in ("time", "position", "input", "reference") if hasattr(args, r)]
+    if args.emps == (args.log is not None):
+        raise CLIError("give a LOG file or --emps (the shipped EMPS run), exactly one")
+    if args.emps:
+        given = [f"--{k}" for k in roles if getattr(args, k)]
+        if given:
+            raise CLIError(f"--emps uses the EMPS file's own columns; drop {', '.join(given)}")
+        return emps()
+    for name in ("position", "input"):
+        if getattr(args, name) is None:
+            raise CLIError(f"--{name} is required: the name of the log's {name} column")
+    return read_log(
+        args.log,
+        **{role: getattr(args, role) for role in roles},
+        input_gain=_input_gain(args.input_gain),
+        Ts=args.Ts,
+        axis=args.axis,
+    )
