@@ -151,9 +151,11 @@ def noise(out: Path) -> None:
 
 def tradeoff(out: Path) -> None:
     grid = np.unique(np.concatenate([np.geomspace(2.0, 3000.0, 141), [25, 50, 100, 200, 400]]))
-    table = noise_tradeoff(
-        nominal=paper.NOMINAL, Ts=paper.TS, frequency=2.0, bandwidths=grid, orders=ORDERS
-    )
+    # The grid's low end (2-5 rad/s) is beyond what order 3 realises to within the default
+    # pole tolerance in double precision; keep those points, evaluated for the rounded gains
+    # (the observer as it would run).
+    table = noise_tradeoff(nominal=paper.NOMINAL, Ts=paper.TS, frequency=2.0, bandwidths=grid,
+                           orders=ORDERS, pole_tolerance=None)  # fmt: skip
     save(table.plot(), out, "analysis_tradeoff.png")
     print(
         "\n| DOb bandwidth [rad/s] | noise gain [N m/(rad/s)] | DOb error | "

@@ -145,3 +145,20 @@ def test_bad_arguments():
         noise_tradeoff(**kw, noise="position", gain_direction=(0.0, 1.0))
     with pytest.raises(ParameterTypeError, match="nominal must be a ServoModel"):
         noise_tradeoff(**{**kw, "nominal": NOMINAL.discretize(TS)})
+
+
+def test_pole_tolerance_passes_through_to_the_designs():
+    """Order 3 at 2.22 rad/s is not realisable to within the default tolerance (its four-fold
+    pole moves by ~(1e-16)^(1/4)); the default raises naming it, ``pole_tolerance=None`` keeps
+    the point and its figures are those of the same design built with ``None`` directly."""
+    from hpdob import ServoModel, design_observer, estimation_response
+
+    kwargs = {"nominal": ServoModel(2.8e-4), "Ts": 1e-3, "frequency": 2.0,
+              "bandwidths": [2.220254341396507, 100.0], "orders": (3,)}  # fmt: skip
+    with pytest.raises(ValueError, match=r"cannot be realised for order 3.*pole_tolerance=0\.05"):
+        noise_tradeoff(**kwargs)
+    table = noise_tradeoff(**kwargs, pole_tolerance=None)
+    design = design_observer(ServoModel(2.8e-4).discretize(1e-3), order=3,
+                             bandwidth=2.220254341396507, pole_tolerance=None)  # fmt: skip
+    expected = abs(estimation_response(design, 2.0, error=True)[0])
+    assert table.error_gain[0, 0] == expected

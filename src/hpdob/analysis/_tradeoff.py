@@ -27,6 +27,7 @@ from .._validation import (
     require_instance,
 )
 from ..models._servo import ServoModel
+from ..observers._realised import POLE_TOLERANCE
 from ..observers._synthesis import design_observer
 from ..observers._system import MEASUREMENTS
 from ..simulation._controller import PD
@@ -344,6 +345,7 @@ def noise_tradeoff(
     gain_direction=(1.0, 1.0),
     measurements=("state",),
     controller: PD | None = None,
+    pole_tolerance: float | None = POLE_TOLERANCE,
 ) -> NoiseTradeoff:
     r"""Estimation error for a sinusoidal disturbance against noise gain, per order and bandwidth.
 
@@ -374,6 +376,11 @@ def noise_tradeoff(
         no delay): its D term takes the velocity from the sensor (differenced from the angle for
         ``noise="encoder"``), or for position-only observers from their estimate when
         ``controller.velocity == "observer"``.
+    pole_tolerance : float or None, optional
+        As for :func:`hpdob.design_observer` (default 0.05): a grid point whose design cannot
+        be realised in double precision (high orders at low bandwidths) raises. ``None``
+        accepts every design; the figures are then those of the rounded gains, i.e. of the
+        observer as it would run.
 
     Returns
     -------
@@ -448,9 +455,11 @@ def noise_tradeoff(
     for i, (m, kind) in enumerate(rows):
         for j, g in enumerate(grid):
             if kind == "state":
-                design = design_observer(model, order=m, bandwidth=g, gain_direction=gain_direction)
+                design = design_observer(model, order=m, bandwidth=g, gain_direction=gain_direction,
+                                         pole_tolerance=pole_tolerance)  # fmt: skip
             else:
-                design = design_observer(model, order=m, bandwidth=g, measurement="position")
+                design = design_observer(model, order=m, bandwidth=g, measurement="position",
+                                         pole_tolerance=pole_tolerance)  # fmt: skip
             err[i, j] = abs(estimation_response(design, f, error=True)[0])
             gain[i, j] = observer_noise_gain(design, noise=noise)
             if u_gain is not None:
