@@ -155,13 +155,21 @@ def _candidates(model, families, sigma, notes):
                 grid = ("process_noise_std", np.geomspace(low, high, N_BANDWIDTHS))
             else:
                 grid = ("bandwidth", bandwidths)
+            left_out = []
             for value in grid[1]:
                 try:
                     design = design_from_spec(model, {**spec, grid[0]: float(value)})
                 except ParameterValueError as err:  # e.g. not realisable in double precision
-                    notes.append(f"{family} m={m} at {grid[0]}={value:.4g}: {err}")
+                    left_out.append((float(value), str(err)))
                     continue
                 out.append((family, m, grid[0], float(value), design))
+            if left_out:
+                values = [v for v, _ in left_out]
+                first = left_out[0][1] if not out else left_out[0][1].split(":")[0]
+                notes.append(
+                    f"{family} m={m}: {len(values)} of {len(grid[1])} {grid[0]} values in "
+                    f"[{min(values):.4g}, {max(values):.4g}] left out ({first})"
+                )
     return out
 
 
