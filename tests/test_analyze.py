@@ -103,6 +103,23 @@ def test_tradeoff(capsys, tmp_path):
     assert (tmp_path / "tradeoff.png").exists() and (tmp_path / "tradeoff.csv").exists()
 
 
+def test_tradeoff_pole_tolerance(capsys, tmp_path):
+    """Order 3 at 2.22 rad/s is refused by the default realised-pole check (one line, exit 2)
+    and accepted with ``--pole-tolerance none``, as ``noise_tradeoff(pole_tolerance=None)``."""
+    argv = ["analyze", "tradeoff", "--orders", "0,3", "--bandwidths", "2.220254341396507,100",
+            "--out", str(tmp_path), "--dpi", "40"]  # fmt: skip
+    code, _, err = run(capsys, *argv)
+    assert code == 2 and "cannot be realised for order 3" in err and err.count("\n") == 1
+    assert not (tmp_path / "tradeoff.json").exists()
+    code, _, _ = run(capsys, *argv, "--pole-tolerance", "none")
+    assert code == 0
+    table = noise_tradeoff(nominal=NOMINAL, Ts=TS, frequency=2.0, orders=(0, 3),
+                           bandwidths=[2.220254341396507, 100.0], pole_tolerance=None)  # fmt: skip
+    data = json.loads((tmp_path / "tradeoff.json").read_text())
+    values = list(data["improvement_at_equal_noise"]["3"].values())
+    assert values == [None if np.isnan(v) else v for v in table.improvement(3).tolist()]
+
+
 def test_stability(capsys, tmp_path):
     code, out, _ = run(
         capsys,

@@ -9,7 +9,7 @@ import pytest
 
 from hpdob import ServoModel, design_observer, estimate_disturbance, paper
 from hpdob.cli import main
-from hpdob.observers import design_eso, design_kalman
+from hpdob.observers import design_eso, design_kalman, kalman_process_noise
 
 
 def run(capsys, *argv):
@@ -75,8 +75,12 @@ def test_emps_with_an_identification_file(tmp_path, capsys):
          lambda m: design_kalman(m, position_noise_std=1e-6, process_noise_std=50.0)),
         (("--measurement", "position", "--bandwidth", 60),
          lambda m: design_observer(m, order=1, bandwidth=60.0, measurement="position")),
+        (("--type", "kalman", "--position-noise-std", 1e-6, "--bandwidth", 40),
+         lambda m: design_kalman(m, position_noise_std=1e-6, process_noise_std=(
+             kalman_process_noise(m, bandwidth=40.0, position_noise_std=1e-6)))),
+        ((), lambda m: design_observer(m, order=1, bandwidth=100.0)),
     ],
-    ids=["eso", "kalman", "position"],
+    ids=["eso", "kalman", "position", "kalman-for-bandwidth", "defaults"],
 )  # fmt: skip
 def test_every_family_matches_the_library(tmp_path, capsys, log, options, design):
     """``--type``/``--measurement`` build the same observer as the library's own design call."""
@@ -91,8 +95,19 @@ def test_every_family_matches_the_library(tmp_path, capsys, log, options, design
         design(ServoModel(2.8e-4).discretize(1e-3)), theta=result.theta_measured, u=result.u
     )
     np.testing.assert_allclose(table["tau_hat"], expected.tau_hat, rtol=1e-9, atol=1e-12)
-    report = json.loads((tmp_path / "o" / "estimate.json").read_text())
-    assert report["observer"]["type"] == options[1] if options[0] == "--type" else "dob"
+    report = json.loads((tmp_path / "o" / "estimate.json").read_text())["observer"]
+    assert report["type"] == (options[1] if options[:1] == ("--type",) else "dob")
+    # The settings in effect, defaults and derived values included, are the design's.
+    reference = design(ServoModel(2.8e-4).discretize(1e-3))
+    for name in ("order", "extended_order", "form", "bandwidth", "velocity_bandwidth",
+                 "position_noise_std", "process_noise_std"):  # fmt: skip
+        value = getattr(reference, name, None)
+        if isinstance(value, str):
+            assert report[name] == value, name
+        elif value is not None:
+            assert report[name] == pytest.approx(value, rel=1e-12), name
+    if hasattr(reference, "gain_direction") and reference.gain_direction is not None:
+        assert report["gain_direction"] == list(reference.gain_direction)
 
 
 @pytest.mark.parametrize(

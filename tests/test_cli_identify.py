@@ -154,6 +154,9 @@ def test_one_line_errors(tmp_path, capsys):
     )
     assert "give --kd" in message
     assert "drop --position" in _error(capsys, "--emps", "--position", "q")
+    # The EMPS run brings its own gain, period and units: those options are refused, not ignored.
+    for option, value in (("--Ts", "0.5"), ("--input-gain", "3"), ("--axis", "linear")):
+        assert f"drop {option}" in _error(capsys, "--emps", option, value)
     message = _error(
         capsys, csv, "--time", "t", "--position", "q", "--input", "u", "--cutoff", "900"
     )

@@ -95,6 +95,9 @@ def test_loop_or_keywords_not_both(loop):
     rest = {k: v for k, v in KW.items() if k != "plant"}
     with pytest.raises(TypeError, match=r"got ServoModel; pass a plant as plant=\.\.\."):
         closed_loop_poles(KW["plant"], **rest)
+    # Something else first, with the parts as keywords: the same error, not "got a loop and".
+    with pytest.raises(TypeError, match=r"got dict; pass the loop's parts as keyword arguments"):
+        closed_loop_poles({}, **KW)
 
 
 @pytest.mark.parametrize(

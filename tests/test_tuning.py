@@ -64,8 +64,8 @@ def test_delay_margin_in_samples_is_the_largest_stable_extra_delay(result):
 
 
 def test_default_coulomb_friction_is_the_papers_scaled_with_the_inertia():
-    """0.01 N m on the paper's J_n = 2.8e-4 kg m^2 (section 5), the same acceleration at
-    any J_n; 0 switches it off."""
+    """0.01 N m (the Coulomb friction of hpdob.paper.PLANT) on the paper's J_n = 2.8e-4 kg m^2,
+    the same acceleration at any J_n; 0 switches it off."""
     run = {"reference": paper.REFERENCE, "duration": 0.5}
     for J_n in (2.8e-4, 5.6e-3):
         r = tune(nominal=ServoModel(J_n), Ts=1e-3, families=["state"], scenario=run)
@@ -105,7 +105,8 @@ def test_result_object(result, tmp_path):
     assert {"accuracy", "tau_noise", "u_noise", "radius_margin", "simulated"} <= set(frame)
     assert result.pareto()["pareto"].all()
     obs = result.observer
-    assert obs.estimate(0.0) == 0.0 if obs.system.measurement == "position" else True
+    at_rest = 0.0 if obs.system.measurement == "position" else (0.0, 0.0)
+    assert obs.estimate(at_rest) == 0.0  # reset at rest: no disturbance estimated
     assert "Recommended:" in result.report()
     data = json.loads(result.to_json(tmp_path / "t.json").read_text())
     assert data["recommendation"]["name"] == result.recommended["name"]
@@ -140,8 +141,10 @@ def test_what_rules_everything_out():
         ({"noise_limit": -1.0}, ValueError, r"noise_limit must be a positive"),
         ({"nominal": 2.8e-4}, TypeError, r"nominal must be a ServoModel"),
         ({"scenario": {"reference": 1}}, ValueError, r"scenario must have the keys"),
+        ({"actuator": Actuator(delay_samples=1000)}, ValueError,
+         r"actuator.delay_samples must be at most 999 for tune .*got 1000"),
     ],
-)
+)  # fmt: skip
 def test_bad_arguments_are_named(kwargs, error, pattern):
     arguments = {"nominal": ServoModel(2.8e-4), "Ts": 1e-3, **kwargs}
     with pytest.raises(error, match=pattern):

@@ -173,9 +173,30 @@ def _value(obj) -> str:
     return text if len(text) <= 120 else text[:117] + "..."
 
 
+def _private_bases(cls) -> list[type]:
+    """The private (``_Name``) classes in ``cls``'s MRO: their members belong to its page."""
+    return [base for base in cls.__mro__[1:] if base.__name__.startswith("_")]
+
+
+def _public_base(cls) -> type:
+    """``cls`` itself if public, else its nearest public base (for "Bases:" lines)."""
+    while cls.__name__.startswith("_") and cls.__bases__:
+        cls = cls.__bases__[0]
+    return cls
+
+
+def _process_bases(app, name, obj, options, bases) -> None:
+    """Show the public class a private base stands for (``_DesignedObserver`` -> ``Observer``)."""
+    bases[:] = list(dict.fromkeys(_public_base(base) for base in bases))
+
+
 def _entry_rst(entry: Entry) -> str:
     if entry.kind == "class":
-        return f".. autoclass:: {entry.name}\n   :members:\n   :show-inheritance:\n"
+        cls = getattr(importlib.import_module(entry.module), entry.name)
+        inherited = ""
+        if _private_bases(cls):  # a private base's members (e.g. .design) shown as the class's
+            inherited = f"   :inherited-members: {_public_base(_private_bases(cls)[0]).__name__}\n"
+        return f".. autoclass:: {entry.name}\n   :members:\n{inherited}   :show-inheritance:\n"
     if entry.kind == "exception":
         return f".. autoexception:: {entry.name}\n   :show-inheritance:\n"
     if entry.kind == "function":
@@ -374,5 +395,6 @@ class OptionalTocTree(TocTree):
 def setup(app):
     app.connect("builder-inited", generate)
     app.connect("missing-reference", resolve)
+    app.connect("autodoc-process-bases", _process_bases)
     app.add_directive("optional-toctree", OptionalTocTree)
     return {"version": "1.0", "parallel_read_safe": True, "parallel_write_safe": True}

@@ -210,6 +210,15 @@ def register(subparsers) -> None:
         default=["state"],
         help="observer families, e.g. state,position (default: state)",
     )
+    tradeoff.add_argument(
+        "--pole-tolerance",
+        type=_tolerance,
+        default=0.05,
+        metavar="TOL|none",
+        help="largest realised-pole error, in units of a pole's distance to the unit circle, "
+        "of a design in double precision (high orders at low bandwidths exceed it); 'none' "
+        "accepts every design (default: %(default)s)",
+    )
     stab = sub.add_parser(
         "stability",
         help="robust stability map over model error",
@@ -393,6 +402,12 @@ def _describe(args) -> dict:
     }
 
 
+def _tolerance(text: str):
+    """``none`` or a number (argparse type of ``--pole-tolerance``; the value is checked by
+    the design)."""
+    return None if text.strip().lower() == "none" else finite(text)
+
+
 def _tradeoff(args, files) -> list[str]:
     from ..analysis._tradeoff import noise_tradeoff
     from ..models._servo import ServoModel
@@ -408,6 +423,7 @@ def _tradeoff(args, files) -> list[str]:
         orders=args.orders,
         noise=noise,
         measurements=args.measurements,
+        pole_tolerance=args.pole_tolerance,
     )
     save_figure(result.plot(), files, "tradeoff.png", args.dpi)
     result.to_csv(files.path("tradeoff.csv"))

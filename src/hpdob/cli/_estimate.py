@@ -83,31 +83,28 @@ def _nominal(args):
     return ServoModel(args.J_n, 0.0 if args.b_n is None else args.b_n), "given"
 
 
-_FAMILY_OPTIONS = {
-    "dob": ("order", "measurement", "velocity_bandwidth", "gain_direction"),
-    "eso": ("extended_order", "form"),
-    "kalman": ("order", "position_noise_std", "process_noise_std"),
-}
+#: The settings each family's design records, reported as in effect (the design, not the
+#: command line: defaults and derived values such as the Kalman process noise included).
+_SETTINGS = ("order", "extended_order", "form", "bandwidth", "velocity_bandwidth",
+             "gain_direction", "position_noise_std", "process_noise_std")  # fmt: skip
 
 
-#: What an option not given means (``design_on``'s defaults), reported as in effect.
-_DEFAULTS = {"dob": {"order": 1}, "eso": {"extended_order": 0, "form": "current"},
-             "kalman": {"order": 0}}  # fmt: skip
-
-
-def _observer_settings(args: argparse.Namespace) -> dict:
-    """The observer options in effect for ``args.type``, as JSON-ready values."""
+def _observer_settings(args: argparse.Namespace, design) -> dict:
+    """The observer's settings in effect, read from ``design``, as JSON-ready values."""
     settings = {"type": args.type}
-    if args.poles is not None:
-        settings["poles"] = [[float(p.real), float(p.imag)] for p in args.poles]
-    else:
-        settings["bandwidth"] = 100.0 if args.bandwidth is None else args.bandwidth
-    defaults = _DEFAULTS[args.type]
-    for name in _FAMILY_OPTIONS[args.type]:
-        value = getattr(args, name)
-        value = defaults.get(name) if value is None else value
+    if args.type == "dob":
+        settings["measurement"] = design.system.measurement
+    for name in _SETTINGS:
+        value = getattr(design, name, None)
         if value is not None:
-            settings[name] = list(value) if isinstance(value, list) else value
+            settings[name] = np.asarray(value).tolist() if np.ndim(value) else value
+    if args.type == "kalman" and args.process_noise_std is None:  # chosen for a bandwidth
+        settings["process_noise_for_bandwidth"] = (
+            100.0 if args.bandwidth is None else args.bandwidth
+        )
+    if args.poles is not None:
+        settings.pop("bandwidth", None)
+        settings["poles"] = [[float(p.real), float(p.imag)] for p in args.poles]
     return settings
 
 
@@ -132,7 +129,7 @@ def _run(args: argparse.Namespace) -> int:
         "log": {"source": log.source, "names": dict(log.names), "samples": len(log),
                 "Ts": log.Ts, "input_gain": log.input_gain},
         "nominal": {"J": nominal.J, "b": nominal.b, "origin": origin},
-        "observer": {**_observer_settings(args), "name": design.system.name},
+        "observer": {**_observer_settings(args, design), "name": design.system.name},
         "tau_hat": {"mean": mean, "std": std,
                     "note": "over the last 90 % of the log (after the observer's transient)"},
     }  # fmt: skip

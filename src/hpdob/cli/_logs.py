@@ -25,7 +25,7 @@ def add_log_arguments(
     columns.add_argument("--input", metavar="NAME", help="input column (torque/force or command)")
     columns.add_argument(
         "--input-gain",
-        default="1",
+        default=None,
         metavar="GAIN",
         help="factor from the input column to torque/force, or the name of a scalar variable "
         "of a .mat file holding it (default: 1)",
@@ -56,9 +56,13 @@ def log_from_args(args: argparse.Namespace):
     if args.emps == (args.log is not None):
         raise CLIError("give a LOG file or --emps (the shipped EMPS run), exactly one")
     if args.emps:
-        given = [f"--{k}" for k in roles if getattr(args, k)]
+        given = [f"--{k.replace('_', '-')}" for k in (*roles, "input_gain", "Ts", "axis")
+                 if getattr(args, k) is not None]  # fmt: skip
         if given:
-            raise CLIError(f"--emps uses the EMPS file's own columns; drop {', '.join(given)}")
+            raise CLIError(
+                f"--emps uses the EMPS file's own columns, input gain, sampling period and "
+                f"units; drop {', '.join(given)}"
+            )
         return emps()
     for name in ("position", "input"):
         if getattr(args, name) is None:
@@ -66,7 +70,7 @@ def log_from_args(args: argparse.Namespace):
     return read_log(
         args.log,
         **{role: getattr(args, role) for role in roles},
-        input_gain=_input_gain(args.input_gain),
+        input_gain=1.0 if args.input_gain is None else _input_gain(args.input_gain),
         Ts=args.Ts,
         axis=args.axis,
     )

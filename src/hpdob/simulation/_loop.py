@@ -185,11 +185,15 @@ def resolve_loop(loop, legacy: dict, where: str) -> ServoLoop:
     """``loop``, or a :class:`ServoLoop` built from the keyword arguments in ``legacy``."""
     given = {k: v for k, v in legacy.items() if v is not _MISSING}
     if loop is not None:
-        if not isinstance(loop, ServoLoop) and "plant" not in given:
+        if not isinstance(loop, ServoLoop):
+            hint = (
+                "pass the loop's parts as keyword arguments only"
+                if "plant" in given
+                else "pass a plant as plant=... with the loop's other keyword arguments"
+            )
             raise ParameterTypeError(
                 f"{where}() takes a ServoLoop as its first argument, got "
-                f"{type(loop).__name__}; pass a plant as plant=... with the loop's other "
-                f"keyword arguments ({', '.join(LOOP_KEYS)}), or build a ServoLoop"
+                f"{type(loop).__name__}; {hint} ({', '.join(LOOP_KEYS)}), or build a ServoLoop"
             )
         if given:
             raise ParameterTypeError(

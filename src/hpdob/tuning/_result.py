@@ -43,7 +43,8 @@ class TuningResult:
         Its runtime object, reset at rest: ready for the sample loop.
     recommendation : dict
         The recommended candidate's figures (family, order, tuned parameter and value,
-        accuracy, noise, spectral radii, simulated objective).
+        accuracy, noise, spectral radii, ``delay_margin_samples``: the extra samples of delay
+        it stays stable with at every corner, simulated objective).
     verification : list of dict
         The nonlinear simulation at every corner of the uncertainty set: ``J_ratio``, ``b``,
         ``diverged``, ``radius``, ``rms_estimation_error`` [N m], ``rms_position_error`` [rad]

@@ -40,6 +40,7 @@ from .._validation import (
     positive,
     require_instance,
 )
+from ..analysis._linear_loop import MAX_DELAY_SAMPLES
 from ..models._servo import ServoModel
 from ..simulation._controller import PD
 from ..simulation._devices import Actuator, Encoder
@@ -60,7 +61,8 @@ MIN_BANDWIDTH = 5.0  # rad/s
 #: The paper's nominal inertia [kg m^2]: the default verification disturbance and Coulomb
 #: friction scale with J_n.
 _PAPER_J = 2.8e-4
-#: The paper's Coulomb friction [N m] (its plant, section 5), scaled by J_n/_PAPER_J by default.
+#: Coulomb friction [N m] of the paper scenario's plant (``hpdob.paper.PLANT``; the paper's
+#: model has viscous friction only, hpdob's scenario adds it), scaled by J_n/_PAPER_J by default.
 _PAPER_COULOMB = 0.01
 #: The delay margin scan stops here [extra samples]: a margin reported as this is "at least".
 MAX_EXTRA_DELAY = 20
@@ -181,8 +183,9 @@ def _radius(loop) -> float:
 
 def _delay_margin(base, corners, plant, delay: int) -> int:
     """Largest d <= MAX_EXTRA_DELAY such that the loop is stable at every corner with every
-    extra delay of 0..d samples (a robust candidate is known to be stable with 0 and 1)."""
-    for extra in range(2, MAX_EXTRA_DELAY + 1):
+    extra delay of 0..d samples (a robust candidate is known to be stable with 0 and 1); the
+    scan also stops where the linear loop's delay limit (MAX_DELAY_SAMPLES) does."""
+    for extra in range(2, min(MAX_EXTRA_DELAY, MAX_DELAY_SAMPLES - delay) + 1):
         actuator = Actuator(delay_samples=delay + extra)
         if any(_radius(base.replace(plant=plant(*c), actuator=actuator)) >= 1.0 for c in corners):
             return extra - 1
@@ -241,7 +244,8 @@ def tune(
         Largest RMS noise the sensor may cause in the estimate [N m]. Default: no limit.
     coulomb : float, optional
         Coulomb friction of the simulated plant [N m] (``tanh`` scale 0.01 rad/s). Default: the
-        paper's 0.01 N m scaled by ``J_n / 2.8e-4 kg m^2`` (as the default disturbance is); 0
+        paper scenario's 0.01 N m (:data:`hpdob.paper.PLANT`) scaled by ``J_n / 2.8e-4 kg m^2``
+        (as the default disturbance is); 0
         for none.
     scenario : dict, optional
         The verification run: ``reference``, ``duration`` [s] and optionally ``disturbance``
@@ -293,6 +297,12 @@ def tune(
         controller, PD, "controller")  # fmt: skip
     sensor = require_instance(sensor, Encoder, "sensor", optional=True)
     actuator = require_instance(actuator, Actuator, "actuator", optional=True) or Actuator()
+    if actuator.delay_samples + 1 > MAX_DELAY_SAMPLES:
+        raise ParameterValueError(
+            f"actuator.delay_samples must be at most {MAX_DELAY_SAMPLES - 1} for tune (the "
+            f"linear loop holds at most {MAX_DELAY_SAMPLES} samples and tune adds one), got "
+            f"{actuator.delay_samples}"
+        )
     J_low, J_high = _range(J_range, "J_range", "positive inertia ratios J/J_n", allow_zero=False)
     b_low, b_high = (nominal.b, nominal.b)
     if b_range is not None:
@@ -376,10 +386,10 @@ def tune(
         if not robust:
             raise ParameterValueError(
                 f"no candidate is stable over J/J_n in [{J_low:g}, {J_high:g}] and b in "
-                f"[{b_low:g}, {b_high:g}] with {actuator.delay_samples} + 1 samples of delay "
-                f"(smallest worst-case spectral radius "
-                f"{min(r['radius_margin'] for r in rows):.4f}); narrow the uncertainty, lower "
-                "the PD gains or reduce the delay"
+                f"[{b_low:g}, {b_high:g}] with {actuator.delay_samples} and with "
+                f"{actuator.delay_samples} + 1 samples of delay (smallest worst-case spectral "
+                f"radius {min(max(r['radius'], r['radius_margin']) for r in rows):.4f}); narrow "
+                "the uncertainty, lower the PD gains or reduce the delay"
             )
         quietest = min(r["tau_noise"] for r in robust)
         raise ParameterValueError(
@@ -462,7 +472,8 @@ def tune(
             "objective": objective,
             "noise_limit": noise_limit,
             "coulomb": coulomb,
-            "margin": "stable at every corner with one extra sample of delay",
+            "margin": "stable at every corner with the actuator's delay and with one extra "
+            "sample of delay",
             "max_extra_delay": MAX_EXTRA_DELAY,
             "bandwidth_grid": {
                 "low": MIN_BANDWIDTH,
