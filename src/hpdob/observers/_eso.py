@@ -55,7 +55,7 @@ from ..models._servo import DiscreteServoModel, ServoModel
 from ._error_dynamics import schur_cohn_stable
 from ._realised import POLE_TOLERANCE, check_realised, matrix_characteristic_polynomial
 from ._runtime import _DesignedObserver
-from ._system import LinearObserver
+from ._system import LinearObserver, _Designed
 
 __all__ = ["ESO_FORMS", "ESODesign", "ExtendedStateObserver", "design_eso", "observer_gain", "zoh"]
 
@@ -104,7 +104,7 @@ def observer_gain(Phi: np.ndarray, C: np.ndarray, poles, *, scale=None) -> np.nd
 
 
 @dataclass(frozen=True, eq=False)
-class ESODesign:
+class ESODesign(_Designed):
     """A linear extended state observer (immutable); see :func:`design_eso`.
 
     Attributes
@@ -140,22 +140,6 @@ class ESODesign:
     poles: np.ndarray = field(repr=False)
     system: LinearObserver = field(repr=False)
     realised_poles: np.ndarray = field(default=None, repr=False)
-
-    @property
-    def Ts(self) -> float:
-        """Sampling period [s]."""
-        return self.model.Ts
-
-    def to_statespace(self):
-        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
-
-        Returns
-        -------
-        control.StateSpace
-            Inputs ``theta, u``, outputs ``tau_hat, omega_hat``
-            (:meth:`LinearObserver.to_statespace`).
-        """
-        return self.system.to_statespace()
 
 
 def design_eso(

@@ -42,7 +42,7 @@ from ..models._servo import DiscreteServoModel, ServoModel
 from ._error_dynamics import schur_cohn_stable
 from ._realised import matrix_characteristic_polynomial
 from ._runtime import _DesignedObserver
-from ._system import LinearObserver
+from ._system import LinearObserver, _Designed
 
 __all__ = ["KalmanDesign", "KalmanDisturbanceObserver", "design_kalman", "kalman_process_noise"]
 
@@ -102,7 +102,7 @@ def _noise(value, name: str, what: str) -> float:
 
 
 @dataclass(frozen=True, eq=False)
-class KalmanDesign:
+class KalmanDesign(_Designed):
     """A steady-state Kalman disturbance observer (immutable); see :func:`design_kalman`.
 
     Attributes
@@ -135,25 +135,9 @@ class KalmanDesign:
     system: LinearObserver = field(repr=False)
 
     @property
-    def Ts(self) -> float:
-        """Sampling period [s]."""
-        return self.model.Ts
-
-    @property
     def poles(self) -> np.ndarray:
         """Eigenvalues of the estimation-error dynamics, ``eig(A - A K C)``."""
         return np.linalg.eigvals(np.asarray(self.system.F))
-
-    def to_statespace(self):
-        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
-
-        Returns
-        -------
-        control.StateSpace
-            Inputs ``theta, u``, outputs ``tau_hat, omega_hat``
-            (:meth:`LinearObserver.to_statespace`).
-        """
-        return self.system.to_statespace()
 
 
 def design_kalman(

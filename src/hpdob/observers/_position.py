@@ -44,7 +44,7 @@ from ._error_dynamics import (
     unit_root_polynomial,
 )
 from ._realised import POLE_TOLERANCE, check_realised, polynomial_from_fractions
-from ._system import ErrorDynamics, LinearObserver
+from ._system import ErrorDynamics, LinearObserver, _Designed
 
 __all__ = ["PositionObserverDesign", "augmented_model", "design_position_observer"]
 
@@ -157,7 +157,7 @@ def realised_polynomial(F: np.ndarray, m: int) -> list:
 
 
 @dataclass(frozen=True, eq=False)
-class PositionObserverDesign:
+class PositionObserverDesign(_Designed):
     r"""A synthesised position-only disturbance observer of truncation order ``order``.
 
     Built by :func:`hpdob.design_observer` with ``measurement="position"``; every array
@@ -214,24 +214,6 @@ class PositionObserverDesign:
     measurement = "position"
     #: Position-only observers have no gain direction (the angle is the only measurement).
     gain_direction = None
-
-    @property
-    def Ts(self) -> float:
-        """Sampling period [s]."""
-        return self.model.Ts
-
-    def to_statespace(self):
-        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
-
-        Returns
-        -------
-        control.StateSpace
-            Inputs ``theta, u``, outputs ``tau_hat, omega_hat``
-            (:meth:`LinearObserver.to_statespace`).
-        """
-        from ..analysis._estimation import observer_statespace
-
-        return observer_statespace(self)
 
     def __repr__(self) -> str:
         from ._synthesis import _fmt_pole

@@ -45,7 +45,7 @@ from ._error_dynamics import (
 )
 from ._program import structured_program
 from ._realised import POLE_TOLERANCE, finite_gains, realised_poles
-from ._system import MEASUREMENTS, ErrorDynamics, LinearObserver
+from ._system import MEASUREMENTS, ErrorDynamics, LinearObserver, _Designed
 
 __all__ = [
     "ObserverDesign",
@@ -109,7 +109,7 @@ def _fmt_pole(p: complex) -> str:
 
 
 @dataclass(frozen=True, eq=False)
-class ObserverDesign:
+class ObserverDesign(_Designed):
     r"""A synthesised disturbance observer of truncation order ``order`` (immutable).
 
     Built by :func:`design_observer`; every array attribute is read-only.
@@ -163,21 +163,6 @@ class ObserverDesign:
     def state_matrix(self) -> np.ndarray:
         """Alias of :attr:`error_matrix`: the observer's own state matrix is ``M``."""
         return self.error_matrix
-
-    @property
-    def Ts(self) -> float:
-        """Sampling period [s]."""
-        return self.model.Ts
-
-    def to_statespace(self):
-        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
-
-        Returns
-        -------
-        control.StateSpace
-            Inputs ``theta, omega, u``, output ``tau_hat`` (:meth:`LinearObserver.to_statespace`).
-        """
-        return self.system.to_statespace()
 
     def __repr__(self) -> str:
         poles = ", ".join(_fmt_pole(p) for p in np.atleast_1d(self.poles))

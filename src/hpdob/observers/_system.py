@@ -65,6 +65,30 @@ OUTPUTS = (("tau_hat",), ("tau_hat", "omega_hat"))
 UNITS = {"theta": "rad", "omega": "rad/s", "u": "N m", "tau_hat": "N m", "omega_hat": "rad/s"}
 
 
+class _Designed:
+    """What every family's frozen design shares: its ``model`` and ``system`` give ``Ts`` and
+    ``to_statespace``."""
+
+    __slots__ = ()
+
+    @property
+    def Ts(self) -> float:
+        """Sampling period [s]."""
+        return self.model.Ts
+
+    def to_statespace(self):
+        """The observer as a discrete python-control ``StateSpace`` (``dt = Ts``).
+
+        Returns
+        -------
+        control.StateSpace
+            Inputs the measured signals (``theta``, and ``omega`` for a state-measuring
+            observer) and ``u``; outputs ``tau_hat`` (and ``omega_hat`` where the observer has
+            one): :meth:`LinearObserver.to_statespace`.
+        """
+        return self.system.to_statespace()
+
+
 @dataclass(frozen=True, eq=False)
 class ErrorDynamics:
     r"""Closed form of an observer's estimation error on its nominal plant.
