@@ -16,6 +16,7 @@ One helper for every writer of hpdob:
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import signal
 import tempfile
@@ -135,6 +136,17 @@ def write_text_atomic(path, text: str, *, encoding: str = "utf-8") -> Path:
     return path
 
 
+def json_text(data) -> str:
+    """``data`` as strict JSON text (NaN and infinity refused), indented, newline-terminated:
+    the form of every JSON file hpdob writes."""
+    return json.dumps(data, indent=2, allow_nan=False) + "\n"
+
+
+def write_json_atomic(path, data) -> Path:
+    """Write :func:`json_text` of ``data`` to ``path`` atomically; return ``path`` as a Path."""
+    return write_text_atomic(path, json_text(data))
+
+
 def save_figure(fig, path, **kwargs) -> Path:
     """``fig.savefig`` to ``path`` atomically (the format from the suffix of ``path``)."""
     path = Path(path)
@@ -188,6 +200,10 @@ class OutputSet:
     def write_text(self, name, text: str, *, encoding: str = "utf-8") -> None:
         """Stage ``text`` as ``directory/name``."""
         self.path(name).write_text(text, encoding=encoding)
+
+    def write_json(self, name, data) -> None:
+        """Stage :func:`json_text` of ``data`` as ``directory/name``."""
+        self.write_text(name, json_text(data))
 
     def save_figure(self, name, fig, **kwargs) -> None:
         """Stage ``fig.savefig`` as ``directory/name`` (format from its suffix)."""

@@ -12,7 +12,6 @@ noise in ``u``, delay margin and the range of true/nominal inertia it stays stab
 
 from __future__ import annotations
 
-import json
 import math
 import warnings
 from dataclasses import dataclass, field
@@ -266,9 +265,9 @@ class Comparison:
         pathlib.Path
             ``path``.
         """
-        from .._files import write_text_atomic
+        from .._files import write_json_atomic
 
-        return write_text_atomic(path, json.dumps(self.to_dict(), indent=2) + "\n")
+        return write_json_atomic(path, self.to_dict())
 
     def to_markdown(self) -> str:
         """The table as Markdown, one section per sensor.

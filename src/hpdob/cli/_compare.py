@@ -45,7 +45,6 @@ def register(subparsers) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    import json
 
     from .._files import staged_outputs
     from ..analysis import compare_observers
@@ -62,7 +61,7 @@ def _run(args: argparse.Namespace) -> int:
         if not args.no_plot:
             files.plot("comparison.png", lambda: comparison.plot())
             written.append("comparison.png")
-        files.write_text("comparison.json", json.dumps(comparison.to_dict(), indent=2) + "\n")
+        files.write_json("comparison.json", comparison.to_dict())
         written.append("comparison.json")
     print(comparison.to_markdown())
     print(f"wrote {', '.join(written)} to {args.out}")

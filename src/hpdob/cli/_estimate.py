@@ -142,7 +142,7 @@ def _run(args: argparse.Namespace) -> int:
                 "estimate.png", lambda: result.plot(title=f"{design.system.name} on {log.source}")
             )
             written.append("estimate.png")
-        files.write_text("estimate.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
+        files.write_json("estimate.json", report)
         written.append("estimate.json")
     print(
         f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s; {design.system.name} on "

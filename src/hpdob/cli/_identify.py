@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from ._design import _integer, _number_list
@@ -128,9 +127,7 @@ def _run(args: argparse.Namespace) -> int:
                 lambda: result.plot(title=f"{result.method.upper()} on {log.source}"),
             )
             written.append("identification.png")
-        files.write_text(
-            "identification.json", json.dumps(report, indent=2, allow_nan=False) + "\n"
-        )
+        files.write_json("identification.json", report)
     print(f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s")
     print(result.summary())
     if args.emps:

@@ -8,7 +8,6 @@ outputs (:func:`hpdob._files.staged_outputs`), like the JSON and CSV files.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 
 from ..simulation._result import json_ready
@@ -60,4 +59,4 @@ def save_figure(fig, files, name: str, dpi: float) -> None:
 
 def write_json(files, name: str, data: dict) -> None:
     """Stage ``data`` as strict JSON (NaN as null) named ``name`` in ``files``."""
-    files.write_text(name, json.dumps(json_ready(data), indent=2, allow_nan=False) + "\n")
+    files.write_json(name, json_ready(data))

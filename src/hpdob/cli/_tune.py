@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 from ._errors import CLIError
@@ -121,7 +120,7 @@ def _run(args: argparse.Namespace) -> int:
 
             paths = export_c(result.design, args.export_c, prefix=args.prefix, dtype=args.dtype)
             written += [str(p) for p in paths]
-        files.write_text("tune.json", json.dumps(result.to_dict(), indent=2) + "\n")
+        files.write_json("tune.json", result.to_dict())
         written.append("tune.json")
     print(result.report())
     print(f"wrote {', '.join(written)} (in {args.out})")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import types
 from collections.abc import Mapping
@@ -10,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._files import atomic_path
+from .._files import write_json_atomic
 from .._table import columns_to_csv, columns_to_pandas
 from .._validation import ParameterValueError, positive, readonly
 from ._checks import units
@@ -292,9 +291,7 @@ class Identification:
         str or os.PathLike
             ``path``, as given.
         """
-        text = json.dumps(self.to_dict(), indent=2, allow_nan=False) + "\n"
-        with atomic_path(path) as temporary:
-            temporary.write_text(text, encoding="utf-8")
+        write_json_atomic(path, self.to_dict())
         return path
 
     def _columns(self) -> dict:

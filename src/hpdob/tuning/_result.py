@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 
@@ -186,9 +185,9 @@ class TuningResult:
         pathlib.Path
             ``path``.
         """
-        from .._files import write_text_atomic
+        from .._files import write_json_atomic
 
-        return write_text_atomic(path, json.dumps(self.to_dict(), indent=2) + "\n")
+        return write_json_atomic(path, self.to_dict())
 
     def plot(self):
         """Accuracy against noise of every candidate: the robust set marked, the Pareto front
