@@ -58,12 +58,6 @@ FAMILIES = {
 OBJECTIVES = ("estimation", "position")
 N_BANDWIDTHS = 24
 MIN_BANDWIDTH = 5.0  # rad/s
-#: The paper's nominal inertia [kg m^2]: the default verification disturbance and Coulomb
-#: friction scale with J_n.
-_PAPER_J = 2.8e-4
-#: Coulomb friction [N m] of the paper scenario's plant (``hpdob.paper.PLANT``; the paper's
-#: model has viscous friction only, hpdob's scenario adds it), scaled by J_n/_PAPER_J by default.
-_PAPER_COULOMB = 0.01
 #: The delay margin scan stops here [extra samples]: a margin reported as this is "at least".
 MAX_EXTRA_DELAY = 20
 
@@ -125,7 +119,7 @@ def _scenario(nominal, Ts, disturbance_frequency, scenario):
             )
         return dict(scenario)
     f = 2.0 if disturbance_frequency is None else float(np.atleast_1d(disturbance_frequency)[0])
-    scale = nominal.J / _PAPER_J
+    scale = nominal.J / paper.NOMINAL.J  # the paper's disturbance acceleration at any J_n
     disturbance = Step(1.5005, 0.05 * scale) + Sine(0.02 * scale, f, start=2.5005)
     duration = Ts * max(1, round(paper.DURATION / Ts))  # the paper's 10 s, in whole samples
     return {"reference": paper.REFERENCE, "disturbance": disturbance, "duration": duration}
@@ -322,7 +316,11 @@ def tune(
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
     if coulomb is None:
-        coulomb = _PAPER_COULOMB * nominal.J / _PAPER_J
+        from ..paper._scenario import NOMINAL, PLANT
+
+        # The paper scenario's Coulomb friction (the paper's model has viscous friction only;
+        # hpdob's scenario adds it), at the same acceleration for any J_n.
+        coulomb = PLANT.coulomb * nominal.J / NOMINAL.J
     coulomb = nonnegative(coulomb, "coulomb", "a non-negative Coulomb friction [N m]")
     run = _scenario(nominal, Ts, disturbance_frequency, scenario)
     # The verification run, checked before the search (not after it): duration, size, signals
