@@ -102,6 +102,17 @@ def poisoned_trace(n=5000, seed=7):
     return theta, omega, u
 
 
+def build_guarded(tmp_path_factory, design, dtype, tag):
+    """``(design, source, CObserver)`` of ``design`` exported with the NaN guard."""
+    out = tmp_path_factory.mktemp(tag)
+    header, source = export_c(design, out, dtype=dtype, nan_guard=True)
+    c = CObserver(
+        header, source, prefix="dob", dtype=dtype, observer=design,
+        build_dir=out / "lib", nan_guard=True,
+    )  # fmt: skip
+    return design, source, c
+
+
 @pytest.fixture(scope="module")
 def guarded(tmp_path_factory):
     cache = {}
@@ -109,13 +120,9 @@ def guarded(tmp_path_factory):
     def get(order, dtype):
         if (order, dtype) not in cache:
             design = design_observer(MODEL, order=order, bandwidth=100.0)
-            out = tmp_path_factory.mktemp(f"guard{order}{dtype}")
-            header, source = export_c(design, out, dtype=dtype, nan_guard=True)
-            c = CObserver(
-                header, source, prefix="dob", dtype=dtype, observer=design,
-                build_dir=out / "lib", nan_guard=True,
-            )  # fmt: skip
-            cache[order, dtype] = (design, source, c)
+            cache[order, dtype] = build_guarded(
+                tmp_path_factory, design, dtype, f"guard{order}{dtype}"
+            )
         return cache[order, dtype]
 
     return get
@@ -312,14 +319,7 @@ def guarded_family(tmp_path_factory):
 
     def get(name, dtype):
         if (name, dtype) not in cache:
-            design = designs[name]
-            out = tmp_path_factory.mktemp("family")
-            header, source = export_c(design, out, dtype=dtype, nan_guard=True)
-            c = CObserver(
-                header, source, prefix="dob", dtype=dtype, observer=design,
-                build_dir=out / "lib", nan_guard=True,
-            )  # fmt: skip
-            cache[name, dtype] = (design, source, c)
+            cache[name, dtype] = build_guarded(tmp_path_factory, designs[name], dtype, "family")
         return cache[name, dtype]
 
     return get
