@@ -49,6 +49,23 @@ def run_observer(obs, theta, u):
 
 
 # -- ESO ----------------------------------------------------------------------------------------
+def run_literal_eso(Phi, Gamma, L, Lp, theta, u, form):
+    """The discrete ESO's two forms as written in the reference, from rest: current
+    ``x_hat = x_bar + L (theta - x_bar_1)``, ``x_bar+ = Phi x_hat + Gamma u``; predictive
+    ``x_hat+ = Phi x_hat + Gamma u + Lp (theta - x_hat_1)``; ``tau_hat = -J_n f - b_n omega``."""
+    x = np.zeros(len(L))  # x_bar (current) or x_hat (predictive), at rest
+    tau = []
+    for th, uk in zip(theta, u, strict=True):
+        if form == "current":
+            x_hat = x + L * (th - x[0])
+            tau.append(-J_N * x_hat[2] - B_N * x_hat[1])
+            x = Phi @ x_hat + Gamma * uk
+        else:
+            tau.append(-J_N * x[2] - B_N * x[1])
+            x = Phi @ x + Gamma * uk + Lp * (th - x[0])
+    return np.array(tau)
+
+
 def literal_eso_m0(theta, u, g, form):
     """Second-order LADRC's ESO, written out: x = [theta, omega, f], theta'' = f + b0 u,
     ZOH with Phi = [[1, T, T^2/2], [0, 1, T], [0, 0, 1]], Gamma = b0 [T^2/2, T, 0]. Current
@@ -62,17 +79,7 @@ def literal_eso_m0(theta, u, g, form):
     Gamma = b0 * np.array([T * T / 2, T, 0.0])
     L = np.array([1 - beta**3, 1.5 / T * (1 - beta) ** 2 * (1 + beta), (1 - beta) ** 3 / T**2])
     Lp = np.array([3 - 3 * beta, (1 - beta) ** 2 * (5 + beta) / (2 * T), (1 - beta) ** 3 / T**2])
-    x = np.zeros(3)  # x_bar (current) or x_hat (predictive), at rest
-    tau = []
-    for th, uk in zip(theta, u, strict=True):
-        if form == "current":
-            x_hat = x + L * (th - x[0])
-            tau.append(-J_N * x_hat[2] - B_N * x_hat[1])
-            x = Phi @ x_hat + Gamma * uk
-        else:
-            tau.append(-J_N * x[2] - B_N * x[1])
-            x = Phi @ x + Gamma * uk + Lp * (th - x[0])
-    return np.array(tau)
+    return run_literal_eso(Phi, Gamma, L, Lp, theta, u, form)
 
 
 def charpoly(A) -> list:
@@ -127,17 +134,7 @@ def literal_eso_m1(theta, u, g, form):
     matrix = [[columns[j][i] for j in range(4)] for i in range(1, 5)]
     Lp = np.array([float(v) for v in exact_solve(matrix, target[1:])])
     L = np.linalg.solve(Phi, Lp)
-    x = np.zeros(4)
-    tau = []
-    for th, uk in zip(theta, u, strict=True):
-        if form == "current":
-            x_hat = x + L * (th - x[0])
-            tau.append(-J_N * x_hat[2] - B_N * x_hat[1])
-            x = Phi @ x_hat + Gamma * uk
-        else:
-            tau.append(-J_N * x[2] - B_N * x[1])
-            x = Phi @ x + Gamma * uk + Lp * (th - x[0])
-    return np.array(tau)
+    return run_literal_eso(Phi, Gamma, L, Lp, theta, u, form)
 
 
 @pytest.mark.parametrize("form", ["current", "predictive"])
