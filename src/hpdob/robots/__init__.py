@@ -14,16 +14,20 @@ ComputedTorque
 from ._arm_loop import ArmLoop, JointSines
 from ._computed_torque import ComputedTorque
 from ._mujoco_arm import MujocoArm
+from ._panda import PANDA_READY, PANDA_TORQUE_LIMITS, panda
 from ._result import ArmResult
 from ._simulate import simulate_arm
 from ._two_link import TwoLinkArm
 
 __all__ = [
+    "PANDA_READY",
+    "PANDA_TORQUE_LIMITS",
     "ArmLoop",
     "ArmResult",
     "ComputedTorque",
     "JointSines",
     "MujocoArm",
     "TwoLinkArm",
+    "panda",
     "simulate_arm",
 ]

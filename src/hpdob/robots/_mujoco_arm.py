@@ -21,8 +21,6 @@ from ..models._mjcf import compile_model, find_actuator, import_mujoco, object_n
 
 __all__ = ["MujocoArm"]
 
-_UNSTABLE = ("mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADQACC", "mjWARN_BADCTRL")
-
 
 def _with_payload(source: str, site: str, mass: float) -> str:
     """``source`` with a point mass ``mass`` [kg] at the site ``site`` (a child body of the
@@ -370,10 +368,17 @@ class MujocoArm:
 
 
 class MujocoArmSession:
-    """One MuJoCo run of a :class:`MujocoArm`, advanced by the N-joint loop."""
+    """One MuJoCo run of a :class:`MujocoArm`, advanced by the N-joint loop.
+
+    With MuJoCo's ``Euler`` integrator the first MuJoCo step of each sample is split
+    (``mj_step1``, the command, ``mj_step2``): its ``qacc`` is the acceleration just after the
+    command, so the ground truth costs no extra ``mj_forward``. Other integrators take one
+    ``mj_forward`` for it, then ``substeps`` calls of ``mj_step``.
+    """
 
     def __init__(self, arm: MujocoArm, q0, Ts: float, substeps: int):
         self.mujoco, self.model, self.data = arm.compile(Ts / substeps)
+        mujoco = self.mujoco
         self.substeps = substeps
         self.actuators = arm._cache["actuators"]
         self.ctrl_per_torque = arm._cache["ctrl_per_torque"]
@@ -381,10 +386,9 @@ class MujocoArmSession:
         self.body = int(self.model.site_bodyid[self.site])
         self.data.qpos[:] = q0
         self.jac = np.zeros((3, self.model.nv))
-        self._flags = [
-            self.data.warning[int(getattr(self.mujoco.mjtWarning, n))] for n in _UNSTABLE
-        ]
-        self._warnings = sum(f.number for f in self._flags)
+        self.split = self.model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+        self.h = Ts / substeps
+        self._steps = 0
 
     def state(self):
         return self.data.qpos, self.data.qvel
@@ -396,30 +400,42 @@ class MujocoArmSession:
         # xfrc_applied acts at the body's centre of mass: add the moment that moves it to the site
         frc[3:] = np.cross(data.site_xpos[self.site] - data.xipos[self.body], force)
 
-    def acceleration(self, applied, force):
-        """Joint accelerations just after ``applied`` [N m] with ``force`` [N] at the site, and
-        the external joint torques ``J^T F`` [N m] at this state."""
-        data = self.data
+    def sample(self, applied, force, forces):
+        """Apply ``applied`` [N m] over one sample (``force`` [N] at the site at the sample
+        instant, ``forces`` at each MuJoCo step's midpoint; None: no force). Returns the joint
+        accelerations just after the command and the external joint torques ``J^T F`` [N m]."""
+        mujoco, model, data = self.mujoco, self.model, self.data
         data.ctrl[self.actuators] = applied * self.ctrl_per_torque
-        if force is not None:
-            self.mujoco.mj_kinematics(self.model, data)
-            self._force(force)
-        self.mujoco.mj_forward(self.model, data)
-        if force is None:
-            return data.qacc, None
-        self.mujoco.mj_jacSite(self.model, data, self.jac, None, self.site)
-        return data.qacc, self.jac.T @ force
-
-    def advance(self, applied, forces):
-        data, model, step = self.data, self.model, self.mujoco.mj_step
-        data.ctrl[self.actuators] = applied * self.ctrl_per_torque
-        for j in range(self.substeps):
+        tau_e = None
+        first = 0
+        if self.split:
+            mujoco.mj_step1(model, data)
+            if force is not None:
+                self._force(force)
+                mujoco.mj_jacSite(model, data, self.jac, None, self.site)
+                tau_e = self.jac.T @ force
+            mujoco.mj_step2(model, data)
+            qdd = data.qacc.copy()
+            first = 1
+        else:
+            if force is not None:
+                mujoco.mj_kinematics(model, data)
+                self._force(force)
+            mujoco.mj_forward(model, data)
+            qdd = data.qacc.copy()
+            if force is not None:
+                mujoco.mj_jacSite(model, data, self.jac, None, self.site)
+                tau_e = self.jac.T @ force
+        for j in range(first, self.substeps):
             if forces is not None:
                 self._force(forces[j])
-            step(model, data)
+            mujoco.mj_step(model, data)
+        self._steps += self.substeps
+        return qdd, tau_e
 
     def diverged(self, limit: float) -> bool:
         d = self.data
-        if sum(f.number for f in self._flags) != self._warnings:
+        # MuJoCo resets an unstable simulation (time back to 0) after a warning
+        if d.time < (self._steps - 0.5) * self.h:
             return True
-        return not (np.all(np.abs(d.qpos) <= limit) and np.all(np.abs(d.qvel) <= limit))
+        return not (np.abs(d.qpos).max() <= limit and np.abs(d.qvel).max() <= limit)

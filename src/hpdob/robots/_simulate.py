@@ -188,13 +188,14 @@ def simulate_arm(loop: ArmLoop, *, duration: float, reference, external=None, su
             x[:N] = q
             x[N:] = qd
             control(k, PLANT_PYTHON, dummy[0], dummy, dummy)
-            qdd, tau_e = session.acceleration(applied, ext_sample[k] if has_force else None)
+            qdd, tau_e = session.sample(
+                applied,
+                ext_sample[k] if has_force else None,
+                ext_mid[k * substeps : (k + 1) * substeps] if has_force else None,
+            )
             rec[7, k] = rec[4, k] - b_n * x[N:] - J_n * qdd
             if has_force:
                 tau_external[k] = tau_e
-            session.advance(
-                applied, ext_mid[k * substeps : (k + 1) * substeps] if has_force else None
-            )
             if session.diverged(_LIMIT):
                 completed = k + 1
                 break
