@@ -42,7 +42,7 @@ def test_loop_on_mujoco_matches_the_built_in_arm():
             reference=ref,
             substeps=8,
             tau0="gravity",
-        )  # fmt: skip
+        )
         for plant in (ARM, mj)
     ]
     for name in ("q", "u", "tau_hat", "tau_dn"):

@@ -9,10 +9,19 @@ ArmLoop, JointSines, simulate_arm, ArmResult
     The N-joint loop: per-joint observers and controllers, encoder, delay and limits per joint.
 ComputedTorque
     Computed-torque control on a nominal model.
+momentum_observer, joint_observer_external, end_effector_force, ExternalEstimate
+    External joint torques (De Luca's momentum observer, or the per-joint observers) and the
+    end-effector force through the damped pseudo-inverse of the Jacobian.
 """
 
 from ._arm_loop import ArmLoop, JointSines
 from ._computed_torque import ComputedTorque
+from ._external import (
+    ExternalEstimate,
+    end_effector_force,
+    joint_observer_external,
+    momentum_observer,
+)
 from ._mujoco_arm import MujocoArm
 from ._panda import PANDA_READY, PANDA_TORQUE_LIMITS, panda
 from ._result import ArmResult
@@ -25,9 +34,13 @@ __all__ = [
     "ArmLoop",
     "ArmResult",
     "ComputedTorque",
+    "ExternalEstimate",
     "JointSines",
     "MujocoArm",
     "TwoLinkArm",
+    "end_effector_force",
+    "joint_observer_external",
+    "momentum_observer",
     "panda",
     "simulate_arm",
 ]

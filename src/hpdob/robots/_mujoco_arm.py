@@ -259,6 +259,20 @@ class MujocoArm:
         mujoco.mj_forward(model, data)
         return data.qfrc_bias.copy()
 
+    def friction(self, qd) -> np.ndarray:
+        """The joints' viscous damping torques ``dof_damping * qd`` [N m].
+
+        Parameters
+        ----------
+        qd : sequence of float
+
+        Returns
+        -------
+        ndarray, shape (N,)
+        """
+        _, model, _ = self._probe()
+        return model.dof_damping * np.asarray(qd, dtype=float)
+
     def coriolis(self, q, qd) -> np.ndarray:
         r""":math:`C(q,\dot q)\dot q` [N m]: the bias force minus gravity.
 
