@@ -124,7 +124,7 @@ class ArmLoop:
         Sampling period [s].
     controller : PD, sequence of PD, or ComputedTorque
         One :class:`~hpdob.PD` for every joint, one per joint, or computed-torque control on a
-        nominal model (:class:`ComputedTorque`).
+        nominal model (:class:`ComputedTorque`, without per-joint observers).
     observers : optional
         Per-joint disturbance observers: None (none), one entry for every joint or a list of
         one per joint (None for a joint without). An entry is an observer spec
@@ -203,6 +203,12 @@ class ArmLoop:
                 raise ParameterValueError(
                     f"controller must be for the plant's {n} joints, got a ComputedTorque for "
                     f"{self.controller.n_joints}"
+                )
+            if self.observers is not None:
+                raise ParameterValueError(
+                    "observers must be None with controller=ComputedTorque: a per-joint "
+                    "observer's nominal model (J_n,i qdd_i = u_i + tau_hat_i) is not the "
+                    "computed-torque model; estimate external torques with momentum_observer"
                 )
             set_(self, "controllers", ())
         else:
