@@ -93,7 +93,7 @@ MODULES = sorted(
 
 @pytest.mark.parametrize("name", MODULES)
 def test_doctests(name):
-    if name.startswith("hpdob.models._mujoco"):
+    if name.startswith(("hpdob.models._mujoco", "hpdob.robots._panda")):
         pytest.importorskip("mujoco")  # the [mujoco] extra (part of [test])
     module = importlib.import_module(name)
     result = doctest.testmod(module, optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)

@@ -270,7 +270,18 @@ class ArmLoop:
         return replace(self, **changes)
 
     def initial_observer_states(self, tau0) -> list:
-        """Each joint's observer state converged on ``tau0[i]`` at rest at ``q0``."""
+        """Each joint's observer state converged on ``tau0[i]`` at rest at ``q0``.
+
+        Parameters
+        ----------
+        tau0 : sequence of float
+            The disturbance of each joint [N m].
+
+        Returns
+        -------
+        list
+            One state tuple per joint (None for a joint without observer).
+        """
         return [
             None if s is None else initial_state(s, x0=(self.q0[i], 0.0), tau0=float(tau0[i]))
             for i, s in enumerate(self.systems)

@@ -47,17 +47,25 @@ class MujocoArm:
     bias, no activation dynamics); ``u`` [N m] is applied as ``ctrl = u / (gear gain)``.
     Build it with :meth:`from_xml` or :func:`panda`.
 
-    Attributes
+    Parameters
     ----------
     xml : str
-        The MJCF text as given (``model_xml`` adds the payload body, if any).
-    end_effector : str
-        Name of the end-effector site (Jacobian, external force).
+        The MJCF text (``model_xml`` adds the payload body, if any).
+    end_effector : str, optional
+        Name of the end-effector site (Jacobian, external force); default the only site.
+    path : str, optional
+        The MJCF file ``xml`` was read from (its assets resolve relative to it).
+    inertia_scale : float, optional
+        Factor on every body's mass and inertia (a wrong nominal model). Default 1.
+    payload : float, optional
+        Point mass at the end-effector site [kg]. Default 0.
+    integrator : {"RK4", "Euler", "implicit", "implicitfast"}, optional
+        MuJoCo's integrator; default the model's.
+
+    Attributes
+    ----------
     joint_names : tuple of str
-    inertia_scale : float
-        Factor on every body's mass and inertia (a wrong nominal model: inertias off by a factor).
-    payload : float
-        Point mass at the end-effector site [kg].
+        The hinge joints, in MuJoCo's order (the order of every per-joint array).
     """
 
     xml: str
@@ -176,7 +184,18 @@ class MujocoArm:
         return len(self.joint_names)
 
     def compile(self, timestep: float = 1e-3):
-        """A fresh ``(mujoco, MjModel, MjData)``: time step ``timestep`` [s], scale applied."""
+        """A fresh compiled model with the scale and integrator applied.
+
+        Parameters
+        ----------
+        timestep : float, optional
+            MuJoCo's time step [s]. Default 1e-3.
+
+        Returns
+        -------
+        tuple
+            ``(mujoco, MjModel, MjData)``.
+        """
         mujoco = import_mujoco()
         model = compile_model(*self._cache["source"])
         if self.inertia_scale != 1.0:
@@ -377,7 +396,21 @@ class MujocoArm:
         return dataclasses.replace(self, **changes)
 
     def start(self, q0, Ts: float, substeps: int) -> MujocoArmSession:
-        """A MuJoCo run at rest at ``q0`` with time step ``Ts/substeps``."""
+        """A MuJoCo run at rest at ``q0`` with time step ``Ts/substeps`` (the loop's session).
+
+        Parameters
+        ----------
+        q0 : sequence of float
+            Initial joint angles [rad].
+        Ts : float
+            Sampling period [s].
+        substeps : int
+            MuJoCo steps per sample.
+
+        Returns
+        -------
+        MujocoArmSession
+        """
         return MujocoArmSession(self, q0, Ts, substeps)
 
 

@@ -38,10 +38,13 @@ def panda(*, payload: float = 0.0, inertia_scale: float = 1.0, integrator=None) 
 
     Examples
     --------
-    >>> from hpdob.robots import PANDA_READY, panda
-    >>> arm = panda()                                    # doctest: +SKIP
-    >>> arm.n_joints, arm.end_effector                   # doctest: +SKIP
+    >>> from hpdob.robots import panda
+    >>> arm = panda()
+    >>> arm.n_joints, arm.end_effector
     (7, 'flange')
+    >>> # at q = 0 the flange is at x = a7, z = d1 + d3 + d5 - d_flange (Franka's DH) [m]
+    >>> [round(float(v), 6) for v in arm.end_effector_position([0.0] * 7)]
+    [0.088, 0.0, 0.926]
     """
     path = resources.files("hpdob.robots").joinpath("data", "panda.xml")
     with resources.as_file(path) as file:

@@ -117,8 +117,9 @@ class TwoLinkArm:
     --------
     >>> from hpdob.robots import TwoLinkArm
     >>> arm = TwoLinkArm(m=(1.0, 1.0), l=(0.5, 0.5), lc=(0.25, 0.25), I=(0.02, 0.02))
-    >>> arm.mass_matrix((0.0, 0.0)).round(6).tolist()   # stretched out: l1 lc2 c2 = 0.125
-    [[0.645, 0.1125], [0.1125, 0.0825]]
+    >>> # stretched out (q2 = 0): M11 = m1 lc1^2 + I1 + m2 (l1 + lc2)^2 + I2 = 0.665
+    >>> arm.mass_matrix((0.0, 0.0)).round(6).tolist()
+    [[0.665, 0.2075], [0.2075, 0.0825]]
     """
 
     m: tuple
@@ -164,7 +165,13 @@ class TwoLinkArm:
     joint_names = ("shoulder", "elbow")
 
     def packed(self) -> np.ndarray:
-        """The parameters as the compiled integrator reads them (read-only array)."""
+        """The parameters as the compiled integrator reads them.
+
+        Returns
+        -------
+        ndarray
+            ``(a1, a2, a3, J1, J2, I2 + m2 lc2^2, G1, G2, b1, b2)``, read-only.
+        """
         return self._packed
 
     def _q(self, q, name="q"):
