@@ -7,6 +7,8 @@ MujocoArm, panda
     published parameters.
 ArmLoop, JointSines, simulate_arm, ArmResult
     The N-joint loop: per-joint observers and controllers, encoder, delay and limits per joint.
+load_arm_scenario
+    An N-joint TOML scenario (``[plant] type = "mujoco-arm"``), as ``hpdob simulate`` runs it.
 ComputedTorque
     Computed-torque control on a nominal model.
 momentum_observer, joint_observer_external, end_effector_force, ExternalEstimate
@@ -25,6 +27,7 @@ from ._external import (
 from ._mujoco_arm import MujocoArm
 from ._panda import PANDA_READY, PANDA_TORQUE_LIMITS, panda
 from ._result import ArmResult
+from ._scenario import load_arm_scenario
 from ._simulate import simulate_arm
 from ._two_link import TwoLinkArm
 
@@ -40,6 +43,7 @@ __all__ = [
     "TwoLinkArm",
     "end_effector_force",
     "joint_observer_external",
+    "load_arm_scenario",
     "momentum_observer",
     "panda",
     "simulate_arm",

@@ -122,6 +122,29 @@ class ArmResult:
             "rms_estimation_error": _rms(self.estimation_error[mask]).tolist(),
         }
 
+    def _columns(self) -> dict:
+        columns = {"t": self.t}
+        for name in TRACES:
+            values = getattr(self, name)
+            for j, joint in enumerate(self.joint_names):
+                columns[f"{name}[{joint}]"] = values[:, j]
+        return columns
+
+    def to_csv(self, path):
+        """Write the traces to ``path`` as CSV, atomically (the columns of :meth:`to_pandas`).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+
+        Returns
+        -------
+        pathlib.Path
+        """
+        from .._table import columns_to_csv
+
+        return columns_to_csv(self._columns(), path)
+
     def to_pandas(self):
         """The traces as a ``pandas.DataFrame``: ``t`` and one column ``<trace>[<joint>]`` per
         trace and joint (``q[shoulder]``, ...), SI units.
@@ -132,12 +155,7 @@ class ArmResult:
         """
         import pandas as pd
 
-        columns = {"t": self.t}
-        for name in TRACES:
-            values = getattr(self, name)
-            for j, joint in enumerate(self.joint_names):
-                columns[f"{name}[{joint}]"] = values[:, j]
-        return pd.DataFrame(columns)
+        return pd.DataFrame(self._columns())
 
     def plot(self, *, title: str | None = None):
         """Position error, torque command, and estimate against ground truth, per joint.
