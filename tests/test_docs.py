@@ -31,6 +31,7 @@ def code_blocks(path: Path, language: str) -> list[str]:
         ROOT / "docs" / "sweep.md",
         ROOT / "docs" / "deployment.md",
         ROOT / "docs" / "mujoco.md",
+        ROOT / "docs" / "robots.md",
         ROOT / "docs" / "analysis.md",
         ROOT / "docs" / "real-data.md",
         ROOT / "docs" / "tuning.md",
@@ -39,7 +40,7 @@ def code_blocks(path: Path, language: str) -> list[str]:
     ids=str,
 )
 def test_python_blocks_run(path):
-    if path.name == "mujoco.md":
+    if path.name in ("mujoco.md", "robots.md"):
         pytest.importorskip("mujoco")  # the [mujoco] extra (part of [test])
     namespace: dict = {}
     for block in code_blocks(path, "python"):
