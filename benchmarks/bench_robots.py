@@ -7,7 +7,8 @@ computed-torque peer, the external-force estimates, and the loop's speed.
    joint for PD alone, PD + per-joint DOb (order 0), HPDOb (order 1) and order 2 -- at equal
    bandwidth and at equal noise in tau_hat (each observer's bandwidth chosen so that its
    encoder-noise gain equals that of the DOb at 100 rad/s, joint by joint) -- and computed
-   torque on the nominal model (without the payload).
+   torque on the nominal model (without the payload). 1b: the nominal model's masses and
+   inertias 20 % low instead (no payload).
 2. External force: a 10 N step at the flange, robot at rest and in motion: the momentum
    observer (K_o = 50 1/s) and the per-joint observers' estimates of J^T F after 5/K_o; the
    false force with no contact during the fast trajectory.
@@ -101,6 +102,28 @@ def tracking(duration: float) -> None:
               + f"   max {noise.max():.2e}   {limited}{flag}")  # fmt: skip
 
 
+def wrong_inertia(duration: float) -> None:
+    """The nominal model's masses and inertias 20 % low (the plant: the Panda with no payload)."""
+    plant, nominal = panda(), panda(inertia_scale=0.8)
+    print("1b. nominal masses and inertias x 0.8 (no payload): RMS position error [mrad]")
+    base = ArmLoop(plant, TS, PD_GAINS, nominal=nominal, q0=Q0, actuator=ACTUATORS, sensor=ENCODER)
+    runs = [
+        ("PD + DOb 100", base.replace(observers={"order": 0, "bandwidth": 100.0})),
+        ("PD + HPDOb eq. noise", base.replace(observers=observers_at_equal_noise(
+            base.nominal_inertia, 1))),
+        ("computed torque", base.replace(controller=ComputedTorque(nominal, 400.0, 40.0))),
+    ]  # fmt: skip
+    for name, loop in runs:
+        res = simulate_arm(loop, duration=duration, reference=REFERENCE, tau0="gravity")
+        e = 1e3 * np.array(res.metrics(start=1.0)["rms_position_error"])
+        print(f"{name:24s}" + "".join(f"{v:8.2f}" for v in e))
+        if name == "PD + DOb 100":
+            est = momentum_observer(nominal, res, gain=K_O)
+            f = np.linalg.norm(est.force[res.t >= 0.5], axis=1)
+            print(f"   momentum observer on this model, no contact: false force max {f.max():.2f}"
+                  f" N, rms {np.sqrt(np.mean(f**2)):.2f} N")  # fmt: skip
+
+
 def estimates(nominal, res, loop, name, with_momentum):
     """The momentum observer's and the per-joint observers' external-torque estimates."""
     if with_momentum:
@@ -173,6 +196,7 @@ def main() -> None:
     args = parser.parse_args()
     d = 1.5 if args.short else 4.0
     tracking(d)
+    wrong_inertia(d)
     external_force(1.5 if args.short else 2.0)
     speed(2.0 if args.short else 10.0)
 

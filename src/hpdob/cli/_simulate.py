@@ -16,8 +16,10 @@ def register(subparsers) -> None:
         help="run a closed-loop scenario described in a TOML file",
         description="Simulate the scenario in a TOML file (plant, nominal, Ts, duration, "
         "controller, observer, reference, disturbance, sensor, actuator; see "
-        "docs/simulation.md and the .toml files in examples/). Writes <label>.csv, "
-        "metrics.json and <label>.png into the output directory.",
+        "docs/simulation.md and the .toml files in examples/), or an N-joint arm "
+        '([plant] type = "mujoco-arm" or "two-link-arm", per-joint [[observer]] tables; see '
+        "docs/robots.md). Writes <label>.csv, metrics.json and <label>.png into the output "
+        "directory.",
     )
     parser.add_argument("scenario", type=Path, help="scenario file (.toml)")
     parser.add_argument(
