@@ -19,6 +19,7 @@ from .._validation import ParameterTypeError, ParameterValueError, nonnegative, 
 from ..models import ServoModel
 from ..observers import as_system, initial_state
 from ..simulation import PD, Actuator, Encoder
+from ._controllers import pd_rows
 
 __all__ = ["ArmLoop", "JointSines", "per_joint"]
 
@@ -164,6 +165,7 @@ class ArmLoop:
     actuator: object = field(default_factory=Actuator)
     systems: tuple = field(init=False, repr=False)
     controllers: tuple = field(init=False, repr=False)
+    controller_rows: tuple = field(init=False, repr=False)
     sensors: tuple = field(init=False, repr=False)
     actuators: tuple = field(init=False, repr=False)
 
@@ -211,8 +213,11 @@ class ArmLoop:
                     "computed-torque model; estimate external torques with momentum_observer"
                 )
             set_(self, "controllers", ())
+            set_(self, "controller_rows", ())
         else:
             set_(self, "controllers", per_joint(self.controller, n, "controller", PD))
+            rows = tuple(pd_rows(pd, J) for pd, J in zip(self.controllers, J_n, strict=True))
+            set_(self, "controller_rows", rows)
         set_(self, "sensors", per_joint(self.sensor, n, "sensor", Encoder, optional=True))
         set_(self, "actuators", per_joint(self.actuator, n, "actuator", Actuator))
         entries = self.observers

@@ -102,34 +102,31 @@ def simulate_arm(loop: ArmLoop, *, duration: float, reference, external=None, su
                                  f"{type(external).__name__}")  # fmt: skip
     # per-joint parameters
     ct = isinstance(loop.controller, ComputedTorque)
-    fpar = np.zeros((8, N))
+    fpar = np.zeros((7, N))
     ipar = np.zeros((4, N), dtype=np.int64)
     noise = np.zeros((K, N))
     for i in range(N):
-        if ct:
-            kp, kd, ff, ov = (
-                loop.controller.kp[i],
-                loop.controller.kd[i],
-                loop.controller.feedforward,
-                False,
-            )
-        else:
-            pd = loop.controllers[i]
-            kp, kd, ff, ov = pd.kp, pd.kd, pd.feedforward, pd.velocity == "observer"
+        kp = kd = ff = 0.0
+        if ct:  # computed torque's PD on the error, in the kernel
+            kp, kd = loop.controller.kp[i], loop.controller.kd[i]
+            ff = float(loop.controller.feedforward)
         act = loop.actuators[i]
         sensor = loop.sensors[i]
         fpar[:, i] = (kp, kd, loop.nominal_inertia[i], loop.nominal_friction[i],
                       math.inf if act.torque_limit is None else act.torque_limit,
-                      1.0 if sensor is None else sensor.resolution, float(ff),
-                      float(ov))  # fmt: skip
+                      1.0 if sensor is None else sensor.resolution, ff)  # fmt: skip
         ipar[0, i] = 0 if sensor is None else _SENSOR_MODES[sensor.velocity]
         ipar[1, i] = act.delay_samples
         if sensor is not None and sensor.noise_std > 0:
             seed = 0 if sensor.seed is None else sensor.seed
             noise[:, i] = sensor.noise_std * np.random.default_rng([seed, i]).standard_normal(K)
+    from ._controllers import stack_controllers
     from ._stack import stack_programs
 
     stacked = stack_programs(loop.systems)
+    controllers = stack_controllers(loop.controller_rows)
+    (cs_ptr, cs_c, cs_i), (cu_ptr, cu_c, cu_i) = controllers.signals, controllers.update
+    cwork = np.zeros(2 * controllers.n_states + 8 * N + controllers.n_signals)
     ipar[2], ipar[3] = stacked.tau_row, stacked.omega_row
     S = stacked.n_states
     if tau0 is None:
@@ -143,6 +140,13 @@ def simulate_arm(loop: ArmLoop, *, duration: float, reference, external=None, su
         if s0 is not None:
             off = stacked.offsets[i]
             work[off : off + len(s0)] = s0
+    for i, ctl in enumerate(loop.controller_rows):  # c_0 = N [theta0, omega0, tau0]
+        start = (loop.q0[i], 0.0, float(tau0[i]))
+        for j, row in enumerate(ctl.reset):
+            total = 0.0
+            for t in row:
+                total += t.coefficient * start[t.operand]
+            cwork[controllers.offsets[i] + j] = total
     rec = np.zeros((8, K, N))
     tau_external = np.zeros((K, N))
     x = np.concatenate([np.array(loop.q0), np.zeros(N)])
@@ -155,7 +159,8 @@ def simulate_arm(loop: ArmLoop, *, duration: float, reference, external=None, su
     def step(k, phases, kind, par, tau_s, tau_m):
         return run_arm(k, k + 1 if kind == PLANT_PYTHON or ct else K, phases, ct, kind, par,
                        substeps, Ts, fpar, ipar, ref, rec, noise, up_ptr, up_i, up_c, out_ptr,
-                       out_i, out_c, work, x, tau_s, tau_m, _LIMIT)  # fmt: skip
+                       out_i, out_c, work, x, tau_s, tau_m, _LIMIT, cs_ptr, cs_i, cs_c, cu_ptr,
+                       cu_i, cu_c, controllers.command, cwork)  # fmt: skip
 
     def control(k, kind, par, tau_s, tau_m):
         if not ct:
