@@ -126,3 +126,16 @@ def test_bad_site_is_refused():
     xml = TWO.format(kind="hinge", second='<motor joint="b"/>')
     with pytest.raises(ParameterValueError, match="end_effector must be a site of the model"):
         MujocoArm.from_xml(xml, end_effector="hand")
+
+
+@pytest.mark.parametrize("engine", ["built-in", "mujoco"])
+def test_an_unstable_loop_stops_as_diverged(engine, tmp_path, monkeypatch):
+    from hpdob import SimulationDivergedWarning
+
+    monkeypatch.chdir(tmp_path)  # MuJoCo writes MUJOCO_LOG.TXT into the working directory
+    plant = ARM if engine == "built-in" else MujocoArm.from_xml(ARM.to_mjcf())
+    loop = ArmLoop(plant, 1e-3, PD(4e6, 0.0), nominal=ARM)  # far beyond the sampled loop's limit
+    with pytest.warns(SimulationDivergedWarning, match="diverged at t ="):
+        res = simulate_arm(loop, duration=1.0, reference=JointSines((0.0, 0.0), 0.5, 1.0))
+    assert res.diverged and len(res) < 1001
+    assert np.all(np.isfinite(res.u))

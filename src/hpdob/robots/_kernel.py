@@ -82,6 +82,10 @@ def run_arm(k_start, k_stop, phases, computed_torque, plant_kind, plant_par, sub
     h = Ts / substeps
     for k in range(k_start, k_stop):
         if phases & PHASE_MEASURE:
+            if plant_kind == PLANT_PYTHON:
+                for i in range(2 * N):
+                    if not abs(x[i]) <= limit:
+                        return k  # the plant's state (set by the caller) left the limit
             for i in range(N):
                 th = x[i]
                 om = x[N + i]
@@ -131,7 +135,7 @@ def run_arm(k_start, k_stop, phases, computed_torque, plant_kind, plant_par, sub
                         a += ref[2, k, i]
                     acc[i] = a
         if not phases & PHASE_CONTROL:
-            return k
+            return k + 1
         if not computed_torque:
             for j in range(Q):  # the joints' signal rows, in order
                 cwork[first_signal + j] = _row(cs_ptr, cs_c, cs_i, cwork, j)

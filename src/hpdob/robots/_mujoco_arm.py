@@ -447,10 +447,11 @@ class MujocoArmSession:
         # xfrc_applied acts at the body's centre of mass: add the moment that moves it to the site
         frc[3:] = np.cross(data.site_xpos[self.site] - data.xipos[self.body], force)
 
-    def sample(self, applied, force, forces):
+    def sample(self, applied, force, forces, qdd):
         """Apply ``applied`` [N m] over one sample (``force`` [N] at the site at the sample
-        instant, ``forces`` at each MuJoCo step's midpoint; None: no force). Returns the joint
-        accelerations just after the command and the external joint torques ``J^T F`` [N m]."""
+        instant, ``forces`` at each MuJoCo step's midpoint; None: no force). Writes the joint
+        accelerations just after the command into ``qdd``; returns the external joint torques
+        ``J^T F`` [N m] (None without force)."""
         mujoco, model, data = self.mujoco, self.model, self.data
         data.ctrl[self.actuators] = applied * self.ctrl_per_torque
         tau_e = None
@@ -462,14 +463,14 @@ class MujocoArmSession:
                 mujoco.mj_jacSite(model, data, self.jac, None, self.site)
                 tau_e = self.jac.T @ force
             mujoco.mj_step2(model, data)
-            qdd = data.qacc.copy()
+            qdd[:] = data.qacc
             first = 1
         else:
             if force is not None:
                 mujoco.mj_kinematics(model, data)
                 self._force(force)
             mujoco.mj_forward(model, data)
-            qdd = data.qacc.copy()
+            qdd[:] = data.qacc
             if force is not None:
                 mujoco.mj_jacSite(model, data, self.jac, None, self.site)
                 tau_e = self.jac.T @ force
@@ -478,11 +479,9 @@ class MujocoArmSession:
                 self._force(forces[j])
             mujoco.mj_step(model, data)
         self._steps += self.substeps
-        return qdd, tau_e
+        return tau_e
 
-    def diverged(self, limit: float) -> bool:
-        d = self.data
-        # MuJoCo resets an unstable simulation (time back to 0) after a warning
-        if d.time < (self._steps - 0.5) * self.h:
-            return True
-        return not (np.abs(d.qpos).max() <= limit and np.abs(d.qvel).max() <= limit)
+    def diverged(self) -> bool:
+        """True if MuJoCo reset the simulation (its time went back: it does so after an
+        instability warning); the loop's kernel checks ``|q|, |qd| <= limit`` itself."""
+        return self.data.time < (self._steps - 0.5) * self.h

@@ -165,7 +165,8 @@ def simulate_arm(loop: ArmLoop, *, duration: float, reference, external=None, su
     def control(k, kind, par, tau_s, tau_m):
         if not ct:
             return step(k, 3, kind, par, tau_s, tau_m)
-        step(k, 1, kind, par, tau_s, tau_m)
+        if step(k, 1, kind, par, tau_s, tau_m) != k + 1:
+            return k
         model_torque[:] = loop.controller.model.inverse_dynamics(rec[2, k], rec[3, k], acc)
         return step(k, 2, kind, par, tau_s, tau_m)
 
@@ -189,21 +190,27 @@ def simulate_arm(loop: ArmLoop, *, duration: float, reference, external=None, su
         has_force = external is not None
         if has_force:
             force = ext_sample
+        qdd = np.zeros((K, N))  # the accelerations just after each command
         for k in range(K):
             x[:N] = q
             x[N:] = qd
-            control(k, PLANT_PYTHON, dummy[0], dummy, dummy)
-            qdd, tau_e = session.sample(
+            if control(k, PLANT_PYTHON, dummy[0], dummy, dummy) != k + 1:
+                completed = k  # the state left |x| <= limit at the end of sample k - 1
+                break
+            tau_e = session.sample(
                 applied,
                 ext_sample[k] if has_force else None,
                 ext_mid[k * substeps : (k + 1) * substeps] if has_force else None,
+                qdd[k],
             )
-            rec[7, k] = rec[4, k] - b_n * x[N:] - J_n * qdd
             if has_force:
                 tau_external[k] = tau_e
-            if session.diverged(_LIMIT):
+            if session.diverged():
                 completed = k + 1
                 break
+        # eq. (3) per joint, elementwise as the two-link kernel computes it
+        n = completed
+        rec[7, :n] = rec[4, :n] - b_n * rec[1, :n] - J_n * qdd[:n]
     diverged = completed < K
     if diverged:
         message = f"the N-joint run diverged at t = {(completed - 1) * Ts:.6g} s"
