@@ -434,6 +434,10 @@ class MujocoArmSession:
         self.data.qpos[:] = q0
         self.jac = np.zeros((3, self.model.nv))
         self.split = self.model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+        # the motors in joint order are all of ctrl: write it in place (no fancy indexing)
+        self.direct = self.model.nu == len(self.actuators) and bool(
+            np.all(self.actuators == np.arange(len(self.actuators)))
+        )
         self.h = Ts / substeps
         self._steps = 0
 
@@ -453,7 +457,10 @@ class MujocoArmSession:
         accelerations just after the command into ``qdd``; returns the external joint torques
         ``J^T F`` [N m] (None without force)."""
         mujoco, model, data = self.mujoco, self.model, self.data
-        data.ctrl[self.actuators] = applied * self.ctrl_per_torque
+        if self.direct:
+            np.multiply(applied, self.ctrl_per_torque, out=data.ctrl)
+        else:
+            data.ctrl[self.actuators] = applied * self.ctrl_per_torque
         tau_e = None
         first = 0
         if self.split:
