@@ -213,3 +213,20 @@ def test_bad_arm_parameters_are_refused():
         TwoLinkArm(m=(1.0, 1.0), l=(1, 1, 1), lc=(0.5, 0.5), I=(0.1, 0.1))
     with pytest.raises(ParameterTypeError, match="plant must be an arm"):
         ArmLoop(object(), 1e-3, PD(1.0, 1.0))
+
+
+def test_bad_trajectories_are_refused():
+    with pytest.raises(ParameterValueError, match="amplitude must have one entry per joint"):
+        JointSines(center=(0.0, 0.0), amplitude=(1.0, 1.0, 1.0))
+    with pytest.raises(ParameterValueError, match=r"frequency\[1\] must be a positive finite"):
+        JointSines(center=(0.0, 0.0), frequency=(1.0, -1.0))
+    with pytest.raises(ParameterValueError, match=r"amplitude\[0\] must be a finite swing"):
+        JointSines(center=(0.0, 0.0), amplitude=(math.nan, 1.0))
+    with pytest.raises(ParameterValueError, match="center must be one finite start angle"):
+        JointSines(center=(math.inf, 0.0))
+    loop = ArmLoop(ARM, 1e-3, PD(1.0, 1.0))
+    with pytest.raises(ParameterValueError, match="reference's r must give an array of shape"):
+        simulate_arm(loop, duration=0.01, reference=JointSines((0.0, 0.0, 0.0)))
+    with pytest.raises(ParameterValueError, match="external must give an array of shape"):
+        simulate_arm(loop, duration=0.01, reference=JointSines((0.0, 0.0)),
+                     external=lambda t: np.zeros((len(t), 3)))  # fmt: skip

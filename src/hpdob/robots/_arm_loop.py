@@ -15,7 +15,13 @@ from dataclasses import KW_ONLY, dataclass, field, replace
 
 import numpy as np
 
-from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive
+from .._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    as_real,
+    nonnegative,
+    positive,
+)
 from ..models import ServoModel
 from ..observers import as_system, initial_state
 from ..simulation import PD, Actuator, Encoder
@@ -89,8 +95,11 @@ class JointSines:
         center = np.array(self.center, dtype=float).reshape(-1)
         n = center.size
         object.__setattr__(self, "center", tuple(center.tolist()))
-        amp = _vector(self.amplitude, n, "amplitude", "a finite swing [rad]",
-                      lambda v, nm, w: float(v))  # fmt: skip
+        if n == 0 or not np.all(np.isfinite(center)):
+            raise ParameterValueError(
+                f"center must be one finite start angle [rad] per joint, got {center.tolist()}"
+            )
+        amp = _vector(self.amplitude, n, "amplitude", "a finite swing [rad]", as_real)
         freq = _vector(self.frequency, n, "frequency", "a positive finite frequency [Hz]",
                        positive)  # fmt: skip
         object.__setattr__(self, "amplitude", tuple(amp.tolist()))
@@ -187,9 +196,7 @@ class ArmLoop:
             )
         set_(self, "nominal", nominal)
         q0 = np.zeros(n) if self.q0 is None else self.q0
-        q0 = _vector(q0, n, "q0", "a finite joint angle [rad]", lambda v, nm, w: float(v))
-        if not np.all(np.isfinite(q0)):
-            raise ParameterValueError(f"q0 must have finite entries, got {q0.tolist()}")
+        q0 = _vector(q0, n, "q0", "a finite joint angle [rad]", as_real)
         set_(self, "q0", tuple(q0.tolist()))
         if self.nominal_inertia is None:
             J_n = np.diag(nominal.mass_matrix(q0)).copy()

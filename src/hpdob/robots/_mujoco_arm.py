@@ -90,7 +90,9 @@ class MujocoArm:
         end_effector : str, optional
             Name of the site where the end-effector force acts; default the model's only site.
         payload : float, optional
-            Extra point mass at the end-effector site [kg] (the model is edited). Default 0.
+            Extra point mass at the end-effector site [kg], a body added to the MJCF text
+            (which is then compiled from a string: assets given by relative paths, e.g.
+            meshes, must then resolve from the working directory). Default 0.
         inertia_scale : float, optional
             Factor on every body's mass and inertia, positive. Default 1.
         integrator : {"RK4", "Euler", "implicit", "implicitfast"}, optional
