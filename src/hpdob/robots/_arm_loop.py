@@ -24,8 +24,8 @@ from .._validation import (
 )
 from ..models import ServoModel
 from ..observers import as_system, initial_state
-from ..simulation import PD, Actuator, Encoder
-from ._controllers import pd_rows
+from ..simulation import Actuator, Encoder
+from ._controllers import controller_types, joint_controller
 
 __all__ = ["ArmLoop", "JointSines", "per_joint"]
 
@@ -222,8 +222,12 @@ class ArmLoop:
             set_(self, "controllers", ())
             set_(self, "controller_rows", ())
         else:
-            set_(self, "controllers", per_joint(self.controller, n, "controller", PD))
-            rows = tuple(pd_rows(pd, J) for pd, J in zip(self.controllers, J_n, strict=True))
+            set_(self, "controllers", per_joint(self.controller, n, "controller",
+                                                controller_types()))  # fmt: skip
+            rows = tuple(
+                joint_controller(c, J_n[i], b_n[i], self.Ts, f"controller[{i}]")
+                for i, c in enumerate(self.controllers)
+            )
             set_(self, "controller_rows", rows)
         set_(self, "sensors", per_joint(self.sensor, n, "sensor", Encoder, optional=True))
         set_(self, "actuators", per_joint(self.actuator, n, "actuator", Actuator))
@@ -237,11 +241,11 @@ class ArmLoop:
         systems = []
         for i, entry in enumerate(entries):
             systems.append(self._system(entry, i, J_n[i], b_n[i]))
-        for i, pd in enumerate(self.controllers):
-            if pd.velocity == "observer" and (systems[i] is None or not systems[i].has_velocity):
+        for i, rows in enumerate(self.controller_rows):
+            if "omega_hat" in rows.inputs and (systems[i] is None or not systems[i].has_velocity):
                 raise ParameterValueError(
-                    f"controller[{i}].velocity = 'observer' needs an observer with a velocity "
-                    "estimate on that joint"
+                    f"controller[{i}] reads omega_hat (velocity = 'observer'), which needs an "
+                    "observer with a velocity estimate on that joint"
                 )
         set_(self, "systems", tuple(systems))
 

@@ -21,7 +21,15 @@ import numpy as np
 
 from ..observers import Term
 
-__all__ = ["INPUTS", "JointController", "StackedControllers", "pd_rows", "stack_controllers"]
+__all__ = [
+    "INPUTS",
+    "JointController",
+    "StackedControllers",
+    "controller_types",
+    "joint_controller",
+    "pd_rows",
+    "stack_controllers",
+]
 
 #: The named inputs the N-joint loop provides to each joint's controller.
 INPUTS = ("r", "r_dot", "r_ddot", "theta", "omega", "tau_hat", "omega_hat")
@@ -57,6 +65,43 @@ def pd_rows(pd, J_n: float) -> JointController:
         (Term(float(J_n), y + 2), Term(1.0, at["tau_hat"])),
     )
     return JointController(inputs, 0, signals, (), ())
+
+
+def _protocol():
+    """The controller protocol's classes (``hpdob.controllers``), or None before it exists."""
+    try:
+        from ..controllers import Controller, LinearController
+    except ImportError:
+        return None
+    return Controller, LinearController
+
+
+def controller_types() -> tuple:
+    """The classes a per-joint controller may be: the PD, and the controller protocol's."""
+    from ..simulation import PD
+
+    protocol = _protocol()
+    return (PD,) if protocol is None else (PD, *protocol)
+
+
+def joint_controller(controller, J_n: float, b_n: float, Ts: float, where: str):
+    """Joint ``where``'s controller as rows, designed on its nominal ``ServoModel(J_n, b_n)``."""
+    from .._validation import ParameterValueError
+    from ..models import ServoModel
+
+    protocol = _protocol()
+    if protocol is None or not isinstance(controller, protocol):
+        return pd_rows(controller, J_n)
+    system = controller.design(ServoModel(J_n, b_n), Ts)
+    unknown = [name for name in system.inputs if name not in INPUTS]
+    if unknown:
+        raise ParameterValueError(
+            f"{where} reads {unknown[0]!r}, which the N-joint loop does not provide "
+            f"(inputs: {', '.join(INPUTS)})"
+        )
+    program = system.program
+    return JointController(tuple(system.inputs), int(system.F.shape[0]), tuple(program.signals),
+                           tuple(program.update), tuple(program.reset))  # fmt: skip
 
 
 class StackedControllers(NamedTuple):
