@@ -230,3 +230,13 @@ def test_bad_trajectories_are_refused():
     with pytest.raises(ParameterValueError, match="external must give an array of shape"):
         simulate_arm(loop, duration=0.01, reference=JointSines((0.0, 0.0)),
                      external=lambda t: np.zeros((len(t), 3)))  # fmt: skip
+
+
+def test_replace_derives_defaults_again():
+    loop = ArmLoop(ARM, 1e-3, PD(1.0, 1.0))
+    moved = loop.replace(q0=(0.0, 1.0))
+    assert moved.nominal_inertia == tuple(np.diag(ARM.mass_matrix((0.0, 1.0))))
+    other = TwoLinkArm(m=(2.0, 1.0), l=(0.5, 0.4), lc=(0.22, 0.17), I=(0.021, 0.013))
+    assert loop.replace(plant=other).nominal is other
+    fixed = ArmLoop(ARM, 1e-3, PD(1.0, 1.0), nominal_inertia=(0.5, 0.1))
+    assert fixed.replace(q0=(0.0, 1.0)).nominal_inertia == (0.5, 0.1)

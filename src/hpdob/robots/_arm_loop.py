@@ -175,6 +175,7 @@ class ArmLoop:
     systems: tuple = field(init=False, repr=False)
     controllers: tuple = field(init=False, repr=False)
     controller_rows: tuple = field(init=False, repr=False)
+    _defaults: tuple = field(init=False, repr=False, compare=False)
     sensors: tuple = field(init=False, repr=False)
     actuators: tuple = field(init=False, repr=False)
 
@@ -182,6 +183,9 @@ class ArmLoop:
         from ._computed_torque import ComputedTorque
 
         set_ = object.__setattr__
+        # which fields took their default from others (replace() derives them again)
+        set_(self, "_defaults", tuple(name for name in ("nominal", "nominal_inertia")
+                                      if getattr(self, name) is None))  # fmt: skip
         n = getattr(self.plant, "n_joints", None)
         if not isinstance(n, int):
             raise ParameterTypeError(
@@ -282,8 +286,11 @@ class ArmLoop:
         Returns
         -------
         ArmLoop
+            ``nominal`` and ``nominal_inertia`` that took their defaults (the plant, the
+            diagonal of ``M(q0)``) are derived again from the new values.
         """
-        return replace(self, **changes)
+        derived = {name: None for name in self._defaults if name not in changes}
+        return replace(self, **derived, **changes)
 
     def initial_observer_states(self, tau0) -> list:
         """Each joint's observer state converged on ``tau0[i]`` at rest at ``q0``.
