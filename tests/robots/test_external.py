@@ -141,3 +141,22 @@ def test_damped_pseudo_inverse_recovers_a_force():
     J = arm.jacobian(Q0)
     force = end_effector_force(arm, Q0[None], (J.T @ np.array([1.0, -2.0, 3.0]))[None], damping=0.0)
     assert np.allclose(force[0], [1.0, -2.0, 3.0], atol=1e-10)
+
+
+def test_a_wrench_at_the_flange_is_recovered():
+    """Force and moment applied through xfrc_applied; the momentum observer's torques and the
+    6-row damped pseudo-inverse give both back (7 joints, 6 unknowns: determined)."""
+    arm = panda()
+    wrench = np.array([3.0, -4.0, 5.0, 0.5, -0.3, 0.2])
+
+    def push(t):
+        return np.where(np.asarray(t)[:, None] >= 0.1, wrench, 0.0)
+
+    loop = ArmLoop(arm, 1e-3, PD(400.0, 40.0), observers={"order": 0, "bandwidth": 100.0},
+                   q0=Q0)  # fmt: skip
+    res = simulate_arm(loop, duration=0.4, reference=hold, external=push, tau0="gravity")
+    jac = arm.jacobian(res.q[-1], rotational=True)
+    assert np.allclose(res.tau_external[-1], jac.T @ wrench, atol=1e-12)
+    est = momentum_observer(arm, res, gain=50.0)
+    six = end_effector_force(arm, res.q[-1:], est.tau[-1:], damping=0.0, wrench=True)[0]
+    assert np.allclose(six, wrench, atol=0.02 * np.abs(wrench).max())

@@ -80,29 +80,34 @@ def _signals(result, measured):
     return (result.q_measured, result.qd_measured) if measured else (result.q, result.qd)
 
 
-def end_effector_force(model, q, tau, *, damping: float = 1e-3) -> np.ndarray:
+def end_effector_force(model, q, tau, *, damping: float = 1e-3,
+                       wrench: bool = False) -> np.ndarray:  # fmt: skip
     r"""The end-effector force :math:`\hat F = (J J^T + \lambda^2 I)^{-1} J \tau` [N].
 
     Parameters
     ----------
     model : arm model
-        Gives ``jacobian(q)`` (translational, ``(3, N)`` or ``(2, N)``).
+        Gives ``jacobian(q)`` (translational, ``(3, N)`` or ``(2, N)``; with ``wrench``,
+        ``jacobian(q, rotational=True)``, ``(6, N)``).
     q : array_like, shape (samples, N)
         Joint angles [rad].
     tau : array_like, shape (samples, N)
         External joint torques [N m].
     damping : float, optional
-        :math:`\lambda` [m], non-negative. Default 1e-3.
+        :math:`\lambda`, non-negative. Default 1e-3.
+    wrench : bool, optional
+        Estimate the force and the moment about the site [N, N m] (a :class:`MujocoArm`).
+        Default False: the force alone, the moment assumed zero.
 
     Returns
     -------
-    ndarray, shape (samples, 3) or (samples, 2)
+    ndarray, shape (samples, 3), (samples, 2) or, with ``wrench``, (samples, 6)
     """
-    lam = nonnegative(damping, "damping", "a non-negative finite damping [m]")
+    lam = nonnegative(damping, "damping", "a non-negative finite damping")
     q, tau = np.atleast_2d(q), np.atleast_2d(tau)
     out = []
     for qk, tk in zip(q, tau, strict=True):
-        J = model.jacobian(qk)
+        J = model.jacobian(qk, rotational=True) if wrench else model.jacobian(qk)
         out.append(np.linalg.solve(J @ J.T + lam**2 * np.eye(J.shape[0]), J @ tk))
     return np.array(out)
 

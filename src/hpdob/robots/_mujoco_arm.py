@@ -360,23 +360,27 @@ class MujocoArm:
         mujoco.mj_kinematics(model, data)
         return data.site_xpos[self._cache["site"]].copy()
 
-    def jacobian(self, q) -> np.ndarray:
-        """The end-effector site's translational Jacobian [m/rad] (``mj_jacSite``).
+    def jacobian(self, q, *, rotational: bool = False) -> np.ndarray:
+        """The end-effector site's Jacobian (``mj_jacSite``, world frame).
 
         Parameters
         ----------
         q : sequence of float
+            Joint angles [rad].
+        rotational : bool, optional
+            Also the rotational rows (the wrench's moment). Default False.
 
         Returns
         -------
-        ndarray, shape (3, N)
+        ndarray, shape (3, N) or (6, N)
+            Translational rows [m/rad], then rotational rows [rad/rad].
         """
         mujoco, model, data = self._set(q)
         mujoco.mj_kinematics(model, data)
         mujoco.mj_comPos(model, data)
-        jac = np.zeros((3, model.nv))
-        mujoco.mj_jacSite(model, data, jac, None, self._cache["site"])
-        return jac
+        jac = np.zeros((6, model.nv))
+        mujoco.mj_jacSite(model, data, jac[:3], jac[3:], self._cache["site"])
+        return jac if rotational else jac[:3].copy()
 
     def replace(self, **changes) -> MujocoArm:
         """A copy with ``payload``, ``inertia_scale`` or ``integrator`` changed.
@@ -434,7 +438,7 @@ class MujocoArmSession:
         self.site = arm._cache["site"]
         self.body = int(self.model.site_bodyid[self.site])
         self.data.qpos[:] = q0
-        self.jac = np.zeros((3, self.model.nv))
+        self.jac = np.zeros((6, self.model.nv))
         self.split = self.model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
         # the motors in joint order are all of ctrl: write it in place (no fancy indexing)
         self.direct = self.model.nu == len(self.actuators) and bool(
@@ -446,12 +450,24 @@ class MujocoArmSession:
     def state(self):
         return self.data.qpos, self.data.qvel
 
-    def _force(self, force):
+    def _force(self, wrench):
+        """``wrench``: a force [N] (3) or a force and a moment [N m] (6) at the site."""
         data = self.data
         frc = data.xfrc_applied[self.body]
+        force = wrench[:3]
         frc[:3] = force
         # xfrc_applied acts at the body's centre of mass: add the moment that moves it to the site
         frc[3:] = np.cross(data.site_xpos[self.site] - data.xipos[self.body], force)
+        if len(wrench) == 6:
+            frc[3:] += wrench[3:]
+
+    def _external_torque(self, wrench):
+        mujoco = self.mujoco
+        mujoco.mj_jacSite(self.model, self.data, self.jac[:3], self.jac[3:], self.site)
+        tau = self.jac[:3].T @ wrench[:3]
+        if len(wrench) == 6:
+            tau += self.jac[3:].T @ wrench[3:]
+        return tau
 
     def sample(self, applied, force, forces, qdd):
         """Apply ``applied`` [N m] over one sample (``force`` [N] at the site at the sample
@@ -469,8 +485,7 @@ class MujocoArmSession:
             mujoco.mj_step1(model, data)
             if force is not None:
                 self._force(force)
-                mujoco.mj_jacSite(model, data, self.jac, None, self.site)
-                tau_e = self.jac.T @ force
+                tau_e = self._external_torque(force)
             mujoco.mj_step2(model, data)
             qdd[:] = data.qacc
             first = 1
@@ -481,8 +496,7 @@ class MujocoArmSession:
             mujoco.mj_forward(model, data)
             qdd[:] = data.qacc
             if force is not None:
-                mujoco.mj_jacSite(model, data, self.jac, None, self.site)
-                tau_e = self.jac.T @ force
+                tau_e = self._external_torque(force)
         for j in range(first, self.substeps):
             if forces is not None:
                 self._force(forces[j])

@@ -52,8 +52,8 @@ class ArmResult:
     label : str
     diverged : bool
         True if the run stopped early (the arrays end there).
-    force : ndarray or None, shape (samples, 3)
-        The end-effector force applied [N] (world frame), where one was.
+    force : ndarray or None, shape (samples, 3) or (samples, 6)
+        The end-effector force [N] (and moment [N m]) applied, world frame, where one was.
     """
 
     t: np.ndarray

@@ -49,9 +49,10 @@ def simulate_arm(loop: ArmLoop, *, duration: float, reference, external=None, su
         ``t -> (r, r_dot, r_ddot)``, each of shape ``(len(t), N)`` (e.g. :class:`JointSines`).
     external : callable, optional
         For a :class:`TwoLinkArm`: ``t -> `` joint torques ``(len(t), 2)`` [N m] the environment
-        exerts on the arm. For a :class:`MujocoArm`: ``t -> `` a force ``(len(t), 3)`` [N]
-        (world frame) at the end-effector site (MuJoCo's ``xfrc_applied``). Evaluated at the
-        sampling instants and at each sub-step's midpoint.
+        exerts on the arm. For a :class:`MujocoArm`: ``t -> `` a force ``(len(t), 3)`` [N], or
+        a wrench ``(len(t), 6)`` (force [N], then moment [N m]), world frame, at the
+        end-effector site (MuJoCo's ``xfrc_applied``). Evaluated at the sampling instants and
+        at each sub-step's midpoint.
     substeps : int, optional
         Integration steps per sample (RK4 of the written-out dynamics, or MuJoCo steps of
         ``Ts/substeps``). Default 8 for a :class:`TwoLinkArm`, 1 for a :class:`MujocoArm`.
@@ -95,7 +96,10 @@ def simulate_arm(loop: ArmLoop, *, duration: float, reference, external=None, su
         ext_sample = np.zeros((K, width))
         ext_mid = np.zeros((K * substeps, width))
     elif callable(external):
-        ext_sample = _samples(external(t), (K, width), "external")
+        values = np.asarray(external(t), dtype=float)
+        if not two_link and values.shape == (K, 6):
+            width = 6  # a wrench: force and moment
+        ext_sample = _samples(values, (K, width), "external")
         ext_mid = _samples(external(t_mid), (K * substeps, width), "external")
     else:
         raise ParameterTypeError(f"external must be a callable of t or None, got "
