@@ -258,7 +258,10 @@ class ArmLoop:
             return None
         where = f"observers[{i}]"
         if isinstance(entry, dict):
-            from ..observers._families import design_from_spec
+            try:  # the family registry's public name (issue 20)
+                from ..observers import design_from_spec
+            except ImportError:  # before it: the spec table of hpdob.observers._families
+                from ..observers._families import design_from_spec
 
             model = ServoModel(J_n, b_n).discretize(self.Ts)
             return as_system(design_from_spec(model, entry, where), where)
