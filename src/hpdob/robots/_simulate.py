@@ -148,8 +148,8 @@ def simulate_arm(loop: ArmLoop, *, duration: float, reference, external=None, su
         start = (loop.q0[i], 0.0, float(tau0[i]))
         for j, row in enumerate(ctl.reset):
             total = 0.0
-            for t in row:
-                total += t.coefficient * start[t.operand]
+            for term in row:
+                total += term.coefficient * start[term.operand]
             cwork[controllers.offsets[i] + j] = total
     rec = np.zeros((8, K, N))
     tau_external = np.zeros((K, N))
