@@ -1,9 +1,28 @@
-"""Deployment: an observer as dependency-free C99 for a microcontroller.
+"""Deployment: an observer as dependency-free C99 for a microcontroller, or as an FMU.
 
 export_c, render_c
-    Write (or return the text of) ``<prefix>.h`` and ``<prefix>.c``.
+    Write (or return the text of) ``<prefix>.h`` and ``<prefix>.c`` (double, float, or fixed
+    point with ``dtype="q31"``).
+fixed_point_design, FixedPointDesign, FixedPointObserver, fixed_point_error_bound
+    Q formats and integer tables from declared ranges, the bit-exact Python model of the
+    fixed-point C, and its error bound against the exact observer.
 """
 
 from ._c import export_c, render_c
+from ._fixed import (
+    FixedPointDesign,
+    FixedPointObserver,
+    FixedPointRow,
+    fixed_point_design,
+    fixed_point_error_bound,
+)
 
-__all__ = ["export_c", "render_c"]
+__all__ = [
+    "FixedPointDesign",
+    "FixedPointObserver",
+    "FixedPointRow",
+    "export_c",
+    "fixed_point_design",
+    "fixed_point_error_bound",
+    "render_c",
+]

@@ -22,12 +22,14 @@ from .._validation import ParameterTypeError, ParameterValueError, check_choice
 from .._version import __version__
 from ..observers._program import RESET_OPERANDS, render_sum
 from ..observers._system import UNITS, LinearObserver, as_system
+from ._c_fixed import render_fixed
 from ._c_guard import guard_header, guard_helpers, guarded_init, guarded_output, guarded_update
 
 __all__ = ["export_c", "render_c"]
 
-#: Scalar types the code can be generated for.
-DTYPES = ("double", "float")
+#: Scalar types the code can be generated for (the last two: fixed point, ``_fixed.py``).
+DTYPES = ("double", "float", "q31", "q15")
+FIXED = ("q31", "q15")
 #: Longest prefix: ``<prefix>_estimate`` then stays within the 31 significant characters
 #: C99 (5.2.4.1) guarantees for external identifiers.
 MAX_PREFIX = 31 - len("_estimate")
@@ -358,8 +360,44 @@ def _check_guard(nan_guard) -> bool:
     return bool(nan_guard)
 
 
+def _fixed_design(obs, dtype: str, ranges):
+    """The :class:`FixedPointDesign` to print for ``dtype`` in ``FIXED``."""
+    from ._fixed import FixedPointDesign, fixed_point_design
+
+    if isinstance(obs, FixedPointDesign):
+        if ranges is not None:
+            raise ParameterValueError(
+                "ranges must be None when obs is a FixedPointDesign (its ranges are fixed), got "
+                f"{ranges!r}"
+            )
+        if obs.word != dtype:
+            raise ParameterValueError(
+                f"dtype must be the design's word {obs.word!r} for a FixedPointDesign, got "
+                f"{dtype!r}"
+            )
+        return obs
+    if not isinstance(ranges, dict):
+        raise ParameterTypeError(
+            f"ranges must be a dict with counts_per_rev, omega_max, u_max and tau_max for "
+            f"dtype {dtype!r}, got {ranges!r}"
+        )
+    keys = ("counts_per_rev", "omega_max", "u_max", "tau_max")
+    unknown = sorted(set(ranges) - set(keys))
+    missing = [k for k in keys if k not in ranges]
+    if unknown or missing:
+        raise ParameterValueError(
+            f"ranges must have exactly the keys {', '.join(keys)}, got {sorted(ranges)!r}"
+        )
+    return fixed_point_design(obs, word=dtype, **ranges)
+
+
 def render_c(
-    obs, *, prefix: str = "dob", dtype: str = "double", nan_guard: bool = False
+    obs,
+    *,
+    prefix: str = "dob",
+    dtype: str = "double",
+    nan_guard: bool = False,
+    ranges: dict | None = None,
 ) -> tuple[str, str]:
     """Text of ``<prefix>.h`` and ``<prefix>.c`` for ``obs``, without writing files.
 
@@ -367,7 +405,7 @@ def render_c(
     ----------
     obs : observer-like
         As for :func:`export_c`.
-    prefix, dtype, nan_guard
+    prefix, dtype, nan_guard, ranges
         As for :func:`export_c`.
 
     Returns
@@ -392,15 +430,32 @@ def render_c(
     >>> [line for line in source.splitlines() if line.startswith("#include")]   # no library
     ['#include "axis1.h"']
     """
-    system = as_system(obs, "obs")
     dtype = check_choice(dtype, "dtype", DTYPES)
     prefix = _check_prefix(prefix)
     guard = _check_guard(nan_guard)
+    if dtype in FIXED:
+        if guard:
+            raise ParameterValueError(
+                f"nan_guard must be False for dtype {dtype!r}: integers cannot be NaN, and the "
+                "fixed-point inputs saturate instead"
+            )
+        return render_fixed(_fixed_design(obs, dtype, ranges), prefix)
+    if ranges is not None:
+        raise ParameterValueError(
+            f"ranges are only used for the fixed-point dtypes q31 and q15, got dtype {dtype!r}"
+        )
+    system = as_system(obs, "obs")
     return _header(system, prefix, dtype, guard), _source(system, prefix, dtype, guard)
 
 
 def export_c(
-    obs, directory, *, prefix: str = "dob", dtype: str = "double", nan_guard: bool = False
+    obs,
+    directory,
+    *,
+    prefix: str = "dob",
+    dtype: str = "double",
+    nan_guard: bool = False,
+    ranges: dict | None = None,
 ) -> tuple[Path, Path]:
     r"""Write the observer as dependency-free C99: ``<prefix>.h`` and ``<prefix>.c``.
 
@@ -428,15 +483,23 @@ def export_c(
     prefix : str, optional
         C identifier prefix of every exported name and of the file names, default ``"dob"``.
         Letters, digits and underscores, starting with a letter, at most 22 characters.
-    dtype : {"double", "float"}, optional
+    dtype : {"double", "float", "q31", "q15"}, optional
         Scalar type of the generated code. ``"double"`` reproduces :func:`hpdob.update` bit
         for bit; ``"float"`` suits single-precision FPUs, within the error bound derived in
-        ``docs/deployment.md``. Default ``"double"``.
+        ``docs/deployment.md``; ``"q31"`` (``"q15"``) is fixed point for FPU-less parts: int32
+        (int16) states and coefficients, int64 (int32) sums, the encoder count as input
+        (:func:`hpdob.export.fixed_point_design`, bit-exact model
+        :class:`hpdob.export.FixedPointObserver`). Default ``"double"``.
     nan_guard : bool, optional
         Generate the opt-in guard: a sample with a non-finite input, or whose result would
         overflow, is skipped (the state is unchanged, ``_estimate`` returns the last estimate
         from finite inputs) and the state's ``fault``/``skipped`` fields say so
-        (``docs/deployment.md``). Default False.
+        (``docs/deployment.md``). Default False; must be False in fixed point.
+    ranges : dict, optional
+        For ``"q31"``/``"q15"`` when ``obs`` is an observer: ``counts_per_rev``,
+        ``omega_max`` [rad/s], ``u_max`` [N m] and ``tau_max`` [N m], the arguments of
+        :func:`hpdob.export.fixed_point_design`. None (default) when ``obs`` is already a
+        :class:`hpdob.export.FixedPointDesign`, and for the floating-point types.
 
     Returns
     -------
@@ -449,9 +512,11 @@ def export_c(
         If ``obs`` is neither a DisturbanceObserver nor an ObserverDesign, or ``directory``
         is not a path.
     ValueError
-        If ``dtype`` is not one of ``"double"``, ``"float"``, ``prefix`` is not a valid C
-        identifier prefix, ``directory`` is an existing file, or a constant does not fit in
-        binary32 for ``dtype="float"``. Nothing is written then.
+        If ``dtype`` is not one of ``"double"``, ``"float"``, ``"q31"``, ``"q15"``, ``prefix``
+        is not a valid C identifier prefix, ``directory`` is an existing file, a constant
+        does not fit in binary32 for ``dtype="float"``, or the fixed-point ``ranges`` are
+        missing or cannot be represented (:func:`hpdob.export.fixed_point_design`). Nothing
+        is written then.
 
     Notes
     -----
@@ -481,7 +546,7 @@ def export_c(
     True
     """
     path = _check_directory(directory)
-    header, source = render_c(obs, prefix=prefix, dtype=dtype, nan_guard=nan_guard)
+    header, source = render_c(obs, prefix=prefix, dtype=dtype, nan_guard=nan_guard, ranges=ranges)
     names = (f"{prefix}.h", f"{prefix}.c")
     for name in names:  # refused before anything is written, the other file untouched
         if (path / name).is_dir():
