@@ -9,19 +9,18 @@ fixed_point_design, FixedPointDesign, FixedPointObserver, fixed_point_error_boun
 """
 
 from ._c import export_c, render_c
-from ._fixed import (
-    FixedPointDesign,
-    FixedPointObserver,
-    FixedPointRow,
-    fixed_point_design,
-    fixed_point_error_bound,
-)
+from ._fixed import FixedPointDesign, fixed_point_design
+from ._fixed_runtime import FixedPointObserver, fixed_point_error_bound
+from ._fixed_tables import FixedPointRow
+from ._fmu import FMUBuildError, export_fmu
 
 __all__ = [
+    "FMUBuildError",
     "FixedPointDesign",
     "FixedPointObserver",
     "FixedPointRow",
     "export_c",
+    "export_fmu",
     "fixed_point_design",
     "fixed_point_error_bound",
     "render_c",

@@ -10,7 +10,6 @@ describes the verification and the error bound of a ``float`` build.
 
 from __future__ import annotations
 
-import os
 import re
 import struct
 from pathlib import Path
@@ -22,63 +21,15 @@ from .._validation import ParameterTypeError, ParameterValueError, check_choice
 from .._version import __version__
 from ..observers._program import RESET_OPERANDS, render_sum
 from ..observers._system import UNITS, LinearObserver, as_system
-from ._c_fixed import render_fixed
+from ._c_fixed import design_for, render_fixed
 from ._c_guard import guard_header, guard_helpers, guarded_init, guarded_output, guarded_update
+from ._c_names import _check_directory, _check_prefix
 
 __all__ = ["export_c", "render_c"]
 
 #: Scalar types the code can be generated for (the last two: fixed point, ``_fixed.py``).
 DTYPES = ("double", "float", "q31", "q15")
 FIXED = ("q31", "q15")
-#: Longest prefix: ``<prefix>_estimate`` then stays within the 31 significant characters
-#: C99 (5.2.4.1) guarantees for external identifiers.
-MAX_PREFIX = 31 - len("_estimate")
-_IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
-#: The standard headers of C99 (7.1.2) and C11: a prefix equal to one of them (in any case, for
-#: case-insensitive file systems) would write e.g. ``math.h`` and shadow the system header for
-#: every file of the firmware compiled with ``-I`` on the output directory.
-STANDARD_HEADERS = (
-    "assert", "complex", "ctype", "errno", "fenv", "float", "inttypes", "iso646", "limits",
-    "locale", "math", "setjmp", "signal", "stdarg", "stdbool", "stddef", "stdint", "stdio",
-    "stdlib", "string", "tgmath", "time", "wchar", "wctype",
-    "stdalign", "stdatomic", "stdnoreturn", "threads", "uchar",
-)  # fmt: skip
-
-
-def _check_prefix(prefix) -> str:
-    if not isinstance(prefix, str):
-        raise ParameterTypeError(
-            f"prefix must be a str (a C identifier such as 'dob'), got {prefix!r} of type "
-            f"{type(prefix).__name__}"
-        )
-    if not _IDENTIFIER.match(prefix):
-        raise ParameterValueError(
-            "prefix must be a C identifier starting with a letter (letters, digits and "
-            f"underscores only, e.g. 'dob' or 'axis1_dob'), got {prefix!r}"
-        )
-    if prefix.lower() in STANDARD_HEADERS:
-        raise ParameterValueError(
-            f"prefix {prefix!r} would write {prefix}.h, which shadows the C standard header "
-            f"<{prefix.lower()}.h>; choose another prefix, e.g. 'dob' or '{prefix}_dob'"
-        )
-    if len(prefix) > MAX_PREFIX:
-        raise ParameterValueError(
-            f"prefix must have at most {MAX_PREFIX} characters so that "
-            f"'{prefix}_estimate' stays within C99's 31 significant characters, "
-            f"got {prefix!r} ({len(prefix)} characters)"
-        )
-    return prefix
-
-
-def _check_directory(directory) -> Path:
-    if not isinstance(directory, (str, os.PathLike)):
-        raise ParameterTypeError(
-            f"directory must be a path (str or os.PathLike), got {type(directory).__name__}"
-        )
-    path = Path(directory)
-    if path.exists() and not path.is_dir():
-        raise ParameterValueError(f"directory must be a directory, got the file {str(path)!r}")
-    return path
 
 
 def _literal(value: float, dtype: str, name: str) -> str:
@@ -360,37 +311,6 @@ def _check_guard(nan_guard) -> bool:
     return bool(nan_guard)
 
 
-def _fixed_design(obs, dtype: str, ranges):
-    """The :class:`FixedPointDesign` to print for ``dtype`` in ``FIXED``."""
-    from ._fixed import FixedPointDesign, fixed_point_design
-
-    if isinstance(obs, FixedPointDesign):
-        if ranges is not None:
-            raise ParameterValueError(
-                "ranges must be None when obs is a FixedPointDesign (its ranges are fixed), got "
-                f"{ranges!r}"
-            )
-        if obs.word != dtype:
-            raise ParameterValueError(
-                f"dtype must be the design's word {obs.word!r} for a FixedPointDesign, got "
-                f"{dtype!r}"
-            )
-        return obs
-    if not isinstance(ranges, dict):
-        raise ParameterTypeError(
-            f"ranges must be a dict with counts_per_rev, omega_max, u_max and tau_max for "
-            f"dtype {dtype!r}, got {ranges!r}"
-        )
-    keys = ("counts_per_rev", "omega_max", "u_max", "tau_max")
-    unknown = sorted(set(ranges) - set(keys))
-    missing = [k for k in keys if k not in ranges]
-    if unknown or missing:
-        raise ParameterValueError(
-            f"ranges must have exactly the keys {', '.join(keys)}, got {sorted(ranges)!r}"
-        )
-    return fixed_point_design(obs, word=dtype, **ranges)
-
-
 def render_c(
     obs,
     *,
@@ -439,7 +359,7 @@ def render_c(
                 f"nan_guard must be False for dtype {dtype!r}: integers cannot be NaN, and the "
                 "fixed-point inputs saturate instead"
             )
-        return render_fixed(_fixed_design(obs, dtype, ranges), prefix)
+        return render_fixed(design_for(obs, dtype, ranges), prefix)
     if ranges is not None:
         raise ParameterValueError(
             f"ranges are only used for the fixed-point dtypes q31 and q15, got dtype {dtype!r}"

@@ -10,10 +10,41 @@ from __future__ import annotations
 
 import re
 
+from .._validation import ParameterTypeError, ParameterValueError
 from .._version import __version__
-from ._fixed import FixedPointDesign, FixedPointRow
+from ._fixed import FixedPointDesign, fixed_point_design
+from ._fixed_tables import FixedPointRow
 
-__all__ = ["render_fixed"]
+__all__ = ["design_for", "render_fixed"]
+
+
+def design_for(obs, dtype: str, ranges):
+    """The :class:`FixedPointDesign` to print for ``dtype`` in ``FIXED``."""
+    if isinstance(obs, FixedPointDesign):
+        if ranges is not None:
+            raise ParameterValueError(
+                "ranges must be None when obs is a FixedPointDesign (its ranges are fixed), got "
+                f"{ranges!r}"
+            )
+        if obs.word != dtype:
+            raise ParameterValueError(
+                f"dtype must be the design's word {obs.word!r} for a FixedPointDesign, got "
+                f"{dtype!r}"
+            )
+        return obs
+    if not isinstance(ranges, dict):
+        raise ParameterTypeError(
+            f"ranges must be a dict with counts_per_rev, omega_max, u_max and tau_max for "
+            f"dtype {dtype!r}, got {ranges!r}"
+        )
+    keys = ("counts_per_rev", "omega_max", "u_max", "tau_max")
+    unknown = sorted(set(ranges) - set(keys))
+    missing = [k for k in keys if k not in ranges]
+    if unknown or missing:
+        raise ParameterValueError(
+            f"ranges must have exactly the keys {', '.join(keys)}, got {sorted(ranges)!r}"
+        )
+    return fixed_point_design(obs, word=dtype, **ranges)
 
 
 def _types(design: FixedPointDesign):
