@@ -32,13 +32,16 @@ from hpdob.export import (
 )
 from hpdob.observers import design_eso, design_kalman, kalman_process_noise
 from hpdob.signals import Sine, Step
-from hpdob.testing import CBuildError, export_error_bound, find_compiler
-from hpdob.testing._elf import read_elf
-from hpdob.testing._target import (
+from hpdob.testing import (
+    CBuildError,
     EmulatedCortexM,
     HostFixedObserver,
     cross_compile,
+    export_error_bound,
+    find_compiler,
+    fixed_drive_source,
     float_step_source,
+    read_elf,
     zig_cc,
 )
 
@@ -277,8 +280,6 @@ def test_cortex_m_builds_match_the_model_bit_for_bit(family, closed_loop, cpu, t
     counts, W, U = counts[sl], W[sl], U[sl]
     init = (int(counts[0]), 0, 0)
     header, source = export_c(fx, tmp_path, dtype="q31")
-    from hpdob.testing._target import fixed_drive_source
-
     (tmp_path / "dob_drive.c").write_text(fixed_drive_source(fx, "dob"))
     elf = cross_compile([source, tmp_path / "dob_drive.c"], tmp_path / f"{cpu}.elf", cpu=cpu)
     Ye, Se = EmulatedCortexM(elf, cpu=cpu).drive_fixed(fx, "dob", counts, W, U, init=init)
@@ -304,8 +305,6 @@ def test_the_symbol_check_sees_float_helpers_and_the_emulator_the_isa(tmp_path):
     assert {"__aeabi_fadd", "__aeabi_fmul"} <= set(read_elf(obj).undefined())
     fx = fixed_point_design(design, **RANGES)
     _, source = export_c(fx, tmp_path / "q", dtype="q31")
-    from hpdob.testing._target import fixed_drive_source
-
     (tmp_path / "q" / "dob_drive.c").write_text(fixed_drive_source(fx, "dob"))
     elf = cross_compile([source, tmp_path / "q" / "dob_drive.c"], tmp_path / "m3.elf",
                         cpu="cortex-m3")  # fmt: skip

@@ -19,8 +19,20 @@ _SHF_ALLOC = 0x2
 
 @dataclass(frozen=True)
 class ElfSymbol:
-    """One symbol: ``name``, ``value`` (address), ``size`` [bytes], ``kind`` (STT_*: 0 none,
-    1 object, 2 function) and ``defined`` (False for a reference to another file)."""
+    """One symbol of an ELF file.
+
+    Parameters
+    ----------
+    name : str
+    value : int
+        Address (executables) or offset in its section (objects).
+    size : int
+        Size [bytes].
+    kind : int
+        ``STT_*`` type: 0 none, 1 object, 2 function.
+    defined : bool
+        False for a reference to a symbol of another file.
+    """
 
     name: str
     value: int
@@ -31,26 +43,64 @@ class ElfSymbol:
 
 @dataclass(frozen=True)
 class ElfFile:
-    """Segments ``(address, bytes, memory size)``, sections ``{name: (size, flags)}`` and
-    symbols of an ELF32 file."""
+    """The parts of an ELF32 file an emulator and a symbol check need.
+
+    Parameters
+    ----------
+    segments : tuple of (int, bytes, int)
+        Loadable segments: address, contents, size in memory.
+    sections : dict
+        ``{name: (size, flags)}``.
+    symbols : tuple of ElfSymbol
+    """
 
     segments: tuple
     sections: dict
     symbols: tuple
 
     def symbol(self, name: str) -> ElfSymbol:
-        """The defined symbol ``name`` (KeyError if absent)."""
+        """The defined symbol ``name``.
+
+        Parameters
+        ----------
+        name : str
+
+        Returns
+        -------
+        ElfSymbol
+
+        Raises
+        ------
+        KeyError
+            If the file defines no such symbol.
+        """
         for s in self.symbols:
             if s.name == name and s.defined:
                 return s
         raise KeyError(name)
 
     def undefined(self) -> list[str]:
-        """Names of the symbols the file uses but does not define."""
+        """Names of the symbols the file uses but does not define.
+
+        Returns
+        -------
+        list of str
+            Sorted.
+        """
         return sorted({s.name for s in self.symbols if not s.defined and s.name})
 
     def allocated_size(self, prefixes=(".text", ".rodata", ".data")) -> int:
-        """Bytes of the loaded sections whose name starts with one of ``prefixes``."""
+        """Bytes of the loaded sections whose name starts with one of ``prefixes``.
+
+        Parameters
+        ----------
+        prefixes : tuple of str, optional
+            Default code, constants and data (``.text``, ``.rodata``, ``.data``).
+
+        Returns
+        -------
+        int
+        """
         return sum(size for name, (size, flags) in self.sections.items()
                    if flags & _SHF_ALLOC and name.startswith(tuple(prefixes)))  # fmt: skip
 

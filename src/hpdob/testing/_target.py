@@ -58,7 +58,8 @@ SECTIONS {{
 }}
 """
 TARGET_FLAGS = ("-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wshadow",
-                "-Werror", "-ffreestanding")  # fmt: skip
+                "-Werror", "-ffreestanding", "-fno-unwind-tables",
+                "-fno-asynchronous-unwind-tables")  # fmt: skip
 
 
 def zig_cc() -> list[str]:
@@ -132,7 +133,20 @@ def cross_compile(sources, output, *, cpu: str, optimize: str = "-O2", link: boo
 
 
 def fixed_drive_source(design, prefix: str) -> str:
-    """C source of ``<prefix>_drive`` and ``<prefix>_step`` for a fixed-point export."""
+    """C source of ``<prefix>_drive`` and ``<prefix>_step`` for a fixed-point export.
+
+    Parameters
+    ----------
+    design : FixedPointDesign
+        The exported design.
+    prefix : str
+        The export's prefix.
+
+    Returns
+    -------
+    str
+        C99 (the interface is in the module docstring).
+    """
     system = design.system
     n, q = system.n_states, len(system.outputs)
     word = f"int{design.bits}_t"
@@ -173,10 +187,26 @@ void {prefix}_drive(int32_t n, const int32_t *in, int32_t *out)
 """
 
 
-def float_step_source(prefix: str, dtype: str, measures) -> str:
-    """C source of ``<prefix>_step`` for a float/double export (for instruction counts)."""
+def float_step_source(prefix: str, dtype: str, measures, *, velocity: bool = False) -> str:
+    """C source of ``<prefix>_step`` for a float/double export (for instruction counts).
+
+    Parameters
+    ----------
+    prefix : str
+        The export's prefix.
+    dtype : {"float", "double"}
+    measures : tuple of str
+        The observer's measures: ``in`` holds them followed by ``u``.
+    velocity : bool, optional
+        Also call ``<prefix>_velocity`` (into ``out[1]``). Default False.
+
+    Returns
+    -------
+    str
+    """
     args = "in[0], in[1]" if len(measures) == 2 else "in[0]"
     u = "in[2]" if len(measures) == 2 else "in[1]"
+    extra = f"    out[1] = {prefix}_velocity(s, {args});\n" if velocity else ""
     return f"""\
 #include "{prefix}.h"
 
@@ -185,7 +215,7 @@ void {prefix}_step({prefix}_state *s, const {dtype} *in, {dtype} *out);
 void {prefix}_step({prefix}_state *s, const {dtype} *in, {dtype} *out)
 {{
     out[0] = {prefix}_estimate(s, {args});
-    {prefix}_update(s, {args}, {u});
+{extra}    {prefix}_update(s, {args}, {u});
 }}
 """
 
@@ -218,6 +248,8 @@ class HostFixedObserver:
     prefix : str
     build_dir : Path
         Fresh directory for the drive loop and the library.
+    flags : sequence of str, optional
+        Compiler flags; default strict warnings as errors and ``-O2``.
     """
 
     def __init__(self, design, source, *, prefix: str, build_dir, flags=None):
@@ -242,6 +274,13 @@ class HostFixedObserver:
 
     def drive(self, counts, omega, u, *, init=(0, 0, 0)):
         """Run a trace in C from ``<prefix>_init(*init)``.
+
+        Parameters
+        ----------
+        counts, omega, u : array_like of int, shape (n,)
+            The integer inputs (int32).
+        init : tuple of 3 int, optional
+            ``(count0, omega0, tau0)``.
 
         Returns
         -------
@@ -297,10 +336,22 @@ class EmulatedCortexM:
         self.instructions = 0
 
     def call(self, function: str, *args: int, count: bool = False) -> int:
-        """Call ``function`` with up to four integer/pointer arguments; return ``r0``.
+        """Call ``function`` with up to four integer/pointer arguments.
 
-        With ``count``, :attr:`instructions` is set to the number of instructions executed
-        (the call's own and those of every helper it calls, e.g. ``__aeabi_lmul``).
+        Parameters
+        ----------
+        function : str
+            A function of the image.
+        *args : int
+            Its arguments (in ``r0``-``r3``).
+        count : bool, optional
+            Set :attr:`instructions` to the number of instructions executed: the call's own
+            and those of every helper it calls (e.g. ``__aeabi_lmul``). Default False.
+
+        Returns
+        -------
+        int
+            ``r0`` on return.
         """
         mu, arm = self.mu, self._arm
         registers = (arm.UC_ARM_REG_R0, arm.UC_ARM_REG_R1, arm.UC_ARM_REG_R2, arm.UC_ARM_REG_R3)
@@ -327,17 +378,47 @@ class EmulatedCortexM:
         return mu.reg_read(arm.UC_ARM_REG_R0)
 
     def write(self, address: int, array: np.ndarray) -> None:
-        """Copy ``array``'s bytes to emulated memory."""
+        """Copy ``array``'s bytes to emulated memory.
+
+        Parameters
+        ----------
+        address : int
+        array : ndarray
+        """
         self.mu.mem_write(address, np.ascontiguousarray(array).tobytes())
 
     def read(self, address: int, count: int, dtype) -> np.ndarray:
-        """``count`` values of ``dtype`` from emulated memory."""
+        """Values from emulated memory.
+
+        Parameters
+        ----------
+        address : int
+        count : int
+            Number of values.
+        dtype : numpy dtype
+
+        Returns
+        -------
+        ndarray
+        """
         size = np.dtype(dtype).itemsize * count
         return np.frombuffer(bytes(self.mu.mem_read(address, size)), dtype=dtype).copy()
 
     def drive_fixed(self, design, prefix: str, counts, omega, u, *, init=(0, 0, 0)):
-        """``<prefix>_drive`` of a fixed-point image over a trace (as
-        :meth:`HostFixedObserver.drive`)."""
+        """``<prefix>_drive`` of a fixed-point image over a trace.
+
+        Parameters
+        ----------
+        design : FixedPointDesign
+        prefix : str
+        counts, omega, u, init
+            As for :meth:`HostFixedObserver.drive`.
+
+        Returns
+        -------
+        outputs : ndarray, shape (n, n_outputs)
+        states : ndarray, shape (n, n_states)
+        """
         data, n = _pack(design, counts, omega, u, init)
         width = len(design.system.outputs) + design.system.n_states
         if data.nbytes + 4 * n * width > _SIZE:
@@ -348,10 +429,23 @@ class EmulatedCortexM:
         return _unpack(design, self.read(out_address, n * width, np.int32), n)
 
     def step_instructions(self, prefix: str, samples, *, state_size: int, dtype) -> np.ndarray:
-        """Instructions executed by ``<prefix>_step`` for each sample's ``(x1, x2, x3)``.
+        """Instructions executed by ``<prefix>_step`` for each sample.
 
-        The state starts zeroed (the arithmetic does not branch on values except in the
-        saturation tests, so the count hardly varies with the inputs).
+        Parameters
+        ----------
+        prefix : str
+        samples : sequence of tuples
+            The ``in`` array of each call.
+        state_size : int
+            Bytes of ``<prefix>_state`` (zeroed once; the arithmetic branches only in the
+            saturation tests, so the count hardly varies with the values).
+        dtype : numpy dtype
+            Type of ``in`` (int32 for fixed point, float32 for a float export).
+
+        Returns
+        -------
+        ndarray of int
+            Instructions per call.
         """
         state, buffer, out = DATA, DATA + 1024, DATA + 2048
         self.write(state, np.zeros(state_size, dtype=np.uint8))
