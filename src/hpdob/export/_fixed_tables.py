@@ -27,8 +27,8 @@ class FixedPointRow:
         What the row computes (``"q1"``, ``"tau_hat"``, ...).
     terms : tuple of (int, int, int)
         ``(C_j, j, k_j)``: the term ``C_j V_j 2^k_j`` with ``|C_j| <= 2^(W-1) - 1`` and operand
-        ``j`` of the row's operand vector (:attr:`FixedPointDesign.operands` or
-        :attr:`FixedPointDesign.reset_operands`).
+        ``j`` of the row's operand vector (``FixedPointDesign.operands`` or
+        ``FixedPointDesign.reset_operands``).
     shift : int
         Right shift from the accumulator to the target's Q format (``0 <= shift <= 2W - 2``).
     limit : int

@@ -345,7 +345,7 @@ class EmulatedCortexM:
         *args : int
             Its arguments (in ``r0``-``r3``).
         count : bool, optional
-            Set :attr:`instructions` to the number of instructions executed: the call's own
+            Set ``self.instructions`` to the number of instructions executed: the call's own
             and those of every helper it calls (e.g. ``__aeabi_lmul``). Default False.
 
         Returns
