@@ -96,8 +96,10 @@ def cross_compile(sources, output, *, cpu: str, optimize: str = "-O2", link: boo
     ----------
     sources : sequence of path
     output : path
-        An object file (``link=False``, one source) or an executable ELF image linked for
-        flash at 0 and RAM at 0x20000000 (no start-up code: the emulator calls functions).
+        An executable ELF image linked for flash at 0 and RAM at 0x20000000 (no start-up
+        code: the emulator calls functions); with ``link=False`` the object file of one
+        source, or the existing directory that receives ``<source stem>.o`` for each of
+        several sources.
     cpu : {"cortex-m0plus", "cortex-m3"}
     optimize : str, optional
         Optimisation flag, default ``-O2``.
@@ -125,10 +127,12 @@ def cross_compile(sources, output, *, cpu: str, optimize: str = "-O2", link: boo
         # zig links compiler-rt (64-bit and soft-float helpers) and no libc for freestanding;
         # every function is kept (the emulator calls them, nothing references them)
         cmd += ["-Wl,-e,0", "-Wl,--no-gc-sections", f"-Wl,-T,{script}"]
-    else:
-        cmd += ["-c"]
-    cmd += [str(s) for s in sources] + ["-o", str(output)]
-    _run(cmd)
+        _run(cmd + [str(s) for s in sources] + ["-o", str(output)])
+    elif len(sources) == 1:
+        _run([*cmd, "-c", str(sources[0]), "-o", str(output)])
+    else:  # one run per file: zig cc -c writes only the first of several objects
+        for source in sources:
+            _run([*cmd, "-c", str(source), "-o", str(output / (Path(source).stem + ".o"))])
     return output
 
 
