@@ -418,6 +418,13 @@ def test_fixed_design_with_other_ranges_or_word_is_refused(tmp_path):
     assert not (tmp_path / "x").exists()
     with pytest.raises(ParameterTypeError, match="count must be an integer"):
         FixedPointObserver(fx).estimate(1.5, 0)
+    with pytest.raises(ParameterValueError, match="dtype must be 'q31' for a FixedPointDesign"):
+        export_c(fx, tmp_path / "x")
+    position = fixed_point_design(FAMILIES["position-1"](), **RANGES)
+    with pytest.raises(ParameterValueError, match="omega must be None"):
+        FixedPointObserver(position).update(3, 5)  # u given positionally as omega
+    with pytest.raises(ParameterTypeError, match="omega must be given"):
+        FixedPointObserver(fx).update(3, u=5)
     with pytest.raises(ParameterTypeError, match="design must be a FixedPointDesign"):
         FixedPointObserver(FAMILIES["dob-1"]())
 

@@ -24,6 +24,7 @@ from ..observers._system import UNITS, LinearObserver, as_system
 from ._c_fixed import design_for, render_fixed
 from ._c_guard import guard_header, guard_helpers, guarded_init, guarded_output, guarded_update
 from ._c_names import _check_directory, _check_prefix
+from ._fixed import FixedPointDesign
 
 __all__ = ["export_c", "render_c"]
 
@@ -363,6 +364,11 @@ def render_c(
     if ranges is not None:
         raise ParameterValueError(
             f"ranges are only used for the fixed-point dtypes q31 and q15, got dtype {dtype!r}"
+        )
+    if isinstance(obs, FixedPointDesign):
+        raise ParameterValueError(
+            f"dtype must be {obs.word!r} for a FixedPointDesign (export the observer itself for "
+            f"floating point), got {dtype!r}"
         )
     system = as_system(obs, "obs")
     return _header(system, prefix, dtype, guard), _source(system, prefix, dtype, guard)

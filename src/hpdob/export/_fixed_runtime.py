@@ -130,6 +130,11 @@ class FixedPointObserver:
             if omega is None:
                 raise ParameterTypeError("omega must be given for an observer measuring it")
             return (count, _int(omega, "omega"))
+        if omega is not None:
+            raise ParameterValueError(
+                f"omega must be None for an observer that measures only the angle (pass u by "
+                f"name: update(count, u=...)), got {omega!r}"
+            )
         return (count,)
 
     def outputs(self, count: int, omega: int | None = None) -> tuple:
