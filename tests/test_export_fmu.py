@@ -191,3 +191,11 @@ def test_cli_export_c_fixed_point_matches_library(tmp_path, capsys):
     assert not (tmp_path / "bad").exists()
     code = main(["export-c", "--omega-max", "5", "-o", str(tmp_path / "bad")])
     assert code == 2 and "only for --dtype q31" in capsys.readouterr().err
+
+
+def test_export_fmu_help_has_a_description(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["export-fmu", "--help"])
+    assert exit_.value.code == 0
+    out = " ".join(capsys.readouterr().out.split())  # argparse wraps the description
+    assert "FMI 2.0 co-simulation FMU" in out and "docs/deployment.md" in out
