@@ -442,3 +442,20 @@ def test_missing_compiler_or_emulator_is_one_line(monkeypatch, tmp_path):
     with pytest.raises(CBuildError, match="pip install unicorn") as info:
         EmulatedCortexM(tmp_path / "none.elf", cpu="cortex-m3")
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.skipif(find_compiler() is None, reason="no host C compiler (gcc or $CC)")
+@pytest.mark.parametrize("name", ["dob-1", "position-2", "eso-2"])
+@pytest.mark.parametrize("level", ["-O0", "-Os"])
+def test_q31_source_is_integer_only_and_warning_free(tmp_path, name, level):
+    """No floating-point type or literal in the generated q31 code, and a strict build at
+    other optimisation levels (the target builds use -O2) has no warning."""
+    from hpdob.testing import STRICT_FLAGS, compile_c
+
+    fx = fixed_point_design(FAMILIES[name](), **RANGES)
+    header, source = export_c(fx, tmp_path, dtype="q31")
+    for path in (header, source):
+        code = "\n".join(line for line in path.read_text().splitlines()
+                         if not line.lstrip().startswith(("*", "/*")))  # fmt: skip
+        assert "double" not in code and "float" not in code
+    compile_c([source], tmp_path / "dob.o", flags=[*STRICT_FLAGS, level, "-ffreestanding", "-c"])
