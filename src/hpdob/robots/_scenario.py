@@ -3,6 +3,7 @@ r"""N-joint scenarios in TOML (``[plant] type = "mujoco-arm"`` or ``"two-link-ar
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -77,9 +78,26 @@ def _per_joint_tables(value, where, build, n):
     return build(_table(value, where), where)
 
 
-def _pd(table, where):
-    check_keys(table, ("type", "kp", "kd", "feedforward", "velocity"), where)
-    return PD(**{k: v for k, v in table.items() if k != "type"})
+def _controller_types() -> dict:
+    """``[controller] type`` -> class: the controller protocol's table where it exists."""
+    try:
+        from ..controllers import CONTROLLER_TYPES
+    except ImportError:
+        return {"pd": PD}
+    return dict(CONTROLLER_TYPES)
+
+
+def _joint_controller(table, where):
+    types = _controller_types()
+    kind = table.get("type", "pd")
+    if kind not in types:
+        raise ParameterValueError(
+            f"{where}.type must be one of {', '.join(map(repr, types))} or "
+            f'"computed-torque" (one table for all joints), got {kind!r}'
+        )
+    cls = types[kind]
+    check_keys(table, ("type", *(f.name for f in dataclasses.fields(cls))), where)
+    return cls(**{k: v for k, v in table.items() if k != "type"})
 
 
 def _sensor(table, where):
@@ -129,7 +147,7 @@ def arm_scenario_from_dict(data: dict, base: Path | None = None) -> tuple[ArmLoo
         controller = ComputedTorque(model, controller["kp"], controller["kd"],
                                     feedforward=controller.get("feedforward", True))  # fmt: skip
     else:
-        controller = _per_joint_tables(controller, "controller", _pd, n)
+        controller = _per_joint_tables(controller, "controller", _joint_controller, n)
     observers = None
     if "observer" in data:
         observers = data["observer"]
