@@ -44,7 +44,7 @@ def emps_log():
 
 @pytest.fixture(scope="module")
 def emps_ls(emps_log):
-    return identify(emps_log.t, emps_log.theta, emps_log.u, axis="linear")
+    return identify(emps_log.t, emps_log.theta, emps_log.u, method="idim-ls", axis="linear")
 
 
 @pytest.fixture(scope="module")
@@ -140,7 +140,7 @@ def test_noise_free_analytic_motion_gives_the_true_parameters():
     qd = 0.3 * w1 * np.cos(w1 * t) + 0.05 * w2 * np.cos(w2 * t + 0.3)
     qdd = -0.3 * w1**2 * np.sin(w1 * t) - 0.05 * w2**2 * np.sin(w2 * t + 0.3)
     u = J * qdd + b * qd + c * np.sign(qd) + offset  # eq. (1)
-    fit = identify(t, q, u)
+    fit = identify(t, q, u, method="idim-ls")
     np.testing.assert_allclose([fit.J, fit.b, fit.coulomb], [J, b, c], rtol=1e-3)
     assert fit.offset == pytest.approx(offset, abs=1e-3)
     assert fit.method == "idim-ls" and fit.iterations == 0 and fit.simulation is None
@@ -246,7 +246,11 @@ def _triangle():
 
 T, Q, U = _motion()
 REFUSED = {
-    "too short": ((T[:300], Q[:300], U[:300]), {}, r"300 samples.*at least 491 for 40 regression"),
+    "too short": (
+        (T[:300], Q[:300], U[:300]),
+        {"method": "idim-ls"},
+        r"300 samples.*at least 491 for 40 regression",
+    ),
     "no motion": ((T, np.full(T.size, 0.2), U), {}, "theta does not move"),
     "constant input": ((T, Q, np.full(T.size, 1.0)), {}, "u is constant"),
     "NaN": ((T, _with(1234, np.nan, Q), U), {}, "theta has a non-finite sample nan at index 1234"),
@@ -264,7 +268,11 @@ REFUSED = {
     "min_speed": ((T, Q, U), {"min_speed": 10.0}, "min_speed = 10 leaves 0 regression rows"),
     "cutoff": ((T, Q, U), {"cutoff": 600.0}, "below the Nyquist frequency 500 Hz"),
     "cutoff vs decimation": ((T, Q, U), {"cutoff": 30.0}, "below the decimation filter's cut-off"),
-    "method": ((T, Q, U), {"method": "ls"}, "method must be one of 'idim-ls', 'idim-iv'"),
+    "method": (
+        (T, Q, U),
+        {"method": "ls"},
+        "method must be one of 'auto', 'idim-ls', 'idim-iv', 'idim-iv-input'",
+    ),
 }
 
 
@@ -304,7 +312,7 @@ def test_model_is_a_servo_model_without_offset(emps_ls):
 
 def test_model_refuses_negative_friction():
     t, q, u = _motion()
-    fit = identify(t, q, u - 5.0 * np.gradient(q, 1e-3))  # b = -5
+    fit = identify(t, q, u - 5.0 * np.gradient(q, 1e-3), method="idim-ls")  # b = -5
     with pytest.raises(ParameterValueError, match=r"identified b = -(5\.0|4\.99)\d* N m s/rad"):
         fit.model()
 

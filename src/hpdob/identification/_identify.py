@@ -1,5 +1,8 @@
 r"""Identification of a rigid axis from a logged run: IDIM-LS and IDIM-IV.
 
+The default (``method="auto"``) reads its filter settings from the log and estimates by
+instrumental variables (see :func:`identify`, Notes, and docs/real-data.md).
+
 IDIM-LS (inverse dynamic identification model, least squares) is the EMPS benchmark's
 reference method: the regression of :mod:`hpdob.identification._regression` solved by least
 squares, :math:`\hat\theta = (X^T X)^{-1} X^T y` (EMPS description, eq. 10).
@@ -37,6 +40,7 @@ from ._loop import FeedbackLoop, simulate_loop
 from ._regression import (
     MIN_ROWS,
     PARAMETERS,
+    adaptive_bandwidth,
     build_regression,
     instrument_rows,
     minimum_samples,
@@ -47,7 +51,11 @@ from ._result import Identification
 __all__ = ["METHODS", "IdentificationWarning", "identify"]
 
 #: The identification methods.
-METHODS = ("idim-ls", "idim-iv")
+METHODS = ("auto", "idim-ls", "idim-iv", "idim-iv-input")
+#: The correction that keeps the input-driven simulation of ``"idim-iv-input"`` from drifting
+#: has this bandwidth, as a fraction of the decimation filter's cut-off: its noise enters the
+#: instruments' acceleration (1/20)^2 as strongly as the measured position's at the band edge.
+INPUT_LOOP_FRACTION = 0.05
 #: Largest condition number (columns scaled to unit norm) of an identifiable regression.
 MAX_CONDITION = 1e6
 #: Largest variance inflation factor 1/(1 - R^2) of J, b or coulomb: above it the column is
@@ -175,12 +183,32 @@ def _estimate(X: np.ndarray, y: np.ndarray, Z: np.ndarray):
     return theta, covariance
 
 
+def _input_loop(theta: np.ndarray, u: np.ndarray, J: float, settings) -> FeedbackLoop:
+    """The loop of ``"idim-iv-input"``: the logged input drives the model, and a slow PD
+    (bandwidth :data:`INPUT_LOOP_FRACTION` x the decimation cut-off, gains from ``J``) pulls it
+    towards the low-passed measured position so that it cannot drift away (an open-loop
+    simulation integrates every error of the offset and friction)."""
+    from scipy import signal
+
+    omega = 2.0 * math.pi * INPUT_LOOP_FRACTION * settings.decimation_cutoff
+    sos = signal.butter(2, omega / (2 * math.pi), fs=1.0 / settings.Ts, output="sos")
+    slow = signal.sosfiltfilt(sos, theta)
+    return FeedbackLoop(
+        slow,
+        kp=J * omega**2,
+        kd=2.0 * J * omega,
+        reference_velocity=np.gradient(slow, settings.Ts),
+        feedforward=u,
+        velocity_filter=None,
+    )
+
+
 def identify(
     t,
     theta,
     u,
     *,
-    method: str = "idim-ls",
+    method: str = "auto",
     loop: FeedbackLoop | None = None,
     bandwidth: float | None = None,
     cutoff: float | None = None,
@@ -188,6 +216,7 @@ def identify(
     decimation: int | None = None,
     border: int | None = None,
     min_speed: float = 0.0,
+    zoh: bool | None = None,
     axis: str | None = None,
     max_iterations: int = 20,
     tolerance: float = 0.01,
@@ -207,20 +236,27 @@ def identify(
         Measured position [rad or m].
     u : array_like
         Applied torque or force [N m or N].
-    method : {"idim-ls", "idim-iv"}, optional
-        ``"idim-ls"`` (default): the benchmark's inverse-model least squares.
+    method : {"auto", "idim-ls", "idim-iv", "idim-iv-input"}, optional
+        ``"auto"`` (default): instrumental variables with settings read from the log
+        (see Notes): ``"idim-iv"`` if ``loop`` is given, else ``"idim-iv-input"``.
+        ``"idim-ls"``: the benchmark's inverse-model least squares, with its rules.
         ``"idim-iv"``: instrumental variables from the closed loop simulated with the
         current estimate, iterated from the IDIM-LS estimate; needs ``loop``. It removes
-        the bias IDIM-LS suffers from measurement noise in closed loop and depends much
-        less on the filter settings (see docs/real-data.md).
+        the bias IDIM-LS suffers from measurement noise and depends much less on the filter
+        settings (see docs/real-data.md).
+        ``"idim-iv-input"``: the same with instruments from the model driven by the logged
+        input (held by a slow PD near the low-passed measured position, so that it cannot
+        drift); needs no loop, in open or closed loop.
     loop : FeedbackLoop, optional
         The controller and reference that produced the log. Required by ``"idim-iv"``;
         with ``"idim-ls"`` it is only simulated once to report how well the identified
         model reproduces the run (``simulation``).
     bandwidth : float, optional
-        Closed-loop bandwidth [Hz] that sets the default ``cutoff = 5 bandwidth`` and
-        ``decimation = round(0.2 fs / bandwidth)``. Default ``fs/50`` (20 Hz at 1 kHz,
-        the EMPS settings: cutoff 100 Hz, decimation 10).
+        Bandwidth [Hz] of the motion to keep: it sets ``cutoff = 5 bandwidth`` and
+        ``decimation = round(0.2 fs / bandwidth)`` (the EMPS benchmark's rules, with its
+        closed-loop bandwidth). Default with ``"auto"``: half the log's signal bandwidth
+        (Notes); with the other methods ``fs/50`` (20 Hz at 1 kHz, the EMPS settings:
+        cutoff 100 Hz, decimation 10).
     cutoff : float, optional
         Cut-off [Hz] of the Butterworth low-pass filter on the position (forward-backward).
     order : int, optional
@@ -232,6 +268,11 @@ def identify(
     min_speed : float, optional
         Drop rows where the filtered speed falls below this [rad/s or m/s] (stick phases,
         where ``sign`` does not describe friction). Default 0: keep all, as the benchmark.
+    zoh : bool, optional
+        Align the input with the second difference of the position, ``(u_(k-1) + u_k)/2``:
+        exact for an input held over each sample (the ZOH of :math:`1/s^2` is
+        :math:`T_s^2 (z + 1) / (2 (z - 1)^2)`). Default True with ``"auto"``, False (the
+        benchmark's script) otherwise.
     axis : {"rotary", "linear"} or None, optional
         Units of the report; None states none ("N m or N").
     max_iterations : int, optional
@@ -264,6 +305,18 @@ def identify(
         If IDIM-IV does not converge in ``max_iterations`` or its loop simulation differs
         from the logged position by more than 10 %.
 
+    Notes
+    -----
+    The defaults of ``"auto"`` follow the log. The position's noise floor is the larger of
+    the quantisation noise :math:`q^2 T_s / 6` (``q`` the smallest step between samples) and
+    the median PSD of the top quarter of the band; the signal bandwidth is the highest
+    frequency where the position's PSD (Welch, from its second difference) stands 20 dB above
+    that floor. The decimation filter's cut-off ``2 bandwidth`` is put there, clipped to
+    ``[fs/250, fs/6]``: faster motion drowns in the differentiated noise, and a wider band
+    only adds noise. Instrumental variables then remove what bias the noise still causes,
+    and ``sign(velocity)`` is its own instrument (noise changes it only near rest, and a
+    simulated one jumps with every stick event).
+
     References
     ----------
     A. Janot, M. Gautier, M. Brunot, "Data set and reference models of EMPS", Workshop on
@@ -276,11 +329,17 @@ def identify(
     >>> import hpdob
     >>> from hpdob.identification import emps
     >>> log = emps()
-    >>> fit = hpdob.identify(log.t, log.theta, log.u, axis="linear")
+    >>> fit = hpdob.identify(log.t, log.theta, log.u, method="idim-ls", axis="linear")
     >>> print(f"M = {fit.J:.1f} kg, Fv = {fit.b:.0f} N s/m, Fc = {fit.coulomb:.1f} N")
     M = 95.1 kg, Fv = 203 N s/m, Fc = 20.4 N
+    >>> fit = hpdob.identify(log.t, log.theta, log.u, axis="linear")   # the defaults
+    >>> print(f"{fit.method}: M = {fit.J:.1f} kg, Fv = {fit.b:.0f} N s/m, Fc = {fit.coulomb:.1f} N")
+    idim-iv-input: M = 94.5 kg, Fv = 208 N s/m, Fc = 20.0 N
     """
     method = check_choice(method, "method", METHODS)
+    adaptive = method == "auto"
+    if adaptive:
+        method = "idim-iv" if loop is not None else "idim-iv-input"
     axis = check_axis(axis)
     t = sample_vector(t, "t", "times [s]")
     theta = sample_vector(theta, "theta", "positions [rad or m]")
@@ -300,9 +359,11 @@ def identify(
         )
     max_iterations = as_int(max_iterations, "max_iterations", "a positive integer", minimum=1)
     tolerance = positive(tolerance, "tolerance", "a positive relative tolerance")
+    if adaptive and bandwidth is None and cutoff is None and decimation is None:
+        bandwidth = adaptive_bandwidth(theta, Ts)
     settings = resolve_settings(
         Ts, bandwidth=bandwidth, cutoff=cutoff, order=order, decimation=decimation,
-        border=border, min_speed=min_speed,
+        border=border, min_speed=min_speed, zoh=adaptive if zoh is None else zoh,
     )  # fmt: skip
     needed = minimum_samples(settings)
     if n < needed:
@@ -317,15 +378,16 @@ def identify(
     estimate, covariance = _estimate(X, y, X)
     iterations, converged = 0, True
     velocity0 = float(regression.velocity[0])
-    if method == "idim-iv":
+    if method in ("idim-iv", "idim-iv-input"):
         converged = False
         for iterations in range(1, max_iterations + 1):
+            parameters = _simulable(estimate, iterations)
             simulated, _ = simulate_loop(
-                loop, _simulable(estimate, iterations), Ts=Ts, theta0=theta[0],
-                velocity0=velocity0,
+                loop if method == "idim-iv" else _input_loop(theta, u, parameters[0], settings),
+                parameters, Ts=Ts, theta0=theta[0], velocity0=velocity0,
             )  # fmt: skip
             mismatch = _relative_error(theta, simulated)
-            if iterations == 1 and mismatch > MAX_LOOP_MISMATCH:
+            if method == "idim-iv" and iterations == 1 and mismatch > MAX_LOOP_MISMATCH:
                 raise ParameterValueError(
                     "loop does not describe the controller that produced the log: simulated "
                     f"with the IDIM-LS estimate it differs from the logged position by "
@@ -333,6 +395,10 @@ def identify(
                     "reference, gains, velocity filter and units"
                 )
             Z = instrument_rows(simulated, regression, settings)
+            # sign(velocity) is its own instrument: noise changes it only near rest, and the
+            # simulated one jumps with every stick event (IDIM-IV then does not converge)
+            if adaptive or method == "idim-iv-input":
+                Z[:, 2] = X[:, 2]
             try:
                 if _scaled_condition(Z) > MAX_CONDITION:
                     raise np.linalg.LinAlgError
@@ -377,8 +443,10 @@ def identify(
             )
     singular = np.linalg.svd(X, compute_uv=False)
     record = settings.to_dict()
-    record.update(method=method, n_rows=int(y.size), time_tolerance=float(time_tolerance))
-    if method == "idim-iv":
+    record.update(
+        method=method, adaptive=adaptive, n_rows=int(y.size), time_tolerance=float(time_tolerance)
+    )
+    if method != "idim-ls":
         record.update(max_iterations=max_iterations, tolerance=tolerance)
     return Identification(
         method=method,

@@ -178,7 +178,7 @@ class Log:
         Examples
         --------
         >>> from hpdob.identification import EMPS_PUBLISHED, EMPS_PUBLISHED_STD, emps
-        >>> fit = emps().identify()   # IDIM-LS, as the benchmark's reference script
+        >>> fit = emps().identify(method="idim-ls")   # as the benchmark's reference script
         >>> all(abs(fit.parameters[k] - EMPS_PUBLISHED[k]) < EMPS_PUBLISHED_STD[k]
         ...     for k in EMPS_PUBLISHED)   # within one published standard deviation
         True
