@@ -19,6 +19,7 @@ from hpdob.identification import (
     EMPS_PUBLISHED_STD,
     FeedbackLoop,
     Identification,
+    IdentificationWarning,
     emps,
     emps_loop,
     simulate_loop,
@@ -199,6 +200,7 @@ def test_synthetic_log_recovers_the_true_plant(quiet_log, method):
         loop=loop,
         min_speed=0.05,
         axis="rotary",
+        diagnostics=False,  # IDIM-LS's J moves by 11 % with the bandwidth doubled: it warns
     )
     true = SYNTHETIC_PLANT
     np.testing.assert_allclose(fit.J, true.J, rtol=0.015)
@@ -216,8 +218,10 @@ def test_idim_iv_removes_the_noise_bias_of_idim_ls():
     instruments of IDIM-IV are noise-free (mean 0.0 %, worst 1.0 %)."""
     result, loop = synthetic(1e-3)
     log = (result.t, result.theta_measured, result.u)
-    ls = identify(*log, method="idim-ls", loop=loop, min_speed=0.05)
-    iv = identify(*log, method="idim-iv", loop=loop, min_speed=0.05)
+    with pytest.warns(IdentificationWarning):
+        ls = identify(*log, method="idim-ls", loop=loop, min_speed=0.05)
+    assert any("J moves by" in message for message in ls.warnings)  # the diagnostics see it
+    iv = identify(*log, method="idim-iv", loop=loop, min_speed=0.05, diagnostics=False)
     assert ls.J / SYNTHETIC_PLANT.J < 0.9
     np.testing.assert_allclose(iv.J, SYNTHETIC_PLANT.J, rtol=0.02)
     np.testing.assert_allclose(iv.coulomb, SYNTHETIC_PLANT.coulomb, rtol=0.05)
@@ -312,7 +316,7 @@ def test_model_is_a_servo_model_without_offset(emps_ls):
 
 def test_model_refuses_negative_friction():
     t, q, u = _motion()
-    fit = identify(t, q, u - 5.0 * np.gradient(q, 1e-3), method="idim-ls")  # b = -5
+    fit = identify(t, q, u - 5.0 * np.gradient(q, 1e-3), method="idim-ls", diagnostics=False)
     with pytest.raises(ParameterValueError, match=r"identified b = -(5\.0|4\.99)\d* N m s/rad"):
         fit.model()
 
@@ -342,6 +346,7 @@ def test_idim_iv_that_does_not_converge_warns(quiet_log):
             min_speed=0.05,
             max_iterations=1,
             tolerance=1e-12,
+            diagnostics=False,
         )
     assert not fit.converged and fit.iterations == 1
 
@@ -355,10 +360,11 @@ def test_idim_iv_warns_when_the_loop_does_not_follow_the_log(quiet_log):
         reference_velocity=loop.reference_velocity,
         feedforward=loop.feedforward,
     )
-    with pytest.warns(hpdob.identification.IdentificationWarning, match="instruments are poor"):
+    with pytest.warns(hpdob.identification.IdentificationWarning):
         fit = identify(
             result.t, result.theta_measured, result.u, method="idim-iv", loop=wrong, min_speed=0.05
         )
+    assert any("instruments are poor" in message for message in fit.warnings)
     assert 10.0 < fit.simulation["position_error_percent"] < 50.0
 
 

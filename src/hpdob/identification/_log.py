@@ -164,7 +164,8 @@ class Log:
         Parameters
         ----------
         **options
-            Keyword arguments of :func:`hpdob.identify` (``method``, ``loop``, filters, ...).
+            Keyword arguments of :func:`hpdob.identify` (``method``, ``loop``, filters, ...);
+            the log's ``axis`` is the default.
 
         Returns
         -------
@@ -185,9 +186,55 @@ class Log:
         """
         from ._identify import identify
 
-        options.setdefault("axis", self.axis)
-        options.setdefault("time_tolerance", self.time_tolerance)
-        return identify(self.t, self.theta, self.u, **options)
+        return identify(self, **options)
+
+    def slice(self, start: float | None = None, stop: float | None = None) -> Log:
+        """The samples with ``start <= t < stop`` [s] as a new log (e.g. to identify on one
+        part and validate on another).
+
+        Parameters
+        ----------
+        start, stop : float or None
+            Bounds [s]; None for the log's first or last sample.
+
+        Returns
+        -------
+        Log
+            The same columns, ``reference`` included, and the same metadata; ``source``
+            gains the interval kept, e.g. ``"run.csv (t 0 to 12.4 s)"``.
+
+        Raises
+        ------
+        ParameterValueError
+            If fewer than 10 samples fall in the interval.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hpdob.identification import Log
+        >>> log = Log(t=np.arange(100) * 1e-3, theta=np.zeros(100), u=np.ones(100))
+        >>> len(log.slice(0.02, 0.05)), float(log.slice(0.02, 0.05).t[0])
+        (30, 0.02)
+        """
+        lo = -np.inf if start is None else as_real(start, "start", "a time [s] or None")
+        hi = np.inf if stop is None else as_real(stop, "stop", "a time [s] or None")
+        keep = (self.t >= lo - 1e-9 * self.Ts) & (self.t < hi - 1e-9 * self.Ts)
+        if np.count_nonzero(keep) < MIN_LOG_SAMPLES:
+            raise ParameterValueError(
+                f"log.slice({start!r}, {stop!r}) keeps {np.count_nonzero(keep)} samples of "
+                f"t = {self.t[0]:g} .. {self.t[-1]:g} s; a log needs at least {MIN_LOG_SAMPLES}"
+            )
+        return Log(
+            self.t[keep],
+            self.theta[keep],
+            self.u[keep],
+            reference=None if self.reference is None else self.reference[keep],
+            source=f"{self.source or 'log'} (t {self.t[keep][0]:g} to {self.t[keep][-1]:g} s)",
+            names=self.names,
+            input_gain=self.input_gain,
+            axis=self.axis,
+            time_tolerance=self.time_tolerance,
+        )
 
 
 def _name(value, role: str, *, optional: bool = False) -> str | None:
