@@ -324,8 +324,8 @@ class Identification:
         if several:
             for source, value, std in zip(self.sources, self.offsets, self.offsets_std,
                                           strict=True):  # fmt: skip
-                lines.append(f"    offset of {source:<12}{value:>12.6g} +- {std:<11.4g} "
-                             f"{u['offset']:<16} ({_relative(value, std, False)})")  # fmt: skip
+                lines.append(f"    offset of {source}: {value:.6g} +- {std:.4g} {u['offset']} "
+                             f"({_relative(value, std, False)})")  # fmt: skip
         lines.append(
             f"  relative error {self.relative_error:.3f} %, residual std "
             f"{self.residual_std:.4g} {u['input']}, condition number {self.condition_number:.1f}"
