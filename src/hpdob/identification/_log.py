@@ -27,7 +27,7 @@ from ._checks import (
 )
 from ._readers import read_columns, scalar
 
-__all__ = ["MIN_LOG_SAMPLES", "Log", "read_log"]
+__all__ = ["MIN_LOG_SAMPLES", "Log", "read_log", "read_logs"]
 
 #: Fewest samples a :class:`Log` may hold (identification needs far more; see identify()).
 MIN_LOG_SAMPLES = 10
@@ -313,12 +313,78 @@ def read_log(
     >>> len(log), log.Ts, round(log.input_gain, 2)
     (24841, 0.001, 35.15)
     """
+    logs = _read(path, time=time, position=position, input=input, input_gain=input_gain,
+                 reference=reference, Ts=Ts, axis=axis, time_tolerance=time_tolerance,
+                 run=None)  # fmt: skip
+    return logs[0]
+
+
+def read_logs(
+    path,
+    *,
+    run: str,
+    time: str | None = None,
+    position: str,
+    input: str,
+    input_gain: float | str = 1.0,
+    reference: str | None = None,
+    Ts: float | None = None,
+    axis: str | None = None,
+    time_tolerance: float = DEFAULT_TIME_TOLERANCE,
+) -> list[Log]:
+    r"""Read several runs from one file: a column ``run`` tells which run each row belongs to.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A CSV, Parquet or MATLAB ``.mat`` file (see :func:`read_log`).
+    run : str
+        Column of the run each row belongs to (numbers; rows of one run need not be
+        contiguous but keep their order). Each run's time must increase uniformly; it may
+        restart from 0.
+    time, position, input, input_gain, reference, Ts, axis, time_tolerance
+        As :func:`read_log`.
+
+    Returns
+    -------
+    list of Log
+        One per run, in the order the runs first appear; ``source`` is
+        ``"<file> run <value>"``.
+
+    Raises
+    ------
+    ParameterValueError
+        As :func:`read_log`, naming the run; or if a run has fewer than 10 samples.
+    ParameterTypeError
+        For arguments of the wrong type.
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, pathlib
+    >>> from hpdob.identification import read_logs
+    >>> t = np.arange(20) * 1e-3
+    >>> rows = ["run,t,q,u"] + [f"{r},{x},{np.sin(x)},{np.cos(x)}" for r in (1, 2) for x in t]
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "runs.csv"
+    >>> _ = path.write_text("\n".join(rows))
+    >>> [(log.source, len(log)) for log in read_logs(path, run="run", time="t", position="q",
+    ...                                              input="u")]
+    [('runs.csv run 1', 20), ('runs.csv run 2', 20)]
+    """
+    return _read(path, time=time, position=position, input=input, input_gain=input_gain,
+                 reference=reference, Ts=Ts, axis=axis, time_tolerance=time_tolerance,
+                 run=_name(run, "run"))  # fmt: skip
+
+
+def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_tolerance, run):
+    """The logs of a file: one, or one per value of the ``run`` column."""
     path = Path(path)
     wanted = {"position": _name(position, "position"), "input": _name(input, "input")}
     if _name(time, "time", optional=True) is not None:
         wanted["time"] = time
     if _name(reference, "reference", optional=True) is not None:
         wanted["reference"] = reference
+    if run is not None:
+        wanted["run"] = run
     if isinstance(input_gain, str):
         wanted["input_gain"] = input_gain
     elif isinstance(input_gain, (bool, np.bool_)) or not isinstance(input_gain, (int, float)):
@@ -341,16 +407,32 @@ def read_log(
         "position": f"positions [{unit['position']}]",
         "input": "logged inputs",
         "reference": f"reference positions [{unit['position']}]",
+        "run": "run numbers",
     }
     signals = {
         role: sample_vector(data[role], f"{role} column {name!r}", what[role])
         for role, name in wanted.items()
     }
     check_lengths({f"{role} {wanted[role]!r}": values for role, values in signals.items()})
+    runs = signals.pop("run", None)
+    if runs is None:
+        return [_build(signals, None, path, wanted, time, Ts, gain, axis, time_tolerance)]
+    values = list(dict.fromkeys(runs.tolist()))
+    return [_build({role: v[runs == value] for role, v in signals.items()}, value, path,
+                   wanted, time, Ts, gain, axis, time_tolerance) for value in values]  # fmt: skip
+
+
+def _build(signals, run, path, wanted, time, Ts, gain, axis, time_tolerance) -> Log:
+    """One :class:`Log` from validated columns (one run of the file, or all of it)."""
+    label = "" if run is None else f" run {run:g}"
     n = signals["position"].size
+    if run is not None and n < MIN_LOG_SAMPLES:
+        raise ParameterValueError(
+            f"{path.name}{label} has {n} samples; a log needs at least {MIN_LOG_SAMPLES}"
+        )
     if "time" in signals:
         t = signals["time"]
-        check_time(t, f"time column {time!r}", time_tolerance)
+        check_time(t, f"time column {time!r}{label}", time_tolerance)
     else:
         Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
         t = np.arange(n) * Ts
@@ -362,8 +444,8 @@ def read_log(
         theta=signals["position"],
         u=u,
         reference=signals.get("reference"),
-        source=path.name,
-        names={"time": time, "position": position, "input": input, "reference": reference},
+        source=path.name + label,
+        names={role: wanted.get(role) for role in ("time", "position", "input", "reference")},
         input_gain=gain,
         axis=axis,
         time_tolerance=time_tolerance,

@@ -277,3 +277,57 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
         velocity=velocity,
         kept=kept,
     )
+
+
+def differentiate(x, Ts: float, *, cutoff: float | None = None, order: int = 4, like=None):
+    r"""Velocity and acceleration of a sampled position by identify's filtered differentiation.
+
+    The position is low-pass filtered by a Butterworth filter run forward and backward (no
+    lag) and differentiated twice by central differences: steps 1-2 of IDIM-LS (EMPS
+    description, section 3). Use it for a logged reference position, to give
+    :class:`FeedbackLoop` its ``reference_velocity`` and feed-forward consistently with the
+    identification.
+
+    Parameters
+    ----------
+    x : array_like
+        Position [rad or m], uniformly sampled.
+    Ts : float
+        Sampling period [s].
+    cutoff : float, optional
+        Cut-off [Hz] of the filter. Default: the one ``identify(method="auto")`` chooses for
+        the position ``like`` (5 x half its signal bandwidth; see :func:`identify`, Notes).
+    order : int, optional
+        Butterworth order (4).
+    like : array_like, optional
+        The measured position whose default cut-off to use (default ``x`` itself).
+
+    Returns
+    -------
+    velocity, acceleration : ndarray
+        [rad/s or m/s], [rad/s^2 or m/s^2].
+
+    Raises
+    ------
+    ParameterValueError
+        If ``cutoff`` is not below the Nyquist frequency, or ``x`` is not finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hpdob.identification import differentiate
+    >>> t = np.arange(4000) * 1e-3
+    >>> v, a = differentiate(np.sin(2 * np.pi * t), 1e-3, cutoff=50.0)
+    >>> round(float(v[2000]), 3), round(float(a[2250]), 2)   # 2 pi cos, -(2 pi)^2 sin
+    (6.283, -39.48)
+    """
+    from ._checks import sample_vector
+
+    x = sample_vector(x, "x", "positions [rad or m]")
+    Ts = positive(Ts, "Ts", "a positive sampling period [s]")
+    if cutoff is None:
+        reference = x if like is None else sample_vector(like, "like", "positions [rad or m]")
+        cutoff = 5.0 * adaptive_bandwidth(reference, Ts)
+    settings = resolve_settings(Ts, cutoff=cutoff, order=order, decimation=1, border=0)
+    _, velocity, acceleration = kinematics(x, settings)
+    return velocity, acceleration
