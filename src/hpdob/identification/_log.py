@@ -62,6 +62,8 @@ class Log:
     axis : {"rotary", "linear"} or None, optional
     time_tolerance : float, optional
         Relative tolerance of the uniform-sampling check. Default 1e-3.
+    columns : mapping, optional
+        Further logged signals by name (e.g. ``reference_velocity``), one sample each.
 
     Attributes
     ----------
@@ -95,6 +97,7 @@ class Log:
     input_gain: float = 1.0
     axis: str | None = None
     time_tolerance: float = DEFAULT_TIME_TOLERANCE
+    columns: Mapping = field(default_factory=dict)
     Ts: float = field(init=False)
 
     def __post_init__(self) -> None:
@@ -109,7 +112,13 @@ class Log:
             signals["reference"] = sample_vector(
                 self.reference, "reference", f"reference positions [{unit['position']}]"
             )
-        n = check_lengths(signals)
+        if not isinstance(self.columns, Mapping):
+            raise ParameterTypeError(
+                f"columns must be a mapping of names to signals, got {type(self.columns).__name__}"
+            )
+        extra = {str(k): sample_vector(v, f"columns[{k!r}]", "samples")
+                 for k, v in self.columns.items()}  # fmt: skip
+        n = check_lengths({**signals, **{f"columns[{k!r}]": v for k, v in extra.items()}})
         if n < MIN_LOG_SAMPLES:
             raise ParameterValueError(
                 f"a log must hold at least {MIN_LOG_SAMPLES} samples, got {n}"
@@ -127,6 +136,9 @@ class Log:
         for name, array in signals.items():
             object.__setattr__(self, name, readonly(array))
         object.__setattr__(self, "names", types.MappingProxyType(dict(self.names)))
+        object.__setattr__(
+            self, "columns", types.MappingProxyType({k: readonly(v) for k, v in extra.items()})
+        )
         object.__setattr__(self, "input_gain", gain)
         object.__setattr__(self, "time_tolerance", float(self.time_tolerance))
         object.__setattr__(self, "Ts", Ts)
@@ -234,6 +246,7 @@ class Log:
             input_gain=self.input_gain,
             axis=self.axis,
             time_tolerance=self.time_tolerance,
+            columns={name: values[keep] for name, values in self.columns.items()},
         )
 
 
@@ -259,6 +272,7 @@ def read_log(
     Ts: float | None = None,
     axis: str | None = None,
     time_tolerance: float = DEFAULT_TIME_TOLERANCE,
+    columns: Mapping | None = None,
 ) -> Log:
     """Read a logged run from a CSV, Parquet or MATLAB ``.mat`` file by column names.
 
@@ -288,6 +302,9 @@ def read_log(
         Units of the log (rad and N m, or m and N); None leaves them unstated.
     time_tolerance : float, optional
         Relative tolerance of the uniform-sampling check of the time column (1e-3).
+    columns : mapping, optional
+        Further columns to read, ``{name: column}`` (e.g. ``{"reference_velocity":
+        "rdot"}``); the log's ``columns`` holds them.
 
     Returns
     -------
@@ -315,7 +332,7 @@ def read_log(
     """
     logs = _read(path, time=time, position=position, input=input, input_gain=input_gain,
                  reference=reference, Ts=Ts, axis=axis, time_tolerance=time_tolerance,
-                 run=None)  # fmt: skip
+                 run=None, columns=columns)  # fmt: skip
     return logs[0]
 
 
@@ -331,6 +348,7 @@ def read_logs(
     Ts: float | None = None,
     axis: str | None = None,
     time_tolerance: float = DEFAULT_TIME_TOLERANCE,
+    columns: Mapping | None = None,
 ) -> list[Log]:
     r"""Read several runs from one file: a column ``run`` tells which run each row belongs to.
 
@@ -342,7 +360,7 @@ def read_logs(
         Column of the run each row belongs to (numbers; rows of one run need not be
         contiguous but keep their order). Each run's time must increase uniformly; it may
         restart from 0.
-    time, position, input, input_gain, reference, Ts, axis, time_tolerance
+    time, position, input, input_gain, reference, Ts, axis, time_tolerance, columns
         As :func:`read_log`.
 
     Returns
@@ -372,10 +390,11 @@ def read_logs(
     """
     return _read(path, time=time, position=position, input=input, input_gain=input_gain,
                  reference=reference, Ts=Ts, axis=axis, time_tolerance=time_tolerance,
-                 run=_name(run, "run"))  # fmt: skip
+                 run=_name(run, "run"), columns=columns)  # fmt: skip
 
 
-def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_tolerance, run):
+def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_tolerance, run,
+          columns):  # fmt: skip
     """The logs of a file: one, or one per value of the ``run`` column."""
     path = Path(path)
     wanted = {"position": _name(position, "position"), "input": _name(input, "input")}
@@ -385,6 +404,13 @@ def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_
         wanted["reference"] = reference
     if run is not None:
         wanted["run"] = run
+    if columns is not None:
+        if not isinstance(columns, Mapping):
+            raise ParameterTypeError(
+                f"columns must be a mapping of names to columns, got {columns!r}"
+            )
+        for key, name in columns.items():
+            wanted[f"column {key}"] = _name(name, f"columns[{key!r}]")
     if isinstance(input_gain, str):
         wanted["input_gain"] = input_gain
     elif isinstance(input_gain, (bool, np.bool_)) or not isinstance(input_gain, (int, float)):
@@ -410,7 +436,7 @@ def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_
         "run": "run numbers",
     }
     signals = {
-        role: sample_vector(data[role], f"{role} column {name!r}", what[role])
+        role: sample_vector(data[role], f"{role} column {name!r}", what.get(role, "samples"))
         for role, name in wanted.items()
     }
     check_lengths({f"{role} {wanted[role]!r}": values for role, values in signals.items()})
@@ -449,4 +475,5 @@ def _build(signals, run, path, wanted, time, Ts, gain, axis, time_tolerance) -> 
         input_gain=gain,
         axis=axis,
         time_tolerance=time_tolerance,
+        columns={role[7:]: v for role, v in signals.items() if role.startswith("column ")},
     )
