@@ -266,7 +266,7 @@ def identify(
     per_run = [layout.parameters(solution.estimate, i) for i in range(len(runs))]
     fits, simulation, traces = [], None, None
     for i, run in enumerate(runs):
-        if per_run[i][0] <= 0.0:
+        if per_run[i][0] <= 0.0 or not (diagnostics or (i == 0 and run.loop is not None)):
             fits.append(None)
             continue
         fit = simulate_fit(per_run[i], run.t, run.theta, run.u, run.loop, run.settings)

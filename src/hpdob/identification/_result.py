@@ -109,7 +109,8 @@ class Identification:
         The log each regression row comes from (index into ``sources``).
     fits : tuple of (mapping or None)
         Per log: the identified model simulated on it (through its loop, or open loop from
-        its input) and the NRMSE fits [%] of position and velocity (MATLAB ``compare``).
+        its input) and the NRMSE fits [%] of position and velocity (MATLAB ``compare``);
+        None without ``diagnostics`` (but for a first log with a loop: ``simulation``).
     sensitivity : mapping or None
         ``{"x2": {...}, "/2": {...}}``: how far each estimated parameter moves, in standard
         deviations, with the filters' bandwidth doubled and halved.
