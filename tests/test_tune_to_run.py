@@ -136,3 +136,10 @@ def test_scenario_toml_refuses_what_has_no_file_form():
         scenario_toml(loop, reference=Step(0.1, 1.0), duration=1.0)
     with pytest.raises(TypeError, match="reference must be made of"):
         scenario_toml(LOOPS["pd-only"], reference=lambda t: (t, t, t), duration=1.0)
+
+
+def test_tuning_result_shows_a_compact_table(tuned):
+    result, _ = tuned
+    text = result._repr_markdown_()
+    assert text.startswith(f"**TuningResult: {result.recommendation['name']}**")
+    assert f"| PD velocity | {result.controller.velocity} |" in text

@@ -54,6 +54,18 @@ class EstimationResult:
     def __len__(self) -> int:
         return self.t.size
 
+    def _repr_markdown_(self) -> str:
+        """A compact table for Jupyter: the run and the range of the estimate."""
+        from .._repr import markdown_table
+
+        tau = self.tau_hat
+        return markdown_table(f"EstimationResult {self.label!r}", [
+            ("samples", f"{len(self)} (Ts = {self.Ts:g} s)"),
+            ("tau_hat [N m or N]", None if tau.size == 0 else
+             f"{tau.min():.4g} to {tau.max():.4g}, last {tau[-1]:.4g}"),
+            ("omega_hat", None if self.omega_hat is None else "estimated"),
+        ])  # fmt: skip
+
     def _columns(self) -> dict:
         columns = {"t": self.t, "theta": self.theta}
         if self.omega is not None:

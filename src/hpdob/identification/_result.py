@@ -211,6 +211,22 @@ class Identification:
         return ServoModel(self.J, self.b, coulomb=self.coulomb, coulomb_velocity=velocity)
 
     # -- reports -----------------------------------------------------------------------------
+    def _repr_markdown_(self) -> str:
+        """A compact table for Jupyter: each parameter with its standard deviation and unit."""
+        from .._repr import markdown_table
+
+        u, linear = self.units, self.axis == "linear"
+        rows = [("method", f"{self.method} ({self.n_samples} samples)")]
+        rows += [
+            (
+                f"{_LABELS[name][1 if linear else 0]} [{u[name]}]",
+                f"{value:.4g} ± {self.std[name]:.2g}",
+            )
+            for name, value in self.parameters.items()
+        ]
+        rows.append(("relative error [%]", self.relative_error))
+        return markdown_table("IdentificationResult", rows)  # fmt: skip
+
     def summary(self) -> str:
         """A report of the identification.
 

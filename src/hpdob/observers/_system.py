@@ -89,6 +89,18 @@ class _Designed:
         """
         return self.system.to_statespace()
 
+    def _repr_markdown_(self) -> str:
+        """A compact table for Jupyter: family, nominal model, poles, signals."""
+        from .._repr import markdown_table
+
+        system, model = self.system, self.model
+        return markdown_table(system.name, [
+            ("nominal model", f"J_n = {model.J:.4g} kg m², b_n = {model.b:.4g} N m s/rad"),
+            ("Ts [s]", model.Ts), ("bandwidth [rad/s]", getattr(self, "bandwidth", None)),
+            ("poles", getattr(self, "poles", None)), ("states", system.n_states),
+            ("measures", ", ".join(system.measures)), ("outputs", ", ".join(system.outputs)),
+        ])  # fmt: skip
+
 
 def _matrix(value, name: str, shape: tuple) -> np.ndarray:
     array = numeric_array(value, name, f"a real matrix of shape {shape}", dtype=float)

@@ -86,6 +86,19 @@ class TuningResult:
         """The PD the recommendation was verified with (its velocity source included)."""
         return self.recommended["_controller"]
 
+    def _repr_markdown_(self) -> str:
+        """A compact table for Jupyter: the recommendation and its figures."""
+        from .._repr import markdown_table
+
+        r = self.recommended
+        return markdown_table(f"TuningResult: {r['name']}", [
+            (r["parameter"], r["value"]), ("candidates", len(self.rows)),
+            ("accuracy abs(1 - Q)", r["accuracy"]), ("noise in the estimate [N m RMS]",
+                                                 r["tau_noise"]),
+            ("worst spectral radius", r["radius"]), ("PD velocity", self.controller.velocity),
+            ("simulated estimation error [N m RMS]", r.get("simulated_estimation")),
+        ])  # fmt: skip
+
     def loop(self):
         """The loop the recommendation was simulated in, at the centre of the uncertainty set.
 
