@@ -146,7 +146,7 @@ class EstimationResult:
             columns_to_csv(self._columns(), temporary)
         return path
 
-    def plot(self, *, reference=None, reference_label: str = "reference", title=None):
+    def plot(self, *, reference=None, reference_label: str = "reference", title=None, axis=None):
         """Figure: position, and the estimate (with an optional reference such as a friction
         model evaluated on the log).
 
@@ -158,25 +158,40 @@ class EstimationResult:
             Its legend entry. Default ``"reference"``.
         title : str, optional
             The figure's title. Default none.
+        axis : {"rotary", "linear"}, optional
+            The units of the labels: rad and N m, or m and N. Default: both named
+            ("rad or m").
 
         Returns
         -------
         matplotlib.figure.Figure
+
+        Raises
+        ------
+        ParameterValueError
+            For an unknown ``axis``.
         """
         import matplotlib.pyplot as plt
 
-        from .._plotting import PAPER_WIDTH, style_axes
+        from .._plotting import PAPER_WIDTH, style_axes, time_axis
+        from .._validation import check_choice
+
+        position, force = {"rotary": ("rad", "N m"), "linear": ("m", "N"),
+                           None: ("rad or m", "N m or N")}[
+            None if axis is None else check_choice(axis, "axis", ("rotary", "linear"))
+        ]  # fmt: skip
 
         fig, (top, bottom) = plt.subplots(
             2, 1, figsize=(PAPER_WIDTH, 4.6), sharex=True, layout="constrained"
         )
         top.plot(self.t, self.theta, color="tab:blue", linewidth=1.0)
-        style_axes(top, xlabel=None, ylabel="position [rad or m]")
+        style_axes(top, xlabel=None, ylabel=f"position [{position}]")
         if reference is not None:
             bottom.plot(self.t, reference, color="0.4", linewidth=1.0, label=reference_label)
         bottom.plot(self.t, self.tau_hat, color="tab:red", linewidth=0.8,
                     label=rf"$\hat\tau$ ({self.label or 'observer'})")  # fmt: skip
-        style_axes(bottom, xlabel="time [s]", ylabel="disturbance [N m or N]")
+        style_axes(bottom, xlabel="time [s]", ylabel=f"disturbance [{force}]")
+        time_axis(bottom, self.t, self.Ts)
         bottom.legend(loc="upper center", bbox_to_anchor=(0.5, -0.28), ncols=2, fontsize="small")
         if title:
             fig.suptitle(title, fontsize="medium")
