@@ -8,6 +8,7 @@ leaves the drawn y-range a clipping mark of its colour says so (``v`` below, ``^
 
 from __future__ import annotations
 
+import itertools
 import re
 from pathlib import Path
 
@@ -182,6 +183,12 @@ def test_clipping_marks_where_data_leave_the_range(figures):
         for ax in fig.axes:
             marks = [line for line in ax.get_lines() if line.get_marker() in ("v", "^")
                      and not line.get_clip_on()]  # fmt: skip
+            # a mark hidden under another series' mark marks nothing (Fig. 4b's DOb-100 was)
+            where = [m.get_transform().transform(m.get_xydata())[0] for m in marks]
+            size = 6 * fig.dpi / 72  # the marks' size [pixels]
+            for (i, a), (j, b) in itertools.combinations(enumerate(where), 2):
+                if to_rgba(marks[i].get_color()) != to_rgba(marks[j].get_color()):
+                    assert np.hypot(*(a - b)) >= 0.6 * size, f"{key}: two marks overlap"
             for line in _traces(ax):
                 xy = line.get_transform().transform(line.get_xydata())
                 box, lo, hi = _drawn_range(ax, line)
@@ -218,3 +225,26 @@ def test_estimate_rotary_axis_labels_name_one_unit(figures):
     fig = figures[("estimate", "estimate")]
     labels = [ax.get_ylabel() for ax in fig.axes]
     assert labels == ["position [rad]", "disturbance [N m]"]
+
+
+def test_mark_clipped_marks_every_series_in_its_colour_both_ways():
+    from hpdob._plotting import mark_clipped
+
+    fig, ax = plt.subplots()
+    t = np.linspace(0.0, 1.0, 101)
+    up_down = np.where(t == 0.5, 5.0, 0.0) - np.where(t == 0.6, 4.0, 0.0)  # leaves both ways
+    down = -np.where(t == 0.5, 3.0, 0.0)  # at the same instant as the first's spike
+    series = []
+    for y, label, colour in ((up_down, "first", "tab:green"), (down, "second", "tab:blue")):
+        (line,) = ax.plot(t, y, color=colour, label=label)
+        series.append((t, y, line, label))
+    ax.set_ylim(-1.0, 1.0)
+    notes = mark_clipped(ax, series, -1.0, 1.0)
+    assert notes == ["first: \N{MINUS SIGN}4.000 / +5.000 N m", "second: \N{MINUS SIGN}3.000 N m"]
+    marks = {(m.get_marker(), m.get_color()) for m in ax.get_lines() if not m.get_clip_on()}
+    assert marks == {("v", "tab:green"), ("^", "tab:green"), ("v", "tab:blue")}
+    fig.draw_without_rendering()
+    at_half = [m.get_transform().transform(m.get_xydata())[0][0] for m in ax.get_lines()
+               if not m.get_clip_on() and m.get_xdata()[0] == 0.5]  # fmt: skip
+    assert len(at_half) == 2 and abs(at_half[0] - at_half[1]) >= 6 * fig.dpi / 72 - 1e-9
+    plt.close(fig)
