@@ -8,9 +8,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._table import columns_to_csv, columns_to_pandas
-from .._validation import ParameterTypeError, ParameterValueError, as_real, readonly
+from .._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    as_real,
+    as_real_vector,
+    readonly,
+)
 from ..observers._core import initial_state
-from ..observers._runtime import Observer
 from ..observers._system import as_system
 from ._checks import check_lengths, check_time, sample_vector
 
@@ -207,7 +212,8 @@ def _velocity(theta: np.ndarray, Ts: float) -> np.ndarray:
     return omega
 
 
-def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float = 0.0):
+def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float = 0.0,
+                         state=None):  # fmt: skip
     r"""Run an observer of any family over a logged run; return its estimates.
 
     At every sample ``k`` the observer gives its estimate from the measurement, then is
@@ -215,13 +221,18 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
     exactly as in the sample loop; the loop runs compiled (numba), evaluating the observer's
     program in the same order as the runtime object, which it reproduces bit for bit.
 
+    One rule for where the run starts, whatever form the observer is given in (a design, a
+    :class:`~hpdob.LinearObserver`, a runtime object): converged at the log's first sample,
+    ``initial_state(observer, (theta[0], omega[0]), tau0)`` (with ``omega[0] = 0`` when the
+    velocity is differenced or estimated), unless ``state`` gives the start explicitly, e.g.
+    ``state=obs.state`` to continue from a runtime object. The observer passed in is never
+    changed.
+
     Parameters
     ----------
     observer : LinearObserver, design or runtime observer
         Designed on the nominal model of the logged axis (e.g. ``identify(...).model()``) at the
-        log's sampling period. A runtime object starts from its current state (and is not
-        changed); otherwise the observer starts at rest at the first sample:
-        ``initial_state(observer, (theta[0], omega[0]), tau0)``.
+        log's sampling period.
     theta : array_like
         Measured position [rad or m], one entry per sample.
     u : array_like
@@ -235,6 +246,9 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
         ``k Ts``.
     tau0 : float, optional
         Initial disturbance of the reset [N m or N]. Default 0.
+    state : array_like, optional
+        The observer's state at the first sample instead (``n_states`` finite values, e.g. a
+        runtime object's ``.state``); not together with a non-zero ``tau0``.
 
     Returns
     -------
@@ -244,8 +258,8 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
     ------
     TypeError, ValueError
         For a wrong observer, signals of different lengths or with non-finite samples,
-        non-uniform time, a time step other than the observer's ``Ts``, or ``omega`` given to a
-        position-only observer.
+        non-uniform time, a time step other than the observer's ``Ts``, ``omega`` given to a
+        position-only observer, or a ``state`` of the wrong size.
 
     Examples
     --------
@@ -287,15 +301,22 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
     else:
         t = np.arange(n) * Ts
     tau0 = as_real(tau0, "tau0", "a finite initial disturbance [N m or N]")
+    if state is not None:
+        state = as_real_vector(state, "state", f"the observer's {system.n_states} finite states",
+                               length=system.n_states)  # fmt: skip
+        if tau0 != 0.0:
+            raise ParameterValueError(
+                f"give tau0 or state, not both: state sets the start, got tau0={tau0!r}"
+            )
     if position_only:
         velocity = None
         measurements = theta[:, None]
     else:
         velocity = signals["omega"] if omega is not None else _velocity(theta, Ts)
         measurements = np.column_stack([theta, velocity])
-    if isinstance(observer, Observer):
-        s0 = observer.state
-    else:
+    if state is not None:
+        s0 = np.array(state, dtype=float)
+    else:  # one rule for every form of observer: converged at the first sample
         omega0 = 0.0 if velocity is None else float(velocity[0])
         s0 = np.array(initial_state(system, (float(theta[0]), omega0), tau0))
     update, output, _ = system.kernel_arrays
