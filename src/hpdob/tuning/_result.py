@@ -111,7 +111,11 @@ class TuningResult:
             delay): ``simulate(result.loop(), **result.scenario)`` repeats the run that ranked
             it. The corners are ``loop.replace(plant=...)``.
         """
-        return self.recommended["_loop"]
+        from ..simulation._devices import Actuator
+
+        base, s = self.recommended["_base"], self.settings  # the linear figures' loop
+        actuator = Actuator(torque_limit=s["torque_limit"], delay_samples=s["delay_samples"])
+        return base.replace(plant=base.plant.replace(coulomb=s["coulomb"]), actuator=actuator)
 
     @property
     def recommendation(self) -> dict:

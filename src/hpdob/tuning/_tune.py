@@ -320,6 +320,7 @@ def tune(
     objective = check_choice(objective, "objective", OBJECTIVES)
     if progress is not None and not callable(progress):
         raise ParameterTypeError(f"progress must be callable or None, got {progress!r}")
+    report = progress or (lambda stage, done, total: None)  # silent by default
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
     if coulomb is None:
@@ -346,10 +347,6 @@ def tune(
 
     def plant(J_ratio: float, b: float) -> ServoModel:
         return ServoModel(J_ratio * nominal.J, b)
-
-    def report(stage: str, done: int, total: int) -> None:
-        if progress is not None:
-            progress(stage, done, total)
 
     rows = []
     for done, (family, m, parameter, value, design) in enumerate(candidates):
@@ -387,6 +384,7 @@ def tune(
             "robust": robust,
             "within_noise": noise_limit is None or tau_noise <= noise_limit,
             "pareto": False, "simulated": math.nan, "_design": design, "_controller": ctrl,
+            "_base": base,
         })  # fmt: skip
     if not rows:
         raise ParameterValueError("no candidate could be designed: " + "; ".join(notes[:3]))
@@ -456,11 +454,6 @@ def tune(
         if all(not c["diverged"] and c["radius"] < 1.0 for c in checks):
             report("verification", len(corners), len(corners))
             verification = (r, checks)
-            # the loop that was simulated at the centre (TuningResult.loop())
-            r["_loop"] = ServoLoop(plant=ServoModel(centre[0] * nominal.J, centre[1],
-                                                    coulomb=coulomb), nominal=nominal, Ts=Ts,
-                                   controller=r["_controller"], observer=r["_design"],
-                                   **simulation)  # fmt: skip
             break
         notes.append(f"{r['name']} at {r['parameter']}={r['value']:.4g} failed at a corner")
     if verification is None:
