@@ -100,7 +100,14 @@ def run(browser: str, profile: Path, url: str, *extra: str) -> str:
     return done.stdout
 
 
-def check(html: Path, shots: Path, min_column: int) -> list[str]:
+def every_page(html: Path) -> tuple[str, ...]:
+    """The site's own pages (the guides, topics, API and gallery pages; not search or index)."""
+    skip = ("genindex", "search", "py-modindex", "_modules/", "_sources/", "_static/", "_probe_")
+    pages = (str(p.relative_to(html)) for p in sorted(html.rglob("*.html")))
+    return tuple(p for p in pages if not p.startswith(skip) and "/_probe_" not in p)
+
+
+def check(html: Path, shots: Path, min_column: int, pages=PAGES) -> list[str]:
     """Screenshot and measure each page; return the problems found."""
     browser = chromium()
     problems = []
@@ -108,7 +115,7 @@ def check(html: Path, shots: Path, min_column: int) -> list[str]:
     with tempfile.TemporaryDirectory(prefix="hpdob-layout-") as tmp:
         site = Path(tmp) / "site"
         shutil.copytree(html, site)  # the probe goes into copies, never into the built site
-        for page in PAGES:
+        for page in pages:
             path = site / page
             if not path.exists():
                 problems.append(f"{page}: not in the built site")
@@ -156,6 +163,9 @@ def main(argv=None) -> int:
         help="where the screenshots go (default: %(default)s)",
     )
     parser.add_argument(
+        "--all", action="store_true", help="measure every page of the site, not only the four"
+    )
+    parser.add_argument(
         "--min-column",
         type=int,
         default=720,
@@ -164,7 +174,8 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)  # fmt: skip
     with tempfile.TemporaryDirectory(prefix="hpdob-site-") as tmp:
         html = args.html if args.html is not None else build(Path(tmp))
-        problems = check(html, args.shots, args.min_column)
+        pages = every_page(html) if args.all else PAGES
+        problems = check(html, args.shots, args.min_column, pages)
     for problem in problems:
         print(f"FAIL {problem}")
     print("layout: ok" if not problems else f"layout: {len(problems)} problems")
