@@ -123,6 +123,19 @@ def test_servo_loop_and_simulate_take_transfer_functions():
     np.testing.assert_array_equal(legacy.theta, theirs.theta)
 
 
+def test_observer_on_the_sampled_tf_fits_the_loop_on_the_tf():
+    """Read back from python-control, J and b carry round-off (1e-13 here): the loop's check
+    that the observer was designed on its nominal model holds to 1e-9, not to the last bit,
+    and still refuses a model that differs."""
+    tf = 1 / (3.06e-4 * s**2 + 5e-5 * s)
+    observer = DisturbanceObserver(control.c2d(tf, TS), order=1, bandwidth=100.0)
+    loop = ServoLoop(plant=tf, nominal=tf, Ts=TS, controller=PD(50, 5), observer=observer)
+    assert pytest.approx(observer.design.model.J, rel=1e-12) == loop.nominal.J
+    with pytest.raises(ParameterValueError, match=r"must be designed on nominal\.discretize"):
+        ServoLoop(plant=tf, nominal=ServoModel(3.06e-4 * (1 + 1e-6), 5e-5), Ts=TS,
+                  controller=PD(50, 5), observer=observer)  # fmt: skip
+
+
 # -- LinearObserver.from_statespace -----------------------------------------------------------
 MODEL = ServoModel(J, B).discretize(TS)
 FAMILIES = {

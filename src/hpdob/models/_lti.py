@@ -180,7 +180,10 @@ def discrete_servo_parameters(sys, *, torque_gain: float = 1.0, name: str = "sys
             f"{what}: it needs poles z = 1 and z = exp(-b Ts/J) in (0, 1] and one zero, got "
             f"poles {np.round(poles, 9).tolist()} ({_describe(num, den)})"
         )
-    alpha = abs(math.log(float(other.real)))  # the pole is in (0, 1]: alpha >= 0, never -0.0
+    # (z - 1)(z - p) = z^2 - (1 + p) z + p: p is the constant coefficient, more accurate than
+    # a root of the nearly double root at 1
+    p = float(den[2]) if abs(float(den[2]) - other.real) < 1e-6 else float(other.real)
+    alpha = abs(math.log1p(p - 1.0))  # p in (0, 1]: alpha >= 0, never -0.0
     unit = ServoModel(1.0, alpha / Ts).discretize(Ts)  # J = 1: the shape, scaled below
     unit_num = np.array([unit.B[0], unit.A[0, 1] * unit.B[1] - unit.A[1, 1] * unit.B[0]])
     J = float(np.sum(unit_num) / np.sum(num))

@@ -29,6 +29,7 @@ of rounded sums such as :math:`p_{m+1} - k_{m+1}`.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -470,7 +471,8 @@ def as_system(observer, name: str = "observer") -> LinearObserver:
 
 
 def check_designed_on(system, nominal, Ts: float, name: str = "observer") -> None:
-    """Raise unless ``system`` was synthesised on ``nominal.discretize(Ts)`` (same J, b, Ts).
+    """Raise unless ``system`` was synthesised on ``nominal.discretize(Ts)`` (same J, b, Ts;
+    J and ``b Ts/J`` to 1e-9 relative).
 
     ``system`` is a :class:`LinearObserver` or anything with one (``.system``); an observer
     without a nominal model (``model=None``) is checked for ``Ts`` only.
@@ -484,7 +486,12 @@ def check_designed_on(system, nominal, Ts: float, name: str = "observer") -> Non
                 f"loop has Ts={Ts}"
             )
         return
-    if (model.J, model.b, model.Ts) != (nominal.J, nominal.b, Ts):
+    # to 1e-9 relative: a model read back from python-control (ServoModel.from_lti,
+    # DiscreteServoModel.from_lti) is the same nominal model to its last digits, not to all
+    same_J = math.isclose(model.J, nominal.J, rel_tol=1e-9)
+    same_b = math.isclose(model.b * Ts / model.J, nominal.b * Ts / nominal.J, rel_tol=1e-9,
+                          abs_tol=1e-12)  # fmt: skip
+    if not (same_J and same_b and model.Ts == Ts):
         raise ParameterValueError(
             f"{name} must be designed on nominal.discretize(Ts): its model has J={model.J}, "
             f"b={model.b}, Ts={model.Ts} but nominal has J={nominal.J}, b={nominal.b} and Ts={Ts}"
