@@ -302,16 +302,11 @@ class Identification:
         """A compact table for Jupyter: each parameter with its standard deviation and unit."""
         from .._repr import markdown_table
 
-        u, linear = self.units, self.axis == "linear"
-        rows = [("method", f"{self.method} ({self.n_samples} samples)")]
-        rows += [
-            (
-                f"{_LABELS[name][1 if linear else 0]} [{u[name]}]",
-                f"{value:.4g} ± {self.std[name]:.2g}",
-            )
-            for name, value in self.parameters.items()
-        ]
-        rows.append(("relative error [%]", self.relative_error))
+        u, i = self.units, int(self.axis == "linear")
+        rows = [(f"{_LABELS[n][i]} [{u[n]}]", f"{v:.4g} ± {self.std[n]:.2g}")
+                for n, v in self.parameters.items()]  # fmt: skip
+        rows += [("method", f"{self.method} ({self.n_samples} samples)"),
+                 ("relative error [%]", self.relative_error)]  # fmt: skip
         return markdown_table("IdentificationResult", rows)  # fmt: skip
 
     def summary(self) -> str:
