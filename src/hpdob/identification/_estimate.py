@@ -12,7 +12,7 @@ from .._validation import ParameterTypeError, ParameterValueError, as_real, read
 from ..observers._core import initial_state
 from ..observers._runtime import Observer
 from ..observers._system import as_system
-from ._checks import check_lengths, check_time, sample_vector
+from ._checks import check_lengths, check_time, sample_view
 
 __all__ = ["EstimationResult", "estimate_disturbance"]
 
@@ -171,15 +171,6 @@ class EstimationResult:
         return fig
 
 
-def _velocity(theta: np.ndarray, Ts: float) -> np.ndarray:
-    """Backward difference of ``theta``; the first sample's velocity is 0 (at rest before the
-    log starts), as the encoder model of :class:`hpdob.Encoder`."""
-    omega = np.empty_like(theta)
-    omega[0] = 0.0
-    omega[1:] = np.diff(theta) / Ts
-    return omega
-
-
 def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float = 0.0):
     r"""Run an observer of any family over a logged run; return its estimates.
 
@@ -231,11 +222,12 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
     >>> round(float(result.tau_hat[-1]), 9)
     0.02
     """
-    from ..simulation._kernel import run_observer
+    from . import _estimate_kernel as kernel
 
     system = as_system(observer)
-    theta = sample_vector(theta, "theta", "measured positions [rad or m]")
-    u = sample_vector(u, "u", "applied torques or forces [N m or N]")
+    # Checked without a copy where possible: the loop copies the signals while it reads them.
+    theta = sample_view(theta, "theta", "measured positions [rad or m]")
+    u = sample_view(u, "u", "applied torques or forces [N m or N]")
     signals = {"theta": theta, "u": u}
     position_only = len(system.measures) == 1
     if omega is not None:
@@ -244,11 +236,11 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
                 "omega must be None for an observer that measures the position only "
                 f"(measures {system.measures}); it estimates the velocity itself"
             )
-        signals["omega"] = sample_vector(omega, "omega", "measured velocities [rad/s or m/s]")
+        signals["omega"] = sample_view(omega, "omega", "measured velocities [rad/s or m/s]")
     n = check_lengths(signals)
     Ts = system.Ts
     if t is not None:
-        t = sample_vector(t, "t", "sampling instants [s]")
+        t = sample_view(t, "t", "sampling instants [s]")
         check_lengths({**signals, "t": t})
         if n > 1:
             step = check_time(t, "t", 1e-3)
@@ -257,33 +249,31 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
                     f"t must advance by the observer's sampling period Ts = {float(Ts)!r} s, got a "
                     f"step of {float(step)!r} s"
                 )
-    else:
-        t = np.arange(n) * Ts
     tau0 = as_real(tau0, "tau0", "a finite initial disturbance [N m or N]")
-    if position_only:
-        velocity = None
-        measurements = theta[:, None]
-    else:
-        velocity = signals["omega"] if omega is not None else _velocity(theta, Ts)
-        measurements = np.column_stack([theta, velocity])
-    if isinstance(observer, Observer):
-        s0 = observer.state
-    else:
-        omega0 = 0.0 if velocity is None else float(velocity[0])
-        s0 = np.array(initial_state(system, (float(theta[0]), omega0), tau0))
-    update, output, _ = system.kernel_arrays
-    y = run_observer(*update, *output, np.ascontiguousarray(measurements), u, s0,
-                     len(system.outputs))  # fmt: skip
     label = getattr(observer, "label", "") or system.name
     if not isinstance(label, str):
         raise ParameterTypeError(f"the observer's label must be a str, got {label!r}")
+    if position_only:
+        mode = kernel.VELOCITY_NONE
+    elif omega is not None:
+        mode = kernel.VELOCITY_GIVEN
+    else:  # the backward difference, written by the loop (0 at the first sample)
+        mode = kernel.VELOCITY_DERIVED
+    if isinstance(observer, Observer):
+        s0 = observer.state
+    else:
+        omega0 = float(signals["omega"][0]) if mode == kernel.VELOCITY_GIVEN else 0.0
+        s0 = np.array(initial_state(system, (float(theta[0]), omega0), tau0))
+    theta, velocity, u, tau_hat, omega_hat, t = kernel.run(
+        system, s0, theta, signals.get("omega"), u, t, mode
+    )
     return EstimationResult(
-        t=readonly(np.array(t, dtype=float)),
+        t=readonly(t),
         theta=readonly(theta),
-        omega=None if velocity is None else readonly(np.array(velocity)),
+        omega=None if velocity is None else readonly(velocity),
         u=readonly(u),
-        tau_hat=readonly(y[:, 0].copy()),
-        omega_hat=readonly(y[:, 1].copy()) if y.shape[1] > 1 else None,
+        tau_hat=readonly(tau_hat),
+        omega_hat=None if omega_hat is None else readonly(omega_hat),
         Ts=Ts,
         label=label,
     )
