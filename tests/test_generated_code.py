@@ -152,3 +152,19 @@ def test_time_check_period_and_tolerance():
     assert check_time(jitter) == (jitter[-1] - jitter[0]) / 999
     with pytest.raises(ValueError, match="uniformly sampled"):
         check_time(jitter, tolerance=5e-4)
+
+
+def test_immutable_signals_are_shared_others_copied():
+    from hpdob.identification import Log
+    from hpdob.identification._checks import immutable
+
+    theta = np.cumsum(np.full(100, 1e-4))
+    log = Log(t=np.arange(100) * 1e-3, theta=theta, u=np.zeros(100))
+    assert log.theta is not theta and theta.flags.writeable  # the caller's array is untouched
+    result = estimate_disturbance(DESIGNS[0], theta=log.theta, u=log.u, t=log.t)
+    assert result.theta is log.theta and result.u is log.u and result.t is log.t
+    view = theta[:]
+    view.setflags(write=False)  # read-only, but its base is not: copied
+    assert not immutable(view) and immutable(log.theta)
+    assert estimate_disturbance(DESIGNS[0], theta=view, u=log.u).theta is not view
+    assert not immutable(np.zeros(3)) and not immutable([0.0])

@@ -15,6 +15,7 @@ __all__ = [
     "check_axis",
     "check_lengths",
     "check_time",
+    "immutable",
     "sample_vector",
     "sample_view",
     "units",
@@ -70,8 +71,26 @@ def units(axis) -> dict:
     return UNITS[check_axis(axis)]
 
 
+def immutable(array) -> bool:
+    """Whether ``array``'s values cannot change: it is read-only, and so is every array it is a
+    view of, down to memory it owns or an immutable buffer (pyarrow's, ``bytes``).
+
+    Such an array (a column of a :class:`Log`, of a result, or read from a Parquet file) is
+    shared instead of copied: a log of 1e7 samples is not held twice. (Setting it writeable
+    again, which numpy allows the owner of the memory, breaks that promise.)
+    """
+    while isinstance(array, np.ndarray):
+        if array.flags.writeable:
+            return False
+        if array.base is None:
+            return True
+        array = array.base
+    return isinstance(array, bytes) or type(array).__module__.split(".")[0] == "pyarrow"
+
+
 def sample_vector(values, name: str, what: str) -> np.ndarray:
-    """``values`` as a new 1-D float array of finite samples.
+    """``values`` as a new 1-D float array of finite samples (an :func:`immutable` float64
+    vector is returned as it is: nobody can change it).
 
     Raises
     ------
@@ -80,7 +99,10 @@ def sample_vector(values, name: str, what: str) -> np.ndarray:
     ParameterValueError
         If it is not 1-D or holds a NaN or infinite sample (the first one is named).
     """
-    array = numeric_array(values, name, what)
+    if type(values) is np.ndarray and values.dtype == np.float64 and immutable(values):
+        array = values
+    else:
+        array = numeric_array(values, name, what)
     if array.ndim == 2 and 1 in array.shape:  # a MATLAB column or row vector
         array = array.ravel()
     if array.ndim != 1:

@@ -150,19 +150,22 @@ class EstimationResult:
         Returns
         -------
         matplotlib.figure.Figure
+            Traces longer than 200 000 samples are drawn as their envelope (the minimum and
+            maximum of each run of samples), which covers the same pixels.
         """
         import matplotlib.pyplot as plt
 
-        from .._plotting import PAPER_WIDTH, style_axes
+        from .._plotting import PAPER_WIDTH, envelope, style_axes
 
         fig, (top, bottom) = plt.subplots(
             2, 1, figsize=(PAPER_WIDTH, 4.6), sharex=True, layout="constrained"
         )
-        top.plot(self.t, self.theta, color="tab:blue", linewidth=1.0)
+        top.plot(*envelope(self.t, self.theta), color="tab:blue", linewidth=1.0)
         style_axes(top, xlabel=None, ylabel="position [rad or m]")
         if reference is not None:
-            bottom.plot(self.t, reference, color="0.4", linewidth=1.0, label=reference_label)
-        bottom.plot(self.t, self.tau_hat, color="tab:red", linewidth=0.8,
+            bottom.plot(*envelope(self.t, reference), color="0.4", linewidth=1.0,
+                        label=reference_label)  # fmt: skip
+        bottom.plot(*envelope(self.t, self.tau_hat), color="tab:red", linewidth=0.8,
                     label=rf"$\hat\tau$ ({self.label or 'observer'})")  # fmt: skip
         style_axes(bottom, xlabel="time [s]", ylabel="disturbance [N m or N]")
         bottom.legend(loc="upper center", bbox_to_anchor=(0.5, -0.28), ncols=2, fontsize="small")

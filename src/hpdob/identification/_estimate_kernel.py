@@ -10,17 +10,27 @@ sample it evaluates exactly the sums of :func:`hpdob.simulation._kernel.program_
 term left to right (numba does not reassociate or fuse floating-point operations unless asked
 to), so it reproduces the runtime object and the closed-loop kernel bit for bit.
 
-This module imports numba; it is imported on the first offline estimation only.
+The generated source is saved as a small module under ``~/.cache/hpdob`` (or
+``NUMBA_CACHE_DIR``) so that numba caches its machine code on disk like the package's own
+kernels: only the first process to run a structure compiles it. This module imports numba; it is
+imported on the first offline estimation only.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
+import importlib.util
+import os
+import sys
+import tempfile
+from pathlib import Path
 
 import numba
 import numpy as np
 
 from ..observers._program import program_coefficients, program_structure
+from ._checks import immutable
 
 __all__ = ["VELOCITY_DERIVED", "VELOCITY_GIVEN", "VELOCITY_NONE", "offline_kernel", "run"]
 
@@ -51,10 +61,10 @@ def kernel_source(structure: tuple, n: int, velocity: int) -> str:
     omega_hat, t, Ts)`` for a program of ``structure`` with ``n`` states; ``velocity`` is one of
     the ``VELOCITY_*`` modes.
 
-    The loop copies the inputs ``*_in`` into ``theta``, ``omega`` (or writes the backward
-    difference there), ``u`` and a non-empty ``t_in`` while it reads them (one pass over the log
-    instead of a copy and a run); without ``t_in`` it fills ``t`` with ``k * Ts`` (what
-    ``np.arange(n) * Ts`` gives).
+    The loop copies the inputs ``*_in`` into non-empty ``theta``, ``omega`` (or writes the
+    backward difference there), ``u`` and ``t`` while it reads them (one pass over the log
+    instead of a copy and a run; an empty output is not written: the input is shared); with an
+    empty ``t_in`` it fills ``t`` with ``k * Ts`` (what ``np.arange(n) * Ts`` gives).
     """
     update, output, _ = structure
     p = 1 if velocity == VELOCITY_NONE else 2
@@ -69,35 +79,73 @@ def kernel_source(structure: tuple, n: int, velocity: int) -> str:
              "omega_hat, t, Ts):"]  # fmt: skip
     lines += [f"    {name} = c[{i}]" for i, name in enumerate(names)]
     lines += [f"    s{i} = s_init[{i}]" for i in range(n)]
+    lines += [f"    write_{x} = {x}.shape[0] > 0" for x in ("theta", "omega", "u", "t")]
     lines.append("    copy_time = t_in.shape[0] > 0")
     if velocity == VELOCITY_DERIVED:
         lines.append("    previous = theta_in[0] if theta_in.shape[0] > 0 else 0.0")
     lines.append("    for k in range(theta_in.shape[0]):")
-    lines += ["        if copy_time:", "            t[k] = t_in[k]", "        else:",
-              "            t[k] = k * Ts"]  # fmt: skip
+    lines += ["        if write_t:", "            t[k] = t_in[k] if copy_time else k * Ts"]
     lines.append("        v0 = theta_in[k]")
-    lines.append("        theta[k] = v0")
+    lines += ["        if write_theta:", "            theta[k] = v0"]
     if velocity == VELOCITY_GIVEN:
-        lines += ["        v1 = omega_in[k]", "        omega[k] = v1"]
+        lines += [
+            "        v1 = omega_in[k]",
+            "        if write_omega:",
+            "            omega[k] = v1",
+        ]
     elif velocity == VELOCITY_DERIVED:  # 0 at k = 0: (theta[0] - theta[0]) / Ts
         lines += ["        v1 = (v0 - previous) / Ts", "        previous = v0",
                   "        omega[k] = v1"]  # fmt: skip
     lines.append(f"        tau_hat[k] = {output_rows[0]}")
     if len(output_rows) > 1:
         lines.append(f"        omega_hat[k] = {output_rows[1]}")
-    lines += ["        uk = u_in[k]", "        u[k] = uk"]
+    lines += ["        uk = u_in[k]", "        if write_u:", "            u[k] = uk"]
     lines += [f"        n{i} = {row}" for i, row in enumerate(update_rows)]
     lines += [f"        s{i} = n{i}" for i in range(n)]
     return "\n".join(lines) + "\n"
 
 
+def _cache_directory() -> Path:
+    """Where generated loops are kept as modules, for numba's on-disk cache: under
+    ``NUMBA_CACHE_DIR`` if set, else ``~/.cache/hpdob``."""
+    root = os.environ.get("NUMBA_CACHE_DIR") or Path.home() / ".cache"
+    return Path(root) / "hpdob" / "estimate-loops"
+
+
+def _module_function(source: str):
+    """``run`` of ``source`` saved as a module named by its hash (written atomically, so
+    concurrent processes agree), so that numba caches its machine code like that of the
+    package's own kernels; None if the cache directory cannot be written."""
+    name = "hpdob_estimate_" + hashlib.sha256(source.encode()).hexdigest()[:20]
+    try:
+        directory = _cache_directory()
+        path = directory / f"{name}.py"
+        if not path.is_file() or path.read_text(encoding="utf-8") != source:
+            directory.mkdir(parents=True, exist_ok=True)
+            handle, temporary = tempfile.mkstemp(dir=directory, suffix=".tmp")
+            with os.fdopen(handle, "w", encoding="utf-8") as f:
+                f.write(source)
+            os.replace(temporary, path)
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # numba's cache refers to the function's module by name
+        spec.loader.exec_module(module)
+    except OSError:
+        return None
+    return numba.njit(nogil=True, cache=True)(module.run)
+
+
 @functools.lru_cache(maxsize=64)
 def offline_kernel(structure: tuple, n: int, velocity: int):
-    """The compiled loop for ``structure`` (generated and compiled once per process)."""
-    namespace: dict = {}
+    """The compiled loop for ``structure``: generated once per process, its machine code cached
+    on disk by numba where the cache directory is writable (else compiled once per process)."""
     source = kernel_source(structure, n, velocity)
-    exec(compile(source, "<hpdob offline observer>", "exec"), namespace)  # generated above
-    return numba.njit(nogil=True)(namespace["run"])
+    kernel = _module_function(source)
+    if kernel is None:
+        namespace: dict = {}
+        exec(compile(source, "<hpdob offline observer>", "exec"), namespace)  # generated above
+        kernel = numba.njit(nogil=True)(namespace["run"])
+    return kernel
 
 
 def run(system, s_init, theta, omega, u, t, velocity: int):
@@ -107,28 +155,38 @@ def run(system, s_init, theta, omega, u, t, velocity: int):
     Returns
     -------
     tuple
-        New arrays ``(theta, omega, u, tau_hat, omega_hat, t)``: copies of the inputs (for
+        Arrays ``(theta, omega, u, tau_hat, omega_hat, t)``: the inputs, copied unless they are
+        immutable (:func:`~hpdob.identification._checks.immutable`: then shared; for
         ``VELOCITY_DERIVED`` ``omega`` is the backward difference of ``theta``, 0 at the
         first sample; None for ``VELOCITY_NONE``), the outputs (``omega_hat`` None where the
-        observer has none) and the time (a copy of ``t``, or ``k Ts``).
+        observer has none) and the time (``t`` or a copy, or ``k Ts``).
     """
     program = system.program
     kernel = offline_kernel(program_structure(program), system.n_states, velocity)
     coefficients = np.array(program_coefficients(program)[: _count(program)], dtype=np.float64)
     n = theta.shape[0]
     empty = np.empty(0)
+
+    def new(given):  # a new output unless the input can be shared
+        return empty if given is not None and immutable(given) else np.empty(n)
+
     out = {
-        "theta": np.empty(n),
-        "omega": empty if velocity == VELOCITY_NONE else np.empty(n),
-        "u": np.empty(n),
+        "theta": new(theta),
+        "omega": empty if velocity == VELOCITY_NONE else new(omega),
+        "u": new(u),
         "tau_hat": np.empty(n),
         "omega_hat": np.empty(n) if system.has_velocity else empty,
-        "t": np.empty(n),
+        "t": new(t),
     }
     kernel(coefficients, np.asarray(s_init, dtype=np.float64), theta,
            empty if omega is None else omega, u, empty if t is None else t, *out.values(),
            float(system.Ts))  # fmt: skip
-    return tuple(None if a is empty else a for a in out.values())
+    given = {"theta": theta, "omega": omega, "u": u, "tau_hat": None, "omega_hat": None, "t": t}
+    return tuple(
+        given[name] if array is empty and given[name] is not None
+        else None if array is empty else array
+        for name, array in out.items()
+    )  # fmt: skip
 
 
 def _count(program) -> int:

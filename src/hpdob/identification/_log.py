@@ -306,8 +306,8 @@ def read_log(
         check_time(t, f"time column {time!r}", time_tolerance)
     else:
         Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
-        t = np.arange(n) * Ts
-    u = gain * signals["input"]
+        t = readonly(np.arange(n) * Ts)
+    u = signals["input"] if gain == 1.0 else readonly(gain * signals["input"])
     if not np.all(np.isfinite(u)):  # pragma: no cover - only for gains near the float limit
         raise ParameterValueError(f"input_gain {gain!r} makes the input overflow")
     return Log(
