@@ -29,6 +29,7 @@ from __future__ import annotations
 import itertools
 import math
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -277,7 +278,7 @@ def tune(
     from ..analysis._noise import noise_gains
     from ..analysis._sensitivity import loop_margins
     from ..simulation._loop import ServoLoop
-    from ..simulation._simulate import _sample_count, sample_signals, simulate
+    from ..simulation._simulate import _sample_count, run_loop, sample_signals
 
     nominal = require_instance(nominal, ServoModel, "nominal")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
@@ -402,21 +403,39 @@ def tune(
         if r["tau_noise"] < best_noise:
             r["pareto"] = True
             best_noise = r["tau_noise"]
-    simulation = {"sensor": sensor, "actuator": actuator}
+    # The verification scenario is sampled once per sub-step count (each true inertia may need
+    # its own), not once per simulation: simulate() without re-evaluating the signals.
+    sampled: dict = {}
+    n_samples = _sample_count(Ts, duration)
+    x0 = np.zeros(2)
+
+    def true_loop(r, J_ratio, b):
+        true = ServoModel(J_ratio * nominal.J, b, coulomb=coulomb)
+        loop = ServoLoop(plant=true, nominal=nominal, Ts=Ts, controller=r["_controller"],
+                         observer=r["_design"], sensor=sensor, actuator=actuator)  # fmt: skip
+        S = loop.plant.substeps(Ts, None)
+        if S not in sampled:
+            sampled[S] = sample_signals(run["reference"], run.get("disturbance"), Ts=Ts,
+                                        n=n_samples, substeps=S)  # fmt: skip
+        return loop, sampled[S]
 
     def simulate_at(r, J_ratio, b):
-        true = ServoModel(J_ratio * nominal.J, b, coulomb=coulomb)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            result = simulate(plant=true, nominal=nominal, Ts=Ts, controller=r["_controller"],
-                              observer=r["_design"], **simulation, **run)  # fmt: skip
+        # A diverged run is marked, not warned (run_loop does not warn); the caller ignores
+        # numpy's RuntimeWarnings of a diverging run for all threads at once.
+        result = run_loop(*true_loop(r, J_ratio, b), x0)
         metrics = result.metrics()
         position = max(metrics["rms_position_error_regulation"],
                        metrics["rms_position_error_tracking"])  # fmt: skip
         return result, metrics, position
 
-    for r in qualified:
-        result, metrics, position = simulate_at(r, *centre)
+    if qualified:
+        true_loop(qualified[0], *centre)  # sample the scenario before the threads share it
+    # Two threads: the compiled kernel releases the GIL; each run is independent and
+    # deterministic, and map keeps the order.
+    with warnings.catch_warnings(), ThreadPoolExecutor(2) as pool:
+        warnings.simplefilter("ignore", RuntimeWarning)
+        centre_runs = list(pool.map(lambda r: simulate_at(r, *centre), qualified))
+    for r, (result, metrics, position) in zip(qualified, centre_runs, strict=True):
         r["simulated"] = math.inf if result.diverged else (
             metrics["rms_estimation_error"] if objective == "estimation" else position)  # fmt: skip
         r["simulated_estimation"] = metrics["rms_estimation_error"]
@@ -427,7 +446,9 @@ def tune(
             break
         checks = []
         for J_ratio, b in corners:
-            result, metrics, position = simulate_at(r, J_ratio, b)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                result, metrics, position = simulate_at(r, J_ratio, b)
             loop = ServoLoop(plant=plant(J_ratio, b), nominal=nominal, Ts=Ts,
                              controller=r["_controller"], observer=r["_design"],
                              actuator=linear_actuator, sensor=sensor)  # fmt: skip
