@@ -168,3 +168,16 @@ def test_immutable_signals_are_shared_others_copied():
     assert not immutable(view) and immutable(log.theta)
     assert estimate_disturbance(DESIGNS[0], theta=view, u=log.u).theta is not view
     assert not immutable(np.zeros(3)) and not immutable([0.0])
+
+
+def test_a_sweep_generates_no_code_per_scenario():
+    from hpdob import paper, sweep
+
+    base = {**paper.scenario(), "observer": {"order": 1, "bandwidth": 100.0}, "duration": 0.05}
+    sweep(base, grid={"observer.order": [0, 1]}, progress=False)  # both structures seen
+    before = _python_factory.cache_info()
+    grid = {"observer.order": [0, 1], "observer.bandwidth": [60.0, 80.0, 120.0, 150.0]}
+    rows = sweep(base, grid=grid, progress=False)
+    after = _python_factory.cache_info()
+    assert len(rows) == 8 and after.misses == before.misses  # eight designs, no new source
+    assert after.hits >= before.hits + 8
