@@ -26,7 +26,6 @@ The search (``docs/tuning.md``):
 
 from __future__ import annotations
 
-import functools
 import itertools
 import math
 import warnings
@@ -46,6 +45,7 @@ from ..analysis._linear_loop import MAX_DELAY_SAMPLES
 from ..models._servo import ServoModel
 from ..simulation._controller import PD
 from ..simulation._devices import Actuator, Encoder
+from ._blas import one_blas_thread
 from ._result import TuningResult
 
 __all__ = ["FAMILIES", "OBJECTIVES", "tune"]
@@ -188,28 +188,7 @@ def _delay_margin(base, corners, plant, delay: int) -> int:
     return MAX_EXTRA_DELAY
 
 
-def _one_blas_thread(function):
-    """Run ``function`` with one BLAS thread where threadpoolctl is installed.
-
-    ``tune`` solves thousands of matrix problems of size 2-12 (eigenvalues, Riccati equations);
-    BLAS threads give them nothing, and on a loaded machine their spin-waiting starved the
-    calling thread (measured: 19-30 s with OpenBLAS's default 2 threads against 4.6-6 s with
-    one, the same table bit for bit, on the shared 2-core machine of 2026-12-01).
-    """
-
-    @functools.wraps(function)
-    def wrapper(*args, **kwargs):
-        try:
-            from threadpoolctl import threadpool_limits
-        except ImportError:  # pragma: no cover - an optional speed-up
-            return function(*args, **kwargs)
-        with threadpool_limits(1, user_api="blas"):
-            return function(*args, **kwargs)
-
-    return wrapper
-
-
-@_one_blas_thread
+@one_blas_thread
 def tune(
     *,
     nominal: ServoModel,
@@ -420,21 +399,17 @@ def tune(
             "finer encoder"
         )
     # Pareto front of (accuracy, noise) among the qualified, then simulated at the centre.
-    ordered = sorted(qualified, key=lambda r: (r["accuracy"], r["tau_noise"]))
     best_noise = math.inf
-    for r in ordered:
+    for r in sorted(qualified, key=lambda r: (r["accuracy"], r["tau_noise"])):
         if r["tau_noise"] < best_noise:
             r["pareto"] = True
             best_noise = r["tau_noise"]
-    # The verification scenario is sampled once per sub-step count (each true inertia may need
-    # its own), not once per simulation: simulate() without re-evaluating the signals.
-    sampled: dict = {}
-    n_samples = _sample_count(Ts, duration)
-    x0 = np.zeros(2)
+    # The scenario sampled once per sub-step count (per true inertia), not per simulation.
+    sampled, n_samples, x0 = {}, _sample_count(Ts, duration), np.zeros(2)
 
     def true_loop(r, J_ratio, b):
-        true = ServoModel(J_ratio * nominal.J, b, coulomb=coulomb)
-        loop = ServoLoop(plant=true, nominal=nominal, Ts=Ts, controller=r["_controller"],
+        loop = ServoLoop(plant=ServoModel(J_ratio * nominal.J, b, coulomb=coulomb),
+                         nominal=nominal, Ts=Ts, controller=r["_controller"],
                          observer=r["_design"], sensor=sensor, actuator=actuator)  # fmt: skip
         S = loop.plant.substeps(Ts, None)
         if S not in sampled:
@@ -442,19 +417,16 @@ def tune(
                                         n=n_samples, substeps=S)  # fmt: skip
         return loop, sampled[S]
 
-    def simulate_at(r, J_ratio, b):
-        # A diverged run is marked, not warned (run_loop does not warn); the caller ignores
-        # numpy's RuntimeWarnings of a diverging run for all threads at once.
+    def simulate_at(r, J_ratio, b):  # a diverged run is marked; run_loop does not warn
         result = run_loop(*true_loop(r, J_ratio, b), x0)
         metrics = result.metrics()
         position = max(metrics["rms_position_error_regulation"],
                        metrics["rms_position_error_tracking"])  # fmt: skip
         return result, metrics, position
 
-    if qualified:
-        true_loop(qualified[0], *centre)  # sample the scenario before the threads share it
-    # Two threads: the compiled kernel releases the GIL; each run is independent and
-    # deterministic, and map keeps the order.
+    true_loop(qualified[0], *centre)  # sampled before the threads share it (never empty here)
+    # Two threads (the kernel releases the GIL; independent runs, map keeps the order); the
+    # RuntimeWarnings of diverging runs ignored for all threads at once.
     with warnings.catch_warnings(), ThreadPoolExecutor(2) as pool:
         warnings.simplefilter("ignore", RuntimeWarning)
         centre_runs = list(pool.map(lambda r: simulate_at(r, *centre), qualified))
