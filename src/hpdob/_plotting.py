@@ -29,7 +29,11 @@ def envelope(t, y, *, samples: int = ENVELOPE_SAMPLES):
     runs = samples // 2
     width = y.size // runs
     blocks = y[: runs * width].reshape(runs, width)
-    first, second = np.argmin(blocks, axis=1), np.argmax(blocks, axis=1)
+    first, second = np.empty(runs, dtype=np.intp), np.empty(runs, dtype=np.intp)
+    step = max(1, (1 << 20) // width)  # argmin copies what it scans: 8 MB at a time
+    for a in range(0, runs, step):
+        first[a : a + step] = np.argmin(blocks[a : a + step], axis=1)
+        second[a : a + step] = np.argmax(blocks[a : a + step], axis=1)
     lo, hi = np.minimum(first, second), np.maximum(first, second)
     index = (np.arange(runs) * width)[:, None] + np.column_stack([lo, hi])
     index = np.concatenate([index.ravel(), np.arange(runs * width, y.size)])
