@@ -28,8 +28,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import warnings
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -47,6 +45,7 @@ from ..simulation._controller import PD
 from ..simulation._devices import Actuator, Encoder
 from ._blas import one_blas_thread
 from ._result import TuningResult
+from ._runs import VerificationRuns
 
 __all__ = ["FAMILIES", "OBJECTIVES", "tune"]
 
@@ -204,6 +203,7 @@ def tune(
     noise_limit: float | None = None,
     coulomb: float | None = None,
     scenario: dict | None = None,
+    progress=None,
 ) -> TuningResult:
     r"""Recommend an observer for a motor, a sensor and an uncertainty, verified by simulation.
 
@@ -250,6 +250,10 @@ def tune(
         a sine at the disturbance frequency from 2.5 s, amplitudes scaled with ``J_n`` from the
         paper's (0.05 and 0.02 N m at ``J_n`` = 2.8e-4 kg m^2); 10 s (in whole samples). Its
         duration and signals are checked before the search.
+    progress : callable, optional
+        Called as ``progress(stage, done, total)`` while the search works (``stage`` one of
+        ``"analysis"``, ``"simulation"``, ``"verification"``; ``done`` of ``total`` steps), e.g.
+        to show progress; its return value is ignored. Default: silent.
 
     Returns
     -------
@@ -280,7 +284,7 @@ def tune(
     from ..analysis._noise import noise_gains
     from ..analysis._sensitivity import loop_margins
     from ..simulation._loop import ServoLoop
-    from ..simulation._simulate import _sample_count, run_loop, sample_signals
+    from ..simulation._simulate import _sample_count, sample_signals
 
     nominal = require_instance(nominal, ServoModel, "nominal")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
@@ -316,6 +320,9 @@ def tune(
         )
     families = tuple(dict.fromkeys(check_choice(f, "families", FAMILIES) for f in families))
     objective = check_choice(objective, "objective", OBJECTIVES)
+    if progress is not None and not callable(progress):
+        raise ParameterTypeError(f"progress must be callable or None, got {progress!r}")
+    report = progress or (lambda stage, done, total: None)  # silent by default
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
     if coulomb is None:
@@ -344,7 +351,8 @@ def tune(
         return ServoModel(J_ratio * nominal.J, b)
 
     rows = []
-    for family, m, parameter, value, design in candidates:
+    for done, (family, m, parameter, value, design) in enumerate(candidates):
+        report("analysis", done, len(candidates))
         velocity = "observer" if (controller.velocity == "observer"
                                   and design.system.has_velocity) else "measured"  # fmt: skip
         ctrl = PD(controller.kp, controller.kd, feedforward=controller.feedforward,
@@ -378,6 +386,7 @@ def tune(
             "robust": robust,
             "within_noise": noise_limit is None or tau_noise <= noise_limit,
             "pareto": False, "simulated": math.nan, "_design": design, "_controller": ctrl,
+            "_base": base,
         })  # fmt: skip
     if not rows:
         raise ParameterValueError("no candidate could be designed: " + "; ".join(notes[:3]))
@@ -404,46 +413,25 @@ def tune(
         if r["tau_noise"] < best_noise:
             r["pareto"] = True
             best_noise = r["tau_noise"]
-    # The scenario sampled once per sub-step count (per true inertia), not per simulation.
-    sampled, n_samples, x0 = {}, _sample_count(Ts, duration), np.zeros(2)
-
-    def true_loop(r, J_ratio, b):
-        loop = ServoLoop(plant=ServoModel(J_ratio * nominal.J, b, coulomb=coulomb),
-                         nominal=nominal, Ts=Ts, controller=r["_controller"],
-                         observer=r["_design"], sensor=sensor, actuator=actuator)  # fmt: skip
-        S = loop.plant.substeps(Ts, None)
-        if S not in sampled:
-            sampled[S] = sample_signals(run["reference"], run.get("disturbance"), Ts=Ts,
-                                        n=n_samples, substeps=S)  # fmt: skip
-        return loop, sampled[S]
-
-    def simulate_at(r, J_ratio, b):  # a diverged run is marked; run_loop does not warn
-        result = run_loop(*true_loop(r, J_ratio, b), x0)
-        metrics = result.metrics()
-        position = max(metrics["rms_position_error_regulation"],
-                       metrics["rms_position_error_tracking"])  # fmt: skip
-        return result, metrics, position
-
-    true_loop(qualified[0], *centre)  # sampled before the threads share it (never empty here)
-    # Two threads (the kernel releases the GIL; independent runs, map keeps the order); the
-    # RuntimeWarnings of diverging runs ignored for all threads at once.
-    with warnings.catch_warnings(), ThreadPoolExecutor(2) as pool:
-        warnings.simplefilter("ignore", RuntimeWarning)
-        centre_runs = list(pool.map(lambda r: simulate_at(r, *centre), qualified))
-    for r, (result, metrics, position) in zip(qualified, centre_runs, strict=True):
+    runs = VerificationRuns(nominal=nominal, Ts=Ts, sensor=sensor, actuator=actuator,
+                            coulomb=coulomb, run=run)  # fmt: skip
+    simulate_at = runs.simulate
+    report("analysis", len(candidates), len(candidates))
+    for r, (result, metrics, position) in zip(qualified, runs.at(qualified, *centre, report),
+                                              strict=True):  # fmt: skip
         r["simulated"] = math.inf if result.diverged else (
             metrics["rms_estimation_error"] if objective == "estimation" else position)  # fmt: skip
         r["simulated_estimation"] = metrics["rms_estimation_error"]
         r["simulated_position"] = position
+    report("simulation", len(qualified), len(qualified))
     verification = None
     for r in sorted(qualified, key=lambda r: r["simulated"]):
         if not math.isfinite(r["simulated"]):
             break
         checks = []
-        for J_ratio, b in corners:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)
-                result, metrics, position = simulate_at(r, J_ratio, b)
+        for done, (J_ratio, b) in enumerate(corners):
+            report("verification", done, len(corners))
+            result, metrics, position = simulate_at(r, J_ratio, b)
             loop = ServoLoop(plant=plant(J_ratio, b), nominal=nominal, Ts=Ts,
                              controller=r["_controller"], observer=r["_design"],
                              actuator=linear_actuator, sensor=sensor)  # fmt: skip
@@ -454,6 +442,7 @@ def tune(
                 "delay_margin": loop_margins(loop).delay_margin,
             })  # fmt: skip
         if all(not c["diverged"] and c["radius"] < 1.0 for c in checks):
+            report("verification", len(corners), len(corners))
             verification = (r, checks)
             break
         notes.append(f"{r['name']} at {r['parameter']}={r['value']:.4g} failed at a corner")
