@@ -52,7 +52,7 @@ def _grid(spec):
 
 @pytest.mark.parametrize("spec", SPECS, ids=repr)
 def test_encoder_noise_gain_positive_and_continuous_in_the_tuned_parameter(spec):
-    from hpdob.observers._families import design_from_spec
+    from hpdob.observers import design_from_spec
 
     parameter, values = _grid(spec)
     gains, used = [], []

@@ -55,29 +55,24 @@ def check_plants(values, ratio_grid: bool, ratios, frictions, nominal, Ts: float
             ) from None
 
 
-#: What the map sets at every grid point, by family: a spec must leave it out.
-_SET_BY_THE_MAP = {"dob": ("bandwidth", "poles"), "eso": ("bandwidth",),
-                   "kalman": ("process_noise_std",)}  # fmt: skip
-
-
 def observer_spec(observer, measurement, gain_direction) -> tuple[dict, int]:
     """``(spec, order)`` of ``robust_stability_map(observer=...)``, validated before any work.
 
     The spec's keys are checked for its family (``observer.<key>``), its order is an integer,
-    and what the map sets itself is refused instead of silently replaced: the bandwidth (or
-    poles; for the Kalman observer the process noise, chosen per bandwidth), and the
-    ``measurement``/``gain_direction`` arguments, which describe the paper's family only.
+    and what the map sets itself is refused instead of silently replaced: the family's
+    ``set_at_bandwidth`` (the bandwidth or poles; for the Kalman observer the process noise,
+    chosen per bandwidth), and the ``measurement``/``gain_direction`` arguments, which
+    describe the paper's family only.
     """
-    from ..observers._families import check_spec
+    from ..observers import check_spec, get_family
 
     if not isinstance(observer, dict):
         raise ParameterTypeError(
             f"observer must be a dict of design arguments (a family spec), got {observer!r}"
         )
-    kind = observer.get("type", "dob")
-    placeholder = {"process_noise_std": 1.0} if kind == "kalman" else {"bandwidth": 1.0}
-    check_spec({**observer, **placeholder}, "observer")
-    given = [k for k in _SET_BY_THE_MAP.get(kind, ()) if k in observer]
+    family = get_family(observer.get("type", "dob"), "observer.type")
+    check_spec({**observer, family.tuned: 1.0}, "observer")
+    given = [k for k in family.set_at_bandwidth if k in observer]
     if given:
         raise ParameterValueError(
             f"observer must not give {', '.join(given)}: the map designs the observer at every "
@@ -89,6 +84,8 @@ def observer_spec(observer, measurement, gain_direction) -> tuple[dict, int]:
             f"observer give them in the spec, got measurement={measurement!r}, "
             f"gain_direction={gain_direction!r}"
         )
-    key = "extended_order" if kind == "eso" else "order"
-    m = as_int(observer.get(key, 0), f"observer.{key}", "a non-negative integer", minimum=0)
+    m = 0
+    if family.order is not None:
+        key = family.order
+        m = as_int(observer.get(key, 0), f"observer.{key}", "a non-negative integer", minimum=0)
     return dict(observer), m

@@ -25,7 +25,7 @@ from .._validation import (
     positive,
 )
 from ..models._servo import ServoModel
-from ..observers._families import design_at_bandwidth
+from ..observers import design_at_bandwidth, spec_label
 from ..observers._system import MEASUREMENTS
 from ..simulation._controller import PD
 from ..simulation._devices import Encoder
@@ -66,17 +66,7 @@ class _Setting:
 
     @property
     def name(self) -> str:
-        spec = self.spec
-        kind = spec.get("type", "dob")
-        if kind == "eso":
-            m = spec.get("extended_order", 0)
-            return f"ESO (m={m}, {spec.get('form', 'current')})"
-        if kind == "kalman":
-            return f"Kalman (m={spec.get('order', 0)})"
-        m = spec.get("order")
-        name = {0: "DOb (m=0)", 1: "HPDOb (m=1)"}.get(m, f"order-{m} DOb")
-        position = "position-only " if spec.get("measurement") == "position" else ""
-        return position + name
+        return spec_label(self.spec)
 
 
 @dataclass(frozen=True, eq=False)

@@ -20,8 +20,7 @@ from .._validation import (
 from .._waveforms import Chirp, Noise, Sine
 from ..models._servo import ServoModel
 from ..models._two_mass import TwoMassServo
-from ..observers._families import FAMILIES, check_spec, design_from_spec
-from ..observers._runtime import Observer
+from ..observers import Observer, check_spec, design_from_spec, get_family
 from ._controller import PD
 from ._devices import Actuator, Encoder
 from ._result import CANONICAL_WINDOWS, metric_window
@@ -213,8 +212,10 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
         kwargs["actuator"] = _build(Actuator, _table(data, "actuator"), "actuator")
     if "observer" in data:
         spec = dict(_table(data, "observer"))
-        if "poles" in spec:
-            spec["poles"] = _poles(spec["poles"], "observer.poles")
+        family = get_family(spec.get("type", "dob"), "observer.type")
+        for p in family.parameters:  # complex numbers are written as [re, im] pairs in TOML
+            if p.kind == "complex_list" and p.name in spec:
+                spec[p.name] = _poles(spec[p.name], f"observer.{p.name}")
         model = kwargs["nominal"].discretize(kwargs["Ts"])
         design = _observer(model, spec)  # validated now, with the file's key names
         kwargs["observer"] = spec if not build_observer else Observer.of(design)
@@ -223,19 +224,16 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
 
 def _observer(model, spec: dict):
     """The design ``spec`` (an ``[observer]`` table) describes, errors named ``observer.*``."""
-    kind = spec.get("type", "dob")
-    if kind in FAMILIES:
-        _, keys, required = FAMILIES[kind]
-        check_keys(spec, (*keys, "type"), "observer")
-        missing = [name for name in required if name not in spec]
-        if missing:
-            raise ParameterValueError(f"missing required key observer.{missing[0]}")
+    family = get_family(spec.get("type", "dob"), "observer.type")
+    check_keys(spec, (*family.keys, "type"), "observer")
+    missing = [name for name in family.required if name not in spec]
+    if missing:
+        raise ParameterValueError(f"missing required key observer.{missing[0]}")
     check_spec(spec, "observer")
     try:
         return design_from_spec(model, spec)
     except (ParameterTypeError, ParameterValueError) as err:
-        keys = ("type", *FAMILIES[spec.get("type", "dob")][1])
-        raise _prefixed("observer", err, keys) from None
+        raise _prefixed("observer", err, ("type", *family.keys)) from None
 
 
 #: ``[plant] type = ...`` -> the plant class (default ``"rigid"``).

@@ -23,7 +23,7 @@ from .._validation import (
     check_keys,
     require_instance,
 )
-from ..observers._families import check_spec, design_from_spec, spec_of
+from ..observers import check_spec, design_from_spec, get_family, spec_of
 from ._controller import PD
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
@@ -163,20 +163,14 @@ def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoL
         changes["Ts"] = params["Ts"]
     spec = base["observer_spec"]
     if spec is not None:
-        spec = {**spec, **sub("observer.")}
-        if "observer.bandwidth" in params:
-            spec.pop("poles", None)
-        if "observer.measurement" in params:
-            # the other family's design arguments do not apply (poles differ in number)
-            other = "gain_direction" if spec["measurement"] == "position" else "velocity_bandwidth"
-            spec.pop(other, None)
-            if "poles" in spec and spec["measurement"] != base["observer_spec"].get(
-                "measurement", "state"
-            ):
-                raise ParameterValueError(
-                    "observer.measurement can vary only for an observer designed by bandwidth "
-                    f"(the number of poles differs between the families), got poles={spec['poles']}"
-                )
+        base_spec, varied = spec, sub("observer.")
+        spec = {**spec, **varied}
+        family = get_family(spec.get("type", "dob"))
+        if family.tuned in varied:  # a varied bandwidth replaces the poles
+            for key in family.replaced_by_bandwidth:
+                spec.pop(key, None)
+        if family.respec is not None:
+            spec = family.respec(spec, set(varied), base_spec)
         nominal = changes.get("nominal", loop.nominal)
         Ts = changes.get("Ts", loop.Ts)
         key = _frozen({"spec": spec, "nominal": nominal, "Ts": Ts})
