@@ -177,15 +177,12 @@ def test_toml_scenario(registered, tmp_path):
         '[[reference]]\ntype = "step"\ntime = 0.1\namplitude = 1.0\n'
         '[[disturbance]]\ntype = "step"\ntime = 0.2\namplitude = 0.05\n'
     )
-    kwargs = load_scenario(path)
-    assert kwargs["observer"].system.name == "DOb m=1 + LP"
-    result = simulate(**kwargs)
-    direct = simulate(
-        **{
-            **kwargs,
-            "observer": design_filtered(MODEL, order=1, bandwidth=150.0, filter_bandwidth=300.0),
-        }
-    )
+    scenario = load_scenario(path)
+    assert scenario.loop.system.name == "DOb m=1 + LP"
+    assert scenario.loop.observer_spec["filter_bandwidth"] == 300.0
+    result = scenario.simulate()
+    fixed = design_filtered(MODEL, order=1, bandwidth=150.0, filter_bandwidth=300.0)
+    direct = simulate(scenario.loop.replace(observer=fixed), **scenario.run)
     np.testing.assert_array_equal(result.tau_hat, direct.tau_hat)
     assert abs(result.tau_hat[-1] - result.tau_dn[-1]) < 1e-3  # converged on the step
     bad = path.read_text().replace("filter_bandwidth = 300.0", "filter_width = 300.0")

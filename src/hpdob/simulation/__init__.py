@@ -7,8 +7,8 @@ PD, Encoder, Actuator
     Outer-loop controller, sensor and actuator models.
 simulate, SimulationResult, SimulationDivergedWarning
     One closed-loop run (continuous plant, sampled PD, observer inner loop).
-load_scenario
-    A TOML scenario file read into :func:`simulate`'s keyword arguments.
+load_scenario, Scenario
+    A TOML scenario file read into a :class:`ServoLoop` and the run settings.
 sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
 """
@@ -17,7 +17,7 @@ from ._controller import PD
 from ._devices import Actuator, Encoder
 from ._loop import ServoLoop
 from ._result import SimulationResult
-from ._scenario import load_scenario
+from ._scenario import Scenario, load_scenario
 from ._simulate import SimulationDivergedWarning, simulate
 from ._sweep import sweep
 
@@ -25,6 +25,7 @@ __all__ = [
     "PD",
     "Actuator",
     "Encoder",
+    "Scenario",
     "ServoLoop",
     "SimulationDivergedWarning",
     "SimulationResult",

@@ -9,9 +9,16 @@ from dataclasses import dataclass, field, fields, replace
 from .._validation import ParameterTypeError, ParameterValueError, positive, require_instance
 from ..models._plant import Plant
 from ..models._servo import ServoModel
-from ..observers._core import initial_state
-from ..observers._runtime import Observer
-from ..observers._system import LinearObserver, as_system, check_designed_on
+from ..observers import (
+    LinearObserver,
+    Observer,
+    as_system,
+    check_spec,
+    design_from_spec,
+    initial_state,
+    spec_of,
+)
+from ..observers._system import check_designed_on
 from ._controller import PD
 from ._devices import Actuator, Encoder
 
@@ -43,12 +50,17 @@ class ServoLoop:
     Ts : float
         Sampling period [s].
     controller : PD
-    observer : observer, optional
-        A runtime observer (:class:`~hpdob.DisturbanceObserver`, :class:`~hpdob.Observer`), a
-        design (:class:`~hpdob.ObserverDesign`) or a :class:`~hpdob.LinearObserver`, designed
-        on ``nominal.discretize(Ts)`` (an observer without a nominal model must have the same
-        ``Ts``). A runtime observer's current state is taken now (the loop does not change
-        the object); a design or system starts each run from ``initial_state(x0, 0)``.
+    observer : dict, design or LinearObserver, optional
+        A spec of a registered family (``{"type": "eso", "bandwidth": 150.0}``, see
+        :func:`hpdob.observers.register_family`), which the loop designs on
+        ``nominal.discretize(Ts)`` (and designs again when :meth:`replace` changes
+        ``nominal`` or ``Ts``); or a fixed design (:class:`~hpdob.ObserverDesign`, ...) or
+        :class:`~hpdob.LinearObserver` designed on ``nominal.discretize(Ts)`` (one without a
+        nominal model must have the same ``Ts``). Each run starts it from
+        ``initial_state(x0, 0)`` unless the run is given an ``observer_state``. The loop
+        holds values only: a runtime observer (:class:`~hpdob.DisturbanceObserver`, ...) is
+        replaced by its design, and its current state is kept as :attr:`observer_state` (the
+        run's ``observer_state`` argument is the way to start from a given state).
         None: PD only.
     sensor : Encoder, optional
         Default: the ideal state.
@@ -59,8 +71,14 @@ class ServoLoop:
     ----------
     system : LinearObserver or None
         The observer as the linear system every consumer runs.
+    design : design, LinearObserver or None
+        The observer run: the design of a spec, or the fixed design/system given.
+    observer_spec : dict or None
+        The spec the loop designs from, or that of a fixed design of a registered family
+        (:func:`hpdob.observers.spec_of`); None for any other observer.
     observer_state : tuple or None
-        The runtime observer's state at construction (None: reset at the run's ``x0``).
+        The state of a runtime observer given as ``observer`` at construction (None: reset
+        at the run's ``x0``).
 
     Raises
     ------
@@ -89,6 +107,8 @@ class ServoLoop:
     sensor: Encoder | None = None
     actuator: Actuator | None = None
     system: LinearObserver | None = field(init=False, repr=False)
+    design: object = field(init=False, repr=False)
+    observer_spec: dict | None = field(init=False, repr=False)
     observer_state: tuple | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -99,12 +119,19 @@ class ServoLoop:
         require_instance(self.controller, PD, "controller")
         require_instance(self.sensor, Encoder, "sensor", optional=True)
         actuator = require_instance(self.actuator, Actuator, "actuator", optional=True)
-        system, state = None, None
-        if self.observer is not None:
-            system = as_system(self.observer, "observer")
+        observer, system, state, spec = self.observer, None, None, None
+        if isinstance(observer, dict):  # a spec: designed on this loop's nominal model
+            spec = check_spec(observer, "observer")
+            observer = design_from_spec(self.nominal.discretize(Ts), spec)
+            object.__setattr__(self, "observer", spec)
+        elif isinstance(observer, Observer):  # hold its (immutable) design and its state now
+            state = tuple(observer.state.tolist())
+            observer = getattr(observer, "design", None) or observer.system
+            object.__setattr__(self, "observer", observer)
+        if observer is not None:
+            system = as_system(observer, "observer")
             check_designed_on(system, self.nominal, Ts)
-            if isinstance(self.observer, Observer):
-                state = tuple(self.observer.state.tolist())
+            spec = spec if spec is not None else spec_of(observer)
         if self.controller.velocity == "observer" and (system is None or not system.has_velocity):
             raise ParameterValueError(
                 "controller.velocity = 'observer' needs an observer with a velocity estimate "
@@ -114,6 +141,8 @@ class ServoLoop:
         object.__setattr__(self, "Ts", Ts)
         object.__setattr__(self, "actuator", actuator or Actuator())
         object.__setattr__(self, "system", system)
+        object.__setattr__(self, "design", observer)
+        object.__setattr__(self, "observer_spec", spec)
         object.__setattr__(self, "observer_state", state)
 
     def replace(self, **changes) -> ServoLoop:

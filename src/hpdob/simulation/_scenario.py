@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import dataclasses
 import sys
+import types
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 from .._signals import Constant, Ramp, SmoothStep, Step
@@ -23,8 +26,9 @@ from ..models._two_mass import TwoMassServo
 from ..observers import Observer, check_spec, design_from_spec, get_family
 from ._controller import PD
 from ._devices import Actuator, Encoder
+from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
-from ._simulate import check_run_arguments
+from ._simulate import check_run_arguments, simulate
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -32,12 +36,15 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 __all__ = [
+    "RUN_KEYS",
     "SIGNAL_TYPES",
+    "Scenario",
     "load_metric_windows",
     "load_scenario",
     "load_sweep",
     "metric_windows",
     "scenario_from_dict",
+    "scenario_of",
 ]
 
 SIGNAL_TYPES = {
@@ -291,8 +298,69 @@ def load_sweep(path) -> tuple[dict, dict]:
     return base, {**options, "metric_windows": metric_windows(data)}
 
 
-def load_scenario(path) -> dict:
-    """Read a TOML scenario file: the keyword arguments of :func:`hpdob.simulate`.
+#: The run settings of a scenario: :func:`hpdob.simulate`'s arguments besides the loop.
+RUN_KEYS = ("duration", "reference", "disturbance", "substeps", "x0", "label")
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """A scenario file read by :func:`load_scenario`: the loop and the run settings.
+
+    Attributes
+    ----------
+    loop : ServoLoop
+        Plant, nominal model, ``Ts``, controller, observer (its spec: the loop designs it on
+        the nominal model), sensor and actuator.
+    run : mapping
+        :func:`hpdob.simulate`'s other arguments the file gives: ``duration``,
+        ``reference`` and, where given, ``disturbance``, ``substeps``, ``x0``; ``label``.
+    """
+
+    loop: ServoLoop
+    run: Mapping
+
+    def simulate(self):
+        """Run it: ``simulate(self.loop, **self.run)``.
+
+        Returns
+        -------
+        SimulationResult
+        """
+        return simulate(self.loop, **self.run)
+
+    def __getitem__(self, key):
+        raise TypeError(_MOVED)
+
+    def __iter__(self):
+        raise TypeError(_MOVED)
+
+    def keys(self):
+        """Refused: a Scenario is not simulate()'s keyword arguments (see the message).
+
+        Raises
+        ------
+        TypeError
+            Always, with the call that replaces ``simulate(**load_scenario(path))``.
+        """
+        raise TypeError(_MOVED)
+
+
+_MOVED = (
+    "load_scenario returns a Scenario (a ServoLoop and the run settings; docs/changelog.md), "
+    "not simulate()'s keyword arguments: call simulate(scenario.loop, **scenario.run) or "
+    "scenario.simulate(), and read scenario.loop.plant, scenario.run['label'], ..."
+)
+
+
+def scenario_of(kwargs: dict) -> Scenario:
+    """The :class:`Scenario` of simulate()'s keyword arguments (``observer`` a spec)."""
+    loop = ServoLoop(**{k: v for k, v in kwargs.items() if k in LOOP_KEYS})
+    run = types.MappingProxyType({k: v for k, v in kwargs.items() if k in RUN_KEYS})
+    return Scenario(loop, run)
+
+
+def load_scenario(path) -> Scenario:
+    """Read a TOML scenario file: a :class:`~hpdob.ServoLoop` and the run settings.
 
     The format (``[plant]`` rigid or two-mass, ``[nominal]``, ``[controller]``,
     ``[observer]`` of any family, ``[sensor]``, ``[actuator]``, ``reference`` and
@@ -307,11 +375,12 @@ def load_scenario(path) -> dict:
 
     Returns
     -------
-    dict
-        ``plant``, ``nominal``, ``Ts``, ``controller``, ``reference``, ``duration`` and, when
-        the file gives them, ``observer`` (a reset runtime object), ``sensor``, ``actuator``,
-        ``disturbance``, ``substeps``, ``x0``; ``label`` (default: the file's stem). Pass them
-        as ``simulate(**kwargs)``.
+    Scenario
+        ``.loop``: a :class:`~hpdob.ServoLoop` (plant, nominal, ``Ts``, controller and, when
+        the file gives them, the observer's spec, which the loop designs on the nominal
+        model, sensor, actuator); ``.run``: ``duration``, ``reference`` and, when given,
+        ``disturbance``, ``substeps``, ``x0``, and ``label`` (default: the file's stem). Run
+        it with ``simulate(scenario.loop, **scenario.run)`` or ``scenario.simulate()``.
 
     Raises
     ------
@@ -324,13 +393,13 @@ def load_scenario(path) -> dict:
     Examples
     --------
     >>> from hpdob.simulation import load_scenario, simulate
-    >>> kwargs = load_scenario("examples/canonical_hpdob.toml")  # doctest: +SKIP
-    >>> result = simulate(**kwargs)                                        # doctest: +SKIP
+    >>> scenario = load_scenario("examples/canonical_hpdob.toml")  # doctest: +SKIP
+    >>> result = simulate(scenario.loop, **scenario.run)                   # doctest: +SKIP
     """
     path = Path(path)
-    kwargs = scenario_from_dict(_read_toml(path))
+    kwargs = scenario_from_dict(_read_toml(path), build_observer=False)
     kwargs.setdefault("label", path.stem)
-    return kwargs
+    return scenario_of(kwargs)
 
 
 def load_metric_windows(path) -> dict:
