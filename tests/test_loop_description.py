@@ -66,3 +66,86 @@ def test_the_initial_observer_state_is_an_argument_of_the_run():
         simulate(loop(design), **RUN, observer_state=(0.0, 1.0, 2.0))
     with pytest.raises(ValueError, match=r"observer_state needs a loop with an observer"):
         simulate(loop(None), **RUN, observer_state=state)
+
+
+# -- the functions that take a loop ------------------------------------------------------------
+def test_robust_map_of_a_loop_equals_the_keyword_form():
+    from hpdob import robust_stability_map
+
+    grid = {"J_ratio": [0.5, 1.0, 2.0], "bandwidth": [50.0, 200.0]}
+    servo = loop({"order": 1, "bandwidth": 100.0})  # the map replaces the bandwidth
+    by_loop = robust_stability_map(servo, **grid)
+    by_keywords = robust_stability_map(**grid, order=1, nominal=NOMINAL, Ts=TS,
+                                       controller=PD(50, 5))  # fmt: skip
+    assert np.array_equal(by_loop.spectral_radius, by_keywords.spectral_radius)
+    eso = robust_stability_map(loop({"type": "eso", "bandwidth": 80.0, "extended_order": 1}),
+                               **grid)  # fmt: skip
+    assert eso.observer == {"type": "eso", "extended_order": 1} and eso.order == 1
+    with pytest.raises(TypeError, match=r"takes a ServoLoop or the loop's keyword arguments"):
+        robust_stability_map(servo, **grid, nominal=NOMINAL)
+    with pytest.raises(ValueError, match=r"needs order, observer .* or a loop whose observer"):
+        robust_stability_map(loop(None), **grid)
+
+
+def test_compare_observers_in_a_loop():
+    from hpdob import compare_observers, paper
+
+    candidates = {"HPDOb": {"order": 1}, "ESO": {"type": "eso"}}
+    parts = {k: v for k, v in paper.scenario().items() if k in ("plant", "nominal", "controller")}
+    paper_loop = ServoLoop(**parts, Ts=paper.TS)
+    default = compare_observers(sensors=("ideal",), candidates=candidates, duration=0.5)
+    same = compare_observers(paper_loop, sensors=("ideal",), candidates=candidates, duration=0.5)
+    assert same.rows == default.rows
+    heavy = ServoLoop(plant=ServoModel(3.06e-3, 5e-4, coulomb=0.1), nominal=ServoModel(2.8e-3),
+                      Ts=TS, controller=PD(50, 5, feedforward=True))  # fmt: skip
+    table = compare_observers(heavy, sensors=("ideal",), candidates=candidates, duration=0.5)
+    assert all(r["tuning"] == "matched" and not r["diverged"] for r in table.rows)
+    # the disturbance scales with J_n (the same acceleration, ten times the torque), and so
+    # does the estimation error, roughly
+    ratio = [b["rms_estimation_error"] / a["rms_estimation_error"]
+             for a, b in zip(default.rows, table.rows, strict=True)]  # fmt: skip
+    assert all(5 < r < 50 for r in ratio), ratio
+
+
+def test_tune_of_a_loop_equals_the_keyword_form():
+    from hpdob import Encoder, tune
+
+    run = {"J_range": (0.9, 1.1), "families": ["state"], "coulomb": 0.0,
+           "scenario": {"reference": Step(0.1, 1.0), "duration": 0.3}}  # fmt: skip
+    servo = ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=PD(50, 5),
+                      sensor=Encoder(16384))  # fmt: skip
+    by_loop = tune(servo, **run)
+    by_keywords = tune(nominal=NOMINAL, Ts=TS, controller=PD(50, 5), sensor=Encoder(16384),
+                       **run)  # fmt: skip
+    keys = ("family", "order", "parameter", "value", "accuracy", "tau_noise")
+    assert [by_loop.recommended[k] for k in keys] == [by_keywords.recommended[k] for k in keys]
+    assert len(by_loop.rows) == len(by_keywords.rows)
+
+
+def test_sweep_of_a_scenario_file(tmp_path):
+    from pathlib import Path
+
+    from hpdob import sweep
+    from hpdob.simulation import load_scenario
+
+    example = Path(__file__).parent.parent / "examples" / "canonical_hpdob.toml"
+    path = tmp_path / "short.toml"
+    path.write_text(example.read_text().replace("duration = 10.0", "duration = 1.0"))
+    scenario = load_scenario(path)
+    table = sweep(scenario, grid={"observer.bandwidth": [100.0, 150.0]}, progress=False)
+    assert (table["error"] == "").all()
+    direct = scenario.simulate()
+    assert table["rms_estimation_error"][0] == direct.metrics()["rms_estimation_error"]
+
+
+def test_hpdob_compare_for_another_motor(tmp_path, capsys):
+    import json
+
+    from hpdob.cli import main
+
+    out = tmp_path / "cmp"
+    code = main(["compare", "--J-n", "2.8e-3", "--sensor", "ideal", "--no-plot",
+                 "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    rows = json.loads((out / "comparison.json").read_text())["rows"]
+    assert all(not r["diverged"] for r in rows)

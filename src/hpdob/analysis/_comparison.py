@@ -334,7 +334,30 @@ class Comparison:
         return fig
 
 
+def _loop_scenario(loop, scenario: dict, encoder, actuator):
+    """The comparison's run in ``loop``: its plant, nominal, Ts and PD; the paper's reference
+    and its disturbance at the same acceleration; the loop's sensor and actuator, if any."""
+    from ..simulation import ServoLoop
+
+    if not isinstance(loop, ServoLoop):
+        raise ParameterTypeError(
+            f"compare_observers() takes a ServoLoop as its first argument, got "
+            f"{type(loop).__name__}"
+        )
+    scale = loop.nominal.J / scenario["nominal"].J
+    disturbance = scenario["disturbance"] if scale == 1.0 else scale * scenario["disturbance"]
+    run = {**scenario, "plant": loop.plant, "nominal": loop.nominal, "Ts": loop.Ts,
+           "controller": loop.controller, "disturbance": disturbance,
+           "duration": scenario["duration"] if loop.Ts == scenario["Ts"]
+           else loop.Ts * max(1, round(scenario["duration"] / loop.Ts))}  # fmt: skip
+    if loop.sensor is not None:
+        encoder, actuator = loop.sensor, loop.actuator
+    return run, encoder, actuator
+
+
 def compare_observers(
+    loop=None,
+    /,
     *,
     sensors=SENSORS,
     noise_gain: float = DEFAULT_NOISE_GAIN,
@@ -354,6 +377,13 @@ def compare_observers(
 
     Parameters
     ----------
+    loop : ServoLoop, optional
+        The loop the observers are compared in: its plant, nominal model, ``Ts`` and PD gains
+        (its observer is replaced by each candidate's), and, if it has one, its sensor and
+        actuator for the ``"encoder"`` case. The run is the paper's reference and disturbance,
+        the disturbance scaled by ``J_n / 2.8e-4 kg m^2`` (the paper's acceleration), over the
+        paper's 10 s in whole samples. Default: the paper's loop (:func:`hpdob.paper.scenario`)
+        with the virtual experiment's encoder and actuator.
     sensors : sequence of {"ideal", "encoder"}, optional
         Default both.
     noise_gain : float, optional
@@ -410,12 +440,14 @@ def compare_observers(
     target = positive(noise_gain, "noise_gain", "a positive finite noise gain [N m/rad]")
     candidates = _check_candidates(default_candidates() if candidates is None else candidates)
     scenario = paper.scenario()
+    encoder, actuator = paper.VIRTUAL_SENSOR, paper.VIRTUAL_ACTUATOR
+    if loop is not None:
+        scenario, encoder, actuator = _loop_scenario(loop, scenario, encoder, actuator)
     if duration is not None:
         scenario["duration"] = positive(duration, "duration", "a positive duration [s]")
         _sample_count(scenario["Ts"], scenario["duration"])  # before the tuning, not after
     nominal, Ts = scenario["nominal"], scenario["Ts"]
     model = nominal.discretize(Ts)
-    encoder, actuator = paper.VIRTUAL_SENSOR, paper.VIRTUAL_ACTUATOR
     sigma = encoder.resolution / math.sqrt(12.0)
     linear_plant = scenario["plant"].replace(coulomb=0.0)
     rows, results = [], {}
@@ -425,7 +457,8 @@ def compare_observers(
         except (ParameterTypeError, ParameterValueError) as err:
             raise type(err)(f"candidates[{name!r}]: {err}") from None
         velocity = "observer" if design.system.has_velocity else "measured"
-        controller = PD(scenario["controller"].kp, scenario["controller"].kd, velocity=velocity)
+        pd = scenario["controller"]
+        controller = PD(pd.kp, pd.kd, feedforward=pd.feedforward, velocity=velocity)
         for sensor in sensors:
             devices = {"sensor": encoder, "actuator": actuator} if sensor == "encoder" else {}
             with warnings.catch_warnings():

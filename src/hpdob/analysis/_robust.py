@@ -29,12 +29,28 @@ from ..observers import design_at_bandwidth, spec_label
 from ..observers._system import MEASUREMENTS
 from ..simulation._controller import PD
 from ..simulation._devices import Encoder
+from ..simulation._loop import MISSING, loop_parts
 from ._linear_loop import LoopSpec, loop_matrices
 from ._map_limits import check_delay, check_map_size, check_plants, observer_spec
 
 __all__ = ["StabilityMap", "robust_stability_map"]
 
 PARAMETERS = ("J_ratio", "b")
+
+
+def _map_spec(loop) -> dict:
+    """The family spec of the loop's observer without what the map sets at each bandwidth."""
+    from ..observers import get_family
+
+    spec = loop.observer_spec
+    if spec is None:
+        raise ParameterValueError(
+            "robust_stability_map needs order, observer (a family spec) or a loop whose "
+            "observer is a spec or a design of a registered family, got "
+            + ("no observer" if loop.system is None else f"observer {loop.system.name!r}")
+        )
+    family = get_family(spec.get("type", "dob"))
+    return {k: v for k, v in spec.items() if k not in family.set_at_bandwidth}
 
 
 @dataclass(frozen=True)
@@ -265,17 +281,19 @@ def _grid_or_scalar(value, name: str, what: str, *, allow_zero: bool):
 
 
 def robust_stability_map(
+    loop=None,
+    /,
     *,
     J_ratio=1.0,
     bandwidth,
     order: int | None = None,
-    nominal: ServoModel,
-    Ts: float,
-    controller: PD,
+    nominal: ServoModel = MISSING,
+    Ts: float = MISSING,
+    controller: PD = MISSING,
     b=None,
-    delay_samples: int = 0,
+    delay_samples: int | None = None,
     gain_direction=(1.0, 1.0),
-    sensor: Encoder | None = None,
+    sensor: Encoder | None = MISSING,
     measurement: str = "state",
     observer: dict | None = None,
 ) -> StabilityMap:
@@ -289,6 +307,12 @@ def robust_stability_map(
 
     Parameters
     ----------
+    loop : ServoLoop, optional
+        The loop: its ``nominal``, ``Ts``, ``controller``, ``sensor``, its actuator's delay and
+        (unless ``order`` or ``observer`` is given) its observer's family spec; its plant is
+        replaced at every grid point. Instead of a loop, its keyword arguments ``nominal``,
+        ``Ts``, ``controller`` and ``sensor`` are accepted (the loop functions' one alias,
+        :data:`hpdob.simulation.ServoLoop` parts).
     J_ratio : float or array_like, optional
         True/nominal inertia ratio(s) ``J / J_n``, positive; a grid must be strictly
         increasing. Default 1.
@@ -306,7 +330,8 @@ def robust_stability_map(
         True viscous friction(s) [N m s/rad], >= 0; a grid must be strictly increasing.
         Default: ``nominal.b``.
     delay_samples : int, optional
-        Actuator delay [samples] the observer does not know. Default 0.
+        Actuator delay [samples] the observer does not know. Default: the loop's actuator's
+        (0 without a loop).
     gain_direction : sequence of 2 floats, optional
         As for :func:`hpdob.design_observer` (observers measuring the state).
     sensor : Encoder, optional
@@ -355,6 +380,22 @@ def robust_stability_map(
     >>> bool(abs(edge - 1 / lm.gain_margin) < 1e-6 * edge)  # b = 0: J/J_n = 1/gain margin
     True
     """
+    legacy = {"nominal": nominal, "Ts": Ts, "controller": controller, "sensor": sensor}
+    parts = loop_parts(loop, legacy, "robust_stability_map")
+    missing = [k for k in ("nominal", "Ts", "controller") if k not in parts]
+    if missing:
+        raise ParameterTypeError(
+            "robust_stability_map() needs a ServoLoop as first argument, or the keyword "
+            f"arguments nominal, Ts and controller (missing: {', '.join(missing)})"
+        )
+    nominal, Ts, controller = parts["nominal"], parts["Ts"], parts["controller"]
+    sensor = parts.get("sensor")
+    if loop is not None:
+        if delay_samples is None:
+            delay_samples = loop.actuator.delay_samples
+        if order is None and observer is None:
+            observer = _map_spec(loop)
+    delay_samples = 0 if delay_samples is None else delay_samples
     if not isinstance(nominal, ServoModel):
         raise ParameterTypeError(f"nominal must be a ServoModel, got {type(nominal).__name__}")
     if not isinstance(controller, PD):

@@ -22,7 +22,7 @@ from ..observers._system import check_designed_on
 from ._controller import PD
 from ._devices import Actuator, Encoder
 
-__all__ = ["LOOP_KEYS", "ServoLoop", "accepts_loop", "resolve_loop"]
+__all__ = ["LOOP_KEYS", "MISSING", "ServoLoop", "accepts_loop", "loop_parts", "resolve_loop"]
 
 #: The keyword arguments that make a :class:`ServoLoop` (and that the loop functions accept
 #: instead of one).
@@ -208,10 +208,15 @@ class ServoLoop:
 
 
 _MISSING = object()
+#: The "not given" marker of the loop's keyword arguments (see :func:`loop_parts`).
+MISSING = _MISSING
 
 
-def resolve_loop(loop, legacy: dict, where: str) -> ServoLoop:
-    """``loop``, or a :class:`ServoLoop` built from the keyword arguments in ``legacy``."""
+def resolve_loop(loop, legacy: dict, where: str, *, plant_optional: bool = False) -> ServoLoop:
+    """``loop``, or a :class:`ServoLoop` built from the keyword arguments in ``legacy`` (the
+    one alias table of the loop functions: :data:`LOOP_KEYS`). With ``plant_optional`` (a
+    function that sets the true plant itself: the robust maps, the tuner) a missing plant is
+    the nominal model."""
     given = {k: v for k, v in legacy.items() if v is not _MISSING}
     if loop is not None:
         if not isinstance(loop, ServoLoop):
@@ -230,6 +235,8 @@ def resolve_loop(loop, legacy: dict, where: str) -> ServoLoop:
                 f"({', '.join(LOOP_KEYS)}), not both; got a loop and {', '.join(sorted(given))}"
             )
         return require_instance(loop, ServoLoop, "loop")
+    if plant_optional and "plant" not in given and "nominal" in given:
+        given["plant"] = given["nominal"]
     missing = [k for k in ("plant", "nominal", "Ts", "controller") if k not in given]
     if missing:
         raise ParameterTypeError(
@@ -239,12 +246,38 @@ def resolve_loop(loop, legacy: dict, where: str) -> ServoLoop:
     return ServoLoop(**given)
 
 
-def accepts_loop(function):
+def loop_parts(loop, legacy: dict, where: str) -> dict:
+    """The loop's parts (:data:`LOOP_KEYS`) from ``loop`` or from the keyword arguments in
+    ``legacy`` (``_MISSING`` where not given), for functions that set some parts themselves
+    and so cannot always build a :class:`ServoLoop` from the keywords (a robust map of a
+    ``PD(velocity="observer")`` whose observer is the map's). ``observer`` is the loop's
+    spec (:attr:`ServoLoop.observer_spec`) when the parts come from a loop."""
+    given = {k: v for k, v in legacy.items() if v is not _MISSING}
+    if loop is None:
+        return given
+    if not isinstance(loop, ServoLoop):
+        raise ParameterTypeError(
+            f"{where}() takes a ServoLoop as its first argument, got {type(loop).__name__}; "
+            f"pass the loop's parts as keyword arguments ({', '.join(sorted(legacy))}) or "
+            "build a ServoLoop"
+        )
+    if given:
+        raise ParameterTypeError(
+            f"{where}() takes a ServoLoop or the loop's keyword arguments "
+            f"({', '.join(sorted(legacy))}), not both; got a loop and {', '.join(sorted(given))}"
+        )
+    return {**loop.keywords(), "observer": loop.observer_spec}
+
+
+def accepts_loop(function=None, *, plant_optional: bool = False):
     """Let ``function(loop, ...)`` also be called with the loop's keyword arguments instead.
 
     ``f(plant=..., nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...,
-    **rest)`` becomes ``f(ServoLoop(...), **rest)``.
+    **rest)`` becomes ``f(ServoLoop(...), **rest)``: the one alias of every function taking a
+    loop. ``@accepts_loop(plant_optional=True)`` for functions that set the plant themselves.
     """
+    if function is None:
+        return functools.partial(accepts_loop, plant_optional=plant_optional)
 
     @functools.wraps(function)
     def wrapper(
@@ -269,6 +302,7 @@ def accepts_loop(function):
             "sensor": sensor,
             "actuator": actuator,
         }
-        return function(resolve_loop(loop, legacy, function.__name__), *args, **kwargs)
+        resolved = resolve_loop(loop, legacy, function.__name__, plant_optional=plant_optional)
+        return function(resolved, *args, **kwargs)
 
     return wrapper

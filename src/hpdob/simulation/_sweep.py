@@ -63,6 +63,10 @@ def _observer_parts(observer):
 
 
 def _resolve_base(base, *, varies_Ts: bool = False) -> dict:
+    from ._scenario import Scenario
+
+    if isinstance(base, Scenario):  # a loop and its run settings (load_scenario)
+        base = {"loop": base.loop, **{k: v for k, v in base.run.items() if k != "label"}}
     if not isinstance(base, dict):
         raise ParameterTypeError(
             f"base must be a dict of simulate() arguments, got {type(base).__name__}"
@@ -390,8 +394,10 @@ def sweep(
 
     Parameters
     ----------
-    base : dict
-        What the scenarios share: ``loop`` (a :class:`~hpdob.ServoLoop`) or the loop's keyword
+    base : dict or Scenario
+        What the scenarios share: a :class:`~hpdob.simulation.Scenario` (a loop and its run
+        settings, as :func:`~hpdob.simulation.load_scenario` reads them), or a dict of
+        ``loop`` (a :class:`~hpdob.ServoLoop`) or the loop's keyword
         arguments (``plant``, ``nominal``, ``Ts``, ``controller``, ``observer``, ``sensor``,
         ``actuator``), and the keyword arguments of :func:`hpdob.simulate` (``duration``,
         ``reference``, ``disturbance``, ``substeps``, ``x0``). The observer may be a dict of

@@ -44,6 +44,7 @@ from ..analysis._linear_loop import MAX_DELAY_SAMPLES
 from ..models._servo import ServoModel
 from ..simulation._controller import PD
 from ..simulation._devices import Actuator, Encoder
+from ..simulation._loop import MISSING, loop_parts
 from ._result import TuningResult
 
 __all__ = ["OBJECTIVES", "candidate_families", "tune"]
@@ -203,12 +204,14 @@ def _delay_margin(base, corners, plant, delay: int) -> int:
 
 
 def tune(
+    loop=None,
+    /,
     *,
-    nominal: ServoModel,
-    Ts: float,
-    controller: PD | None = None,
-    sensor: Encoder | None = None,
-    actuator: Actuator | None = None,
+    nominal: ServoModel = MISSING,
+    Ts: float = MISSING,
+    controller: PD | None = MISSING,
+    sensor: Encoder | None = MISSING,
+    actuator: Actuator | None = MISSING,
     J_range=(1.0, 1.0),
     b_range=None,
     disturbance_frequency=None,
@@ -222,6 +225,12 @@ def tune(
 
     Parameters
     ----------
+    loop : ServoLoop, optional
+        The loop to tune the observer of: its nominal model, ``Ts``, controller, sensor,
+        actuator and (unless ``coulomb`` is given) its plant's Coulomb friction; its observer
+        is what the search replaces. Instead of a loop, the keyword arguments ``nominal``,
+        ``Ts``, ``controller``, ``sensor`` and ``actuator`` are accepted (the loop functions'
+        one alias), with the defaults below.
     nominal : ServoModel
         The nominal model (``J_n``, ``b_n``) of controller and observer.
     Ts : float
@@ -295,6 +304,20 @@ def tune(
     from ..simulation._loop import ServoLoop
     from ..simulation._simulate import _sample_count, sample_signals, simulate
 
+    legacy = {"nominal": nominal, "Ts": Ts, "controller": controller, "sensor": sensor,
+              "actuator": actuator}  # fmt: skip
+    parts = loop_parts(loop, legacy, "tune")
+    missing = [k for k in ("nominal", "Ts") if k not in parts]
+    if missing:
+        raise ParameterTypeError(
+            "tune() needs a ServoLoop as first argument, or the keyword arguments nominal and "
+            f"Ts (missing: {', '.join(missing)})"
+        )
+    nominal, Ts = parts["nominal"], parts["Ts"]
+    controller, sensor = parts.get("controller"), parts.get("sensor")
+    actuator = parts.get("actuator")
+    if loop is not None and coulomb is None:
+        coulomb = getattr(loop.plant, "coulomb", None)
     nominal = require_instance(nominal, ServoModel, "nominal")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
     if not 0.4 * math.pi / Ts > MIN_BANDWIDTH:  # the grid of bandwidths, 5 rad/s .. 0.4 pi/Ts
