@@ -312,7 +312,7 @@ def robust_stability_map(
         (unless ``order`` or ``observer`` is given) its observer's family spec; its plant is
         replaced at every grid point. Instead of a loop, its keyword arguments ``nominal``,
         ``Ts``, ``controller`` and ``sensor`` are accepted (the loop functions' one alias,
-        :data:`hpdob.simulation.ServoLoop` parts).
+        the parts of a :class:`~hpdob.ServoLoop`).
     J_ratio : float or array_like, optional
         True/nominal inertia ratio(s) ``J / J_n``, positive; a grid must be strictly
         increasing. Default 1.

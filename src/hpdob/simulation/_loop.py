@@ -59,7 +59,7 @@ class ServoLoop:
         nominal model must have the same ``Ts``). Each run starts it from
         ``initial_state(x0, 0)`` unless the run is given an ``observer_state``. The loop
         holds values only: a runtime observer (:class:`~hpdob.DisturbanceObserver`, ...) is
-        replaced by its design, and its current state is kept as :attr:`observer_state` (the
+        replaced by its design, and its current state is kept as ``observer_state`` (the
         run's ``observer_state`` argument is the way to start from a given state).
         None: PD only.
     sensor : Encoder, optional
