@@ -471,9 +471,7 @@ class DisturbanceObserver(_DesignedObserver):
         >>> obs.to_statespace().A
         array([[0.9]])
         """
-        from ..analysis._estimation import observer_statespace
-
-        return observer_statespace(self._design)
+        return as_system(self._design).to_statespace()
 
     def __repr__(self) -> str:
         poles = np.array2string(np.asarray(self.poles), precision=6, separator=", ")
