@@ -421,8 +421,8 @@ def compare_observers(
     ...     for row in table.rows if row["tuning"] == "matched")   # all at the same noise
     True
     """
-    from .. import paper
     from ..simulation import PD, ServoLoop, simulate
+    from ..simulation import _canonical as paper  # the paper's set-up, as data
     from ..simulation._simulate import _sample_count
     from ._noise import noise_gains
     from ._sensitivity import loop_margins
@@ -439,7 +439,7 @@ def compare_observers(
         raise ParameterValueError("sensors must name at least one of 'ideal', 'encoder'")
     target = positive(noise_gain, "noise_gain", "a positive finite noise gain [N m/rad]")
     candidates = _check_candidates(default_candidates() if candidates is None else candidates)
-    scenario = paper.scenario()
+    scenario = paper.canonical_run()
     encoder, actuator = paper.VIRTUAL_SENSOR, paper.VIRTUAL_ACTUATOR
     if loop is not None:
         scenario, encoder, actuator = _loop_scenario(loop, scenario, encoder, actuator)

@@ -119,8 +119,8 @@ def _scenario(nominal, Ts, disturbance_frequency, scenario):
     """The verification run: the paper's reference and disturbance shape, with the sine at the
     disturbance frequency and the amplitudes scaled by J_n (the same disturbance acceleration
     as the paper's), unless given."""
-    from .. import paper
     from ..signals import Sine, Step
+    from ..simulation import _canonical as paper  # the paper's set-up, as data
 
     if scenario is not None:
         if not isinstance(scenario, dict):
@@ -356,7 +356,7 @@ def tune(
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
     if coulomb is None:
-        from ..paper._scenario import NOMINAL, PLANT
+        from ..simulation._canonical import NOMINAL, PLANT
 
         # The paper scenario's Coulomb friction (the paper's model has viscous friction only;
         # hpdob's scenario adds it), at the same acceleration for any J_n.
