@@ -117,10 +117,10 @@ def test_scenario_toml_reads_back_bit_for_bit(name, tmp_path):
            "disturbance": 0.5 * Step(0.25, 0.02)}  # fmt: skip
     path = tmp_path / "s.toml"
     path.write_text(scenario_toml(loop, label=name, comment="a test\nof comments", **run))
-    kwargs = load_scenario(path)
-    assert kwargs["label"] == name
+    scenario = load_scenario(path)
+    assert scenario.run["label"] == name
     mine = simulate(loop, **run)
-    theirs = simulate(**kwargs)
+    theirs = scenario.simulate()
     np.testing.assert_array_equal(theirs.theta, mine.theta)
     np.testing.assert_array_equal(theirs.tau_hat, mine.tau_hat)
 

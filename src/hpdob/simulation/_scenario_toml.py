@@ -17,7 +17,6 @@ from .._signals import Sum
 from .._validation import ParameterTypeError, ParameterValueError
 from ..models._servo import ServoModel
 from ..models._two_mass import TwoMassServo
-from ..observers._families import spec_of
 from ._loop import ServoLoop
 
 __all__ = ["scenario_toml"]
@@ -159,7 +158,7 @@ def scenario_toml(loop: ServoLoop, *, reference, duration: float, disturbance=No
     lines += _table("nominal", _fields(loop.nominal))
     lines += _table("controller", _fields(loop.controller))
     if loop.observer is not None:
-        spec = spec_of(loop.observer)
+        spec = loop.observer_spec  # the spec given, or that of a design of a registered family
         if spec is None:
             raise ParameterTypeError(
                 "loop.observer must be of a known family (order-m DOb, ESO, Kalman) to be "
