@@ -34,7 +34,10 @@ midpoint rule. With :math:`F(\omega, t) = c\tanh(\omega/v) + \tau_{ext}(t)` and
     x_{j+1} = A_h x_j + B_h\,(u - F(\omega_{j+1/2}, t_{j+1/2})),
 
 second order in ``h`` for smooth forcing, and exact for disturbance steps on sub-step
-boundaries (the canonical ones are at half samples, so any even ``S`` aligns them). A plant
+boundaries (the canonical ones are at half samples, so any even ``S`` aligns them). The plant's
+sampler names the path that advances it (``ExactSubsteps.path``): ``"rigid"`` and
+``"two-mass"`` hold the state in registers, ``"generic"`` loops over any state size
+(``tests/test_plant_paths.py`` checks it against the exact ZOH recurrence). A plant
 advanced from Python (MuJoCo) calls :func:`run_samples` for one sample at a time, which then
 stops after step 5 and leaves steps 6-7 to the plant
 (``hpdob.simulation._python_plant``).
@@ -54,7 +57,7 @@ import math
 import numba
 import numpy as np
 
-from ._records import SENSOR_ENCODER_EXACT, SENSOR_IDEAL
+from ._records import PATH_RIGID, PATH_TWO_MASS, SENSOR_ENCODER_EXACT, SENSOR_IDEAL
 
 __all__ = ["ground_truth", "program_row", "run_observer", "run_samples"]
 
@@ -102,7 +105,7 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
     torque_limit, delay = act.torque_limit, act.delay
     A_h, B_h, D_h = plant.A_h, plant.B_h, plant.D_h
     A_half, B_half, D_half = plant.A_half, plant.B_half, plant.D_half
-    internal, shared, v = plant.internal, plant.shared, plant.velocity_index
+    internal, shared, v, path = plant.internal, plant.shared, plant.velocity_index, plant.path
     c, c_scale, J_motor = plant.coulomb, plant.coulomb_velocity, plant.J_motor
     nx = x.shape[0]
     record = states.shape[0] > 0
@@ -179,7 +182,7 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
         tau_dn[k] = ground_truth(uk, om, accel / J_motor, J_n, b_n)
         # 7. the plant over [t_k, t_{k+1}): exponential midpoint sub-steps
         base = k * substeps
-        if nx == 2 and shared:  # the rigid servo, kept in registers
+        if path == PATH_RIGID:  # the rigid servo, kept in registers
             a00, a01, a10, a11 = A_h[0, 0], A_h[0, 1], A_h[1, 0], A_h[1, 1]
             h10, h11, b0, b1, g1 = A_half[1, 0], A_half[1, 1], B_h[0], B_h[1], B_half[1]
             for j in range(substeps):
@@ -190,7 +193,7 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
                 th, om = a00 * th + a01 * om + b0 * force, a10 * th + a11 * om + b1 * force
             x[0] = th
             x[1] = om
-        elif nx == 4 and not shared and v == 1:  # the two-mass drive, kept in registers
+        elif path == PATH_TWO_MASS:  # the two-mass drive, kept in registers
             x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
             h0, h1, h2, h3 = A_half[1, 0], A_half[1, 1], A_half[1, 2], A_half[1, 3]
             gb, gd = B_half[1], D_half[1]
@@ -208,7 +211,7 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
                 x2 = y2 + B_h[2] * force - D_h[2] * tau_e
                 x3 = y3 + B_h[3] * force - D_h[3] * tau_e
             x[0], x[1], x[2], x[3] = x0, x1, x2, x3
-        else:
+        else:  # any plant (the path its sampler names)
             for j in range(substeps):
                 tau_e = tau_mid[base + j]
                 force = applied - c * math.tanh(x[v] / c_scale)

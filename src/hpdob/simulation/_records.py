@@ -13,6 +13,9 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = [
+    "PATH_GENERIC",
+    "PATH_RIGID",
+    "PATH_TWO_MASS",
     "SENSOR_ENCODER_DIFFERENCE",
     "SENSOR_ENCODER_EXACT",
     "SENSOR_IDEAL",
@@ -29,6 +32,11 @@ __all__ = [
 SENSOR_IDEAL = 0
 SENSOR_ENCODER_DIFFERENCE = 1
 SENSOR_ENCODER_EXACT = 2
+
+#: The kernel's sub-step paths (indices into ``hpdob.models._plant.SUBSTEP_PATHS``).
+PATH_RIGID = 0
+PATH_TWO_MASS = 1
+PATH_GENERIC = 2
 
 
 class ControllerRecord(NamedTuple):
@@ -110,6 +118,7 @@ class LinearPlantRecord(NamedTuple):
     """
 
     linear: bool  # False: a plant advanced from Python (the other fields are unused)
+    path: int  # the sub-step path: an index into hpdob.models._plant.SUBSTEP_PATHS
     velocity_index: int  # index of the motor velocity in x
     A_h: np.ndarray
     B_h: np.ndarray

@@ -352,7 +352,7 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     sampler = plant.sampler(Ts, S)
     if isinstance(sampler, ExactSubsteps):
         record = LinearPlantRecord(
-            True, sampler.velocity_index, sampler.A_h, sampler.B_h, sampler.D_h,
+            True, sampler.path_index, sampler.velocity_index, sampler.A_h, sampler.B_h, sampler.D_h,
             sampler.A_half, sampler.B_half, sampler.D_half, sampler.shared, sampler.internal,
             sampler.J_motor, sampler.coulomb, sampler.coulomb_velocity,
         )  # fmt: skip
