@@ -12,10 +12,13 @@ Per sample ``k`` (``t_k = k Ts``) the loop runs, for every plant:
 2. estimate: the observer's outputs :math:`\hat\tau_k (, \hat\omega_k) = H s_k + E v_k`
    (0 without observer), from its program (:class:`hpdob.observers.Program`), in exactly the
    operation order of the Python observer and the exported C;
-3. control: :math:`u_k = J_n(\ddot r_k + k_p(r_k-\theta_{m,k}) + k_d(\dot r_k-\omega_{m,k}))
-   + \hat\tau_k` (:math:`\hat\omega_k` instead of :math:`\omega_{m,k}` if the PD uses the
-   observer's velocity), clipped to the actuator limit;
-4. observer update :math:`s_{k+1} = F s_k + G [v_k, u_k]` with the clipped :math:`u_k`;
+3. control: the controller's signal rows in order (:class:`hpdob.controllers.ControllerProgram`),
+   from its state and its inputs wired by name (reference, measurement, observer outputs); the
+   last signal is the command :math:`u_k` (the PD:
+   :math:`J_n(k_p(r_k-\theta_{m,k}) + k_d(\dot r_k-\omega_{m,k}) + \ddot r_k) + \hat\tau_k`),
+   clipped to the actuator limit;
+4. observer update :math:`s_{k+1} = F s_k + G [v_k, u_k]` and controller update
+   :math:`c_{k+1} = F_c c_k + G_c [v_k, \bar u_k]` with the clipped command;
 5. the plant receives :math:`u_{k-d}` (``d`` samples of delay; 0 before the first command);
 6. ground truth (eq. 3) just after :math:`u_{k-d}` is applied:
    :math:`\tau_{dn,k} = u_k - b_n\omega_k - J_n\ddot\theta(t_k^+)` (:func:`ground_truth`);
@@ -94,13 +97,16 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
     """
     r, r_dot, r_ddot, tau_sample, tau_mid, noise = sig
     theta, omega, theta_m, omega_m, u, tau_hat, tau_dn, omega_hat, states = out
-    s, s_new, w, previous, x, x_next, applied_out = work
+    s, s_new, w, c_s, c_new, cw, sv, previous, x, x_next, applied_out = work
     up_ptr, up_c, up_i = obs.update_pointer, obs.update_coefficient, obs.update_operand
     out_ptr, out_c, out_i = obs.output_pointer, obs.output_coefficient, obs.output_operand
-    n, p = obs.n, obs.p
+    n, p, q = obs.n, obs.p, obs.q
     has_observer, has_velocity = obs.present, obs.q == 2
-    J_n, b_n, kp, kd = ctl.J_n, ctl.b_n, ctl.kp, ctl.kd
-    feedforward, observer_velocity = ctl.feedforward, ctl.observer_velocity
+    J_n, b_n = ctl.J_n, ctl.b_n
+    nc, pc, qc, source = ctl.n, ctl.p, ctl.q, ctl.source
+    sig_ptr, sig_c, sig_i = ctl.signal_pointer, ctl.signal_coefficient, ctl.signal_operand
+    cup_ptr, cup_c, cup_i = ctl.update_pointer, ctl.update_coefficient, ctl.update_operand
+    first = nc + pc + 1  # operand index of the controller's first signal
     mode, resolution = sen.mode, sen.resolution
     torque_limit, delay = act.torque_limit, act.delay
     A_h, B_h, D_h = plant.A_h, plant.B_h, plant.D_h
@@ -134,7 +140,6 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
         omega_m[k] = omm
         # 2. estimate: output rows of the observer's program, left to right
         est = 0.0
-        om_ctl = omm
         if has_observer:
             for i in range(n):
                 w[i] = s[i]
@@ -142,29 +147,44 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
             if p == 2:
                 w[n + 1] = omm
             est = program_row(out_ptr, out_c, out_i, w, 0)
-            if has_velocity:
-                om_hat = program_row(out_ptr, out_c, out_i, w, 1)
-                omega_hat[k] = om_hat
-                if observer_velocity:
-                    om_ctl = om_hat
+            if q > 1:
+                for j in range(1, q):
+                    sv[5 + j] = program_row(out_ptr, out_c, out_i, w, j)
+                if has_velocity:
+                    omega_hat[k] = sv[6]
         tau_hat[k] = est
-        # 3. control, limited
-        acc = kp * (r[k] - thm) + kd * (r_dot[k] - om_ctl)
-        if feedforward:
-            acc += r_ddot[k]
-        uk = J_n * acc + est
+        sv[0] = r[k]
+        sv[1] = r_dot[k]
+        sv[2] = r_ddot[k]
+        sv[3] = thm
+        sv[4] = omm
+        sv[5] = est
+        # 3. control: the controller's signal rows in order, the last is the command; limited
+        for i in range(nc):
+            cw[i] = c_s[i]
+        for j in range(pc):
+            cw[nc + j] = sv[source[j]]
+        for j in range(qc):
+            cw[first + j] = program_row(sig_ptr, sig_c, sig_i, cw, j)
+        uk = cw[first + qc - 1]
         if uk > torque_limit:
             uk = torque_limit
         elif uk < -torque_limit:
             uk = -torque_limit
         u[k] = uk
-        # 4. observer update with the command really given: update rows, left to right
+        # 4. observer and controller updates with the command really given, left to right
         if has_observer:
             w[n + p] = uk
             for i in range(n):
                 s_new[i] = program_row(up_ptr, up_c, up_i, w, i)
             for i in range(n):
                 s[i] = s_new[i]
+        if nc > 0:
+            cw[nc + pc] = uk
+            for i in range(nc):
+                c_new[i] = program_row(cup_ptr, cup_c, cup_i, cw, i)
+            for i in range(nc):
+                c_s[i] = c_new[i]
         # 5. actuator delay
         applied = u[k - delay] if k >= delay else 0.0
         if not plant.linear:

@@ -40,14 +40,21 @@ PATH_GENERIC = 2
 
 
 class ControllerRecord(NamedTuple):
-    """The PD of :class:`~hpdob.PD` with the nominal model it scales by."""
+    """A controller's program as arrays (:meth:`hpdob.controllers.ControllerProgram.arrays`),
+    the wiring of its inputs and the nominal model of the ground truth (eq. 3)."""
 
     J_n: float
     b_n: float
-    kp: float
-    kd: float
-    feedforward: bool
-    observer_velocity: bool  # the PD's derivative uses the observer's omega_hat
+    n: int  # states
+    p: int  # inputs
+    q: int  # signals (the last is the command)
+    source: np.ndarray  # input j is entry source[j] of [r, r_dot, r_ddot, theta_m, omega_m, y_obs]
+    signal_pointer: np.ndarray
+    signal_coefficient: np.ndarray
+    signal_operand: np.ndarray
+    update_pointer: np.ndarray
+    update_coefficient: np.ndarray
+    update_operand: np.ndarray
 
 
 class SensorRecord(NamedTuple):
@@ -102,6 +109,10 @@ class Work(NamedTuple):
     s: np.ndarray  # observer state s_k
     s_new: np.ndarray
     w: np.ndarray  # operands [s_k, measurement, u_k]
+    c: np.ndarray  # controller state c_k
+    c_new: np.ndarray
+    cw: np.ndarray  # controller operands [c_k, inputs, u_bar_k, signals]
+    sv: np.ndarray  # the loop's signals [r, r_dot, r_ddot, theta_m, omega_m, observer outputs]
     previous: np.ndarray  # [theta_m of the previous sample]
     x: np.ndarray  # plant state (set by the caller for a plant advanced from Python)
     x_next: np.ndarray

@@ -17,7 +17,7 @@ from .._validation import (
     positive,
 )
 from ..models._plant import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, ExactSubsteps
-from ._loop import ServoLoop, accepts_loop
+from ._loop import ServoLoop, accepts_loop, controller_sources
 from ._records import (
     SENSOR_ENCODER_DIFFERENCE,
     SENSOR_ENCODER_EXACT,
@@ -301,6 +301,18 @@ def _observer_record(system) -> ObserverRecord:
     )
 
 
+def _controller_record(loop) -> ControllerRecord:
+    controller = loop.controller_system
+    sources = controller_sources(loop.system)
+    signals, update, _ = controller.kernel_arrays
+    return ControllerRecord(
+        loop.nominal.J, loop.nominal.b, controller.n_states, len(controller.inputs),
+        len(controller.program.signals),
+        np.array([sources.index(name) for name in controller.inputs], dtype=np.int64),
+        *signals, *update,
+    )  # fmt: skip
+
+
 def _sensor_record(sensor, n: int) -> tuple[SensorRecord, np.ndarray]:
     if sensor is None:
         return SensorRecord(SENSOR_IDEAL, 1.0), np.zeros(n)
@@ -325,15 +337,13 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
 
     Ts, S, t = signals.Ts, signals.substeps, signals.t
     n = t.size
-    plant, controller, system = loop.plant, loop.controller, loop.system
+    plant, system = loop.plant, loop.system
     sensor, noise = _sensor_record(loop.sensor, n)
     actuator = loop.actuator
     limit = math.inf if actuator.torque_limit is None else actuator.torque_limit
+    ctl = _controller_record(loop)
     records = {
-        "ctl": ControllerRecord(
-            loop.nominal.J, loop.nominal.b, controller.kp, controller.kd,
-            controller.feedforward, controller.velocity == "observer",
-        ),
+        "ctl": ctl,
         "sen": sensor,
         "act": ActuatorRecord(limit, actuator.delay_samples),
         "obs": _observer_record(system),
@@ -348,7 +358,10 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     )
     state = observer_state if observer_state is not None else loop.initial_observer_state(x0)
     s = np.array(state if state is not None else (), dtype=float)
-    work = Work(s, s.copy(), np.zeros(s.size + 3), np.zeros(1), x, x.copy(), np.zeros(1))
+    c = np.array(loop.controller_system.python.reset(float(x0[0]), float(x0[1]), 0.0))
+    work = Work(s, s.copy(), np.zeros(s.size + 3), c, c.copy(),
+                np.zeros(ctl.n + ctl.p + 1 + ctl.q), np.zeros(5 + records["obs"].q),
+                np.zeros(1), x, x.copy(), np.zeros(1))  # fmt: skip
     sampler = plant.sampler(Ts, S)
     if isinstance(sampler, ExactSubsteps):
         record = LinearPlantRecord(

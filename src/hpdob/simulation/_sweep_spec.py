@@ -23,7 +23,8 @@ PATHS = (
     "nominal.J", "nominal.b",
     "observer.order", "observer.bandwidth", "observer.velocity_bandwidth",
     "observer.measurement",
-    "controller.kp", "controller.kd",
+    "controller.kp", "controller.kd", "controller.ki", "controller.time_constant",
+    "controller.tracking_time", "controller.bandwidth", "controller.observer_bandwidth",
     "Ts", "disturbance_scale",
 )  # fmt: skip
 #: Random distributions for ``vary``: name -> meaning of its two parameters.
@@ -161,6 +162,20 @@ def check_paths_apply(paths, loop, spec) -> None:
                 why = (
                     f"a {type(model).__name__} has no parameter {name!r} (it has "
                     f"{', '.join(sorted(valid))})"
+                )
+        elif kind == "controller":
+            controller = loop.controller
+            import dataclasses
+
+            valid = (
+                {f.name for f in dataclasses.fields(controller) if f.init and f.name != "_"}
+                if dataclasses.is_dataclass(controller)
+                else set()
+            )
+            if name not in valid:
+                why = (
+                    f"a {type(controller).__name__} has no parameter {name!r}"
+                    + (f" (it has {', '.join(sorted(valid))})" if valid else "")
                 )
         elif kind == "observer" and spec is None:
             why = (

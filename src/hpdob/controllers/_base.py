@@ -1,0 +1,51 @@
+"""What the loop accepts as its controller, and the controller types of scenario files."""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+from .._validation import ParameterTypeError
+from ._system import LinearController
+
+__all__ = ["Controller", "controller_system"]
+
+
+class Controller(ABC):
+    """A controller specification: it designs its :class:`LinearController` on the loop's
+    nominal model and sampling period (:class:`~hpdob.PD`, :class:`~hpdob.PID`,
+    :class:`~hpdob.FilteredPD`, :class:`~hpdob.ADRC`; a :class:`LinearController` is
+    accepted by the loop as it is)."""
+
+    __slots__ = ()
+
+    @abstractmethod
+    def design(self, nominal, Ts: float) -> LinearController:
+        """The controller as a linear system for this loop.
+
+        Parameters
+        ----------
+        nominal : ServoModel
+            The nominal model (``J_n``, ``b_n``) the controller scales by.
+        Ts : float
+            Sampling period [s].
+
+        Returns
+        -------
+        LinearController
+        """
+
+
+def controller_system(controller, nominal, Ts: float, name: str = "controller"):
+    """The :class:`LinearController` of ``controller`` in a loop on ``nominal`` at ``Ts``.
+
+    Raises
+    ------
+    ParameterTypeError
+        If ``controller`` is neither a :class:`Controller` nor a :class:`LinearController`.
+    """
+    if isinstance(controller, (Controller, LinearController)):
+        return controller.design(nominal, Ts)
+    raise ParameterTypeError(
+        f"{name} must be a PD, PID, FilteredPD, ADRC or another Controller (or a "
+        f"LinearController), got {type(controller).__name__}"
+    )
