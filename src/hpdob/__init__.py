@@ -74,6 +74,7 @@ from .analysis import (
     observer_noise_gain,
     robust_stability_map,
 )
+from .controllers import ADRC, PD, PID, FilteredPD, LinearController
 from .export import export_c
 from .identification import (
     EstimationResult,
@@ -100,7 +101,6 @@ from .observers import (
     initial_state,
     update,
 )
-from .controllers import ADRC, PD, PID, FilteredPD, LinearController
 from .simulation import (
     Actuator,
     Encoder,

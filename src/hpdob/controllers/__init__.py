@@ -24,11 +24,11 @@ __all__ = [
     "ADRC",
     "CONTROLLER_TYPES",
     "LOOP_SIGNALS",
+    "PD",
+    "PID",
     "Controller",
     "ControllerProgram",
     "FilteredPD",
     "LinearController",
-    "PD",
-    "PID",
     "ProgramBuilder",
 ]

@@ -9,7 +9,7 @@ from .._validation import ParameterTypeError, check_choice, nonnegative, positiv
 from ._base import Controller
 from ._system import LinearController, ProgramBuilder
 
-__all__ = ["VELOCITY_SOURCES", "PD", "FilteredPD"]
+__all__ = ["PD", "VELOCITY_SOURCES", "FilteredPD"]
 
 #: Where the derivative term takes the velocity from: the sensor's, or the observer's
 #: ``omega_hat`` (the controller input of that name).
@@ -121,8 +121,10 @@ class PD(Controller):
         --------
         >>> from hpdob import PD, ServoModel
         >>> c = PD(50.0, 5.0).design(ServoModel(2e-4), 1e-3)
-        >>> c.inputs, c.E.round(6).tolist()
-        (('r', 'r_dot', 'r_ddot', 'theta', 'omega', 'tau_hat'), [[0.01, 0.001, 0.0002, -0.01, -0.001, 1.0]])
+        >>> c.inputs
+        ('r', 'r_dot', 'r_ddot', 'theta', 'omega', 'tau_hat')
+        >>> c.E.round(6).tolist()    # J_n (kp, kd, 1, -kp, -kd) and 1
+        [[0.01, 0.001, 0.0002, -0.01, -0.001, 1.0]]
         """
         b, _ = pd_builder(self)
         _command(b, self, nominal.J, "e_dot")
@@ -242,7 +244,7 @@ class FilteredPD(Controller):
         LinearController
         """
         a = math.exp(-Ts / self.time_constant)
-        b, omega = pd_builder(self, states=("d",))
+        b, _ = pd_builder(self, states=("d",))
         b.signal("d_now", (a, "d", "A_F"), (1.0 - a, "e_dot", "B_F"))
         _command(b, self, nominal.J, "d_now")
         b.update("d", (1.0, "d_now"))

@@ -121,6 +121,7 @@ class ControllerProgram:
         >>> [(t.coefficient, t.operand) for t in program.signals[0]]
         [(2.0, 0), (-2.0, 1)]
         """
+
         def row(values, prefix):
             return tuple(
                 Term(float(c), j, None if abs(c) == 1.0 else f"{prefix}{j + 1}")
@@ -129,9 +130,7 @@ class ControllerProgram:
             )
 
         n = np.asarray(F).shape[0]
-        update = tuple(
-            row(np.concatenate([F[i], G[i]]), f"CF{i + 1}_") for i in range(n)
-        )
+        update = tuple(row(np.concatenate([F[i], G[i]]), f"CF{i + 1}_") for i in range(n))
         signals = (row(np.concatenate([H[0], E[0]]), "CH1_"),)
         reset = tuple(row(N[i], f"CN{i + 1}_") for i in range(n))
         return cls(signals=signals, update=update, reset=reset, signal_names=("u",))
@@ -218,9 +217,7 @@ class ControllerProgram:
 
 def _matrix(value, name: str, shape: tuple) -> np.ndarray:
     array = numeric_array(value, name, f"a real matrix of shape {shape}", dtype=float)
-    if array.size == 0 and 0 in shape:
-        array = array.reshape(shape)
-    elif array.ndim == 1 and len(shape) == 2 and 1 in shape:
+    if (array.size == 0 and 0 in shape) or (array.ndim == 1 and len(shape) == 2 and 1 in shape):
         array = array.reshape(shape)
     if array.shape != shape:
         raise ParameterValueError(f"{name} must have shape {shape}, got shape {array.shape}")
@@ -634,5 +631,6 @@ class ProgramBuilder:
             constants=tuple(self._constants),
             state_names=self.states,
         )
-        return LinearController.from_program(program, Ts=Ts, inputs=self.inputs,
-                                             n_states=len(self.states), name=name, info=info)  # fmt: skip
+        return LinearController.from_program(
+            program, Ts=Ts, inputs=self.inputs, n_states=len(self.states), name=name, info=info
+        )

@@ -365,7 +365,7 @@ def render_c(
 
     Parameters
     ----------
-    obs : observer-like
+    obs : observer-like or LinearController
         As for :func:`export_c`.
     prefix, dtype, nan_guard
         As for :func:`export_c`.
@@ -392,6 +392,16 @@ def render_c(
     >>> [line for line in source.splitlines() if line.startswith("#include")]   # no library
     ['#include "axis1.h"']
     """
+    from ..controllers import LinearController
+
+    if isinstance(obs, LinearController):
+        dtype = check_choice(dtype, "dtype", DTYPES)
+        prefix = _check_prefix(prefix)
+        if _check_guard(nan_guard):
+            raise ParameterValueError("nan_guard is for observers; a controller has none")
+        from ._controller_c import render_controller
+
+        return render_controller(obs, prefix, dtype)
     system = as_system(obs, "obs")
     dtype = check_choice(dtype, "dtype", DTYPES)
     prefix = _check_prefix(prefix)
@@ -420,9 +430,13 @@ def export_c(
 
     Parameters
     ----------
-    obs : DisturbanceObserver or ObserverDesign
+    obs : DisturbanceObserver or ObserverDesign or LinearController
         The observer to export; only its design is used (the C state starts from
-        ``<prefix>_init``, not from the Python object's current state).
+        ``<prefix>_init``, not from the Python object's current state). A controller
+        (``PID(...).design(nominal, Ts)``, any
+        :class:`~hpdob.controllers.LinearController`) is exported as ``<prefix>_init``,
+        ``<prefix>_command(s, inputs...)`` and ``<prefix>_update(s, inputs..., u_bar)``
+        evaluating its program term by term (``nan_guard`` is for observers only).
     directory : str or os.PathLike
         Output directory, created if missing; existing files of the same name are replaced.
     prefix : str, optional

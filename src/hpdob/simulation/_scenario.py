@@ -18,11 +18,11 @@ from .._validation import (
     check_keys,
 )
 from .._waveforms import Chirp, Noise, Sine
+from ..controllers import CONTROLLER_TYPES
 from ..models._servo import ServoModel
 from ..models._two_mass import TwoMassServo
 from ..observers._families import FAMILIES, check_spec, design_from_spec
 from ..observers._runtime import Observer
-from ..controllers import CONTROLLER_TYPES
 from ._devices import Actuator, Encoder
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import check_run_arguments

@@ -411,8 +411,10 @@ def sweep(
         ``nominal.b``, ``observer.order``, ``observer.bandwidth``,
         ``observer.velocity_bandwidth``, ``observer.measurement`` (``"state"`` or
         ``"position"``; the other family's ``gain_direction`` or ``velocity_bandwidth`` is
-        dropped), ``controller.kp``, ``controller.kd``, ``Ts``, ``disturbance_scale``
-        (multiplies the disturbance).
+        dropped), ``controller.kp``, ``controller.kd``, ``controller.ki``,
+        ``controller.time_constant``, ``controller.tracking_time``, ``controller.bandwidth``,
+        ``controller.observer_bandwidth`` (the parameters of the base's controller, through
+        its constructor), ``Ts``, ``disturbance_scale`` (multiplies the disturbance).
     vary : dict, optional
         Path -> ``("uniform", low, high)``, ``("normal", mean, std)`` or
         ``("loguniform", low, high)``; ``n`` draws per grid point.

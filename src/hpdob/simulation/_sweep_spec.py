@@ -173,9 +173,8 @@ def check_paths_apply(paths, loop, spec) -> None:
                 else set()
             )
             if name not in valid:
-                why = (
-                    f"a {type(controller).__name__} has no parameter {name!r}"
-                    + (f" (it has {', '.join(sorted(valid))})" if valid else "")
+                why = f"a {type(controller).__name__} has no parameter {name!r}" + (
+                    f" (it has {', '.join(sorted(valid))})" if valid else ""
                 )
         elif kind == "observer" and spec is None:
             why = (
