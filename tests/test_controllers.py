@@ -10,6 +10,7 @@ TOML scenarios and ``hpdob simulate``.
 
 from __future__ import annotations
 
+import ctypes
 import math
 import sys
 from pathlib import Path
@@ -32,7 +33,9 @@ from hpdob import (
     sweep,
 )
 from hpdob.controllers import LinearController
+from hpdob.export import render_c
 from hpdob.signals import Step
+from hpdob.testing import STRICT_FLAGS, compile_c, find_compiler
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from zoh_loop import reference_step, zoh_loop
@@ -322,3 +325,48 @@ def test_a_controller_needs_the_loop_signals_it_names():
 
 def test_canonical_scenario_still_uses_the_pd():
     assert paper.scenario()["controller"] == PD(50.0, 5.0)
+
+
+@pytest.mark.skipif(find_compiler() is None, reason="no C compiler")
+@pytest.mark.parametrize(
+    "controller",
+    [PD(50.0, 5.0), PID(50.0, 100.0, 5.0, velocity="observer"),
+     FilteredPD(50.0, 5.0, time_constant=2e-3), ADRC(40.0, feedforward=True)],
+)  # fmt: skip
+def test_exported_c_builds_strictly_and_is_the_program(tmp_path, controller):
+    system = controller.design(NOMINAL, TS)
+    header, source = render_c(system, prefix="ctl")
+    (tmp_path / "ctl.h").write_text(header)
+    (tmp_path / "ctl.c").write_text(source)
+    flags = (*STRICT_FLAGS, "-ffp-contract=off")
+    lib = ctypes.CDLL(str(compile_c([tmp_path / "ctl.c"], tmp_path / "lib.so", flags=flags,
+                                    shared=True)))  # fmt: skip
+    d, p = ctypes.c_double, len(system.inputs)
+    lib.ctl_init.argtypes = [ctypes.c_void_p, d, d, d]
+    lib.ctl_command.argtypes = [ctypes.c_void_p, *[d] * p]
+    lib.ctl_command.restype = d
+    lib.ctl_update.argtypes = [ctypes.c_void_p, *[d] * (p + 1)]
+    state = (d * max(system.n_states, 1))()
+    lib.ctl_init(state, 0.1, -0.2, 0.003)
+    c = system.python.reset(0.1, -0.2, 0.003)
+    for v in np.random.default_rng(1).normal(size=(30, p)).tolist():
+        u = lib.ctl_command(state, *v)
+        assert u == system.python.command(c, *v)
+        lib.ctl_update(state, *v, 0.9 * u)
+        c = system.python.update(c, *v, 0.9 * u)
+    assert tuple(state)[: system.n_states] == c
+
+
+def test_tune_verifies_with_any_controller():
+    """tune's candidates are analysed and simulated with the given controller (a PID here):
+    the recommendation's closed loop holds its integrator state."""
+    from hpdob import tune
+
+    pid = PID(50.0, 100.0, 5.0, velocity="observer")
+    r = tune(nominal=NOMINAL, Ts=TS, families=["state"], controller=pid,
+             scenario={"reference": paper.REFERENCE, "duration": 0.5})  # fmt: skip
+    assert r.settings["controller"]["type"] == "PID" and r.settings["controller"]["ki"] == 100.0
+    assert r.controller in (pid, PID(50.0, 100.0, 5.0))  # the velocity falls back if needed
+    loop = ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=r.controller,
+                     observer=r.recommended["_design"])  # fmt: skip
+    assert "controller_integral" in closed_loop(loop).state_labels
