@@ -15,7 +15,8 @@ from ._adrc import ADRC
 from ._base import Controller
 from ._pd import PD, FilteredPD
 from ._pid import PID
-from ._system import LOOP_SIGNALS, ControllerProgram, LinearController, ProgramBuilder
+from ._program import ControllerProgram
+from ._system import LOOP_SIGNALS, LinearController, ProgramBuilder
 
 #: The controller types of scenario files (``[controller] type = "pid"``).
 CONTROLLER_TYPES = {"pd": PD, "pid": PID, "filtered-pd": FilteredPD, "adrc": ADRC}

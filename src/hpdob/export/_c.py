@@ -20,9 +20,11 @@ import numpy as np
 from .._files import staged_outputs
 from .._validation import ParameterTypeError, ParameterValueError, check_choice
 from .._version import __version__
+from ..controllers import LinearController
 from ..observers._program import RESET_OPERANDS, render_sum
 from ..observers._system import UNITS, LinearObserver, as_system
 from ._c_guard import guard_header, guard_helpers, guarded_init, guarded_output, guarded_update
+from ._controller_c import render_controller
 
 __all__ = ["export_c", "render_c"]
 
@@ -392,16 +394,8 @@ def render_c(
     >>> [line for line in source.splitlines() if line.startswith("#include")]   # no library
     ['#include "axis1.h"']
     """
-    from ..controllers import LinearController
-
-    if isinstance(obs, LinearController):
-        dtype = check_choice(dtype, "dtype", DTYPES)
-        prefix = _check_prefix(prefix)
-        if _check_guard(nan_guard):
-            raise ParameterValueError("nan_guard is for observers; a controller has none")
-        from ._controller_c import render_controller
-
-        return render_controller(obs, prefix, dtype)
+    if isinstance(obs, LinearController):  # a controller: ._controller_c
+        return render_controller(obs, prefix=prefix, dtype=dtype, nan_guard=nan_guard)
     system = as_system(obs, "obs")
     dtype = check_choice(dtype, "dtype", DTYPES)
     prefix = _check_prefix(prefix)
@@ -433,10 +427,7 @@ def export_c(
     obs : DisturbanceObserver or ObserverDesign or LinearController
         The observer to export; only its design is used (the C state starts from
         ``<prefix>_init``, not from the Python object's current state). A controller
-        (``PID(...).design(nominal, Ts)``, any
-        :class:`~hpdob.controllers.LinearController`) is exported as ``<prefix>_init``,
-        ``<prefix>_command(s, inputs...)`` and ``<prefix>_update(s, inputs..., u_bar)``
-        evaluating its program term by term (``nan_guard`` is for observers only).
+        (:class:`~hpdob.controllers.LinearController`) gets ``_command`` and ``_update``.
     directory : str or os.PathLike
         Output directory, created if missing; existing files of the same name are replaced.
     prefix : str, optional

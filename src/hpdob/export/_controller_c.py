@@ -16,11 +16,9 @@ from __future__ import annotations
 
 import re
 
-from .._validation import ParameterValueError
+from .._validation import ParameterTypeError, ParameterValueError, check_choice
 from .._version import __version__
-from ..controllers import LinearController
 from ..observers._program import render_sum
-from ._c import _c_literal, _literal
 
 __all__ = ["render_controller"]
 
@@ -28,10 +26,12 @@ _RESET = ("theta0", "omega0", "tau0")
 
 
 def _sum(terms, operands, dtype) -> str:
+    from ._c import _c_literal
+
     return render_sum(terms, operands, _c_literal(dtype), named=False)
 
 
-def _body(controller: LinearController, dtype: str) -> tuple[list[str], list[str]]:
+def _body(controller, dtype: str) -> tuple[list[str], list[str]]:
     program = controller.program
     n = controller.n_states
     state = [f"c{i}" for i in range(n)]
@@ -51,9 +51,18 @@ def _unused(names, body: str) -> list[str]:
     return [f"    (void){n};" for n in names if not re.search(rf"\b{n}\b", body)]
 
 
-def render_controller(controller: LinearController, prefix: str, dtype: str) -> tuple[str, str]:
-    """Text of ``<prefix>.h`` and ``<prefix>.c`` for a :class:`LinearController` (prefix and
-    dtype already checked)."""
+def render_controller(controller, *, prefix: str, dtype: str, nan_guard) -> tuple[str, str]:
+    """Text of ``<prefix>.h`` and ``<prefix>.c`` for a :class:`LinearController` (the
+    arguments as for :func:`hpdob.export.render_c`; ``nan_guard`` must be False)."""
+    from ._c import DTYPES, _check_prefix, _literal
+
+    dtype = check_choice(dtype, "dtype", DTYPES)
+    prefix = _check_prefix(prefix)
+    if nan_guard is not False:
+        raise ParameterTypeError(
+            f"nan_guard must be False for a controller (the guard is for observers), got "
+            f"{nan_guard!r}"
+        )
     n = controller.n_states
     reserved = re.compile(r"(s|c[0-9]+|next[0-9]+|y_.*|theta0|omega0|tau0)\Z")
     clash = [v for v in controller.inputs if reserved.match(v)]
