@@ -202,3 +202,18 @@ def test_a_program_that_is_not_the_matrices_is_refused():
 
 def _fields(c):
     return {"F": c.F, "G": c.G, "H": c.H, "E": c.E, "N": c.N, "Ts": c.Ts, "inputs": c.inputs}
+
+
+def test_to_statespace_is_the_controller_without_a_limit():
+    control = pytest.importorskip("control")
+    controller = from_scratch()
+    ss = controller.to_statespace()
+    assert ss.input_labels == ["r", "theta", "tau_hat"] and ss.output_labels == ["u"]
+    v = np.random.default_rng(2).normal(size=(3, 50))
+    c0 = controller.python.reset(0.3, 0.0, 0.0)
+    got = np.ravel(control.forced_response(ss, U=v, X0=c0).outputs)
+    c, want = c0, []
+    for column in v.T.tolist():
+        want.append(controller.python.command(c, *column))
+        c = controller.python.update(c, *column, want[-1])
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)

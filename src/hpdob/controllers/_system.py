@@ -248,7 +248,7 @@ class LinearController:
         Returns
         -------
         control.StateSpace
-            Inputs :attr:`inputs`, output ``u``.
+            Inputs ``inputs``, output ``u``.
         """
         import control
 
