@@ -370,3 +370,19 @@ def test_tune_verifies_with_any_controller():
     loop = ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=r.controller,
                      observer=r.recommended["_design"])  # fmt: skip
     assert "controller_integral" in closed_loop(loop).state_labels
+
+
+def test_margins_see_the_integrators_phase_lag():
+    """The PID's integral adds phase lag at crossover: less phase margin than the PD's at the
+    same kp, kd; both loops stable, and the loop gain has the PID's extra state."""
+    from hpdob import loop_margins, loop_transfer
+
+    def loop(controller):
+        return ServoLoop(plant=PLANT, nominal=NOMINAL, Ts=TS, controller=controller,
+                         actuator=Actuator(delay_samples=1))  # fmt: skip
+
+    pd, pid = loop_margins(loop(PD(400.0, 40.0))), loop_margins(loop(PID(400.0, 2000.0, 40.0)))
+    assert pd.stable and pid.stable
+    assert pid.phase_margin < pd.phase_margin
+    assert loop_transfer(loop(PID(400.0, 2000.0, 40.0))).nstates == \
+        loop_transfer(loop(PD(400.0, 40.0))).nstates + 1  # fmt: skip

@@ -343,6 +343,11 @@ class ProgramBuilder:
             return n + p + 1 + self._names.index(name)
         raise ParameterValueError(f"unknown operand {name!r} (no state, input or signal)")
 
+    def _state(self, name: str) -> str:
+        if name not in self.states:
+            raise ParameterValueError(f"unknown state {name!r}; the states are {self.states}")
+        return name
+
     def _terms(self, terms) -> tuple:
         out = []
         for term in terms:
@@ -375,7 +380,7 @@ class ProgramBuilder:
             As for :meth:`signal`; operands also ``u_bar`` (the limited command) and every
             signal.
         """
-        self._update[state] = self._terms(terms)
+        self._update[self._state(state)] = self._terms(terms)
 
     def reset(self, state: str, *terms) -> None:
         """Set the reset row of a state (default: 0).
@@ -388,7 +393,7 @@ class ProgramBuilder:
             ``(coefficient, operand[, constant])`` with operands ``theta0``, ``omega0`` and
             ``tau0``.
         """
-        self._reset[state] = tuple(
+        self._reset[self._state(state)] = tuple(
             Term(float(c), RESET_OPERANDS.index(x), *rest) for c, x, *rest in terms
         )
 
