@@ -28,6 +28,7 @@ def code_blocks(path: Path, language: str) -> list[str]:
         ROOT / "README.md",
         ROOT / "docs" / "usage.md",
         ROOT / "docs" / "simulation.md",
+        ROOT / "docs" / "controllers.md",
         ROOT / "docs" / "sweep.md",
         ROOT / "docs" / "deployment.md",
         ROOT / "docs" / "mujoco.md",
