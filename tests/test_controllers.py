@@ -386,3 +386,15 @@ def test_margins_see_the_integrators_phase_lag():
     assert pid.phase_margin < pd.phase_margin
     assert loop_transfer(loop(PID(400.0, 2000.0, 40.0))).nstates == \
         loop_transfer(loop(PD(400.0, 40.0))).nstates + 1  # fmt: skip
+
+
+def test_a_loop_with_a_controller_pickles():
+    """Sweeps on a dask cluster ship the loop: the controller's generated code is rebuilt."""
+    import pickle
+
+    loop = ServoLoop(plant=PLANT, nominal=NOMINAL, Ts=TS, controller=PID(400.0, 2000.0, 40.0))
+    assert loop.controller_system.python.command  # the generated code exists before pickling
+    copy = pickle.loads(pickle.dumps(loop))
+    a = simulate(loop, reference=reference_step, duration=0.2)
+    b = simulate(copy, reference=reference_step, duration=0.2)
+    np.testing.assert_array_equal(a.u, b.u)
