@@ -39,10 +39,35 @@ class Controller(ABC):
 def controller_system(controller, nominal, Ts: float, name: str = "controller"):
     """The :class:`LinearController` of ``controller`` in a loop on ``nominal`` at ``Ts``.
 
+    Parameters
+    ----------
+    controller : Controller or LinearController
+        A specification (designed here; a frozen one's design is kept and reused) or a
+        linear controller (checked to run at ``Ts``).
+    nominal : ServoModel
+        The loop's nominal model.
+    Ts : float
+        The loop's sampling period [s].
+    name : str, optional
+        The parameter name of error messages. Default ``"controller"``.
+
+    Returns
+    -------
+    LinearController
+
     Raises
     ------
     ParameterTypeError
         If ``controller`` is neither a :class:`Controller` nor a :class:`LinearController`.
+    ParameterValueError
+        If its design refuses ``nominal`` or ``Ts``.
+
+    Examples
+    --------
+    >>> from hpdob import PD, ServoModel
+    >>> from hpdob.controllers import controller_system
+    >>> controller_system(PD(50.0, 5.0), ServoModel(2.8e-4), 1e-3).n_states
+    0
     """
     if isinstance(controller, LinearController):
         return controller.design(nominal, Ts)

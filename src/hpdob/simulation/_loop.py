@@ -7,8 +7,7 @@ import functools
 from dataclasses import dataclass, field, fields, replace
 
 from .._validation import ParameterTypeError, ParameterValueError, positive, require_instance
-from ..controllers import LOOP_SIGNALS, Controller, LinearController
-from ..controllers._base import controller_system
+from ..controllers import LOOP_SIGNALS, Controller, LinearController, controller_system
 from ..models._plant import Plant
 from ..models._servo import ServoModel
 from ..observers._core import initial_state
