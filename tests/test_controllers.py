@@ -398,3 +398,29 @@ def test_a_loop_with_a_controller_pickles():
     a = simulate(loop, reference=reference_step, duration=0.2)
     b = simulate(copy, reference=reference_step, duration=0.2)
     np.testing.assert_array_equal(a.u, b.u)
+
+
+@pytest.mark.parametrize(
+    "controller",
+    [PD(400.0, 40.0), PID(400.0, 2000.0, 40.0), FilteredPD(400.0, 40.0, time_constant=3e-3),
+     ADRC(40.0, feedforward=True)],
+    ids=["PD", "PID", "FilteredPD", "ADRC"],
+)  # fmt: skip
+def test_the_linear_loop_is_the_simulation(controller):
+    """Without friction or limit, with the disturbance held over each sample, the analysis
+    views' closed loop driven by the same signals is the simulated run (every controller, its
+    states in the loop's state, with the HPDOb in the loop)."""
+    control = pytest.importorskip("control")
+    from hpdob import design_observer
+
+    observer = design_observer(NOMINAL.discretize(TS), order=1, bandwidth=100.0)
+    loop = ServoLoop(plant=PLANT, nominal=NOMINAL, Ts=TS, controller=controller,
+                     observer=observer)  # fmt: skip
+    result = simulate(loop, reference=reference_step, disturbance=DISTURBANCE, duration=N * TS)
+    t = result.t
+    r, rd, rdd = reference_step(t)
+    inputs = np.vstack([r, rd, rdd, DISTURBANCE(t + TS / 2), 0 * t, 0 * t])
+    response = control.forced_response(closed_loop(loop), T=t, U=inputs)
+    theta, u = response.outputs[0], response.outputs[2]
+    np.testing.assert_allclose(result.theta, theta, rtol=0, atol=1e-9 * np.abs(theta).max())
+    np.testing.assert_allclose(result.u, u, rtol=0, atol=1e-9 * np.abs(u).max())
