@@ -101,7 +101,7 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
     up_ptr, up_c, up_i = obs.update_pointer, obs.update_coefficient, obs.update_operand
     out_ptr, out_c, out_i = obs.output_pointer, obs.output_coefficient, obs.output_operand
     n, p, q = obs.n, obs.p, obs.q
-    has_observer, has_velocity = obs.present, obs.q == 2
+    has_observer, velocity_row = obs.present, obs.velocity_row
     J_n, b_n = ctl.J_n, ctl.b_n
     nc, pc, qc, source = ctl.n, ctl.p, ctl.q, ctl.source
     sig_ptr, sig_c, sig_i = ctl.signal_pointer, ctl.signal_coefficient, ctl.signal_operand
@@ -150,8 +150,8 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
             if q > 1:
                 for j in range(1, q):
                     sv[5 + j] = program_row(out_ptr, out_c, out_i, w, j)
-                if has_velocity:
-                    omega_hat[k] = sv[6]
+                if velocity_row > 0:
+                    omega_hat[k] = sv[5 + velocity_row]
         tau_hat[k] = est
         sv[0] = r[k]
         sv[1] = r_dot[k]

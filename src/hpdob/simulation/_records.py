@@ -73,7 +73,8 @@ class ObserverRecord(NamedTuple):
     present: bool
     n: int  # states
     p: int  # measured signals (1 or 2)
-    q: int  # outputs (1 or 2)
+    q: int  # outputs: tau_hat first, then others by name (wired to controller inputs)
+    velocity_row: int  # the row of omega_hat (recorded), -1 without one
     update_pointer: np.ndarray
     update_coefficient: np.ndarray
     update_operand: np.ndarray

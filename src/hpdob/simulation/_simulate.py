@@ -293,11 +293,13 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
 def _observer_record(system) -> ObserverRecord:
     if system is None:
         empty_i, empty_f = np.zeros(1, dtype=np.int64), np.zeros(0)
-        return ObserverRecord(False, 0, 1, 1, empty_i, empty_f, empty_i[:0], empty_i,
+        return ObserverRecord(False, 0, 1, 1, -1, empty_i, empty_f, empty_i[:0], empty_i,
                               empty_f, empty_i[:0])  # fmt: skip
     update, output, _ = system.kernel_arrays
+    outputs = system.outputs
+    velocity = outputs.index("omega_hat") if "omega_hat" in outputs else -1
     return ObserverRecord(
-        True, system.n_states, len(system.measures), len(system.outputs), *update, *output
+        True, system.n_states, len(system.measures), len(outputs), velocity, *update, *output
     )
 
 
