@@ -36,6 +36,7 @@ from hpdob import (
     sweep,
     update,
 )
+from hpdob.controllers import ProgramBuilder
 from hpdob.export import render_c
 from hpdob.signals import Step
 from hpdob.testing import STRICT_FLAGS, compile_c, find_compiler
@@ -217,3 +218,33 @@ def test_to_statespace_is_the_controller_without_a_limit():
         want.append(controller.python.command(c, *column))
         c = controller.python.update(c, *column, want[-1])
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
+
+
+def test_an_extra_observer_output_is_wired_by_name():
+    """Room for force control: a controller input named like an extra observer output reads
+    it. LinearObserver accepts only tau_hat (and omega_hat) as output names today (issue 21
+    adds a reaction-torque output), so the observer here gets its second output, half the
+    estimate, and the name tau_reac set after construction. A PD on 2 tau_reac is then the
+    PD on tau_hat bit for bit (halving is exact), in simulate and in the linear loop."""
+    from hpdob import PD, LinearObserver, closed_loop
+
+    dob = design_observer(NOMINAL.discretize(TS), order=1, bandwidth=100.0).system
+    two = LinearObserver(F=dob.F, G=dob.G, H=np.vstack([dob.H, 0.5 * dob.H]),
+                         E=np.vstack([dob.E, 0.5 * dob.E]), N=dob.N, Ts=TS,
+                         outputs=("tau_hat", "omega_hat"), model=dob.model)  # fmt: skip
+    object.__setattr__(two, "outputs", ("tau_hat", "tau_reac"))
+    b = ProgramBuilder(("r", "r_dot", "r_ddot", "theta", "omega", "tau_reac"))
+    b.signal("e", (1.0, "r"), (-1.0, "theta"))
+    b.signal("e_dot", (1.0, "r_dot"), (-1.0, "omega"))
+    b.signal("a_ref", (50.0, "e"), (5.0, "e_dot"), (1.0, "r_ddot"))
+    b.signal("u", (NOMINAL.J, "a_ref"), (2.0, "tau_reac"))
+    reaction = b.build(Ts=TS)
+    runs, poles = [], []
+    for controller in (PD(50.0, 5.0), reaction):
+        the_loop = loop(controller=controller, observer=two, actuator=None)
+        runs.append(run(the_loop))
+        poles.append(np.sort_complex(np.linalg.eigvals(closed_loop(the_loop).A)))
+    np.testing.assert_array_equal(runs[1].u, runs[0].u)
+    np.testing.assert_allclose(poles[1], poles[0], rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match=r"controller input 'tau_reac' must be a loop signal"):
+        loop(controller=reaction)
