@@ -51,13 +51,20 @@ def _unused(names, body: str) -> list[str]:
     return [f"    (void){n};" for n in names if not re.search(rf"\b{n}\b", body)]
 
 
-def render_controller(controller, *, prefix: str, dtype: str, nan_guard) -> tuple[str, str]:
+def render_controller(controller, *, prefix: str, dtype: str, nan_guard, ranges=None):
     """Text of ``<prefix>.h`` and ``<prefix>.c`` for a :class:`LinearController` (the
-    arguments as for :func:`hpdob.export.render_c`; ``nan_guard`` must be False)."""
-    from ._c import DTYPES, _check_prefix, _literal
+    arguments as for :func:`hpdob.export.render_c`; floating point only: ``nan_guard`` False,
+    no ``ranges``)."""
+    from ._c import _literal
+    from ._c_names import _check_prefix
 
-    dtype = check_choice(dtype, "dtype", DTYPES)
+    dtype = check_choice(dtype, "dtype", ("double", "float"))
     prefix = _check_prefix(prefix)
+    if ranges is not None:
+        raise ParameterValueError(
+            "ranges are for the fixed-point export of observers; a controller is exported in "
+            "double or float"
+        )
     if nan_guard is not False:
         raise ParameterTypeError(
             f"nan_guard must be False for a controller (the guard is for observers), got "
