@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
-__all__ = ["label_points", "legend_clear_of_data", "plot_result", "style_axes"]
+__all__ = [
+    "label_points",
+    "legend_clear_of_data",
+    "mark_clipped",
+    "plot_result",
+    "style_axes",
+    "time_axis",
+]
 
 #: Figure width [inch] of a two-column paper's full text width and line width of traces.
 PAPER_WIDTH = 7.0
@@ -15,6 +22,43 @@ def style_axes(ax, *, xlabel: str | None, ylabel: str) -> None:
         ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.margins(x=0)
+
+
+def time_axis(ax, t, Ts: float) -> None:
+    """The x-range of a run's whole duration, ``[t_0, t_0 + n Ts]`` (a 10 s run ends at 10 s,
+    not at its last sample 9.999 s, so the axis shows the whole run and its last tick)."""
+    ax.set_xlim(float(t[0]), float(t[0]) + len(t) * Ts)
+
+
+def mark_clipped(ax, series, lo: float, hi: float) -> list[str]:
+    """Cut traces at the y-range ``[lo, hi]`` and mark where each leaves it, in its colour.
+
+    ``series`` is a sequence of ``(t, y, line, label)``: the samples, the drawn line and its
+    legend label. Every series that leaves the range gets a triangle at the edge where it
+    does (one per direction: ``v`` below, ``^`` above, at its extreme), in the colour of its
+    line; coincident marks of several series sit side by side. Returns one note per clipped
+    series, ``"<label>: <extremes> N m"`` (both directions where it leaves both ways), for a
+    caption.
+    """
+    from matplotlib.patches import Rectangle
+    from matplotlib.transforms import ScaledTranslation, blended_transform_factory
+
+    span = blended_transform_factory(ax.transAxes, ax.transData)
+    notes = []
+    count = len(series)
+    for i, (t, y, line, label) in enumerate(series):
+        line.set_clip_path(Rectangle((0.0, lo), 1.0, hi - lo, transform=span))
+        nudge = ScaledTranslation((i - (count - 1) / 2) * 6 / 72, 0.0, ax.figure.dpi_scale_trans)
+        extremes = []
+        for k, edge, marker in ((int(y.argmin()), lo, "v"), (int(y.argmax()), hi, "^")):
+            if lo <= y[k] <= hi:
+                continue
+            ax.plot(t[k], edge, marker=marker, color=line.get_color(), markersize=6,
+                    clip_on=False, transform=ax.transData + nudge, label="_clipped")  # fmt: skip
+            extremes.append(f"{float(y[k]):+.3f}".replace("-", "\N{MINUS SIGN}"))
+        if extremes:
+            notes.append(f"{label}: {' / '.join(extremes)} N m")
+    return notes
 
 
 def legend_clear_of_data(ax, *, ncol: int, pad: float = 0.03, **kwargs):
@@ -104,6 +148,7 @@ def plot_result(result, *, title: str | None = None):
     ax = axes[2]
     ax.plot(t, result.estimation_error, linewidth=1.0)
     style_axes(ax, xlabel="time [s]", ylabel=r"$\hat\tau_{dn} - \tau_{dn}$ [N m]")
+    time_axis(axes[-1], t, result.Ts)  # shared x: every panel
     fig.suptitle(title or result.label or "hpdob simulation")
     for ax in axes[:2]:  # legends in a band above the data
         legend_clear_of_data(ax, ncol=len(ax.get_legend_handles_labels()[1]))

@@ -139,7 +139,8 @@ def _run(args: argparse.Namespace) -> int:
         result.to_csv(files.path("estimate.csv"))
         if not args.no_plot:
             files.plot(
-                "estimate.png", lambda: result.plot(title=f"{design.system.name} on {log.source}")
+                "estimate.png",
+                lambda: result.plot(title=f"{design.system.name} on {log.source}", axis=log.axis),
             )
             written.append("estimate.png")
         files.write_json("estimate.json", report)

@@ -8,9 +8,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._table import columns_to_csv, columns_to_pandas
-from .._validation import ParameterTypeError, ParameterValueError, as_real, readonly
+from .._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    as_real,
+    as_real_vector,
+    readonly,
+)
 from ..observers._core import initial_state
-from ..observers._runtime import Observer
 from ..observers._system import as_system
 from ._checks import check_lengths, check_time, sample_vector
 
@@ -53,6 +58,18 @@ class EstimationResult:
 
     def __len__(self) -> int:
         return self.t.size
+
+    def _repr_markdown_(self) -> str:
+        """A compact table for Jupyter: the run and the range of the estimate."""
+        from .._repr import markdown_table
+
+        tau = self.tau_hat
+        return markdown_table(f"EstimationResult {self.label!r}", [
+            ("samples", f"{len(self)} (Ts = {self.Ts:g} s)"),
+            ("tau_hat [N m or N]", None if tau.size == 0 else
+             f"{tau.min():.4g} to {tau.max():.4g}, last {tau[-1]:.4g}"),
+            ("omega_hat", None if self.omega_hat is None else "estimated"),
+        ])  # fmt: skip
 
     def _columns(self) -> dict:
         columns = {"t": self.t, "theta": self.theta}
@@ -134,7 +151,7 @@ class EstimationResult:
             columns_to_csv(self._columns(), temporary)
         return path
 
-    def plot(self, *, reference=None, reference_label: str = "reference", title=None):
+    def plot(self, *, reference=None, reference_label: str = "reference", title=None, axis=None):
         """Figure: position, and the estimate (with an optional reference such as a friction
         model evaluated on the log).
 
@@ -146,25 +163,40 @@ class EstimationResult:
             Its legend entry. Default ``"reference"``.
         title : str, optional
             The figure's title. Default none.
+        axis : {"rotary", "linear"}, optional
+            The units of the labels: rad and N m, or m and N. Default: both named
+            ("rad or m").
 
         Returns
         -------
         matplotlib.figure.Figure
+
+        Raises
+        ------
+        ParameterValueError
+            For an unknown ``axis``.
         """
         import matplotlib.pyplot as plt
 
-        from .._plotting import PAPER_WIDTH, style_axes
+        from .._plotting import PAPER_WIDTH, style_axes, time_axis
+        from .._validation import check_choice
+
+        position, force = {"rotary": ("rad", "N m"), "linear": ("m", "N"),
+                           None: ("rad or m", "N m or N")}[
+            None if axis is None else check_choice(axis, "axis", ("rotary", "linear"))
+        ]  # fmt: skip
 
         fig, (top, bottom) = plt.subplots(
             2, 1, figsize=(PAPER_WIDTH, 4.6), sharex=True, layout="constrained"
         )
         top.plot(self.t, self.theta, color="tab:blue", linewidth=1.0)
-        style_axes(top, xlabel=None, ylabel="position [rad or m]")
+        style_axes(top, xlabel=None, ylabel=f"position [{position}]")
         if reference is not None:
             bottom.plot(self.t, reference, color="0.4", linewidth=1.0, label=reference_label)
         bottom.plot(self.t, self.tau_hat, color="tab:red", linewidth=0.8,
                     label=rf"$\hat\tau$ ({self.label or 'observer'})")  # fmt: skip
-        style_axes(bottom, xlabel="time [s]", ylabel="disturbance [N m or N]")
+        style_axes(bottom, xlabel="time [s]", ylabel=f"disturbance [{force}]")
+        time_axis(bottom, self.t, self.Ts)
         bottom.legend(loc="upper center", bbox_to_anchor=(0.5, -0.28), ncols=2, fontsize="small")
         if title:
             fig.suptitle(title, fontsize="medium")
@@ -180,7 +212,8 @@ def _velocity(theta: np.ndarray, Ts: float) -> np.ndarray:
     return omega
 
 
-def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float = 0.0):
+def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float = 0.0,
+                         state=None):  # fmt: skip
     r"""Run an observer of any family over a logged run; return its estimates.
 
     At every sample ``k`` the observer gives its estimate from the measurement, then is
@@ -188,13 +221,18 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
     exactly as in the sample loop; the loop runs compiled (numba), evaluating the observer's
     program in the same order as the runtime object, which it reproduces bit for bit.
 
+    One rule for where the run starts, whatever form the observer is given in (a design, a
+    :class:`~hpdob.LinearObserver`, a runtime object): converged at the log's first sample,
+    ``initial_state(observer, (theta[0], omega[0]), tau0)`` (with ``omega[0] = 0`` when the
+    velocity is differenced or estimated), unless ``state`` gives the start explicitly, e.g.
+    ``state=obs.state`` to continue from a runtime object. The observer passed in is never
+    changed.
+
     Parameters
     ----------
     observer : LinearObserver, design or runtime observer
         Designed on the nominal model of the logged axis (e.g. ``identify(...).model()``) at the
-        log's sampling period. A runtime object starts from its current state (and is not
-        changed); otherwise the observer starts at rest at the first sample:
-        ``initial_state(observer, (theta[0], omega[0]), tau0)``.
+        log's sampling period.
     theta : array_like
         Measured position [rad or m], one entry per sample.
     u : array_like
@@ -208,6 +246,9 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
         ``k Ts``.
     tau0 : float, optional
         Initial disturbance of the reset [N m or N]. Default 0.
+    state : array_like, optional
+        The observer's state at the first sample instead (``n_states`` finite values, e.g. a
+        runtime object's ``.state``); not together with a non-zero ``tau0``.
 
     Returns
     -------
@@ -217,8 +258,8 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
     ------
     TypeError, ValueError
         For a wrong observer, signals of different lengths or with non-finite samples,
-        non-uniform time, a time step other than the observer's ``Ts``, or ``omega`` given to a
-        position-only observer.
+        non-uniform time, a time step other than the observer's ``Ts``, ``omega`` given to a
+        position-only observer, or a ``state`` of the wrong size.
 
     Examples
     --------
@@ -260,15 +301,22 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
     else:
         t = np.arange(n) * Ts
     tau0 = as_real(tau0, "tau0", "a finite initial disturbance [N m or N]")
+    if state is not None:
+        state = as_real_vector(state, "state", f"the observer's {system.n_states} finite states",
+                               length=system.n_states)  # fmt: skip
+        if tau0 != 0.0:
+            raise ParameterValueError(
+                f"give tau0 or state, not both: state sets the start, got tau0={tau0!r}"
+            )
     if position_only:
         velocity = None
         measurements = theta[:, None]
     else:
         velocity = signals["omega"] if omega is not None else _velocity(theta, Ts)
         measurements = np.column_stack([theta, velocity])
-    if isinstance(observer, Observer):
-        s0 = observer.state
-    else:
+    if state is not None:
+        s0 = np.array(state, dtype=float)
+    else:  # one rule for every form of observer: converged at the first sample
         omega0 = 0.0 if velocity is None else float(velocity[0])
         s0 = np.array(initial_state(system, (float(theta[0]), omega0), tau0))
     update, output, _ = system.kernel_arrays

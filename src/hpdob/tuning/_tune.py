@@ -214,6 +214,7 @@ def tune(
     noise_limit: float | None = None,
     coulomb: float | None = None,
     scenario: dict | None = None,
+    progress=None,
 ) -> TuningResult:
     r"""Recommend an observer for a motor, a sensor and an uncertainty, verified by simulation.
 
@@ -262,6 +263,10 @@ def tune(
         a sine at the disturbance frequency from 2.5 s, amplitudes scaled with ``J_n`` from the
         paper's (0.05 and 0.02 N m at ``J_n`` = 2.8e-4 kg m^2); 10 s (in whole samples). Its
         duration and signals are checked before the search.
+    progress : callable, optional
+        Called as ``progress(stage, done, total)`` while the search works (``stage`` one of
+        ``"analysis"``, ``"simulation"``, ``"verification"``; ``done`` of ``total`` steps), e.g.
+        to show progress; its return value is ignored. Default: silent.
 
     Returns
     -------
@@ -333,6 +338,9 @@ def tune(
         )
     families = tuple(dict.fromkeys(check_choice(f, "families", FAMILIES) for f in families))
     objective = check_choice(objective, "objective", OBJECTIVES)
+    if progress is not None and not callable(progress):
+        raise ParameterTypeError(f"progress must be callable or None, got {progress!r}")
+    report = progress or (lambda stage, done, total: None)  # silent by default
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
     if coulomb is None:
@@ -361,7 +369,8 @@ def tune(
         return ServoModel(J_ratio * nominal.J, b)
 
     rows = []
-    for family, m, parameter, value, design in candidates:
+    for done, (family, m, parameter, value, design) in enumerate(candidates):
+        report("analysis", done, len(candidates))
         ctrl = controller
         if getattr(controller, "velocity", None) == "observer" and not design.system.has_velocity:
             ctrl = dataclasses.replace(controller, velocity="measured")
@@ -394,6 +403,7 @@ def tune(
             "robust": robust,
             "within_noise": noise_limit is None or tau_noise <= noise_limit,
             "pareto": False, "simulated": math.nan, "_design": design, "_controller": ctrl,
+            "_base": base,
         })  # fmt: skip
     if not rows:
         raise ParameterValueError("no candidate could be designed: " + "; ".join(notes[:3]))
@@ -434,18 +444,22 @@ def tune(
                        metrics["rms_position_error_tracking"])  # fmt: skip
         return result, metrics, position
 
-    for r in qualified:
+    report("analysis", len(candidates), len(candidates))
+    for done, r in enumerate(qualified):
+        report("simulation", done, len(qualified))
         result, metrics, position = simulate_at(r, *centre)
         r["simulated"] = math.inf if result.diverged else (
             metrics["rms_estimation_error"] if objective == "estimation" else position)  # fmt: skip
         r["simulated_estimation"] = metrics["rms_estimation_error"]
         r["simulated_position"] = position
+    report("simulation", len(qualified), len(qualified))
     verification = None
     for r in sorted(qualified, key=lambda r: r["simulated"]):
         if not math.isfinite(r["simulated"]):
             break
         checks = []
-        for J_ratio, b in corners:
+        for done, (J_ratio, b) in enumerate(corners):
+            report("verification", done, len(corners))
             result, metrics, position = simulate_at(r, J_ratio, b)
             loop = ServoLoop(plant=plant(J_ratio, b), nominal=nominal, Ts=Ts,
                              controller=r["_controller"], observer=r["_design"],
@@ -457,6 +471,7 @@ def tune(
                 "delay_margin": loop_margins(loop).delay_margin,
             })  # fmt: skip
         if all(not c["diverged"] and c["radius"] < 1.0 for c in checks):
+            report("verification", len(corners), len(corners))
             verification = (r, checks)
             break
         notes.append(f"{r['name']} at {r['parameter']}={r['value']:.4g} failed at a corner")
