@@ -13,7 +13,7 @@ PD, FilteredPD, PID, ADRC
 """
 
 from ._adrc import ADRC
-from ._base import Controller, controller_system
+from ._base import Controller, controller_settings, controller_system
 from ._pd import PD, FilteredPD
 from ._pid import PID
 from ._program import ControllerProgram
@@ -33,5 +33,6 @@ __all__ = [
     "FilteredPD",
     "LinearController",
     "ProgramBuilder",
+    "controller_settings",
     "controller_system",
 ]

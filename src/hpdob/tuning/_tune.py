@@ -42,7 +42,7 @@ from .._validation import (
     require_instance,
 )
 from ..analysis._linear_loop import MAX_DELAY_SAMPLES
-from ..controllers import PD, Controller, LinearController
+from ..controllers import PD, Controller, controller_settings, controller_system
 from ..models._servo import ServoModel
 from ..simulation._devices import Actuator, Encoder
 from ._result import TuningResult
@@ -187,18 +187,6 @@ def _delay_margin(base, corners, plant, delay: int) -> int:
     return MAX_EXTRA_DELAY
 
 
-def _controller_settings(controller) -> dict:
-    """The controller of the settings: the PD's ``kp, kd, velocity`` as before; another
-    controller's type name and constructor arguments."""
-    if type(controller) is PD:
-        return {"kp": controller.kp, "kd": controller.kd, "velocity": controller.velocity}
-    if dataclasses.is_dataclass(controller):
-        fields = {f.name: getattr(controller, f.name) for f in dataclasses.fields(controller)
-                  if f.init and f.name != "_"}  # fmt: skip
-        return {"type": type(controller).__name__, **fields}
-    return {"type": type(controller).__name__, "name": getattr(controller, "name", "")}
-
-
 def tune(
     *,
     nominal: ServoModel,
@@ -307,13 +295,8 @@ def tune(
             f"{0.4 * math.pi / MIN_BANDWIDTH:.4g} s (the bandwidths searched run from "
             f"{MIN_BANDWIDTH:g} rad/s to 0.4 pi/Ts), got {Ts!r}"
         )
-    if controller is None:
-        controller = PD(50.0, 5.0, velocity="observer")
-    elif not isinstance(controller, (Controller, LinearController)):
-        raise ParameterTypeError(
-            "controller must be a PD, PID, FilteredPD, ADRC or another Controller (or a "
-            f"LinearController), got {type(controller).__name__}"
-        )
+    controller = PD(50.0, 5.0, velocity="observer") if controller is None else controller
+    controller_system(controller, nominal, Ts)  # refuses what is not a controller, named
     sensor = require_instance(sensor, Encoder, "sensor", optional=True)
     actuator = require_instance(actuator, Actuator, "actuator", optional=True) or Actuator()
     if actuator.delay_samples + 1 > MAX_DELAY_SAMPLES:
@@ -489,7 +472,7 @@ def tune(
         settings={
             "nominal": {"J": nominal.J, "b": nominal.b},
             "Ts": Ts,
-            "controller": _controller_settings(controller),
+            "controller": controller_settings(controller),
             "sensor_noise_std": sigma,
             "delay_samples": actuator.delay_samples,
             "torque_limit": actuator.torque_limit,
