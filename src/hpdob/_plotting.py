@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 __all__ = [
+    "envelope",
     "label_points",
     "legend_clear_of_data",
     "mark_clipped",
@@ -13,6 +16,36 @@ __all__ = [
 
 #: Figure width [inch] of a two-column paper's full text width and line width of traces.
 PAPER_WIDTH = 7.0
+
+
+#: Traces longer than this are drawn as their envelope (:func:`envelope`).
+ENVELOPE_SAMPLES = 200_000
+
+
+def envelope(t, y, *, samples: int = ENVELOPE_SAMPLES):
+    """``(t, y)`` to draw: the trace itself up to ``samples`` points, else its envelope.
+
+    A long trace (a log of 1e7 samples) is cut into ``samples // 2`` runs of consecutive
+    samples, and each run is drawn as its minimum and maximum, in the order they occur: the
+    line covers exactly the pixels the full trace would at any figure width below
+    ``samples / 2`` pixels, and matplotlib does not hold a copy of the whole log. Samples after
+    the last full run are kept as they are.
+    """
+    t, y = np.asarray(t), np.asarray(y)
+    if y.size <= samples:
+        return t, y
+    runs = samples // 2
+    width = y.size // runs
+    blocks = y[: runs * width].reshape(runs, width)
+    first, second = np.empty(runs, dtype=np.intp), np.empty(runs, dtype=np.intp)
+    step = max(1, (1 << 20) // width)  # argmin copies what it scans: 8 MB at a time
+    for a in range(0, runs, step):
+        first[a : a + step] = np.argmin(blocks[a : a + step], axis=1)
+        second[a : a + step] = np.argmax(blocks[a : a + step], axis=1)
+    lo, hi = np.minimum(first, second), np.maximum(first, second)
+    index = (np.arange(runs) * width)[:, None] + np.column_stack([lo, hi])
+    index = np.concatenate([index.ravel(), np.arange(runs * width, y.size)])
+    return t[index], y[index]
 
 
 def style_axes(ax, *, xlabel: str | None, ylabel: str) -> None:

@@ -17,7 +17,7 @@ from .._validation import (
 )
 from ..observers._core import initial_state
 from ..observers._system import as_system
-from ._checks import check_lengths, check_time, sample_vector
+from ._checks import check_lengths, check_time, sample_view
 
 __all__ = ["EstimationResult", "estimate_disturbance"]
 
@@ -170,6 +170,8 @@ class EstimationResult:
         Returns
         -------
         matplotlib.figure.Figure
+            Traces longer than 200 000 samples are drawn as their envelope (the minimum and
+            maximum of each run of samples), which spans what the full trace would.
 
         Raises
         ------
@@ -178,7 +180,7 @@ class EstimationResult:
         """
         import matplotlib.pyplot as plt
 
-        from .._plotting import PAPER_WIDTH, style_axes, time_axis
+        from .._plotting import PAPER_WIDTH, envelope, style_axes, time_axis
         from .._validation import check_choice
 
         position, force = {"rotary": ("rad", "N m"), "linear": ("m", "N"),
@@ -189,11 +191,12 @@ class EstimationResult:
         fig, (top, bottom) = plt.subplots(
             2, 1, figsize=(PAPER_WIDTH, 4.6), sharex=True, layout="constrained"
         )
-        top.plot(self.t, self.theta, color="tab:blue", linewidth=1.0)
+        top.plot(*envelope(self.t, self.theta), color="tab:blue", linewidth=1.0)
         style_axes(top, xlabel=None, ylabel=f"position [{position}]")
         if reference is not None:
-            bottom.plot(self.t, reference, color="0.4", linewidth=1.0, label=reference_label)
-        bottom.plot(self.t, self.tau_hat, color="tab:red", linewidth=0.8,
+            bottom.plot(*envelope(self.t, reference), color="0.4", linewidth=1.0,
+                        label=reference_label)  # fmt: skip
+        bottom.plot(*envelope(self.t, self.tau_hat), color="tab:red", linewidth=0.8,
                     label=rf"$\hat\tau$ ({self.label or 'observer'})")  # fmt: skip
         style_axes(bottom, xlabel="time [s]", ylabel=f"disturbance [{force}]")
         time_axis(bottom, self.t, self.Ts)
@@ -201,15 +204,6 @@ class EstimationResult:
         if title:
             fig.suptitle(title, fontsize="medium")
         return fig
-
-
-def _velocity(theta: np.ndarray, Ts: float) -> np.ndarray:
-    """Backward difference of ``theta``; the first sample's velocity is 0 (at rest before the
-    log starts), as the encoder model of :class:`hpdob.Encoder`."""
-    omega = np.empty_like(theta)
-    omega[0] = 0.0
-    omega[1:] = np.diff(theta) / Ts
-    return omega
 
 
 def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float = 0.0,
@@ -272,11 +266,12 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
     >>> round(float(result.tau_hat[-1]), 9)
     0.02
     """
-    from ..simulation._kernel import run_observer
+    from . import _estimate_kernel as kernel
 
     system = as_system(observer)
-    theta = sample_vector(theta, "theta", "measured positions [rad or m]")
-    u = sample_vector(u, "u", "applied torques or forces [N m or N]")
+    # Checked without a copy where possible: the loop copies the signals while it reads them.
+    theta = sample_view(theta, "theta", "measured positions [rad or m]")
+    u = sample_view(u, "u", "applied torques or forces [N m or N]")
     signals = {"theta": theta, "u": u}
     position_only = len(system.measures) == 1
     if omega is not None:
@@ -285,11 +280,11 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
                 "omega must be None for an observer that measures the position only "
                 f"(measures {system.measures}); it estimates the velocity itself"
             )
-        signals["omega"] = sample_vector(omega, "omega", "measured velocities [rad/s or m/s]")
+        signals["omega"] = sample_view(omega, "omega", "measured velocities [rad/s or m/s]")
     n = check_lengths(signals)
     Ts = system.Ts
     if t is not None:
-        t = sample_vector(t, "t", "sampling instants [s]")
+        t = sample_view(t, "t", "sampling instants [s]")
         check_lengths({**signals, "t": t})
         if n > 1:
             step = check_time(t, "t", 1e-3)
@@ -298,8 +293,6 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
                     f"t must advance by the observer's sampling period Ts = {float(Ts)!r} s, got a "
                     f"step of {float(step)!r} s"
                 )
-    else:
-        t = np.arange(n) * Ts
     tau0 = as_real(tau0, "tau0", "a finite initial disturbance [N m or N]")
     if state is not None:
         state = as_real_vector(state, "state", f"the observer's {system.n_states} finite states",
@@ -308,30 +301,30 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
             raise ParameterValueError(
                 f"give tau0 or state, not both: state sets the start, got tau0={tau0!r}"
             )
-    if position_only:
-        velocity = None
-        measurements = theta[:, None]
-    else:
-        velocity = signals["omega"] if omega is not None else _velocity(theta, Ts)
-        measurements = np.column_stack([theta, velocity])
-    if state is not None:
-        s0 = np.array(state, dtype=float)
-    else:  # one rule for every form of observer: converged at the first sample
-        omega0 = 0.0 if velocity is None else float(velocity[0])
-        s0 = np.array(initial_state(system, (float(theta[0]), omega0), tau0))
-    update, output, _ = system.kernel_arrays
-    y = run_observer(*update, *output, np.ascontiguousarray(measurements), u, s0,
-                     len(system.outputs))  # fmt: skip
     label = getattr(observer, "label", "") or system.name
     if not isinstance(label, str):
         raise ParameterTypeError(f"the observer's label must be a str, got {label!r}")
+    if position_only:
+        mode = kernel.VELOCITY_NONE
+    elif omega is not None:
+        mode = kernel.VELOCITY_GIVEN
+    else:  # the backward difference, written by the loop (0 at the first sample)
+        mode = kernel.VELOCITY_DERIVED
+    if state is not None:
+        s0 = np.array(state, dtype=float)
+    else:  # one rule for every form of observer: converged at the first sample
+        omega0 = float(signals["omega"][0]) if mode == kernel.VELOCITY_GIVEN else 0.0
+        s0 = np.array(initial_state(system, (float(theta[0]), omega0), tau0))
+    theta, velocity, u, tau_hat, omega_hat, t = kernel.run(
+        system, s0, theta, signals.get("omega"), u, t, mode
+    )
     return EstimationResult(
-        t=readonly(np.array(t, dtype=float)),
+        t=readonly(t),
         theta=readonly(theta),
-        omega=None if velocity is None else readonly(np.array(velocity)),
+        omega=None if velocity is None else readonly(velocity),
         u=readonly(u),
-        tau_hat=readonly(y[:, 0].copy()),
-        omega_hat=readonly(y[:, 1].copy()) if y.shape[1] > 1 else None,
+        tau_hat=readonly(tau_hat),
+        omega_hat=None if omega_hat is None else readonly(omega_hat),
         Ts=Ts,
         label=label,
     )

@@ -29,7 +29,6 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-import warnings
 
 import numpy as np
 
@@ -45,7 +44,9 @@ from ..analysis._linear_loop import MAX_DELAY_SAMPLES
 from ..controllers import PD, Controller, controller_settings, controller_system
 from ..models._servo import ServoModel
 from ..simulation._devices import Actuator, Encoder
+from ._blas import one_blas_thread
 from ._result import TuningResult
+from ._runs import VerificationRuns
 
 __all__ = ["FAMILIES", "OBJECTIVES", "tune"]
 
@@ -187,6 +188,7 @@ def _delay_margin(base, corners, plant, delay: int) -> int:
     return MAX_EXTRA_DELAY
 
 
+@one_blas_thread
 def tune(
     *,
     nominal: ServoModel,
@@ -285,7 +287,7 @@ def tune(
     from ..analysis._noise import noise_gains
     from ..analysis._sensitivity import loop_margins
     from ..simulation._loop import ServoLoop
-    from ..simulation._simulate import _sample_count, sample_signals, simulate
+    from ..simulation._simulate import _sample_count, sample_signals
 
     nominal = require_instance(nominal, ServoModel, "nominal")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
@@ -408,29 +410,17 @@ def tune(
             "finer encoder"
         )
     # Pareto front of (accuracy, noise) among the qualified, then simulated at the centre.
-    ordered = sorted(qualified, key=lambda r: (r["accuracy"], r["tau_noise"]))
     best_noise = math.inf
-    for r in ordered:
+    for r in sorted(qualified, key=lambda r: (r["accuracy"], r["tau_noise"])):
         if r["tau_noise"] < best_noise:
             r["pareto"] = True
             best_noise = r["tau_noise"]
-    simulation = {"sensor": sensor, "actuator": actuator}
-
-    def simulate_at(r, J_ratio, b):
-        true = ServoModel(J_ratio * nominal.J, b, coulomb=coulomb)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            result = simulate(plant=true, nominal=nominal, Ts=Ts, controller=r["_controller"],
-                              observer=r["_design"], **simulation, **run)  # fmt: skip
-        metrics = result.metrics()
-        position = max(metrics["rms_position_error_regulation"],
-                       metrics["rms_position_error_tracking"])  # fmt: skip
-        return result, metrics, position
-
+    runs = VerificationRuns(nominal=nominal, Ts=Ts, sensor=sensor, actuator=actuator,
+                            coulomb=coulomb, run=run)  # fmt: skip
+    simulate_at = runs.simulate
     report("analysis", len(candidates), len(candidates))
-    for done, r in enumerate(qualified):
-        report("simulation", done, len(qualified))
-        result, metrics, position = simulate_at(r, *centre)
+    for r, (result, metrics, position) in zip(qualified, runs.at(qualified, *centre, report),
+                                              strict=True):  # fmt: skip
         r["simulated"] = math.inf if result.diverged else (
             metrics["rms_estimation_error"] if objective == "estimation" else position)  # fmt: skip
         r["simulated_estimation"] = metrics["rms_estimation_error"]
