@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -20,8 +21,11 @@ from hpdob.simulation._scenario import (
 )
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = sorted(  # scenario files (sweep specs, with a [sweep] table, are tested in test_sweep)
-    p for p in (ROOT / "examples").glob("*.toml") if "[sweep]" not in p.read_text()
+EXAMPLES = sorted(  # scenario files (sweep specs, with a [sweep] table, are tested in test_sweep;
+    # N-joint arm scenarios in tests/robots/test_arm_scenarios.py)
+    p
+    for p in (ROOT / "examples").glob("*.toml")
+    if "[sweep]" not in p.read_text() and not re.search(r'type = "[a-z-]*arm"', p.read_text())
 )
 CANONICAL_TOML = ROOT / "examples" / "canonical_hpdob.toml"
 

@@ -36,6 +36,7 @@ SECTIONS = {
     "observers": "Observers",
     "controllers": "Controllers",
     "simulation": "Loop and simulation",
+    "robots": "Robots: N-joint arms",
     "analysis": "Analysis",
     "identification": "Real data and identification",
     "tuning": "Tuning",
