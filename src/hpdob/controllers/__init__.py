@@ -13,10 +13,11 @@ PD, FilteredPD, PID, ADRC
 """
 
 from ._adrc import ADRC
-from ._base import Controller, controller_settings, controller_system
+from ._base import Controller, controller_system
 from ._pd import PD, FilteredPD
 from ._pid import PID
 from ._program import ControllerProgram
+from ._settings import controller_settings
 from ._system import LOOP_SIGNALS, LinearController, ProgramBuilder
 
 #: The controller types of scenario files (``[controller] type = "pid"``).

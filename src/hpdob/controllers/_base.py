@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from abc import ABC, abstractmethod
 
 from .._validation import ParameterTypeError
 from ._system import LinearController
 
-__all__ = ["Controller", "controller_settings", "controller_system"]
+__all__ = ["Controller", "controller_system"]
 
 
 class Controller(ABC):
@@ -89,35 +88,3 @@ def _design(controller, nominal, Ts: float):
     loop built again (every ``paper.run``, every sweep scenario) then reuses the controller's
     generated code and kernel arrays instead of paying ~0.7 ms to rebuild them."""
     return controller.design(nominal, Ts)
-
-
-def controller_settings(controller) -> dict:
-    """A controller as plain data, for settings files (``tune``'s JSON).
-
-    Parameters
-    ----------
-    controller : Controller or LinearController
-
-    Returns
-    -------
-    dict
-        The PD's ``kp``, ``kd``, ``velocity`` (the form ``tune`` has always written); another
-        specification's ``type`` (class name) and constructor arguments; a
-        :class:`LinearController`'s ``type`` and ``name``.
-
-    Examples
-    --------
-    >>> from hpdob import PID
-    >>> from hpdob.controllers import controller_settings
-    >>> controller_settings(PID(50.0, 100.0, 5.0))["ki"]
-    100.0
-    """
-    from ._pd import PD
-
-    if type(controller) is PD:
-        return {"kp": controller.kp, "kd": controller.kd, "velocity": controller.velocity}
-    if dataclasses.is_dataclass(controller):
-        fields = {f.name: getattr(controller, f.name) for f in dataclasses.fields(controller)
-                  if f.init and f.name != "_"}  # fmt: skip
-        return {"type": type(controller).__name__, **fields}
-    return {"type": type(controller).__name__, "name": getattr(controller, "name", "")}

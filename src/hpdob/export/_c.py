@@ -355,7 +355,7 @@ def render_c(
     """
     if isinstance(obs, LinearController):  # a controller: ._controller_c (floating point)
         return render_controller(obs, prefix=prefix, dtype=dtype, nan_guard=nan_guard,
-                                 ranges=ranges)  # fmt: skip
+                                 literal=_literal, ranges=ranges)  # fmt: skip
     dtype = check_choice(dtype, "dtype", DTYPES)
     prefix = _check_prefix(prefix)
     guard = _check_guard(nan_guard)
