@@ -95,10 +95,11 @@ def _load(args):
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
-    from .._files import staged_outputs
+    from .._files import check_output, staged_outputs
     from ..identification import EMPS_PUBLISHED, IdentificationWarning
 
     log, loop = _load(args)
+    check_output(args.out or Path("hpdob-results") / f"identify-{Path(log.source).stem}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", IdentificationWarning)
         result = log.identify(
@@ -119,7 +120,9 @@ def _run(args: argparse.Namespace) -> int:
         report["published"] = dict(EMPS_PUBLISHED)
     written = ["identification.json", "identification.csv"]
     # Staged and renamed together, identification.json last (docs/reliability.md).
-    with staged_outputs(out, markers=["identification.json"]) as files:
+    with staged_outputs(
+        out, markers=["identification.json"], replaces=["identification.png"]
+    ) as files:  # with --no-plot a previous identification.png goes: one consistent set
         result.to_csv(files.path("identification.csv"))
         if not args.no_plot:
             files.plot(

@@ -16,6 +16,7 @@ from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
 import numpy as np
 
+from .._interrupts import checkpoint
 from .._validation import (
     ParameterTypeError,
     ParameterValueError,
@@ -308,6 +309,7 @@ def _run_local(base, chunks, workers, update) -> list:
                 chunk_rows = future.result()
                 rows.extend(chunk_rows)
                 update(len(chunk_rows))
+                checkpoint("sweep-chunk")  # a test hook (hpdob._interrupts); no-op otherwise
                 chunk = next(pending, None)
                 if chunk is not None:
                     running.add(pool.submit(run_chunk, base, chunk, stop))

@@ -1,0 +1,280 @@
+"""Issue 27: the second reliability audit (items 1-13; docs/reliability.md).
+
+Each test reproduces one finding; the ones that need a subprocess synchronise on a checkpoint
+the command reaches (``HPDOB_TEST_PAUSE``, see hpdob._interrupts), never on a sleep.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import weakref
+from pathlib import Path
+
+import pytest
+
+from hpdob import paper
+from hpdob.cli import main
+from test_interrupts import start_paused
+
+POSIX = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
+
+
+def run_cli(capsys, *argv):
+    try:
+        code = main([str(a) for a in argv])
+    except SystemExit as exit_:  # argparse's errors
+        code = exit_.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def files_below(directory: Path) -> list[str]:
+    return sorted(str(p.relative_to(directory)) for p in directory.rglob("*") if p.is_file())
+
+
+def must_not_run(*args, **kwargs):
+    raise AssertionError("the work started before the output location was checked")
+
+
+SCENARIO = """\
+label = "{label}"
+Ts = 1e-3
+duration = 0.05
+[plant]
+J = 3.06e-4
+[nominal]
+J = 2.8e-4
+[controller]
+kp = 50.0
+kd = 5.0
+[reference]
+type = "step"
+time = 0.0
+amplitude = 1.0
+"""
+
+
+# -- item 1: output locations checked before the work ---------------------------------------
+@pytest.mark.parametrize(
+    ("argv", "module", "name"),
+    [
+        (["sweep", "{spec}", "--out", "{file}/r.csv"], "hpdob.simulation._sweep", "sweep"),
+        (["compare", "--out", "{file}"], "hpdob.analysis", "compare_observers"),
+        (["tune", "--out", "{file}"], "hpdob.tuning", "tune"),
+        (["tune", "--export-c", "{file}/c"], "hpdob.tuning", "tune"),
+        (["reproduce", "--out", "{file}"], "hpdob.paper._reproduce", "run"),
+        (["simulate", "{spec}", "--out", "{file}/d"], "hpdob.simulation._simulate", "simulate"),
+        (["analyze", "stability", "--out", "{file}"], "hpdob.analysis", "robust_stability_map"),
+        (["export-c", "--out", "{file}"], "hpdob.export._c", "export_c"),
+        (["identify", "--emps", "--out", "{file}"], "hpdob.identification._log", "identify"),
+    ],
+)
+def test_output_location_is_checked_before_the_work(capsys, tmp_path, monkeypatch, argv,
+                                                    module, name):  # fmt: skip
+    import importlib
+
+    monkeypatch.setattr(importlib.import_module(module), name, must_not_run, raising=False)
+    file = tmp_path / "a_file"
+    file.write_text("not a directory\n")
+    spec = tmp_path / "s.toml"
+    spec.write_text(SCENARIO.format(label="s") + "[sweep]\nn = 2\n")
+    argv = [a.format(file=file, spec=spec) for a in argv]
+    code, _, err = run_cli(capsys, *argv)
+    assert code == 2 and err.count("\n") == 1, err
+    assert "cannot be written" in err and str(file) in err, err
+    assert file.read_text() == "not a directory\n"
+
+
+def test_read_only_output_names_the_target_not_the_temporary(tmp_path, monkeypatch):
+    from hpdob._files import OutputLocationError, check_output, write_text_atomic
+
+    def read_only(*args, dir=None, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system", f"{dir}/.r.csv.n54_hnfe.csv")
+
+    monkeypatch.setattr(tempfile, "mkstemp", read_only)
+    with pytest.raises(OutputLocationError) as info:
+        check_output(tmp_path / "ro" / "r.csv", kind="file")
+    assert str(info.value) == (
+        f"--out {str(tmp_path / 'ro' / 'r.csv')!r} cannot be written: Read-only file system "
+        f"(in {str(tmp_path)!r})"
+    )
+    with pytest.raises(OSError, match="Read-only") as info:  # the writer itself, too
+        write_text_atomic(tmp_path / "r.csv", "x\n")
+    assert info.value.filename == str(tmp_path / "r.csv") and ".n54" not in str(info.value)
+
+
+def test_an_io_error_while_staging_names_the_file(tmp_path):
+    from hpdob._files import staged_outputs
+
+    def fail_writing(files, name=None):
+        path = files.path(name) if name else None
+        raise OSError(errno.EIO, "Input/output error", *([str(path)] if path else []))
+
+    with pytest.raises(OSError, match="Input/output") as info, staged_outputs(tmp_path) as files:
+        fail_writing(files, "estimate.csv")
+    assert info.value.filename == str(tmp_path / "estimate.csv")
+    with pytest.raises(OSError, match="Input/output") as info, staged_outputs(tmp_path) as files:
+        fail_writing(files)  # no file name at all: the directory is named
+    assert info.value.filename == str(tmp_path) and os.listdir(tmp_path) == []
+
+
+# -- item 3: stale temporaries, no temporary of a temporary ----------------------------------
+def dead_pid() -> int:
+    process = subprocess.Popen([sys.executable, "-c", "pass"])
+    process.wait()
+    return process.pid
+
+
+def test_a_later_run_removes_stale_temporaries_of_its_own(tmp_path):
+    from hpdob._files import write_text_atomic
+
+    dead = dead_pid()
+    stale = [
+        f".estimate.csv.~hpdob{dead}-k3j2_x9q.csv",  # this version's, writer gone
+        ".estimate.csv.n54_hnfe.csv",  # an older version's
+        "..estimate.csv.n54_hnfe.csv.a1b2c3d4.csv",  # and its temporary of a temporary
+    ]
+    kept = [
+        f".estimate.csv.~hpdob{os.getppid()}-livewrit.csv",  # a live writer's: kept
+        ".estimate.csv.notes.csv",  # not a temporary name
+        "estimate.csv.bak",
+    ]
+    for name in stale + kept:
+        (tmp_path / name).write_text("partial\n")
+    write_text_atomic(tmp_path / "estimate.csv", "t\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([*kept, "estimate.csv"])
+
+
+def test_a_staged_temporary_is_not_written_through_another_temporary(tmp_path, monkeypatch):
+    from hpdob._files import staged_outputs
+
+    result = paper.run("PD", duration=0.01)
+    seen = []
+    real = os.replace
+    monkeypatch.setattr(os, "replace", lambda a, b: (seen.append(Path(b).name), real(a, b)))
+    with staged_outputs(tmp_path, markers=["m.json"]) as files:
+        result.to_csv(files.path("run.csv"))  # to_csv is atomic on its own
+        files.write_text("m.json", "{}\n")
+    assert seen == ["run.csv", "m.json"]  # one rename each: no temporary of the temporary
+    assert files_below(tmp_path) == ["m.json", "run.csv"]
+
+
+# -- item 4: one consistent set per output directory -----------------------------------------
+def test_simulate_no_plot_removes_the_previous_runs_files(capsys, tmp_path):
+    a, b, out = tmp_path / "a.toml", tmp_path / "b.toml", tmp_path / "d"
+    a.write_text(SCENARIO.format(label="a"))
+    b.write_text(SCENARIO.format(label="b"))
+    assert run_cli(capsys, "simulate", a, "--out", out)[0] == 0
+    assert files_below(out) == ["a.csv", "a.png", "metrics.json"]
+    (out / "notes.txt").write_text("mine\n")  # not hpdob's: kept
+    assert run_cli(capsys, "simulate", b, "--out", out, "--no-plot")[0] == 0
+    assert files_below(out) == ["b.csv", "metrics.json", "notes.txt"]
+    assert list(json.loads((out / "metrics.json").read_text())) == ["b"]
+
+
+def test_estimate_no_plot_removes_the_previous_figure(capsys, tmp_path):
+    from test_atomic_outputs import ESTIMATE, write_log
+
+    log, out = write_log(tmp_path / "log.csv"), tmp_path / "out"
+    assert run_cli(capsys, "estimate", log, *ESTIMATE, "--out", out)[0] == 0
+    assert files_below(out) == ["estimate.csv", "estimate.json", "estimate.png"]
+    assert run_cli(capsys, "estimate", log, *ESTIMATE, "--out", out, "--no-plot")[0] == 0
+    assert files_below(out) == ["estimate.csv", "estimate.json"]
+
+
+# -- items 5, 6, 3: signals --------------------------------------------------------------------
+@POSIX
+def test_the_command_imports_nothing_heavy_before_its_signal_handlers():
+    code = "import sys, hpdob.cli; print(sorted({'numpy', 'scipy', 'control'} & set(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout == "[]\n"
+
+
+@POSIX
+def test_ctrl_c_during_start_up_exits_130_with_one_line(tmp_path):
+    process = start_paused(["design"], "startup", tmp_path, cwd=tmp_path)
+    process.send_signal(signal.SIGINT)
+    out, err = process.communicate(timeout=60)
+    assert (process.returncode, out, err) == (130, "", "hpdob: interrupted\n")
+
+
+@POSIX
+@pytest.mark.parametrize(
+    ("signum", "code", "line"),
+    [
+        (signal.SIGINT, 130, "hpdob reproduce: interrupted\n"),
+        (signal.SIGTERM, 143, "hpdob reproduce: interrupted (SIGTERM)\n"),
+        (signal.SIGHUP, 129, "hpdob reproduce: interrupted (SIGHUP)\n"),
+    ],
+)
+def test_sigterm_and_sighup_are_handled_like_ctrl_c(tmp_path, signum, code, line):
+    out = tmp_path / "results"
+    (out / "traces").mkdir(parents=True)
+    previous = {"metrics.json": "previous\n", "fig2.png": "previous\n"}
+    previous.update({f"traces/{name}.csv": "previous\n" for name in paper.RUNS})
+    for name, text in previous.items():
+        (out / name).write_text(text)
+    # Paused with every trace staged under its temporary name: the signal must remove them.
+    process = start_paused(["reproduce", "--out", out], "reproduce-staged", tmp_path, cwd=tmp_path)
+    assert any(p.name.startswith(".") for p in (out / "traces").iterdir())
+    process.send_signal(signum)
+    _, err = process.communicate(timeout=60)
+    assert (process.returncode, err) == (code, line)
+    assert {name: (out / name).read_text() for name in files_below(out)} == previous
+
+
+class _Interrupting:
+    """Sends SIGINT to the process from its weakref callback, where Python ignores exceptions
+    (``Exception ignored in: <function WeakKeyDictionary...remove>``)."""
+
+    def __init__(self):
+        self._ref = weakref.ref(self, lambda ref: signal.raise_signal(signal.SIGINT))
+
+
+@POSIX
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_an_interrupt_python_ignores_still_ends_the_command(capsys, tmp_path, monkeypatch):
+    import hpdob.cli._reproduce as command
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "metrics.json").write_text("previous\n")
+
+    def run(args):
+        from hpdob._files import staged_outputs
+
+        with staged_outputs(args.out, markers=["metrics.json"]) as files:
+            files.write_text("metrics.json", "new\n")
+            obj = _Interrupting()
+            del obj  # the callback's KeyboardInterrupt is printed and ignored by Python
+        return 0
+
+    monkeypatch.setattr(command, "_run", run)
+    assert run_cli(capsys, "reproduce", "--out", out)[::2] == (
+        130,
+        "hpdob reproduce: interrupted\n",
+    )
+    assert files_below(out) == ["metrics.json"] and (out / "metrics.json").read_text() == (
+        "previous\n"
+    )
+
+
+@POSIX
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")
+def test_an_ignored_interrupt_after_the_outputs_still_exits_130(capsys, monkeypatch):
+    import hpdob.cli._design as command
+
+    def run(args):
+        obj = _Interrupting()
+        del obj
+        return 0
+
+    monkeypatch.setattr(command, "_run", run)
+    assert run_cli(capsys, "design")[::2] == (130, "hpdob design: interrupted\n")
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
