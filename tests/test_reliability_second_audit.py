@@ -16,6 +16,7 @@ import tempfile
 import weakref
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from hpdob import paper
@@ -278,3 +279,31 @@ def test_an_ignored_interrupt_after_the_outputs_still_exits_130(capsys, monkeypa
     monkeypatch.setattr(command, "_run", run)
     assert run_cli(capsys, "design")[::2] == (130, "hpdob design: interrupted\n")
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # restored
+
+
+# -- item 7: a long LAPACK call does not hold back the signal ---------------------------------
+@POSIX
+def test_a_signal_during_a_long_eigenvalue_call_is_handled_at_once(monkeypatch):
+    import threading
+
+    import hpdob.analysis._closed_loop as module
+    from hpdob import PD, Actuator, ServoModel, closed_loop_poles, design_observer
+    from hpdob._interrupts import Interrupted, handling_signals
+
+    release = threading.Event()
+
+    def never_returns(A):  # a LAPACK call that takes "forever": the signal comes meanwhile
+        os.kill(os.getpid(), signal.SIGTERM)
+        release.wait(60)
+        return np.zeros(A.shape[0])
+
+    monkeypatch.setattr(module.np.linalg, "eigvals", never_returns)
+    nominal = ServoModel(2.8e-4)
+    observer = design_observer(nominal.discretize(1e-3), order=1, bandwidth=100.0)
+    loop = {"plant": nominal, "nominal": nominal, "Ts": 1e-3, "controller": PD(50, 5)}
+    try:
+        with handling_signals(), pytest.raises(Interrupted) as info:
+            closed_loop_poles(**loop, observer=observer, actuator=Actuator(delay_samples=999))
+    finally:
+        release.set()
+    assert info.value.name == "SIGTERM"

@@ -18,9 +18,11 @@ the rest (an interrupt during start-up then exits 130 with one line, not a trace
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import os
 import signal
+import sys
 import threading
 import time
 
@@ -30,6 +32,7 @@ __all__ = [
     "check",
     "checkpoint",
     "handling_signals",
+    "interruptible",
     "interrupts_deferred",
     "received",
 ]
@@ -125,12 +128,75 @@ def interrupts_deferred():
             signal.raise_signal(held[0])  # now handled as it would have been
 
 
+def interruptible(function, /, *args, **kwargs):
+    """``function(*args, **kwargs)``, with the main thread free to handle a signal meanwhile.
+
+    Python runs a signal's handler only between bytecodes of the main thread, so one long call
+    into LAPACK (``eigvals`` of a 1000-state loop: 0.3 s idle, tens of seconds on a loaded
+    machine) would hold back Ctrl-C for as long. In the main thread the call runs in a daemon
+    thread (abandoned, not waited for, if the signal ends the process) while the main thread
+    waits interruptibly; elsewhere it runs directly. Use it for calls that may take seconds.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return function(*args, **kwargs)
+    outcome = {}
+    # Our own flag, not Thread.is_alive(): a join() interrupted by a signal marks the thread
+    # stopped although it still runs (CPython's bpo-45274 handling).
+    done = threading.Event()
+
+    def run():
+        try:
+            outcome["value"] = function(*args, **kwargs)
+        except BaseException as err:  # handed to the caller below
+            outcome["error"] = err
+        finally:
+            done.set()
+
+    threading.Thread(target=run, name="hpdob-interruptible", daemon=True).start()
+    try:
+        while not done.wait(0.1):  # a signal's handler runs here (and raises) within 0.1 s
+            check()
+    except BaseException as err:
+        if isinstance(err, KeyboardInterrupt):
+            _abandon(done, EXIT_CODES.get(getattr(err, "signum", signal.SIGINT), 130))
+        raise
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome["value"]
+
+
+#: Workers of :func:`interruptible` left running by a signal (their "done" events), and the
+#: exit code the signal implies.
+_abandoned: list[threading.Event] = []
+_abandoned_code = [130]
+
+
+def _abandon(worker: threading.Event, code: int) -> None:
+    """Remember ``worker``: at exit, a process whose LAPACK call still runs must not wait for
+    it (the BLAS library joins its threads when the process exits: minutes)."""
+    if not _abandoned:
+        atexit.register(_exit_now)
+    _abandoned.append(worker)
+    _abandoned_code[0] = code
+
+
+def _exit_now() -> None:
+    """At exit: if an abandoned worker still computes, flush and end the process at once (the
+    remaining exit handlers are skipped; hpdob's outputs were already cleaned up)."""
+    if not all(done.is_set() for done in _abandoned):
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        os._exit(_abandoned_code[0])
+
+
 def checkpoint(name: str) -> None:
     """A point where a long run notices a signal (:func:`check`), and a test hook.
 
-    The hook pauses at ``name`` for a signal if ``HPDOB_TEST_PAUSE=<name>:<file>`` asks for it
-    (unset in normal use: then this is one dictionary look-up). The file is created when the checkpoint is reached; the process then waits up to
-    60 s for the signal the test sends, and goes on if none comes.
+    The hook pauses at ``name`` for a signal if ``HPDOB_TEST_PAUSE=<name>:<file>`` asks for
+    it (unset in normal use: then this is one dictionary look-up). The file is created when
+    the checkpoint is reached; the process then waits up to 60 s for the signal the test
+    sends, and goes on if none comes.
     """
     check()
     spec = os.environ.get("HPDOB_TEST_PAUSE")

@@ -32,6 +32,7 @@ import warnings
 
 import numpy as np
 
+from .._interrupts import checkpoint
 from .._validation import (
     ParameterTypeError,
     ParameterValueError,
@@ -342,6 +343,7 @@ def tune(
 
     rows = []
     for family, m, parameter, value, design in candidates:
+        checkpoint("tune-candidate")  # a signal Python ignored ends the search here
         velocity = "observer" if (controller.velocity == "observer"
                                   and design.system.has_velocity) else "measured"  # fmt: skip
         ctrl = PD(controller.kp, controller.kd, feedforward=controller.feedforward,
