@@ -307,3 +307,48 @@ def test_a_signal_during_a_long_eigenvalue_call_is_handled_at_once(monkeypatch):
     finally:
         release.set()
     assert info.value.name == "SIGTERM"
+
+
+# -- item 8: inputs that overflow the state are refused, the state unchanged ------------------
+def _observers():
+    from hpdob import (
+        ExtendedStateObserver,
+        KalmanDisturbanceObserver,
+        Observer,
+        ServoModel,
+        design_observer,
+    )
+
+    model = ServoModel(2.8e-4).discretize(1e-3)
+    return [
+        Observer.of(design_observer(model, order=1, bandwidth=100.0)),
+        Observer.of(design_observer(model, order=1, bandwidth=100.0, measurement="position")),
+        ExtendedStateObserver(model, bandwidth=100.0),
+        KalmanDisturbanceObserver(model, position_noise_std=1e-4, process_noise_std=1.0),
+    ]
+
+
+@pytest.mark.parametrize("index", range(4), ids=["state", "position", "eso", "kalman"])
+def test_runtime_observers_refuse_inputs_that_overflow_their_state(index):
+    from hpdob import ParameterValueError
+    from hpdob.observers import update
+
+    observer = _observers()[index]
+    system = observer._system
+    big = (1e308, -1e308) if system.measurement == "state" else 1e308
+
+    def feed(step, state):
+        for _ in range(40):  # the case: [nan nan nan] after a few samples
+            state = step(state)
+        return state
+
+    def runtime(state):
+        observer.update(big, 1e308)
+        return observer._state
+
+    with pytest.raises(ParameterValueError, match=r"overflows the state .* unchanged"):
+        feed(runtime, observer._state)
+    last = observer._state
+    assert all(np.isfinite(last))  # the last good state, kept
+    with pytest.raises(ParameterValueError, match="overflows the state"):  # functional core
+        feed(lambda state: update(system, state, big, 1e308), last)  # was (9.41e307, inf)
