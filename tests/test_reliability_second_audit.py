@@ -352,3 +352,23 @@ def test_runtime_observers_refuse_inputs_that_overflow_their_state(index):
     assert all(np.isfinite(last))  # the last good state, kept
     with pytest.raises(ParameterValueError, match="overflows the state"):  # functional core
         feed(lambda state: update(system, state, big, 1e308), last)  # was (9.41e307, inf)
+
+
+# -- item 9: frequencies at or above Nyquist refused by every view ----------------------------
+@pytest.mark.parametrize("frequency", ["1000", "600", "500", "-1"])
+def test_analyze_bode_refuses_frequencies_at_or_above_nyquist(capsys, tmp_path, frequency):
+    code, _, err = run_cli(capsys, "analyze", "bode", "--frequency", frequency, "--out", tmp_path)
+    assert code == 2 and err.count("\n") == 1, err
+    assert "below the Nyquist frequency 1/(2 Ts) = 500 Hz" in err and frequency in err
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- item 10: the verification fails a run that does not track --------------------------------
+def test_tune_verification_fails_a_run_that_does_not_track(capsys, tmp_path):
+    code, _, err = run_cli(
+        capsys, "tune", "--families", "state", "--torque-limit", "1e-300", "--out", tmp_path,
+        "--no-plot",
+    )  # fmt: skip
+    # was: "verified by nonlinear simulation ... bounded" with an RMS position error of 2.77e3
+    assert code == 2 and "tracks its reference" in err and err.count("\n") == 1, err
+    assert list(tmp_path.iterdir()) == []

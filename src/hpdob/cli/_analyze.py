@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _analyze_types as _types
+from ._errors import CLIError
 from ._options import (
     add_loop_arguments,
     add_nominal_arguments,
@@ -261,9 +262,15 @@ def _bode(args, files) -> list[str]:
     from ..analysis._sensitivity import gang_of_four, loop_margins
 
     loop = _loop(args)
+    nyquist = 0.5 / loop["Ts"]
+    if not 0 <= args.frequency < nyquist:  # above it the response is an alias's (as tune says)
+        raise CLIError(
+            f"--frequency must be at least 0 and below the Nyquist frequency 1/(2 Ts) = "
+            f"{nyquist:.6g} Hz, got {args.frequency!r}"
+        )
     model = loop["nominal"].discretize(loop["Ts"])
     designs = [_design(args, model, m, args.bandwidth) for m in args.orders]
-    f = np.geomspace(0.1, 0.5 / loop["Ts"], 400)
+    f = np.geomspace(0.1, nyquist, 400)
     sens = [
         gang_of_four(**loop, observer=d).S.frequency_response(2 * np.pi * f).frdata[0, 0]
         for d in designs
