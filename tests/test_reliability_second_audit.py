@@ -372,3 +372,58 @@ def test_tune_verification_fails_a_run_that_does_not_track(capsys, tmp_path):
     # was: "verified by nonlinear simulation ... bounded" with an RMS position error of 2.77e3
     assert code == 2 and "tracks its reference" in err and err.count("\n") == 1, err
     assert list(tmp_path.iterdir()) == []
+
+
+# -- item 11: values that are not numbers ------------------------------------------------------
+def _number_entry_points():
+    from hpdob import PD, Encoder, ServoModel, design_observer, estimation_response, signals
+
+    observer = design_observer(ServoModel(2.8e-4).discretize(1e-3), order=1, bandwidth=100.0)
+    return {
+        "ServoModel(b)": lambda v: ServoModel(2.8e-4, v),
+        "PD(kp)": lambda v: PD(v, 5.0),
+        "Encoder(noise_std)": lambda v: Encoder(4096, noise_std=v),
+        "Step(time)": lambda v: signals.Step(v, 1.0),
+        "estimation_response(frequency)": lambda v: estimation_response(observer, v),
+        "estimation_response([f, v])": lambda v: estimation_response(observer, [1.0, v]),
+    }
+
+
+@pytest.mark.parametrize("entry", list(_number_entry_points()))
+@pytest.mark.parametrize(
+    "value",
+    [np.ma.masked, np.datetime64("2020-01-01"), np.timedelta64(3, "s")],
+    ids=["masked", "datetime64", "timedelta64"],
+)
+def test_masked_values_and_dates_are_not_numbers(entry, value):
+    from hpdob import ParameterTypeError
+
+    with pytest.raises(ParameterTypeError) as info:  # masked was read as 0.0
+        _number_entry_points()[entry](value)
+    assert "\n" not in str(info.value)
+
+
+def test_a_csv_cell_with_an_underscore_is_not_a_number(tmp_path):
+    from hpdob import ParameterValueError, read_log
+
+    path = tmp_path / "log.csv"
+    path.write_text("t,q,i\n0.0,0.0,0.1\n0.001,0_4,0.1\n0.002,0.0,0.1\n")
+    with pytest.raises(ParameterValueError, match=r"not numeric: sample 1 \(line 3\) holds '0_4'"):
+        read_log(path, time="t", position="q", input="i")  # float("0_4") is 4.0
+
+
+def test_an_empty_scheduler_is_refused(capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr("hpdob.simulation._sweep.sweep", must_not_run)
+    spec = tmp_path / "s.toml"
+    spec.write_text(SCENARIO.format(label="s") + "[sweep]\nn = 2\n")
+    code, _, err = run_cli(capsys, "sweep", spec, "--out", tmp_path / "r.csv", "--scheduler", "")
+    assert code == 2 and "--scheduler must be a dask address" in err and err.count("\n") == 1
+
+
+@pytest.mark.parametrize("label", ["x\u202egnp.exe", "a\u200bb", "a\u2028b"])
+def test_labels_with_bidi_or_invisible_characters_are_refused(capsys, tmp_path, label):
+    spec = tmp_path / "s.toml"
+    spec.write_text(SCENARIO.format(label=label.encode("unicode_escape").decode()))
+    code, _, err = run_cli(capsys, "simulate", spec, "--out", tmp_path / "out", "--no-plot")
+    assert code == 2 and "cannot name an output file" in err and err.count("\n") == 1, err
+    assert not (tmp_path / "out").exists()

@@ -221,19 +221,28 @@ def check_output(path, *, kind: str = "directory", name: str = "--out") -> Path:
 _FORBIDDEN_IN_STEM = set('/\\:*?"<>|')
 
 
+def _invisible(c: str) -> bool:
+    """Control and format characters: NUL, newlines, and the bidirectional controls (U+202E
+    makes ``"x\u202egnp.exe"`` display as ``xexe.png``) and zero-width characters."""
+    import unicodedata
+
+    return ord(c) < 32 or unicodedata.category(c) in ("Cc", "Cf", "Cs", "Co", "Zl", "Zp")
+
+
 def check_file_stem(stem, name: str = "label") -> str:
     """``stem`` if it can name a file inside the output directory, else a ParameterValueError.
 
     Refused: non-strings, the empty string, ``.`` and ``..``, a leading ``.`` (hidden files,
     and the temporary names of :func:`atomic_path`), path separators, NUL and other control
-    characters, ``:*?"<>|``, and more than 200 characters. So a scenario's ``label`` can never
+    characters, format characters (bidirectional overrides such as U+202E, zero-width
+    spaces), ``:*?"<>|``, and more than 200 characters. So a scenario's ``label`` can never
     write outside ``--out``.
     """
     from ._validation import ParameterTypeError, ParameterValueError, _show
 
     if not isinstance(stem, str):
         raise ParameterTypeError(f"{name} must be a str, got {type(stem).__name__}")
-    bad = sorted({c for c in stem if c in _FORBIDDEN_IN_STEM or ord(c) < 32 or ord(c) == 127})
+    bad = sorted({c for c in stem if c in _FORBIDDEN_IN_STEM or _invisible(c)})
     if not stem or stem.startswith(".") or bad or len(stem) > 200 or stem != stem.strip():
         why = (
             f"it contains {', '.join(repr(c) for c in bad)}"

@@ -76,7 +76,10 @@ def as_real(value: object, name: str, what: str = "a real number") -> float:
     ValueError
         If ``value`` is NaN or infinite.
     """
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+    if isinstance(value, np.ma.MaskedArray) and np.ma.is_masked(value):  # np.ma.masked: no value
+        raise ParameterTypeError(f"{name} must be {what}, got a masked value (numpy.ma.masked)")
+    # bool is an int, numpy.timedelta64 a numpy integer: neither is a number of hpdob's units
+    if isinstance(value, (bool, np.bool_, np.timedelta64)) or not isinstance(value, numbers.Real):
         if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
             value = value.item()
         else:
@@ -117,8 +120,10 @@ def as_int(
 
     ``minimum``/``maximum`` bound it (inclusive); the message of ``maximum`` states the limit.
     """
-    if isinstance(value, (bool, np.bool_)):
-        raise ParameterTypeError(f"{name} must be {what}, got {_show(value)} of type bool")
+    if isinstance(value, (bool, np.bool_, np.timedelta64)):
+        raise ParameterTypeError(
+            f"{name} must be {what}, got {_show(value)} of type {type(value).__name__}"
+        )
     try:
         result = operator.index(value)
     except TypeError:
@@ -161,6 +166,14 @@ def as_real_vector(
     return array
 
 
+def _refuse_masked(value: object, name: str, what: str) -> None:
+    """A ParameterTypeError for masked entries (numpy would read them as 0.0 or NaN)."""
+    if np.ma.is_masked(value) or (
+        isinstance(value, (list, tuple)) and any(np.ma.is_masked(v) for v in value)
+    ):
+        raise ParameterTypeError(f"{name} must be {what}, got masked entries (numpy.ma.masked)")
+
+
 def numeric_array(value: object, name: str, what: str, *, dtype=float) -> np.ndarray:
     """``value`` as a new numeric array of ``dtype`` (float or complex).
 
@@ -173,11 +186,16 @@ def numeric_array(value: object, name: str, what: str, *, dtype=float) -> np.nda
         )
     if isinstance(value, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in value):
         raise ParameterTypeError(f"{name} must be {what}, got {_show(value)} with a bool entry")
+    _refuse_masked(value, name, what)
     try:
         raw = np.asarray(value)
     except (TypeError, ValueError):
         raise ParameterTypeError(f"{name} must be {what}, got {_show(value)}") from None
-    forbidden = "USVb" + ("c" if np.dtype(dtype).kind == "f" else "")
+    forbidden = "USVbmM" + ("c" if np.dtype(dtype).kind == "f" else "")  # mM: dates, durations
+    if raw.dtype.kind == "O" and any(
+        isinstance(v, (np.datetime64, np.timedelta64)) for v in raw.flat
+    ):  # a mixed list: numpy would cast the date to a count of days
+        raise ParameterTypeError(f"{name} must be {what}, got {_show(value)} with a date entry")
     if raw.dtype.kind in forbidden:
         raise ParameterTypeError(
             f"{name} must be {what}, got {_show(value)} with {raw.dtype.name} entries"
@@ -246,6 +264,7 @@ def as_grid(
     With ``increasing=True`` the grid must also be strictly increasing (maps and boundaries
     are drawn along it).
     """
+    _refuse_masked(values, name, what)
     grid = as_real_vector(np.atleast_1d(values), name, what)
     if grid.size == 0:
         raise ParameterValueError(f"{name} must hold at least one value ({what}), got []")

@@ -53,6 +53,10 @@ def _run(args: argparse.Namespace) -> int:
     from ..simulation._scenario import load_sweep
     from ..simulation._sweep import sweep
 
+    if args.scheduler is not None and not args.scheduler.strip():  # '' used to run locally
+        raise CLIError(
+            f"--scheduler must be a dask address like tcp://host:8786, got {args.scheduler!r}"
+        )
     if args.out.suffix not in FORMATS:
         raise CLIError(f"--out must end in {' or '.join(FORMATS)}, got {str(args.out)!r}")
     if args.out.is_dir():
