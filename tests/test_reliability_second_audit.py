@@ -427,3 +427,47 @@ def test_labels_with_bidi_or_invisible_characters_are_refused(capsys, tmp_path, 
     code, _, err = run_cli(capsys, "simulate", spec, "--out", tmp_path / "out", "--no-plot")
     assert code == 2 and "cannot name an output file" in err and err.count("\n") == 1, err
     assert not (tmp_path / "out").exists()
+
+
+# -- item 12: one-line messages that name the parameter ---------------------------------------
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["analyze", "noise", "--bandwidths", "1:1e400:5"], "positive finite values"),
+        (["analyze", "bode", "--dpi", "1e-300"], "resolution of 10 to 1200 dots per inch"),
+        (["analyze", "stability", "--orders", "1,1"], "distinct orders, got '1,1'"),
+        (["tune", "--Ts", "0.2"], "default disturbance band 0.1-10 Hz reaches the Nyquist"),
+        (["export-c", "--J-n", "-5e-4"], "J must be a positive finite inertia [kg m^2], got -0.0005"),  # noqa: E501
+        (["analyze", "stability", "--values", "1:2:1001", "--bandwidths", "1:2:1000"],
+         "1001 x 1000 = 1001000 points; at most 1000000"),
+    ],
+)  # fmt: skip
+def test_unclear_messages_are_one_line_and_name_the_parameter(capsys, tmp_path, argv, needle):
+    code, _, err = run_cli(capsys, *argv, "--out", tmp_path)
+    assert code == 2 and needle in err and err.count("\n") == 1, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_tiny_nominal_inertia_designs_without_a_leaked_warning(capsys):
+    code, out, err = run_cli(capsys, "design", "--J-n", "1e-300")  # was an overflow warning
+    assert code == 0 and err == "" and "eigenvalues" in out  # and a false "orthogonal" error
+
+
+def test_api_errors_for_2d_arrays_are_one_line():
+    from hpdob import ParameterValueError, ServoModel, design_observer
+
+    model = ServoModel(2.8e-4).discretize(1e-3)
+    with pytest.raises(ParameterValueError) as info:
+        design_observer(model, order=1, poles=np.full((2, 2), 0.9))
+    assert "\n" not in str(info.value)
+
+
+def test_read_log_of_a_number_and_a_truncated_trace(tmp_path):
+    from hpdob import ParameterTypeError, ParameterValueError, SimulationResult, read_log
+
+    with pytest.raises(ParameterTypeError, match="path must be a file path"):
+        read_log(3, time="t", position="q", input="i")
+    text = paper.run("PD", duration=0.05).to_csv(tmp_path / "run.csv").read_text()
+    (tmp_path / "cut.csv").write_text(text[: len(text) // 2])  # cut off mid-row
+    with pytest.raises(ParameterValueError, match=r"cut.csv line \d+ is not a row of"):
+        SimulationResult.from_csv(tmp_path / "cut.csv")  # was numpy's "inhomogeneous shape"

@@ -33,11 +33,20 @@ __all__ = [
 ]
 
 
-class ParameterValueError(ValueError):
+class _OneLine:
+    """Messages on one line: a value's multi-line repr (a 2-D array) is joined."""
+
+    def __init__(self, *args):
+        if len(args) == 1 and isinstance(args[0], str) and "\n" in args[0]:
+            args = (" ".join(part.strip() for part in args[0].splitlines() if part.strip()),)
+        super().__init__(*args)
+
+
+class ParameterValueError(_OneLine, ValueError):
     """A parameter has an acceptable type but an invalid value (message says which)."""
 
 
-class ParameterTypeError(TypeError):
+class ParameterTypeError(_OneLine, TypeError):
     """A parameter has the wrong type (message says which and what was expected)."""
 
 
@@ -45,13 +54,16 @@ def _show(value: object) -> str:
     """Short repr of ``value`` for error messages (arrays are abbreviated)."""
     if isinstance(value, np.ndarray):
         # one line: messages are printed on one line by the CLI
-        return np.array2string(value, threshold=8, precision=6, max_line_width=1_000_000)
+        text = np.array2string(value, threshold=8, precision=6, max_line_width=1_000_000)
+        return " ".join(text.split())  # 2-D arrays print a row per line
     if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**30:
         return _show_int(value)
     try:
-        text = repr(value)
+        text = " ".join(repr(value).split()) if isinstance(value, (list, tuple)) else repr(value)
     except (ValueError, RecursionError):  # an int over 4300 digits, a very deep nesting
         return f"a {type(value).__name__} that cannot be shown"
+    if "\n" in text:  # e.g. the repr of a 2-D array inside a list
+        text = " ".join(text.split())
     return text if len(text) <= 80 else text[:77] + "..."
 
 

@@ -38,7 +38,15 @@ _COMMANDS = (
 
 
 class _Parser(argparse.ArgumentParser):
-    """ArgumentParser whose errors are a single line and exit code 2."""
+    """ArgumentParser whose errors are a single line and exit code 2.
+
+    A negative number in exponent form (``--J-n -5e-4``) is read as a value, as ``-0.0005``
+    is (argparse's own pattern has no exponent: "expected one argument").
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message}\n")

@@ -12,18 +12,37 @@ from ._options import finite
 __all__ = ["grid", "measurements", "orders", "pole_tolerance", "positive_real"]
 
 
+#: Most values of one analysis grid (``--bandwidths``, ``--values``): sized up front, before
+#: numpy allocates (``10:2000:100000000`` ended in a MemoryError after 12 s).
+MAX_GRID_VALUES = 10_000
+
+
 def grid(text: str) -> list[float]:
-    """``LO:HI:N`` (N log-spaced values) or a non-empty comma-separated list of numbers."""
+    """``LO:HI:N`` (N log-spaced values) or a non-empty comma-separated list of finite numbers,
+    of at most :data:`MAX_GRID_VALUES` values."""
     try:
         if ":" in text:
             lo, hi, n = text.split(":")
             lo, hi, count = float(lo), float(hi), int(n)
-            if not (lo > 0 and hi > 0 and count >= 1):
+            if not (0 < lo < math.inf and 0 < hi < math.inf and count >= 1):
                 raise ValueError
+        else:
+            values = [float(item) for item in text.split(",") if item.strip()]
+            if not values or not all(math.isfinite(v) for v in values):
+                raise ValueError
+            count = len(values)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected LO:HI:N (N log-spaced positive finite values) or finite values as at "
+            f"least one comma-separated number, got {text!r}"
+        ) from None
+    if count > MAX_GRID_VALUES:
+        raise argparse.ArgumentTypeError(
+            f"a grid has at most {MAX_GRID_VALUES} values, got {count} in {text!r}"
+        )
+    try:
+        if ":" in text:
             return np.geomspace(lo, hi, count).tolist()
-        values = [float(item) for item in text.split(",") if item.strip()]
-        if not values:
-            raise ValueError
         return values
     except ValueError:
         raise argparse.ArgumentTypeError(
@@ -44,12 +63,20 @@ def positive_real(text: str) -> float:
 
 
 def orders(text: str) -> list[int]:
+    """Comma-separated distinct integer orders (a repeated one is refused up front: the maps
+    were computed before the error)."""
     try:
-        return [int(item) for item in text.split(",")]
+        values = [int(item) for item in text.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"expected comma-separated integer orders, got {text!r}"
         ) from None
+    repeated = sorted({v for v in values if values.count(v) > 1})
+    if repeated:
+        raise argparse.ArgumentTypeError(
+            f"expected distinct orders, got {text!r} (order {repeated[0]} twice)"
+        )
+    return values
 
 
 def measurements(text: str) -> list[str]:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import types
 from collections.abc import Mapping
 from dataclasses import KW_ONLY, dataclass, field
@@ -266,6 +267,11 @@ def read_log(
     >>> len(log), log.Ts, round(log.input_gain, 2)
     (24841, 0.001, 35.15)
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise ParameterTypeError(
+            f"path must be a file path (str or os.PathLike), got {path!r} of type "
+            f"{type(path).__name__}"
+        )
     path = Path(path)
     wanted = {"position": _name(position, "position"), "input": _name(input, "input")}
     if _name(time, "time", optional=True) is not None:

@@ -84,6 +84,11 @@ def _frequencies(disturbance_frequency, Ts: float) -> np.ndarray:
                            "positive frequencies [Hz]", allow_zero=False)  # fmt: skip
         frequencies = np.geomspace(low, high, 25) if high > low else np.array([low])
     nyquist = 0.5 / Ts
+    if not frequencies[-1] < nyquist and disturbance_frequency is None:
+        raise ParameterValueError(
+            f"the default disturbance band 0.1-10 Hz reaches the Nyquist frequency 1/(2 Ts) = "
+            f"{nyquist:.6g} Hz of Ts = {Ts!r} s; give disturbance_frequency (--frequency) below it"
+        )
     if not frequencies[-1] < nyquist:  # a sampled loop cannot tell it from its alias
         raise ParameterValueError(
             f"disturbance_frequency must be below the Nyquist frequency 1/(2 Ts) = {nyquist:.6g} "
