@@ -471,3 +471,45 @@ def test_read_log_of_a_number_and_a_truncated_trace(tmp_path):
     (tmp_path / "cut.csv").write_text(text[: len(text) // 2])  # cut off mid-row
     with pytest.raises(ParameterValueError, match=r"cut.csv line \d+ is not a row of"):
         SimulationResult.from_csv(tmp_path / "cut.csv")  # was numpy's "inhomogeneous shape"
+
+
+# -- item 2: a dask cluster that fails mid-sweep keeps the finished rows ----------------------
+@pytest.mark.timeout(120)
+def test_a_failing_dask_cluster_keeps_the_finished_rows(capsys, tmp_path, monkeypatch):
+    import warnings
+
+    distributed = pytest.importorskip("dask.distributed")
+    import pandas as pd
+
+    import hpdob.simulation._sweep as module
+
+    real = module.run_chunk
+
+    def fails_late(base, chunk, *args):  # as when every worker running it died (KilledWorker)
+        if chunk[0][0] >= 4:
+            raise distributed.KilledWorker("run_chunk-late", "tcp://127.0.0.1:1 (4 workers)")
+        return real(base, chunk, *args)
+
+    monkeypatch.setattr(module, "run_chunk", fails_late)
+    spec = tmp_path / "s.toml"
+    spec.write_text(
+        SCENARIO.format(label="s")
+        + '[sweep]\n[sweep.grid]\n"observer.bandwidth" = [40.0, 60.0, 80.0, 100.0, 120.0, 140.0]'
+        + '\n"observer.order" = [0, 1]\n[observer]\norder = 1\nbandwidth = 100.0\n'
+    )
+    out = tmp_path / "rows.csv"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cluster = distributed.LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+        )
+        try:
+            argv = ["sweep", spec, "--out", out, "--scheduler", cluster.scheduler_address]
+            code, _, err = run_cli(capsys, *argv)
+        finally:
+            cluster.close()
+    assert code == 1 and err.count("\n") == 1, err  # was "internal error" and no rows
+    assert err.startswith("hpdob sweep: error: the dask cluster failed after 4 of 12 scenarios")
+    assert "KilledWorker" in err and "missing: scenarios 4-11" in err and "rerun" in err
+    rows = pd.read_csv(out)
+    assert rows["scenario"].tolist() == [0, 1, 2, 3] and rows["error"].isna().all()

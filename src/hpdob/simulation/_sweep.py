@@ -8,6 +8,7 @@ only.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
@@ -31,7 +32,25 @@ from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import _sample_count, check_run_arguments, run_loop, sample_signals
 from ._sweep_spec import check_paths_apply, expand_scenarios
 
-__all__ = ["sweep"]
+__all__ = ["SweepIncomplete", "sweep"]
+
+
+class SweepIncomplete(RuntimeError):
+    """A dask sweep whose cluster failed part-way (scheduler lost, workers killed repeatedly).
+
+    ``rows`` is the DataFrame of the scenarios that finished (as :func:`sweep` returns, fewer
+    rows), ``missing`` the numbers of the others, ``cause`` the cluster's error. The CLI
+    writes ``rows`` and names what is missing instead of losing the finished work.
+    """
+
+    def __init__(self, rows, missing, cause: BaseException):
+        self.rows, self.missing, self.cause = rows, list(missing), cause
+        done = len(rows)
+        super().__init__(
+            f"the dask cluster failed after {done} of {done + len(self.missing)} scenarios "
+            f"({type(cause).__name__}: {' '.join(str(cause).split())[:200]})"
+        )
+
 
 #: Keys of a sweep's ``base``: a ``loop`` (or the loop's keyword arguments) and the run's.
 SIMULATE_KEYS = (*LOOP_KEYS, "duration", "reference", "disturbance", "substeps", "x0", "loop")
@@ -343,16 +362,33 @@ def _run_dask(base, scenarios, scheduler, update) -> list:
         rows = []
         try:
             for future in dask_completed(futures):
-                chunk_rows = future.result()
+                try:
+                    chunk_rows = future.result()
+                except Exception as err:  # the cluster failed (run_chunk records row errors)
+                    with contextlib.suppress(Exception):
+                        client.cancel(futures)
+                    raise _Incomplete(rows, err) from err
                 rows.extend(chunk_rows)
                 update(len(chunk_rows))
+                checkpoint("sweep-chunk")
+        except _Incomplete:
+            raise
         except BaseException:  # an interrupt or a failure: nothing more may run for us
-            client.cancel(futures)
+            with contextlib.suppress(Exception):
+                client.cancel(futures)
             raise
         return rows
     finally:
         if own:
             client.close()
+
+
+class _Incomplete(Exception):
+    """Internal: the rows finished before a dask cluster failed (cause: ``__cause__``)."""
+
+    def __init__(self, rows, cause):
+        super().__init__(str(cause))
+        self.rows = rows
 
 
 def _workers_and_mode(scheduler):
@@ -483,14 +519,6 @@ def sweep(
         resolved["reference"], resolved["disturbance"], Ts=resolved["loop"].Ts, n=2, substeps=1
     )
     update, close = _progress_callback(progress, len(scenarios))
-    try:
-        if mode == "local":
-            rows = _run_local(resolved, _chunks(scenarios, workers), workers, update)
-        else:
-            rows = _run_dask(resolved, scenarios, scheduler, update)
-    finally:
-        close()
-    rows.sort(key=lambda row: row["scenario"])
     columns = [
         "scenario",
         *(list(grid or {}) + sorted(vary or {})),
@@ -498,4 +526,19 @@ def sweep(
         "stable",
         "error",
     ]
+    try:
+        if mode == "local":
+            rows = _run_local(resolved, _chunks(scenarios, workers), workers, update)
+        else:
+            rows = _run_dask(resolved, scenarios, scheduler, update)
+    except _Incomplete as failure:  # keep what finished: the caller decides what to write
+        failure.rows.sort(key=lambda row: row["scenario"])
+        done = {row["scenario"] for row in failure.rows}
+        missing = [i for i in range(len(scenarios)) if i not in done]
+        raise SweepIncomplete(
+            pd.DataFrame(failure.rows, columns=columns), missing, failure.__cause__
+        ) from None
+    finally:
+        close()
+    rows.sort(key=lambda row: row["scenario"])
     return pd.DataFrame(rows, columns=columns)
