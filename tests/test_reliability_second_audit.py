@@ -513,3 +513,25 @@ def test_a_failing_dask_cluster_keeps_the_finished_rows(capsys, tmp_path, monkey
     assert "KilledWorker" in err and "missing: scenarios 4-11" in err and "rerun" in err
     rows = pd.read_csv(out)
     assert rows["scenario"].tolist() == [0, 1, 2, 3] and rows["error"].isna().all()
+
+
+# -- item 13: bounded work, checked up front --------------------------------------------------
+def test_oversized_scenario_and_log_files_are_refused_before_reading(capsys, tmp_path):
+    from hpdob import ParameterValueError, read_log
+
+    spec = tmp_path / "big.toml"
+    spec.write_text(SCENARIO.format(label="s") + "# padding\n" * 200_000)  # 2 MB
+    code, _, err = run_cli(capsys, "simulate", spec, "--out", tmp_path / "out")
+    assert code == 2 and err.count("\n") == 1
+    assert f"has {spec.stat().st_size} bytes; at most 1048576 bytes" in err
+    log = tmp_path / "log.csv"
+    with open(log, "wb") as handle:  # sparse: 300 MB that take no disk
+        handle.truncate(300 << 20)
+    with pytest.raises(ParameterValueError, match=r"has 314572800 bytes; at most 268435456"):
+        read_log(log, time="t", position="q", input="i")
+
+
+def test_analysis_grids_are_bounded_before_numpy_allocates(capsys, tmp_path):
+    argv = ["analyze", "noise", "--bandwidths", "10:2000:100000000", "--out", tmp_path]
+    code, _, err = run_cli(capsys, *argv)  # was a MemoryError after 12 s
+    assert code == 2 and "at most 10000 values, got 100000000" in err and err.count("\n") == 1
