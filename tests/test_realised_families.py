@@ -98,18 +98,19 @@ def test_position_realised_poles_agree_with_high_precision_eigenvalues(order, kw
 
 
 @pytest.mark.parametrize(
-    ("order", "Ts", "bandwidth", "realised"),
-    [  # |z| of the realised pole furthest off: 80-digit mpmath eigenvalues of the rounded F
-        (8, 1e-3, 100.0, 0.947307),
-        (10, 1e-4, 1000.0, 0.990449),
-        (4, 1e-3, 20.0, 0.982119),
-    ],
+    ("order", "Ts", "bandwidth"),
+    # the rounded gains (hence the furthest pole) differ between LAPACK builds: measured |z| of
+    # 0.9473/0.9479, 0.9904/0.9855 and 0.9821/0.9822 on two, for requested 0.905, 0.905, 0.980
+    [(8, 1e-3, 100.0), (10, 1e-4, 1000.0), (4, 1e-3, 20.0)],
 )
-def test_position_designs_far_off_are_refused(order, Ts, bandwidth, realised):
+def test_position_designs_far_off_are_refused(order, Ts, bandwidth):
     model = ServoModel(2.8e-4).discretize(Ts)
     kwargs = {"order": order, "bandwidth": bandwidth, "measurement": "position"}
     design = design_observer(model, pole_tolerance=None, **kwargs)
+    # reference: 80-digit mpmath eigenvalues of the rounded error matrix this build produced
+    realised = np.max(np.abs(mp_eigenvalues(design.error_matrix)))
     assert np.max(np.abs(design.realised_poles)) == pytest.approx(realised, abs=2e-6)
+    assert realised - math.exp(-bandwidth * Ts) > 0.05 * (1 - math.exp(-bandwidth * Ts))
     with pytest.raises(ParameterValueError, match=r"position-only observer of order") as info:
         design_observer(model, **kwargs)
     message = str(info.value)
@@ -211,20 +212,19 @@ def test_eso_canonical_designs_are_accepted_unchanged(m):
 
 # -- Kalman ------------------------------------------------------------------------------------
 @pytest.mark.parametrize(
-    ("order", "r", "q", "radius"),
-    [  # spectral radius of the F scipy's answer gave: 80-digit mpmath eigenvalues
-        (2, 1e-9, 1e-4, 15938.877),
-        (3, 1e-9, 1e-8, 1.018438),
-        (4, 1e-9, 1e-12, 1.064843),
-    ],
+    ("order", "r", "q", "lowest"),
+    # scipy's non-stabilising Riccati answer depends on the LAPACK build: spectral radii (80-digit
+    # mpmath eigenvalues of F) 15938.877, 1.018438, 1.064843 on one, 1.02581 and 1.06576 for the
+    # last two on another; the refusal, not the exact radius, is the invariant
+    [(2, 1e-9, 1e-4, 100.0), (3, 1e-9, 1e-8, 1.0), (4, 1e-9, 1e-12, 1.0)],
 )
-def test_kalman_designs_that_are_not_stable_are_refused(order, r, q, radius):
+def test_kalman_designs_that_are_not_stable_are_refused(order, r, q, lowest):
     with pytest.raises(ParameterValueError, match=r"is not stable in double precision") as info:
         design_kalman(MODEL, order=order, position_noise_std=r, process_noise_std=q)
     message = str(info.value)
     assert f"position_noise_std={r!r}" in message and f"process_noise_std={q!r}" in message
     shown = float(message.split("spectral radius about ")[1].split(",")[0])
-    assert shown == pytest.approx(radius, rel=1e-5)
+    assert shown > lowest
 
 
 @pytest.mark.parametrize(("order", "r", "q"), [(0, 1e-9, 1.0), (1, 1e-4, 1e4), (2, 1e-9, 1.0)])

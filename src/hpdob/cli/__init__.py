@@ -29,6 +29,7 @@ _COMMANDS = (
     "_sweep",
     "_design",
     "_export_c",
+    "_export_fmu",
     "_analyze",
     "_identify",
     "_estimate",
@@ -121,13 +122,18 @@ def main(argv: list[str] | None = None) -> int:
             return _interrupted(command, err)
 
 
+#: Commands whose --out is a file (the others' is a directory).
+_FILE_OUTPUTS = ("sweep", "export-fmu")
+
+
 def _check_outputs(args: argparse.Namespace) -> None:
     """Check the command's output locations before its work (a file where a directory is
     wanted, a read-only directory): the run is not lost at its end."""
     from .._files import check_output
 
     if getattr(args, "out", None) is not None:
-        check_output(args.out, kind="file" if args.command == "sweep" else "directory")
+        kind = "file" if args.command in _FILE_OUTPUTS else "directory"
+        check_output(args.out, kind=kind)
     if getattr(args, "export_c", None) is not None:
         check_output(args.export_c, name="--export-c")
 
