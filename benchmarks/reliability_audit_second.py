@@ -115,7 +115,8 @@ def audit_overflow(audit) -> None:
 def audit_files(audit, tmp: Path) -> None:
     """Items 11-13: CSV cells, paths, truncated traces, oversized files."""
     log = tmp / "underscore.csv"
-    log.write_text("t,q,i\n0.0,0.0,0.1\n0.001,0_4,0.1\n0.002,0.0,0.1\n")
+    rows = [f"{k * 1e-3!r},{'0_4' if k == 5 else '0.0'},0.1" for k in range(20)]
+    log.write_text("t,q,i\n" + "\n".join(rows) + "\n")  # 20 samples, one cell 0_4
     audit.api("files", "CSV cell 0_4", lambda: read_log(log, time="t", position="q", input="i"))
     audit.api("files", "read_log(3)", lambda: read_log(3, time="t", position="q", input="i"))
     text = paper.run("PD", duration=0.05).to_csv(tmp / "run.csv").read_text()
