@@ -726,10 +726,11 @@ def main() -> int:
     parser.add_argument("--verbose", action="store_true", help="print every case")
     parser.add_argument(
         "--part",
-        choices=("all", "core", "families"),
+        choices=("all", "core", "families", "second"),
         default="all",
         help="core: the surfaces of the first audit; families: those of issues 12-15 "
-        "(reliability_audit_families.py); default both",
+        "(reliability_audit_families.py); second: the cases of the second audit, issue 27 "
+        "(reliability_audit_second.py); default all three",
     )
     args = parser.parse_args()
     audit = Audit(args.verbose)
@@ -747,6 +748,10 @@ def main() -> int:
             import reliability_audit_families
 
             reliability_audit_families.run(audit, tmp)
+        if args.part in ("all", "second"):
+            import reliability_audit_second
+
+            reliability_audit_second.run(audit, tmp)
     code = audit.report()
     if args.verbose:
         print("accepted:", *audit.accepted, sep="\n  ")

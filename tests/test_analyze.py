@@ -190,14 +190,14 @@ def test_stability(capsys, tmp_path):
         (["bode", "--orders", ","], "argument --orders: expected comma-separated integer"),
         (
             ["bode", "--dpi", "0"],
-            "--dpi: expected a positive resolution of at most 1200 dots per inch, got '0'",
+            "--dpi: expected a resolution of 10 to 1200 dots per inch, got '0'",
         ),
         (
             ["noise", "--dpi=-72"],
-            "--dpi: expected a positive resolution of at most 1200 dots per inch",
+            "--dpi: expected a resolution of 10 to 1200 dots per inch",
         ),
-        (["tradeoff", "--dpi", "inf"], "argument --dpi: expected a positive resolution"),
-        (["stability", "--dpi", "high"], "argument --dpi: expected a positive resolution"),
+        (["tradeoff", "--dpi", "inf"], "argument --dpi: expected a resolution of 10 to"),
+        (["stability", "--dpi", "high"], "argument --dpi: expected a resolution of 10 to"),
     ],
 )
 def test_bad_arguments_exit_2_with_one_line(capsys, tmp_path, argv, message):

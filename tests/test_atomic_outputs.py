@@ -211,7 +211,7 @@ def test_analyze_stability_failing_on_a_later_order_keeps_nothing(capsys, tmp_pa
 
 def test_analyze_rejects_huge_dpi(capsys, tmp_path):
     code, _, err = run_cli(capsys, "analyze", "bode", "--dpi", "100000", "--out", tmp_path)
-    assert code == 2 and "at most 1200 dots per inch" in err and err.count("\n") == 1
+    assert code == 2 and "10 to 1200 dots per inch" in err and err.count("\n") == 1
     assert snapshot(tmp_path) == {}
 
 

@@ -163,10 +163,10 @@ def test_stability_map_names_the_grid_entry_that_cannot_be_discretised():
 def test_sweep_size_is_checked_up_front():
     base = {**paper.scenario(), "duration": 0.1, "observer": {"order": 1, "bandwidth": 100.0}}
     vary = {"plant.J": ("uniform", 2e-4, 4e-4)}
-    with pytest.raises(ValueError, match=r"n=1000000000000 = 1e\+12 scenarios; at most 1000000"):
+    with pytest.raises(ValueError, match=r"n=10{12} = 10{12} scenarios; at most 1000000"):
         sweep(base, vary=vary, n=10**12, progress=False)
     grid = {"plant.J": np.linspace(2e-4, 4e-4, 10**4), "nominal.J": np.linspace(2e-4, 4e-4, 10**4)}
-    with pytest.raises(ValueError, match=r"10000 x 10000 = 1e\+08 scenarios; at most 1000000"):
+    with pytest.raises(ValueError, match=r"10000 x 10000 = 100000000 scenarios; at most 1000000"):
         sweep(base, grid=grid, progress=False)
 
 
@@ -183,7 +183,7 @@ def test_stability_map_caps_delay_and_size():
     with pytest.raises(ValueError, match=r"^delay_samples must be .* of at most 1000, got 1000000"):
         robust_stability_map(**kwargs, delay_samples=10**6)
     grid = np.geomspace(0.1, 10.0, 1001)
-    with pytest.raises(ValueError, match=r"1001 x 1001 = 1e\+06 points; at most 1000000"):
+    with pytest.raises(ValueError, match=r"1001 x 1001 = 1002001 points; at most 1000000"):
         robust_stability_map(**{**kwargs, "J_ratio": grid, "bandwidth": grid * 100})
 
 

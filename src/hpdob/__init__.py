@@ -51,66 +51,106 @@ read_log, Log, identify, Identification
     offset (IDIM-LS, IDIM-IV); see :mod:`hpdob.identification`.
 """
 
-from . import identification, paper, signals
-from ._validation import ParameterTypeError, ParameterValueError
+# The names are imported on first use (PEP 562), so that ``import hpdob`` (and the ``hpdob``
+# command, which installs its signal handlers first) does not import numpy, scipy and
+# python-control up front: see hpdob._interrupts.
+from __future__ import annotations
+
+import importlib
+
 from ._version import __version__
-from .analysis import (
-    Comparison,
-    GangOfFour,
-    LoopMargins,
-    NoiseGains,
-    NoiseTradeoff,
-    StabilityMap,
-    closed_loop,
-    closed_loop_poles,
-    compare_observers,
-    estimation_response,
-    estimation_transfer,
-    gang_of_four,
-    loop_margins,
-    loop_transfer,
-    noise_gains,
-    noise_tradeoff,
-    observer_noise_gain,
-    robust_stability_map,
-)
-from .controllers import ADRC, PD, PID, FilteredPD, LinearController
-from .export import export_c
-from .identification import (
-    EstimationResult,
-    Identification,
-    Log,
-    estimate_disturbance,
-    identify,
-    read_log,
-)
-from .models import DiscreteServoModel, MujocoServo, ServoModel, TwoMassServo
-from .observers import (
-    DisturbanceObserver,
-    ExtendedStateObserver,
-    KalmanDisturbanceObserver,
-    LinearObserver,
-    Observer,
-    ObserverDesign,
-    PositionObserverDesign,
-    characteristic_polynomial,
-    design_observer,
-    error_matrix,
-    estimate,
-    extrapolation_weights,
-    initial_state,
-    update,
-)
-from .simulation import (
-    Actuator,
-    Encoder,
-    ServoLoop,
-    SimulationDivergedWarning,
-    SimulationResult,
-    simulate,
-    sweep,
-)
-from .tuning import TuningResult, tune
+
+#: Public name -> the module that defines it (a module name alone: the subpackage itself).
+_LAZY = {
+    "identification": ".identification",
+    "paper": ".paper",
+    "signals": ".signals",
+    "ParameterTypeError": "._validation",
+    "ParameterValueError": "._validation",
+    "Comparison": ".analysis",
+    "GangOfFour": ".analysis",
+    "LoopMargins": ".analysis",
+    "NoiseGains": ".analysis",
+    "NoiseTradeoff": ".analysis",
+    "StabilityMap": ".analysis",
+    "closed_loop": ".analysis",
+    "closed_loop_poles": ".analysis",
+    "compare_observers": ".analysis",
+    "estimation_response": ".analysis",
+    "estimation_transfer": ".analysis",
+    "gang_of_four": ".analysis",
+    "loop_margins": ".analysis",
+    "loop_transfer": ".analysis",
+    "noise_gains": ".analysis",
+    "noise_tradeoff": ".analysis",
+    "observer_noise_gain": ".analysis",
+    "robust_stability_map": ".analysis",
+    "export_c": ".export",
+    "EstimationResult": ".identification",
+    "Identification": ".identification",
+    "Log": ".identification",
+    "estimate_disturbance": ".identification",
+    "identify": ".identification",
+    "read_log": ".identification",
+    "DiscreteServoModel": ".models",
+    "MujocoServo": ".models",
+    "ServoModel": ".models",
+    "TwoMassServo": ".models",
+    "DisturbanceObserver": ".observers",
+    "ExtendedStateObserver": ".observers",
+    "KalmanDisturbanceObserver": ".observers",
+    "LinearObserver": ".observers",
+    "Observer": ".observers",
+    "ObserverDesign": ".observers",
+    "PositionObserverDesign": ".observers",
+    "characteristic_polynomial": ".observers",
+    "design_observer": ".observers",
+    "error_matrix": ".observers",
+    "estimate": ".observers",
+    "extrapolation_weights": ".observers",
+    "initial_state": ".observers",
+    "update": ".observers",
+    "ADRC": ".controllers",
+    "PD": ".controllers",
+    "PID": ".controllers",
+    "FilteredPD": ".controllers",
+    "LinearController": ".controllers",
+    "Actuator": ".simulation",
+    "Encoder": ".simulation",
+    "ServoLoop": ".simulation",
+    "SimulationDivergedWarning": ".simulation",
+    "SimulationResult": ".simulation",
+    "simulate": ".simulation",
+    "sweep": ".simulation",
+    "TuningResult": ".tuning",
+    "tune": ".tuning",
+    # subpackages, reachable as attributes as when they were imported eagerly
+    "analysis": ".analysis",
+    "controllers": ".controllers",
+    "robots": ".robots",
+    "export": ".export",
+    "models": ".models",
+    "observers": ".observers",
+    "simulation": ".simulation",
+    "tuning": ".tuning",
+}
+
+
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'hpdob' has no attribute {name!r}")
+    if module == f".{name}":  # a subpackage or module of hpdob
+        value = importlib.import_module(module, __name__)
+    else:
+        value = getattr(importlib.import_module(module, __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "ADRC",

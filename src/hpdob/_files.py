@@ -9,24 +9,37 @@ One helper for every writer of hpdob:
   written to temporary names first; only when every one is complete are they renamed, the
   *marker* files (``metrics.json``, the summary JSON) last, after the old markers were removed.
   A run that fails or is interrupted therefore leaves the previous complete outputs, or files
-  without their marker, never a marker beside missing or truncated files. Ctrl-C during the
-  renames is deferred until they are done.
+  without their marker, never a marker beside missing or truncated files. Ctrl-C (and SIGTERM,
+  SIGHUP) during the renames is deferred until they are done; a signal received before the
+  commit (even one whose exception Python ignored) cancels it.
+- :func:`check_output`: an output location, checked before the work that fills it.
+
+Temporary names are ``.<name>.~hpdob<pid>-<random><suffix>``: hidden, recognisable, and
+carrying the writer's process id. A temporary left by a process that is gone (killed by
+SIGKILL, or a power loss) is removed the next time its target is written; a temporary is never
+itself written through a temporary (no ``..a.csv.X.csv.Y.csv`` chains).
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
-import signal
+import re
+import sys
 import tempfile
 import threading
 from pathlib import Path
+
+from . import _interrupts
+from ._interrupts import interrupts_deferred
 
 __all__ = [
     "OutputSet",
     "atomic_path",
     "check_file_stem",
+    "check_output",
     "interrupts_deferred",
     "save_figure",
     "staged_outputs",
@@ -63,10 +76,89 @@ def _umask() -> int:
 _UMASK_LOCK = threading.Lock()
 
 
-def _temporary_beside(path: Path) -> Path:
-    handle, name = tempfile.mkstemp(
-        prefix=f"{TEMPORARY_PREFIX}{path.name}.", suffix=path.suffix, dir=path.parent
+#: The marker between a target's name and the random part of its temporary's name.
+_TEMPORARY_TAG = "~hpdob"
+
+
+def _temporary_pattern(name: str, suffix: str) -> re.Pattern:
+    """Temporary names of target ``name``: this module's (group 1: the writer's process id) and
+    those of hpdob before 2026-12 (``.<name>.<8 random characters><suffix>``, possibly nested)."""
+    name, suffix = re.escape(name), re.escape(suffix)
+    return re.compile(
+        rf"\.{name}\.{_TEMPORARY_TAG}(\d+)-[\w]+{suffix}"
+        rf"|\.+{name}(?:\.[a-z0-9_]{{8}}{suffix})+"
     )
+
+
+def is_temporary(path) -> bool:
+    """Whether ``path`` names a temporary file of this module (``.<name>.~hpdob<pid>-...``)."""
+    return re.fullmatch(rf"\..+\.{_TEMPORARY_TAG}\d+-\w+(\.\w+)?", Path(path).name) is not None
+
+
+def _process_gone(pid: int) -> bool:
+    """True only if no process ``pid`` exists (POSIX; elsewhere: never sure, so False)."""
+    if sys.platform == "win32" or pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    except OSError:  # e.g. another user's process: it exists
+        return False
+    return False
+
+
+def remove_stale_temporaries(path) -> list[Path]:
+    """Delete the temporaries of target ``path`` whose writer process is gone; return them.
+
+    A temporary of a live process (another run writing the same directory) is kept; so is
+    anything that does not match the temporary names exactly.
+    """
+    path = Path(path)
+    pattern = _temporary_pattern(path.name, path.suffix)
+    removed = []
+    try:
+        candidates = list(path.parent.glob(f".*{glob_escape(path.name)}.*"))
+    except OSError:
+        return removed
+    for candidate in candidates:
+        match = pattern.fullmatch(candidate.name)
+        if match is None or not candidate.is_file() or candidate.is_symlink():
+            continue
+        pid = match.group(1)
+        if pid is not None and (int(pid) == os.getpid() or not _process_gone(int(pid))):
+            continue
+        with contextlib.suppress(OSError):
+            candidate.unlink()
+            removed.append(candidate)
+    return removed
+
+
+def glob_escape(text: str) -> str:
+    """``text`` with glob's special characters escaped."""
+    return re.sub(r"([*?[])", r"[\1]", text)
+
+
+def _renamed(err: OSError, target, temporaries=()) -> OSError:
+    """``err`` naming ``target`` instead of a hidden temporary (or nothing)."""
+    names = {None, *(str(t) for t in temporaries)}
+    if err.filename not in names and str(err.filename) not in names:
+        return err
+    renamed = type(err)(err.errno, err.strerror or str(err), str(target))
+    renamed.__cause__ = None
+    return renamed
+
+
+def _temporary_beside(path: Path) -> Path:
+    remove_stale_temporaries(path)
+    try:
+        handle, name = tempfile.mkstemp(
+            prefix=f"{TEMPORARY_PREFIX}{path.name}.{_TEMPORARY_TAG}{os.getpid()}-",
+            suffix=path.suffix,
+            dir=path.parent,
+        )
+    except OSError as err:  # name the target, not the temporary (EROFS, EACCES, ENOSPC, ...)
+        raise _renamed(err, path, [err.filename]) from None
     try:
         # mkstemp creates 0600; the renamed file must have the mode an open() would give it
         os.fchmod(handle, 0o666 & ~_umask())
@@ -77,9 +169,64 @@ def _temporary_beside(path: Path) -> Path:
     return Path(name)
 
 
+class OutputLocationError(OSError):
+    """An output location that cannot be written, found before any work (one-line message)."""
+
+    def __str__(self) -> str:
+        return self.strerror
+
+
+def check_output(path, *, kind: str = "directory", name: str = "--out") -> Path:
+    """``path`` as a Path if a ``kind`` (``"directory"`` or ``"file"``) can be written there.
+
+    Checked before the work that fills it, so that a run is not lost at its end: an existing
+    file where a directory is wanted (or the reverse), a file among the parent directories,
+    and a directory that cannot be created or written (read-only, permissions; probed by
+    creating and deleting a temporary file) raise :class:`OutputLocationError`, an OSError
+    whose message names ``name`` and ``path``. Nothing is created.
+    """
+    path = Path(path)
+
+    def refuse(code: int, why: str) -> OutputLocationError:
+        return OutputLocationError(code, f"{name} {str(path)!r} cannot be written: {why}")
+
+    if kind == "directory":
+        if path.exists() and not path.is_dir():
+            raise refuse(errno.ENOTDIR, "it is an existing file; it must be a directory")
+    elif path.is_dir():
+        raise refuse(errno.EISDIR, "it is an existing directory; it must be a file")
+    directory = path if kind == "directory" else path.parent
+    existing = directory
+    while not existing.exists() and existing != existing.parent:
+        if existing.is_symlink():
+            raise refuse(errno.ENOENT, f"{str(existing)!r} is a broken symbolic link")
+        existing = existing.parent
+    if not existing.is_dir():
+        raise refuse(errno.ENOTDIR, f"{str(existing)!r} is a file, not a directory")
+    try:  # the real test of a read-only mount, permissions, ACLs
+        handle, probe = tempfile.mkstemp(
+            prefix=f"{TEMPORARY_PREFIX}hpdob-probe.{_TEMPORARY_TAG}{os.getpid()}-", dir=existing
+        )
+    except OSError as err:
+        where = "" if existing == directory else f" (in {str(existing)!r})"
+        raise refuse(err.errno or errno.EACCES, f"{err.strerror or err}{where}") from None
+    os.close(handle)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
+    return path
+
+
 #: Characters a file stem made from a user's label may not contain (path separators, NUL and
 #: the characters Windows forbids), besides control characters.
 _FORBIDDEN_IN_STEM = set('/\\:*?"<>|')
+
+
+def _invisible(c: str) -> bool:
+    """Control and format characters: NUL, newlines, and the bidirectional controls (U+202E
+    makes ``"x\u202egnp.exe"`` display as ``xexe.png``) and zero-width characters."""
+    import unicodedata
+
+    return ord(c) < 32 or unicodedata.category(c) in ("Cc", "Cf", "Cs", "Co", "Zl", "Zp")
 
 
 def check_file_stem(stem, name: str = "label") -> str:
@@ -87,14 +234,15 @@ def check_file_stem(stem, name: str = "label") -> str:
 
     Refused: non-strings, the empty string, ``.`` and ``..``, a leading ``.`` (hidden files,
     and the temporary names of :func:`atomic_path`), path separators, NUL and other control
-    characters, ``:*?"<>|``, and more than 200 characters. So a scenario's ``label`` can never
+    characters, format characters (bidirectional overrides such as U+202E, zero-width
+    spaces), ``:*?"<>|``, and more than 200 characters. So a scenario's ``label`` can never
     write outside ``--out``.
     """
     from ._validation import ParameterTypeError, ParameterValueError, _show
 
     if not isinstance(stem, str):
         raise ParameterTypeError(f"{name} must be a str, got {type(stem).__name__}")
-    bad = sorted({c for c in stem if c in _FORBIDDEN_IN_STEM or ord(c) < 32 or ord(c) == 127})
+    bad = sorted({c for c in stem if c in _FORBIDDEN_IN_STEM or _invisible(c)})
     if not stem or stem.startswith(".") or bad or len(stem) > 200 or stem != stem.strip():
         why = (
             f"it contains {', '.join(repr(c) for c in bad)}"
@@ -118,10 +266,17 @@ def atomic_path(path):
     directory at ``path`` is refused before anything is written.
     """
     path = _check_target(path)
+    if is_temporary(path):  # already a staged temporary: renamed by its owner
+        yield path
+        return
     temporary = _temporary_beside(path)
     try:
-        yield temporary
-        os.replace(temporary, path)
+        try:
+            yield temporary
+            _interrupts.check()  # a signal whose exception was lost: do not replace
+            os.replace(temporary, path)
+        except OSError as err:
+            raise _renamed(err, path, [temporary]) from None
     except BaseException:
         with contextlib.suppress(OSError):
             temporary.unlink()
@@ -156,35 +311,19 @@ def save_figure(fig, path, **kwargs) -> Path:
     return path
 
 
-@contextlib.contextmanager
-def interrupts_deferred():
-    """Hold back SIGINT (Ctrl-C) inside the block and deliver it when the block ends.
-
-    Only the main thread can install signal handlers; elsewhere the block runs as is.
-    """
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    received = []
-    previous = signal.signal(signal.SIGINT, lambda signum, frame: received.append(signum))
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
-        if received:
-            signal.raise_signal(signal.SIGINT)  # now handled as it would have been
-
-
 class OutputSet:
     """The files of one run, staged under temporary names and renamed together.
 
     Use :func:`staged_outputs`. :meth:`path` returns the temporary path to write for a file
-    name relative to the output directory; :meth:`commit` renames them all, ``markers`` last.
+    name relative to the output directory; :meth:`commit` renames them all, ``markers`` last,
+    and deletes the files named in ``replaces`` that this run did not write (e.g. the figure
+    of a previous run when this one has ``--no-plot``), so the directory holds one set.
     """
 
-    def __init__(self, directory, *, markers=()):
+    def __init__(self, directory, *, markers=(), replaces=()):
         self.directory = Path(directory)
         self.markers = tuple(markers)
+        self.replaces = tuple(replaces)
         self._staged: dict[Path, Path] = {}  # target -> temporary
 
     def path(self, name) -> Path:
@@ -234,18 +373,25 @@ class OutputSet:
     def commit(self) -> list[Path]:
         """Rename every staged file onto its target, the markers last; return the targets.
 
-        Old markers are removed first, so that an error between two renames leaves files
-        without a marker (not complete-looking), never a marker beside a mix of old and new
-        files. Ctrl-C is deferred until the renames are done.
+        Old markers are removed first, then the files of ``replaces`` this run did not write,
+        so that an error between two renames leaves files without a marker (not
+        complete-looking), never a marker beside a mix of old and new files. Signals are
+        deferred until the renames are done.
         """
         order = self.targets
+        obsolete = [self.directory / name for name in self.replaces]
+        obsolete = [p for p in obsolete if p not in self._staged]
         with interrupts_deferred():
             try:
+                _interrupts.check()  # a signal whose exception was lost cancels the commit
                 for target in order:  # re-check: a directory may have appeared meanwhile
                     _check_target(target)
                 for name in self.markers:
                     with contextlib.suppress(FileNotFoundError):
                         (self.directory / name).unlink()
+                for stale in obsolete:  # files of the previous set this run does not write
+                    if stale.is_file() or stale.is_symlink():
+                        stale.unlink()
                 for target in order:
                     os.replace(self._staged[target], target)
                     del self._staged[target]  # only now: a failed rename is cleaned up
@@ -262,11 +408,13 @@ class OutputSet:
 
 
 @contextlib.contextmanager
-def staged_outputs(directory, *, markers=()):
+def staged_outputs(directory, *, markers=(), replaces=()):
     """Context manager yielding an :class:`OutputSet` committed when the block succeeds.
 
     On an exception (including KeyboardInterrupt) every staged file is deleted and the
-    previous outputs stay as they were.
+    previous outputs stay as they were. An OSError while writing a staged file names its
+    target, not the hidden temporary. ``replaces``: names of files of the set this run may
+    not write; the commit deletes those it did not write.
 
     Examples
     --------
@@ -278,9 +426,14 @@ def staged_outputs(directory, *, markers=()):
     ...     sorted(p.name for p in pathlib.Path(out).rglob("*"))
     ['a.csv', 'metrics.json', 'traces']
     """
-    outputs = OutputSet(directory, markers=markers)
+    outputs = OutputSet(directory, markers=markers, replaces=replaces)
     try:
-        yield outputs
+        try:
+            yield outputs
+        except OSError as err:
+            temporaries = {str(t): target for target, t in outputs._staged.items()}
+            target = temporaries.get(str(err.filename), outputs.directory)
+            raise _renamed(err, target, temporaries) from None
     except BaseException:
         outputs.discard()
         raise

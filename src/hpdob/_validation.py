@@ -33,11 +33,20 @@ __all__ = [
 ]
 
 
-class ParameterValueError(ValueError):
+class _OneLine:
+    """Messages on one line: a value's multi-line repr (a 2-D array) is joined."""
+
+    def __init__(self, *args):
+        if len(args) == 1 and isinstance(args[0], str) and "\n" in args[0]:
+            args = (" ".join(part.strip() for part in args[0].splitlines() if part.strip()),)
+        super().__init__(*args)
+
+
+class ParameterValueError(_OneLine, ValueError):
     """A parameter has an acceptable type but an invalid value (message says which)."""
 
 
-class ParameterTypeError(TypeError):
+class ParameterTypeError(_OneLine, TypeError):
     """A parameter has the wrong type (message says which and what was expected)."""
 
 
@@ -45,13 +54,16 @@ def _show(value: object) -> str:
     """Short repr of ``value`` for error messages (arrays are abbreviated)."""
     if isinstance(value, np.ndarray):
         # one line: messages are printed on one line by the CLI
-        return np.array2string(value, threshold=8, precision=6, max_line_width=1_000_000)
+        text = np.array2string(value, threshold=8, precision=6, max_line_width=1_000_000)
+        return " ".join(text.split())  # 2-D arrays print a row per line
     if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**30:
         return _show_int(value)
     try:
-        text = repr(value)
+        text = " ".join(repr(value).split()) if isinstance(value, (list, tuple)) else repr(value)
     except (ValueError, RecursionError):  # an int over 4300 digits, a very deep nesting
         return f"a {type(value).__name__} that cannot be shown"
+    if "\n" in text:  # e.g. the repr of a 2-D array inside a list
+        text = " ".join(text.split())
     return text if len(text) <= 80 else text[:77] + "..."
 
 
@@ -76,7 +88,10 @@ def as_real(value: object, name: str, what: str = "a real number") -> float:
     ValueError
         If ``value`` is NaN or infinite.
     """
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+    if isinstance(value, np.ma.MaskedArray) and np.ma.is_masked(value):  # np.ma.masked: no value
+        raise ParameterTypeError(f"{name} must be {what}, got a masked value (numpy.ma.masked)")
+    # bool is an int, numpy.timedelta64 a numpy integer: neither is a number of hpdob's units
+    if isinstance(value, (bool, np.bool_, np.timedelta64)) or not isinstance(value, numbers.Real):
         if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
             value = value.item()
         else:
@@ -117,8 +132,10 @@ def as_int(
 
     ``minimum``/``maximum`` bound it (inclusive); the message of ``maximum`` states the limit.
     """
-    if isinstance(value, (bool, np.bool_)):
-        raise ParameterTypeError(f"{name} must be {what}, got {_show(value)} of type bool")
+    if isinstance(value, (bool, np.bool_, np.timedelta64)):
+        raise ParameterTypeError(
+            f"{name} must be {what}, got {_show(value)} of type {type(value).__name__}"
+        )
     try:
         result = operator.index(value)
     except TypeError:
@@ -161,6 +178,14 @@ def as_real_vector(
     return array
 
 
+def _refuse_masked(value: object, name: str, what: str) -> None:
+    """A ParameterTypeError for masked entries (numpy would read them as 0.0 or NaN)."""
+    if np.ma.is_masked(value) or (
+        isinstance(value, (list, tuple)) and any(np.ma.is_masked(v) for v in value)
+    ):
+        raise ParameterTypeError(f"{name} must be {what}, got masked entries (numpy.ma.masked)")
+
+
 def numeric_array(value: object, name: str, what: str, *, dtype=float) -> np.ndarray:
     """``value`` as a new numeric array of ``dtype`` (float or complex).
 
@@ -173,11 +198,16 @@ def numeric_array(value: object, name: str, what: str, *, dtype=float) -> np.nda
         )
     if isinstance(value, (list, tuple)) and any(isinstance(v, (bool, np.bool_)) for v in value):
         raise ParameterTypeError(f"{name} must be {what}, got {_show(value)} with a bool entry")
+    _refuse_masked(value, name, what)
     try:
         raw = np.asarray(value)
     except (TypeError, ValueError):
         raise ParameterTypeError(f"{name} must be {what}, got {_show(value)}") from None
-    forbidden = "USVb" + ("c" if np.dtype(dtype).kind == "f" else "")
+    forbidden = "USVbmM" + ("c" if np.dtype(dtype).kind == "f" else "")  # mM: dates, durations
+    if raw.dtype.kind == "O" and any(
+        isinstance(v, (np.datetime64, np.timedelta64)) for v in raw.flat
+    ):  # a mixed list: numpy would cast the date to a count of days
+        raise ParameterTypeError(f"{name} must be {what}, got {_show(value)} with a date entry")
     if raw.dtype.kind in forbidden:
         raise ParameterTypeError(
             f"{name} must be {what}, got {_show(value)} with {raw.dtype.name} entries"
@@ -246,6 +276,7 @@ def as_grid(
     With ``increasing=True`` the grid must also be strictly increasing (maps and boundaries
     are drawn along it).
     """
+    _refuse_masked(values, name, what)
     grid = as_real_vector(np.atleast_1d(values), name, what)
     if grid.size == 0:
         raise ParameterValueError(f"{name} must hold at least one value ({what}), got []")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._interrupts import interruptible
 from ..simulation._loop import ServoLoop, accepts_loop
 from ._linear_loop import INPUTS, OUTPUTS, loop_matrices, loop_spec, state_names
 
@@ -126,7 +127,15 @@ def closed_loop_poles(loop: ServoLoop) -> np.ndarray:
     return _poles(spec)
 
 
+#: States from which the eigenvalues are computed off the main thread, so that a signal is
+#: handled while LAPACK works (a long actuator delay: 1000 states, seconds under load).
+INTERRUPTIBLE_STATES = 200
+
+
 def _poles(spec) -> np.ndarray:
     A = loop_matrices(spec)[0]
-    poles = np.linalg.eigvals(A)
+    if A.shape[0] >= INTERRUPTIBLE_STATES:
+        poles = interruptible(np.linalg.eigvals, A)
+    else:
+        poles = np.linalg.eigvals(A)
     return poles[np.argsort(-np.abs(poles), kind="stable")]

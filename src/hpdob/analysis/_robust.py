@@ -62,7 +62,7 @@ def check_map_size(values, bandwidths) -> None:
     points = values.size * bandwidths.size
     if points > MAX_MAP_POINTS:
         raise ParameterValueError(
-            f"the map has {values.size} x {bandwidths.size} = {points:.3g} points; at most "
+            f"the map has {values.size} x {bandwidths.size} = {points} points; at most "
             f"{MAX_MAP_POINTS} are supported (use coarser grids)"
         )
 

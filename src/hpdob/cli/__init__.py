@@ -3,7 +3,9 @@
 Each command lives in its own module that exposes ``register(subparsers)``; the module's
 handler returns the process exit code. Bad arguments print one line naming the argument
 and exit with code 2, never a traceback; so do files that cannot be written (OSError).
-Ctrl-C prints one line and exits with code 130.
+Ctrl-C prints one line and exits with code 130; SIGTERM and SIGHUP are handled the same way
+(exit 143 and 129). The signal handlers are installed before the command modules (and numpy)
+are imported.
 """
 
 from __future__ import annotations
@@ -13,42 +15,39 @@ import os
 import re
 import sys
 
-from .._validation import ParameterTypeError, ParameterValueError
+from .._interrupts import EXIT_CODES, Interrupted, check, checkpoint, handling_signals
 from .._version import __version__
-from . import (
-    _analyze,
-    _compare,
-    _design,
-    _estimate,
-    _export_c,
-    _export_fmu,
-    _identify,
-    _reproduce,
-    _simulate,
-    _sweep,
-    _tune,
-)
 from ._errors import CLIError
 
 __all__ = ["CLIError", "main"]
 
+#: The command modules, imported by build_parser() (after main() installed its signal
+#: handlers: an interrupt while numpy and the rest import then exits 130 with one line).
 _COMMANDS = (
-    _reproduce,
-    _simulate,
-    _sweep,
-    _design,
-    _export_c,
-    _export_fmu,
-    _analyze,
-    _identify,
-    _estimate,
-    _compare,
-    _tune,
+    "_reproduce",
+    "_simulate",
+    "_sweep",
+    "_design",
+    "_export_c",
+    "_export_fmu",
+    "_analyze",
+    "_identify",
+    "_estimate",
+    "_compare",
+    "_tune",
 )
 
 
 class _Parser(argparse.ArgumentParser):
-    """ArgumentParser whose errors are a single line and exit code 2."""
+    """ArgumentParser whose errors are a single line and exit code 2.
+
+    A negative number in exponent form (``--J-n -5e-4``) is read as a value, as ``-0.0005``
+    is (argparse's own pattern has no exponent: "expected one argument").
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$")
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message}\n")
@@ -63,8 +62,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"hpdob {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
-    for module in _COMMANDS:
-        module.register(sub)
+    import importlib
+
+    for name in _COMMANDS:
+        importlib.import_module(f"{__name__}.{name}").register(sub)
     return parser
 
 
@@ -78,7 +79,9 @@ def main(argv: list[str] | None = None) -> int:
 
     Errors print one line ``hpdob <command>: error: ...`` and return 2; Ctrl-C
     (KeyboardInterrupt) cancels the pending work, prints ``hpdob <command>: interrupted`` and
-    returns 130 (128 + SIGINT), leaving the previous outputs (``docs/reliability.md``).
+    returns 130 (128 + SIGINT), leaving the previous outputs (``docs/reliability.md``). SIGTERM
+    and SIGHUP do the same, printing ``hpdob <command>: interrupted (SIGTERM)`` and returning
+    143 (129 for SIGHUP).
 
     Parameters
     ----------
@@ -90,7 +93,8 @@ def main(argv: list[str] | None = None) -> int:
     -------
     int
         The exit code: 0 on success, 2 for a rejected argument or a file error, 130 when
-        interrupted, 1 otherwise (a diverged simulation, a closed output pipe, a bug).
+        interrupted by Ctrl-C (143 by SIGTERM, 129 by SIGHUP), 1 otherwise (a diverged
+        simulation, a closed output pipe, a bug).
 
     Examples
     --------
@@ -99,30 +103,69 @@ def main(argv: list[str] | None = None) -> int:
     2
     """
     command = "hpdob"
-    try:
-        parser = build_parser()
-        args = parser.parse_args(argv)
-        command = f"hpdob {args.command}"
-        return int(args.handler(args) or 0)
-    except KeyboardInterrupt:
-        print(f"{command}: interrupted", file=sys.stderr)
-        return 130
-    except (CLIError, ParameterTypeError, ParameterValueError) as err:
+    with handling_signals():
+        try:
+            try:
+                checkpoint("startup")  # a test hook (hpdob._interrupts); no-op otherwise
+                parser = build_parser()
+                args = parser.parse_args(argv)
+                command = f"hpdob {args.command}"
+                _check_outputs(args)
+                code = int(args.handler(args) or 0)
+                check()  # a signal whose KeyboardInterrupt Python ignored (in a __del__)
+                return code
+            except KeyboardInterrupt as err:
+                return _interrupted(command, err)
+            except Exception as err:
+                return _failed(command, err)
+        except KeyboardInterrupt as err:  # a second signal while reporting the first
+            return _interrupted(command, err)
+
+
+#: Commands whose --out is a file (the others' is a directory).
+_FILE_OUTPUTS = ("sweep", "export-fmu")
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Check the command's output locations before its work (a file where a directory is
+    wanted, a read-only directory): the run is not lost at its end."""
+    from .._files import check_output
+
+    if getattr(args, "out", None) is not None:
+        kind = "file" if args.command in _FILE_OUTPUTS else "directory"
+        check_output(args.out, kind=kind)
+    if getattr(args, "export_c", None) is not None:
+        check_output(args.export_c, name="--export-c")
+
+
+def _interrupted(command: str, err: KeyboardInterrupt) -> int:
+    """Report an interrupt on one line; the exit code is 128 + the signal's number."""
+    if isinstance(err, Interrupted) and err.name != "SIGINT":
+        print(f"{command}: interrupted ({err.name})", file=sys.stderr)
+        return EXIT_CODES[err.signum]
+    print(f"{command}: interrupted", file=sys.stderr)
+    return 130
+
+
+def _failed(command: str, err: Exception) -> int:
+    """Report an error on one line and return its exit code."""
+    from .._validation import ParameterTypeError, ParameterValueError
+
+    if isinstance(err, (CLIError, ParameterTypeError, ParameterValueError)):
         print(f"{command}: error: {_one_line(err)}", file=sys.stderr)
         return 2
-    except BrokenPipeError:  # e.g. `hpdob design --json | head`: stop quietly
+    if isinstance(err, BrokenPipeError):  # e.g. `hpdob design --json | head`: stop quietly
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 1
-    except OSError as err:  # e.g. an --out directory that cannot be created or written
+    if isinstance(err, OSError):  # e.g. an --out directory that cannot be created or written
         print(f"{command}: error: {_one_line(err)}", file=sys.stderr)
         return 2
-    except Exception as err:  # a bug: still one line, the traceback on request
-        if os.environ.get("HPDOB_TRACEBACK"):
-            raise
-        print(
-            f"{command}: internal error: {type(err).__name__}: {_one_line(err)} (please report "
-            f"it; set HPDOB_TRACEBACK=1 for the traceback)",
-            file=sys.stderr,
-        )
-        return 1
+    if os.environ.get("HPDOB_TRACEBACK"):  # a bug: still one line, the traceback on request
+        raise err
+    print(
+        f"{command}: internal error: {type(err).__name__}: {_one_line(err)} (please report "
+        f"it; set HPDOB_TRACEBACK=1 for the traceback)",
+        file=sys.stderr,
+    )
+    return 1

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._errors import CLIError
 from ._options import (
     add_loop_arguments,
     add_nominal_arguments,
@@ -31,24 +32,37 @@ ANALYSES = ("bode", "noise", "tradeoff", "stability")
 # -- argparse types: grids, orders, families and tolerances ------------------------------
 
 
+#: Most values of one analysis grid (``--bandwidths``, ``--values``): sized up front, before
+#: numpy allocates (``10:2000:100000000`` ended in a MemoryError after 12 s).
+MAX_GRID_VALUES = 10_000
+
+
 def _grid(text: str) -> list[float]:
-    """``LO:HI:N`` (N log-spaced values) or a non-empty comma-separated list of numbers."""
+    """``LO:HI:N`` (N log-spaced values) or a non-empty comma-separated list of finite numbers,
+    of at most :data:`MAX_GRID_VALUES` values."""
     try:
         if ":" in text:
             lo, hi, n = text.split(":")
             lo, hi, count = float(lo), float(hi), int(n)
-            if not (lo > 0 and hi > 0 and count >= 1):
+            if not (0 < lo < math.inf and 0 < hi < math.inf and count >= 1):
                 raise ValueError
-            return np.geomspace(lo, hi, count).tolist()
-        values = [float(item) for item in text.split(",") if item.strip()]
-        if not values:
-            raise ValueError
-        return values
+        else:
+            values = [float(item) for item in text.split(",") if item.strip()]
+            if not values or not all(math.isfinite(v) for v in values):
+                raise ValueError
+            count = len(values)
     except ValueError:
         raise argparse.ArgumentTypeError(
-            f"expected LO:HI:N (N log-spaced positive values) or at least one "
-            f"comma-separated number, got {text!r}"
+            f"expected LO:HI:N (N log-spaced positive finite values) or finite values as at "
+            f"least one comma-separated number, got {text!r}"
         ) from None
+    if count > MAX_GRID_VALUES:
+        raise argparse.ArgumentTypeError(
+            f"a grid has at most {MAX_GRID_VALUES} values, got {count} in {text!r}"
+        )
+    if ":" in text:
+        return np.geomspace(lo, hi, count).tolist()
+    return values
 
 
 def _positive_real(text: str) -> float:
@@ -63,12 +77,20 @@ def _positive_real(text: str) -> float:
 
 
 def _orders(text: str) -> list[int]:
+    """Comma-separated distinct integer orders (a repeated one is refused up front: the maps
+    were computed before the error)."""
     try:
-        return [int(item) for item in text.split(",")]
+        values = [int(item) for item in text.split(",")]
     except ValueError:
         raise argparse.ArgumentTypeError(
             f"expected comma-separated integer orders, got {text!r}"
         ) from None
+    repeated = sorted({v for v in values if values.count(v) > 1})
+    if repeated:
+        raise argparse.ArgumentTypeError(
+            f"expected distinct orders, got {text!r} (order {repeated[0]} twice)"
+        )
+    return values
 
 
 def _measurements(text: str) -> list[str]:
@@ -319,9 +341,15 @@ def _bode(args, files) -> list[str]:
     from ..analysis._sensitivity import gang_of_four, loop_margins
 
     loop = _loop(args)
+    nyquist = 0.5 / loop["Ts"]
+    if not 0 <= args.frequency < nyquist:  # above it the response is an alias's (as tune says)
+        raise CLIError(
+            f"--frequency must be at least 0 and below the Nyquist frequency 1/(2 Ts) = "
+            f"{nyquist:.6g} Hz, got {args.frequency!r}"
+        )
     model = loop["nominal"].discretize(loop["Ts"])
     designs = [_design(args, model, m, args.bandwidth) for m in args.orders]
-    f = np.geomspace(0.1, 0.5 / loop["Ts"], 400)
+    f = np.geomspace(0.1, nyquist, 400)
     sens = [
         gang_of_four(**loop, observer=d).S.frequency_response(2 * np.pi * f).frdata[0, 0]
         for d in designs

@@ -97,7 +97,9 @@ def _run(args: argparse.Namespace) -> int:
     comparison = compare_observers(_loop(args), sensors=sensors, noise_gain=gain)
     written = ["comparison.csv", "comparison.md"]
     # Staged and renamed together, comparison.json last (docs/reliability.md).
-    with staged_outputs(args.out, markers=["comparison.json"]) as files:
+    with staged_outputs(
+        args.out, markers=["comparison.json"], replaces=["comparison.png"]
+    ) as files:  # with --no-plot a previous comparison.png goes: one consistent set
         comparison.to_csv(files.path("comparison.csv"))
         files.write_text("comparison.md", comparison.to_markdown())
         if not args.no_plot:

@@ -110,10 +110,12 @@ def _observer_settings(args: argparse.Namespace, design) -> dict:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .._files import staged_outputs
+    from .._files import check_output, staged_outputs
     from ..identification import estimate_disturbance
 
     log = log_from_args(args)
+    out = args.out or Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
+    check_output(out)  # before the estimate, not after it
     nominal, origin = _nominal(args)
     design = design_on(args, nominal.discretize(log.Ts))
     result = estimate_disturbance(design, theta=log.theta, u=log.u, t=log.t)
@@ -127,7 +129,6 @@ def _run(args: argparse.Namespace) -> int:
             f"the estimate of {design.system.name} is not finite on {log.source}: the observer "
             "diverged (or the log's values overflow it); nothing was written"
         )
-    out = args.out or Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
     report = {
         "log": {"source": log.source, "names": dict(log.names), "samples": len(log),
                 "Ts": log.Ts, "input_gain": log.input_gain},
@@ -138,7 +139,8 @@ def _run(args: argparse.Namespace) -> int:
     }  # fmt: skip
     written = ["estimate.csv"]
     # Staged and renamed together, estimate.json last (docs/reliability.md).
-    with staged_outputs(out, markers=["estimate.json"]) as files:
+    # With --no-plot a previous run's estimate.png is removed: one consistent set.
+    with staged_outputs(out, markers=["estimate.json"], replaces=["estimate.png"]) as files:
         result.to_csv(files.path("estimate.csv"))
         if not args.no_plot:
             files.plot(

@@ -236,15 +236,22 @@ def _validate(args, result, files):
     return check
 
 
+def _stem(log) -> str:
+    """The default output directory's name part for ``log`` (its file, without a run)."""
+    return Path(log.source.split(" run ")[0]).stem
+
+
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
-    from .._files import staged_outputs
+    from .._files import check_output, staged_outputs
     from ..identification import EMPS_PUBLISHED, IdentificationWarning, identify
 
     if args.emps and args.validate is not None:
         raise CLIError("--validate takes a LOG with the same columns as LOG; not with --emps")
     logs, loops, loop_source = _load(args)
+    # before the identification, not after it
+    check_output(args.out or Path("hpdob-results") / f"identify-{_stem(logs[0])}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", IdentificationWarning)
         result = identify(
@@ -256,8 +263,7 @@ def _run(args: argparse.Namespace) -> int:
             diagnostics=not args.no_diagnostics, axis=args.axis or logs[0].axis,
         )  # fmt: skip
     first = logs[0]
-    name = Path(first.source.split(" run ")[0]).stem
-    out = args.out or Path("hpdob-results") / f"identify-{name}"
+    out = args.out or Path("hpdob-results") / f"identify-{_stem(first)}"
     report = result.to_dict()
     report["logs"] = [
         {"source": log.source, "names": dict(log.names), "input_gain": log.input_gain,
@@ -272,7 +278,11 @@ def _run(args: argparse.Namespace) -> int:
     written = ["identification.json", "identification.csv"]
     check = None
     # Staged and renamed together, identification.json last (docs/reliability.md).
-    with staged_outputs(out, markers=["identification.json"]) as files:
+    with staged_outputs(
+        out,
+        markers=["identification.json"],
+        replaces=["identification.png", "validation.json", "validation.png"],
+    ) as files:  # with --no-plot a previous identification.png goes: one consistent set
         result.to_csv(files.path("identification.csv"))
         if not args.no_plot:
             files.plot(

@@ -19,6 +19,8 @@ __all__ = ["MAX_DPI", "MAX_PIXELS", "dpi_argument", "save_figure", "write_json"]
 #: renderer runs out of memory (std::bad_alloc) instead of failing cleanly.
 MAX_DPI = 1200
 MAX_PIXELS = 16384
+#: Lowest --dpi: below it the figures collapse to zero pixels (matplotlib warns, then fails).
+MIN_DPI = 10
 
 
 def dpi_argument(text: str) -> float:
@@ -27,9 +29,9 @@ def dpi_argument(text: str) -> float:
         value = float(text)
     except ValueError:
         value = math.nan
-    if not (math.isfinite(value) and 0 < value <= MAX_DPI):
+    if not (math.isfinite(value) and MIN_DPI <= value <= MAX_DPI):
         raise argparse.ArgumentTypeError(
-            f"expected a positive resolution of at most {MAX_DPI} dots per inch, got {text!r}"
+            f"expected a resolution of {MIN_DPI} to {MAX_DPI} dots per inch, got {text!r}"
         )
     return value
 

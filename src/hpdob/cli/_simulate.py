@@ -111,10 +111,31 @@ def _run_arm(args: argparse.Namespace, data: dict) -> int:
     return 0
 
 
+def _previous_files(out: Path) -> list[str]:
+    """The files of the run whose metrics.json is in ``out`` (its keys are the labels)."""
+    import json
+
+    from .._files import check_file_stem
+    from .._validation import ParameterTypeError, ParameterValueError
+
+    try:
+        labels = list(json.loads((out / "metrics.json").read_text(encoding="utf-8")))
+    except (OSError, ValueError, TypeError):
+        return []
+    names = []
+    for label in labels:
+        try:  # a label that is not a plain file name never names a file to delete
+            check_file_stem(label)
+        except (ParameterTypeError, ParameterValueError):
+            continue
+        names += [f"{label}.csv", f"{label}.png"]
+    return names
+
+
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
-    from .._files import check_file_stem, staged_outputs
+    from .._files import check_file_stem, check_output, staged_outputs
     from ..robots._scenario import is_arm_scenario
     from ..simulation._result import metrics_json
     from ..simulation._scenario import _read_toml
@@ -127,12 +148,16 @@ def _run(args: argparse.Namespace) -> int:
     out = args.out or Path("hpdob-results") / args.scenario.stem
     # The label names the output files: never a path (e.g. "../escaped") nor a hidden name.
     stem = check_file_stem(kwargs.get("label") or args.scenario.stem, "label")
+    check_output(out)  # before the run, not after it
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SimulationDivergedWarning)  # reported below instead
         result = simulate(**kwargs)
     metrics = result.metrics(**windows)
     # Staged: renamed together when all are written, metrics.json last (docs/reliability.md).
-    with staged_outputs(out, markers=["metrics.json"]) as files:
+    # The previous run's <label>.csv/.png (another label, or a figure this --no-plot run does
+    # not draw) are removed at the commit: the directory holds one consistent set.
+    replaces = [*_previous_files(out), f"{stem}.png"]
+    with staged_outputs(out, markers=["metrics.json"], replaces=replaces) as files:
         result.to_csv(files.path(f"{stem}.csv"))
         if not args.no_plot:
             files.plot(f"{stem}.png", lambda: result.plot())

@@ -125,7 +125,7 @@ def _run(args: argparse.Namespace) -> int:
     # Staged and renamed together, tune.json last (docs/reliability.md); the C files (their own
     # atomic pair, in their own directory) are written before the commit, so a failed export
     # leaves the previous tune.* untouched.
-    with staged_outputs(args.out, markers=["tune.json"]) as files:
+    with staged_outputs(args.out, markers=["tune.json"], replaces=["tune.png"]) as files:
         result.table.to_csv(files.path("tune.csv"), index=False)
         files.write_text("scenario.toml", scenario)
         if not args.no_plot:

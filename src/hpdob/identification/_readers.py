@@ -97,6 +97,8 @@ def _parse_csv(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
 
 def _number(cell: str, role: str, name: str, line: int, path: Path) -> float:
     try:
+        if "_" in cell:  # Python's float() reads "0_4" as 4.0 (digit grouping): not a CSV number
+            raise ValueError(cell)
         return float(cell)
     except ValueError:
         sample = line - 2

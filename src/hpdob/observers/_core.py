@@ -70,6 +70,27 @@ def read_angle(theta, name: str = "theta") -> float:
     return as_real(theta, name, "a finite measured angle [rad]")
 
 
+def checked_next_state(system: LinearObserver, state: tuple, values: tuple, u: float) -> tuple:
+    """``system``'s next state, refused (ParameterValueError, nothing changed) if it overflows.
+
+    Finite inputs large enough (e.g. 1e308) overflow the state to inf/NaN, which would then
+    poison every later estimate silently. The test is one sum: it is non-finite exactly when an
+    element is (or when finite elements near the float range overflow it, refused as well).
+    """
+    new = system.python[3](state, *values, u)
+    if not _isfinite(sum(new)):
+        raise ParameterValueError(
+            f"update(measurement={_show_values(values)}, u={u!r}) overflows the state of "
+            f"{system.name}: the inputs are beyond the observer's float range; the state is "
+            "unchanged"
+        )
+    return new
+
+
+def _show_values(values: tuple) -> str:
+    return repr(values[0]) if len(values) == 1 else f"({', '.join(map(repr, values))})"
+
+
 def read_measurement(system: LinearObserver, value, name: str = "x") -> tuple:
     """The measurement as a tuple of floats in ``system.measures`` order.
 
@@ -265,7 +286,9 @@ def update(observer, state: tuple, x, u) -> tuple:
     Raises
     ------
     TypeError, ValueError
-        If ``x`` or ``u`` is not finite or of the wrong kind, or ``state`` has the wrong length.
+        If ``x`` or ``u`` is not finite or of the wrong kind, or ``state`` has the wrong length,
+        or the inputs are finite but so large that the next state overflows (never a state of
+        inf or NaN that would poison every later estimate).
 
     Examples
     --------
@@ -288,4 +311,4 @@ def update(observer, state: tuple, x, u) -> tuple:
     values = read_measurement(system, x)
     u = read_control(u)
     _check_state(system, state)
-    return system.python[3](state, *values, u)
+    return checked_next_state(system, state, values, u)

@@ -198,12 +198,13 @@ class Observer:
         Raises
         ------
         TypeError, ValueError
-            If ``measurement`` or ``u`` is non-finite or malformed; the state is unchanged.
+            If ``measurement`` or ``u`` is non-finite or malformed, or finite but so large that
+            the next state overflows (never a silently poisoned state); the state is unchanged.
         """
         system = self._system
         values = _core.read_measurement(system, measurement)
         u = _core.read_control(u)
-        self._state = system.python[3](self._state, *values, u)
+        self._state = _core.checked_next_state(system, self._state, values, u)
         self._outputs = None
 
     def reset(self, x0=(0.0, 0.0), tau0: float = 0.0) -> None:

@@ -289,7 +289,11 @@ def design_observer(
     scale = float(np.max(np.abs(d)))
     unit = d / scale if scale > 0.0 else d
     dD = float(unit @ D)
-    if abs(dD) <= _DEGENERATE * np.linalg.norm(unit) * np.linalg.norm(D):
+    # The test on D scaled to max |D_j| = 1 too: |D| of a tiny J_n (1e-300: D ~ 1e297) would
+    # overflow the norm (a numpy warning, then "orthogonal" for a direction that is not).
+    D_scale = float(np.max(np.abs(D)))
+    D_unit = D / D_scale if 0.0 < D_scale < np.inf else D
+    if abs(float(unit @ D_unit)) <= _DEGENERATE * np.linalg.norm(unit) * np.linalg.norm(D_unit):
         raise ParameterValueError(
             f"gain_direction must not be zero or orthogonal to D_Dn = {D.tolist()}: "
             f"d^T D_Dn = {float(d @ D):.3g} for gain_direction={d.tolist()}"

@@ -290,7 +290,17 @@ class SimulationResult:
                     f"expected columns {list(COLUMNS)} (then any of {list(OPTIONAL_COLUMNS)}), "
                     f"got {header}"
                 )
-            rows = [[float(v) for v in row] for row in reader]
+            rows = []
+            for line, row in enumerate(reader, start=2):
+                try:
+                    if len(row) != len(header):  # e.g. a file cut off mid-row
+                        raise ValueError
+                    rows.append([float(v) for v in row])
+                except ValueError:
+                    raise ParameterValueError(
+                        f"{path} line {line} is not a row of {len(header)} numbers (a truncated "
+                        f"or edited trace file?): {','.join(row)[:80]!r}"
+                    ) from None
         data = np.array(rows, dtype=float).reshape(-1, len(header))
         t = data[:, 0]
         Ts = float(t[1] - t[0]) if t.size > 1 else math.nan

@@ -270,13 +270,26 @@ def _plant(table: dict):
     return _build(PLANT_TYPES[kind], fields, "plant")
 
 
+#: Largest scenario or sweep file [bytes]: a scenario is a few hundred bytes, a sweep's explicit
+#: grid a few kilobytes; a 60 MB TOML file took minutes to parse.
+MAX_SCENARIO_BYTES = 1 << 20
+
+
 def _read_toml(path: Path) -> dict:
     try:
-        data = path.read_bytes()
+        with open(path, "rb") as handle:  # at most one byte more than allowed: FIFOs too
+            data = handle.read(MAX_SCENARIO_BYTES + 1)
     except OSError as err:
         raise ParameterValueError(
             f"cannot read scenario file {str(path)!r}: {err.strerror}"
         ) from None
+    if len(data) > MAX_SCENARIO_BYTES:
+        size = path.stat().st_size if path.is_file() else None
+        asked = f"{size} bytes" if size else f"more than {MAX_SCENARIO_BYTES} bytes"
+        raise ParameterValueError(
+            f"scenario file {str(path)!r} has {asked}; at most {MAX_SCENARIO_BYTES} bytes "
+            f"(1 MiB) are read"
+        )
     try:
         text = data.decode("utf-8-sig")  # TOML is UTF-8 (a byte-order mark is tolerated)
     except UnicodeDecodeError as err:

@@ -17,6 +17,7 @@ from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
 import numpy as np
 
+from .._interrupts import checkpoint
 from .._validation import (
     ParameterTypeError,
     ParameterValueError,
@@ -28,9 +29,11 @@ from ..observers import check_spec, design_from_spec, get_family, spec_of
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import _sample_count, check_run_arguments, run_loop, sample_signals
+from ._sweep_dask import SweepIncomplete, _Incomplete, _run_dask
 from ._sweep_spec import check_paths_apply, expand_scenarios
 
-__all__ = ["sweep"]
+__all__ = ["SweepIncomplete", "sweep"]
+
 
 #: Keys of a sweep's ``base``: a ``loop`` (or the loop's keyword arguments) and the run's.
 SIMULATE_KEYS = (*LOOP_KEYS, "duration", "reference", "disturbance", "substeps", "x0", "loop")
@@ -303,6 +306,7 @@ def _run_local(base, chunks, workers, update) -> list:
                 chunk_rows = future.result()
                 rows.extend(chunk_rows)
                 update(len(chunk_rows))
+                checkpoint("sweep-chunk")  # a test hook (hpdob._interrupts); no-op otherwise
                 chunk = next(pending, None)
                 if chunk is not None:
                     running.add(pool.submit(run_chunk, base, chunk, stop))
@@ -314,38 +318,6 @@ def _run_local(base, chunks, workers, update) -> list:
         raise
     pool.shutdown(wait=True)
     return rows
-
-
-def _run_dask(base, scenarios, scheduler, update) -> list:
-    try:
-        from dask.distributed import Client
-        from dask.distributed import as_completed as dask_completed
-    except ImportError as err:  # pragma: no cover - depends on the environment
-        raise ImportError(
-            "a scheduler address or Client needs dask.distributed: pip install 'hpdob[dask]'"
-        ) from err
-    own = isinstance(scheduler, str)
-    client = Client(scheduler) if own else scheduler
-    try:
-        chunks = _chunks(scenarios, len(client.scheduler_info().get("workers", {})))
-        # Each task carries the (small) base itself rather than a scattered copy: tasks then
-        # have no data dependencies, so a task whose worker dies is simply run again elsewhere
-        # (scattered data lost with a worker cancels its dependants: "lost dependencies").
-        # pure=False: never reuse results across sweeps; retries also covers transient failures.
-        futures = [client.submit(run_chunk, base, chunk, pure=False, retries=3) for chunk in chunks]
-        rows = []
-        try:
-            for future in dask_completed(futures):
-                chunk_rows = future.result()
-                rows.extend(chunk_rows)
-                update(len(chunk_rows))
-        except BaseException:  # an interrupt or a failure: nothing more may run for us
-            client.cancel(futures)
-            raise
-        return rows
-    finally:
-        if own:
-            client.close()
 
 
 def _workers_and_mode(scheduler):
@@ -480,14 +452,6 @@ def sweep(
         resolved["reference"], resolved["disturbance"], Ts=resolved["loop"].Ts, n=2, substeps=1
     )
     update, close = _progress_callback(progress, len(scenarios))
-    try:
-        if mode == "local":
-            rows = _run_local(resolved, _chunks(scenarios, workers), workers, update)
-        else:
-            rows = _run_dask(resolved, scenarios, scheduler, update)
-    finally:
-        close()
-    rows.sort(key=lambda row: row["scenario"])
     columns = [
         "scenario",
         *(list(grid or {}) + sorted(vary or {})),
@@ -495,4 +459,19 @@ def sweep(
         "stable",
         "error",
     ]
+    try:
+        if mode == "local":
+            rows = _run_local(resolved, _chunks(scenarios, workers), workers, update)
+        else:
+            rows = _run_dask(resolved, scenarios, scheduler, update)
+    except _Incomplete as failure:  # keep what finished: the caller decides what to write
+        failure.rows.sort(key=lambda row: row["scenario"])
+        done = {row["scenario"] for row in failure.rows}
+        missing = [i for i in range(len(scenarios)) if i not in done]
+        raise SweepIncomplete(
+            pd.DataFrame(failure.rows, columns=columns), missing, failure.__cause__
+        ) from None
+    finally:
+        close()
+    rows.sort(key=lambda row: row["scenario"])
     return pd.DataFrame(rows, columns=columns)

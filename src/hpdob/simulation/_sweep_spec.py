@@ -152,7 +152,7 @@ def expand_scenarios(grid=None, vary=None, n=None, seed=0) -> list[dict]:
     if count > MAX_SCENARIOS:
         sizes = " x ".join([str(len(v)) for v in axes.values()] + ([f"n={n}"] if n else []))
         raise ParameterValueError(
-            f"the sweep has {sizes} = {count:.3g} scenarios; at most {MAX_SCENARIOS} are "
+            f"the sweep has {sizes} = {count} scenarios; at most {MAX_SCENARIOS} are "
             f"supported per sweep (split it into several sweeps)"
         )
     rng = np.random.default_rng(seed)

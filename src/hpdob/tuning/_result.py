@@ -47,7 +47,8 @@ class TuningResult:
         it stays stable with at every corner, simulated objective).
     verification : list of dict
         The nonlinear simulation at every corner of the uncertainty set: ``J_ratio``, ``b``,
-        ``diverged``, ``radius``, ``rms_estimation_error`` [N m], ``rms_position_error`` [rad]
+        ``diverged``, ``tracks`` (RMS position error below the reference's RMS), ``radius``,
+        ``rms_estimation_error`` [N m], ``rms_position_error`` [rad]
         and ``delay_margin`` [s].
     settings : dict
         The arguments the search ran with.
@@ -185,8 +186,8 @@ class TuningResult:
         ]
         for c in self.verification:
             lines.append(
-                f"    J/J_n = {c['J_ratio']:g}, b = {c['b']:g}: bounded, spectral radius "
-                f"{c['radius']:.5f}, delay margin {c['delay_margin'] * 1e3:.2f} ms, RMS "
+                f"    J/J_n = {c['J_ratio']:g}, b = {c['b']:g}: bounded and tracking, spectral "
+                f"radius {c['radius']:.5f}, delay margin {c['delay_margin'] * 1e3:.2f} ms, RMS "
                 f"estimation error {c['rms_estimation_error']:.3g} N m, position "
                 f"{c['rms_position_error']:.3g} rad"
             )
