@@ -463,7 +463,9 @@ def sweep(
         if mode == "local":
             rows = _run_local(resolved, _chunks(scenarios, workers), workers, update)
         else:
-            rows = _run_dask(resolved, scenarios, scheduler, update)
+            rows = _run_dask(
+                resolved, scenarios, scheduler, update, run_chunk=run_chunk, chunks_of=_chunks
+            )
     except _Incomplete as failure:  # keep what finished: the caller decides what to write
         failure.rows.sort(key=lambda row: row["scenario"])
         done = {row["scenario"] for row in failure.rows}

@@ -34,7 +34,8 @@ class _Incomplete(Exception):
         self.rows = rows
 
 
-def _run_dask(base, scenarios, scheduler, update) -> list:
+def _run_dask(base, scenarios, scheduler, update, *, run_chunk, chunks_of) -> list:
+    """Run ``scenarios`` in chunks (``chunks_of(scenarios, workers)``) of ``run_chunk`` on dask."""
     try:
         from dask.distributed import Client
         from dask.distributed import as_completed as dask_completed
@@ -45,9 +46,7 @@ def _run_dask(base, scenarios, scheduler, update) -> list:
     own = isinstance(scheduler, str)
     client = Client(scheduler) if own else scheduler
     try:
-        from ._sweep import _chunks, run_chunk  # looked up per call (tests replace it)
-
-        chunks = _chunks(scenarios, len(client.scheduler_info().get("workers", {})))
+        chunks = chunks_of(scenarios, len(client.scheduler_info().get("workers", {})))
         # Each task carries the (small) base itself rather than a scattered copy: tasks then
         # have no data dependencies, so a task whose worker dies is simply run again elsewhere
         # (scattered data lost with a worker cancels its dependants: "lost dependencies").
