@@ -7,6 +7,7 @@ from pathlib import Path
 
 from ._errors import CLIError
 from ._options import add_nominal_arguments, finite, output_path, reject_plant_arguments
+from ._ranges import check_uncertainty_ranges
 
 __all__ = ["register"]
 
@@ -49,9 +50,9 @@ def register(subparsers) -> None:
                       help="simulated Coulomb friction [N m] (0.01 J_n/2.8e-4)")  # fmt: skip
     search = parser.add_argument_group("search")
     search.add_argument("--J-range", type=_pair, default=(1.0, 1.0), metavar="LOW,HIGH",
-                        help="true/nominal inertia ratios (default: 1,1)")  # fmt: skip
+                        help="true/nominal inertia ratios, e.g. 0.8,1.25 (1,1)")  # fmt: skip
     search.add_argument("--b-range", type=_pair, default=None, metavar="LOW,HIGH",
-                        help="true viscous frictions [N m s/rad] (default: b_n)")  # fmt: skip
+                        help="absolute true viscous frictions [N m s/rad] (b_n)")  # fmt: skip
     search.add_argument("--frequency", type=_frequency, default=None, metavar="F|LOW,HIGH",
                         help="disturbance frequency [Hz] or band (default: 0.1,10)")  # fmt: skip
     search.add_argument("--families", default=None, metavar="LIST",
@@ -91,6 +92,7 @@ def _run(args: argparse.Namespace) -> int:
     sensor = None
     if args.counts_per_rev is not None or args.noise_std != 0:  # Encoder checks the values
         sensor = Encoder(args.counts_per_rev or 2**31, noise_std=args.noise_std)
+    check_uncertainty_ranges(args.J_range, args.b_range, J_n=args.J_n, b_n=args.b_n)
     families = None if args.families is None else [f.strip() for f in args.families.split(",")]
     result = tune(
         nominal=ServoModel(args.J_n, args.b_n),
