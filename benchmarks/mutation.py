@@ -102,10 +102,69 @@ TARGETS = {
     ),
     "identification.regression": Target(
         "src/hpdob/identification/_regression.py",
-        ("tests/test_identification.py", "tests/identification/test_regression_mutants.py"),
+        (
+            "tests/test_identification.py",
+            "tests/test_identification_defaults.py",
+            "tests/identification/test_regression_mutants.py",
+        ),
         "not example_prints and not plot_labels and not result_exports",
     ),
 }
+
+
+@dataclasses.dataclass(frozen=True)
+class Planted:
+    """A bug planted by hand (issue 20): one source line replaced, the tests that must fail."""
+
+    target: str  # the TARGETS entry whose tests also run
+    original: str
+    mutated: str
+    tests: tuple[str, ...]  # the tests written to catch it
+
+
+#: The two bugs that survived the whole suite when issue 20 was filed.
+PLANTED = {
+    "kernel-generic-friction-doubled": Planted(
+        "simulation.kernel",
+        "force = applied - c * math.tanh(x[v] / c_scale)",
+        "force = applied - 2.0 * c * math.tanh(x[v] / c_scale)",
+        ("tests/test_plant_paths.py",),
+    ),
+    "eso-reset-without-b_n": Planted(
+        "observers.eso",
+        "N[2, 1], N[2, 2] = -b_n / J_n, -1.0 / J_n",
+        "N[2, 1], N[2, 2] = 0.0, -1.0 / J_n",
+        ("tests/observers/test_family_invariants.py",),
+    ),
+}
+
+
+def run_planted(name: str, tree: Path) -> dict:
+    """Plant one bug in the tree, run its tests and the module's, put the source back."""
+    planted = PLANTED[name]
+    target = TARGETS[planted.target]
+    path = tree / target.path
+    source = path.read_text()
+    if source.count(planted.original) != 1:
+        return {"bug": name, "outcome": f"not applicable: the line is not once in {target.path}"}
+    # the tests written for the bug once they are in the tree, else the module's own tests
+    tests = tuple(t for t in planted.tests if (tree / t).is_file())
+    chosen = dataclasses.replace(target, tests=tests, select="") if tests else target
+    command = shlex.split(test_command(chosen, 600))
+    try:
+        path.write_text(source.replace(planted.original, planted.mutated))
+        run = subprocess.run(command, cwd=tree, env=_env(tree), capture_output=True, text=True)
+    finally:
+        path.write_text(source)
+    failed = [line for line in run.stdout.splitlines() if line.startswith("FAILED")]
+    return {
+        "bug": name,
+        "where": target.path,
+        "mutated": planted.mutated,
+        "tests": " ".join(chosen.tests),
+        "outcome": "killed" if run.returncode != 0 else "survived",
+        "failed": failed,
+    }
 
 
 def _tracked_files() -> list[str]:
@@ -393,6 +452,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--report", action="store_true")
     parser.add_argument("--rerun-survivors", action="store_true")
     parser.add_argument("--list", action="store_true", help="print each module's test command")
+    parser.add_argument(
+        "--planted", action="store_true", help="check that the tests kill issue 20's planted bugs"
+    )
     args = parser.parse_args(argv)
     if args.sample is not None and args.sample < 1:
         parser.error(f"--sample must be a positive number of mutants, got {args.sample}")
@@ -403,7 +465,7 @@ def main(argv: list[str] | None = None) -> None:
     tree = args.workdir / "tree"
     tree.mkdir(parents=True, exist_ok=True)
     lock = (args.workdir / "lock").open("w")
-    if args.modules:
+    if args.modules or args.planted:
         try:  # one run at a time: a second one would restore the first one's mutant
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -418,7 +480,12 @@ def main(argv: list[str] | None = None) -> None:
             rerun_survivors(config_path, session, tree)
         else:
             execute(config_path, session, tree)
-    if args.report or not args.modules:
+    if args.planted:
+        results = [run_planted(name, tree) for name in PLANTED]
+        (args.workdir / "planted.json").write_text(json.dumps(results, indent=2))
+        for result in results:
+            print(f"{result['bug']}: {result['outcome']} {' '.join(result.get('failed', []))}")
+    if args.report or not (args.modules or args.planted):
         result = report(args.workdir)
         (args.workdir / "report.json").write_text(json.dumps(result, indent=2))
         text = markdown(result)

@@ -26,6 +26,6 @@ def test_reported_decimation_cutoff_is_that_of_scipy_decimate(decimation):
     0.8/q of the Nyquist frequency), here 0.8 * 500 Hz / q at 1 kHz.
     """
     t, q, u = _analytic_log()
-    fit = identify(t, q, u, decimation=decimation)
+    fit = identify(t, q, u, method="idim-ls", decimation=decimation, diagnostics=False)
     assert fit.settings["decimation"] == decimation
     assert fit.settings["decimation_cutoff"] == pytest.approx(0.8 * 500.0 / decimation)
