@@ -31,6 +31,7 @@ are counted apart: the target is >= 90 % of the non-equivalent mutants killed.
 from __future__ import annotations
 
 import argparse
+import ast
 import dataclasses
 import fcntl
 import hashlib
@@ -53,6 +54,7 @@ except ModuleNotFoundError:  # Python 3.10
 
 ROOT = Path(__file__).resolve().parent.parent
 CLASSIFIED = ROOT / "benchmarks" / "mutation_survivors.toml"
+ANNOTATION = "inside an annotation, never evaluated (from __future__ import annotations)"
 PYTEST = "-m pytest -x -q -p no:cacheprovider --hypothesis-seed=0 --timeout={timeout}"
 
 
@@ -213,6 +215,37 @@ def _session_paths(workdir: Path, name: str) -> tuple[Path, Path]:
     return workdir / "sessions" / f"{stem}.toml", workdir / "sessions" / f"{stem}.sqlite"
 
 
+def _annotation_spans(path: Path) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """Source spans of the annotations, if the module never evaluates them.
+
+    With ``from __future__ import annotations`` an annotation is a string nobody reads at run
+    time (the dataclasses here do not), so a mutant inside one is equivalent by construction.
+    """
+    tree = ast.parse(path.read_text())
+    future = any(
+        isinstance(node, ast.ImportFrom)
+        and node.module == "__future__"
+        and any(alias.name == "annotations" for alias in node.names)
+        for node in tree.body
+    )
+    if not future:
+        return []
+    spans = []
+    for node in ast.walk(tree):
+        annotations = []
+        if isinstance(node, ast.arg | ast.AnnAssign) and node.annotation is not None:
+            annotations.append(node.annotation)
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.returns is not None:
+            annotations.append(node.returns)
+        spans += [((a.lineno, a.col_offset), (a.end_lineno, a.end_col_offset)) for a in annotations]
+    return spans
+
+
+def _in_annotation(item, spans) -> bool:
+    start = tuple(item.mutations[0].start_pos)
+    return any(first <= start < last for first, last in spans)
+
+
 def _ordered(items):
     """Work items in a stable order (cosmic-ray's job ids are random)."""
     return sorted(items, key=lambda w: (w.mutations[0].operator_name, w.mutations[0].occurrence))
@@ -265,13 +298,22 @@ def prepare(name: str, *, workdir: Path, tree: Path, sample: int | None, seed: i
             finally:
                 os.chdir(cwd)
             items = _ordered(db.work_items)
+    spans = _annotation_spans(tree / target.path)
+    annotations = sum(_in_annotation(w, spans) for w in items)
+    items = [w for w in items if not _in_annotation(w, spans)]
     order = np.random.default_rng(seed).permutation(len(items))
     chosen = [items[i] for i in (order if sample is None else order[:sample])]
+    session.with_suffix(".json").write_text(
+        json.dumps({"mutants": len(items), "in_annotations": annotations, "seed": seed})
+    )
     with use_db(str(session), WorkDB.Mode.create) as db:
         known = {_key(w) for w in db.work_items}
         db.add_work_items([w for w in chosen if _key(w) not in known])
         pending = db.num_work_items - db.num_results
-    print(f"{name}: {len(items)} mutants, {len(chosen)} sampled (seed {seed}), {pending} to run")
+    print(
+        f"{name}: {len(items)} mutants (and {annotations} inside annotations, equivalent), "
+        f"{len(chosen)} sampled (seed {seed}), {pending} to run"
+    )
     return config_path, session, len(items)
 
 
@@ -343,6 +385,8 @@ def report(workdir: Path) -> dict:
         _, session = _session_paths(workdir, name)
         if not session.exists():
             continue
+        spans = _annotation_spans(ROOT / target.path)
+        sidecar = session.with_suffix(".json")
         counts = dict.fromkeys(["killed", "survived", "incompetent", "timeout", "no-test"], 0)
         survivors = []
         with use_db(str(session), WorkDB.Mode.open) as db:
@@ -361,6 +405,8 @@ def report(workdir: Path) -> dict:
                          and c["original"] == old and c["mutated"] == new),
                         None,
                     )  # fmt: skip
+                    if verdict is None and _in_annotation(item, spans):
+                        verdict = {"class": "equivalent", "reason": ANNOTATION}
                     survivors.append({
                         "where": f"{target.path}:{mutation.start_pos[0]}",
                         "operator": mutation.operator_name,
@@ -381,6 +427,8 @@ def report(workdir: Path) -> dict:
         modules[name] = {
             "path": target.path,
             "tests": " ".join(target.tests) + (f" -k '{target.select}'" if target.select else ""),
+            "mutants": None,
+            **(json.loads(sidecar.read_text()) if sidecar.exists() else {}),
             "sampled": total,
             "run": judged + counts["incompetent"] + counts["no-test"],
             **counts,
@@ -414,13 +462,14 @@ def markdown(result: dict) -> str:
     lines = [
         f"Measured on commit {result['commit']}.",
         "",
-        "| module | mutants run | killed (timeouts) | survived | equivalent | incompetent "
+        "| module | mutants | run | killed (timeouts) | survived | equivalent | incompetent "
         "| kill rate | non-equivalent killed |",
-        "|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for name, m in result["modules"].items():
         lines.append(
-            f"| {name} | {m['run']} | {m['killed'] + m['timeout']} ({m['timeout']}) "
+            f"| {name} | {m['mutants']} | {m['run']} "
+            f"| {m['killed'] + m['timeout']} ({m['timeout']}) "
             f"| {m['survived']} | {m['equivalent']} | {m['incompetent']} "
             f"| {_percent(m['kill_rate'])} | {_percent(m['kill_rate_non_equivalent'])} |"
         )
