@@ -104,11 +104,7 @@ TARGETS = {
     ),
     "identification.regression": Target(
         "src/hpdob/identification/_regression.py",
-        (
-            "tests/test_identification.py",
-            "tests/test_identification_defaults.py",
-            "tests/identification/test_regression_mutants.py",
-        ),
+        ("tests/test_identification.py", "tests/test_identification_defaults.py"),
         "not example_prints and not plot_labels and not result_exports",
     ),
 }
@@ -191,7 +187,11 @@ def sync_tree(tree: Path) -> None:
 
 
 def test_command(target: Target, timeout: float) -> str:
-    command = f"{sys.executable} {PYTEST.format(timeout=int(timeout))} {' '.join(target.tests)}"
+    # tests/<subpackage>/test_<module>_mutants.py hold the tests written to kill survivors
+    stem = Path(target.path)
+    extra = f"tests/{stem.parent.name}/test_{stem.stem.lstrip('_')}_mutants.py"
+    tests = [*target.tests, *([extra] if (ROOT / extra).is_file() else [])]
+    command = f"{sys.executable} {PYTEST.format(timeout=int(timeout))} {' '.join(tests)}"
     if target.select:
         # cosmic-ray splits the command with shlex: quote the -k expression
         command += f" -k '{target.select}'"
