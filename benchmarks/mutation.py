@@ -300,18 +300,21 @@ def prepare(name: str, *, workdir: Path, tree: Path, sample: int | None, seed: i
             items = _ordered(db.work_items)
     spans = _annotation_spans(tree / target.path)
     annotations = sum(_in_annotation(w, spans) for w in items)
-    items = [w for w in items if not _in_annotation(w, spans)]
     order = np.random.default_rng(seed).permutation(len(items))
+    # the first N of the permutation of all mutants, less those inside annotations
     chosen = [items[i] for i in (order if sample is None else order[:sample])]
+    chosen = [w for w in chosen if not _in_annotation(w, spans)]
     session.with_suffix(".json").write_text(
-        json.dumps({"mutants": len(items), "in_annotations": annotations, "seed": seed})
+        json.dumps(
+            {"mutants": len(items) - annotations, "in_annotations": annotations, "seed": seed}
+        )
     )
     with use_db(str(session), WorkDB.Mode.create) as db:
         known = {_key(w) for w in db.work_items}
         db.add_work_items([w for w in chosen if _key(w) not in known])
         pending = db.num_work_items - db.num_results
     print(
-        f"{name}: {len(items)} mutants (and {annotations} inside annotations, equivalent), "
+        f"{name}: {len(items) - annotations} mutants (and {annotations} inside annotations), "
         f"{len(chosen)} sampled (seed {seed}), {pending} to run"
     )
     return config_path, session, len(items)
