@@ -18,9 +18,10 @@ functions).
 The full set is thousands of mutants at seconds each, so ``--sample N --seed S`` runs the first
 N mutants of a seeded random permutation of each module's mutants (a larger N with the same seed
 extends the same sample), less those inside annotations (never evaluated: every module has
-``from __future__ import annotations``, so they are equivalent by construction). One cosmic-ray session (config + sqlite) per module and source hash
-lives in ``<workdir>/sessions``; a changed module starts a new session, an unchanged one resumes.
-The jobs run one after another under ``nice -n 19`` (the machine is shared).
+``from __future__ import annotations``, so they are equivalent by construction). One cosmic-ray
+session (config + sqlite) per module and source hash lives in ``<workdir>/sessions``; a
+changed module starts a new session, an unchanged one resumes. The jobs run one after another
+under ``nice -n 19`` (the machine is shared).
 
 ``--report`` prints, and writes as JSON and Markdown to ``<workdir>/report.{json,md}``, the kill
 rate per module and every survivor with file:line, operator and the mutated line. Survivors
@@ -335,8 +336,8 @@ def execute(config_path: Path, session: Path, tree: Path) -> None:
     )  # fmt: skip
 
 
-def rerun_survivors(config_path: Path, session: Path, tree: Path) -> None:
-    """Run the surviving mutants of a session again (after new tests were added)."""
+def rerun_survivors(config_path: Path, session: Path, tree: Path, target: Target) -> None:
+    """Run the unclassified survivors of a session again (after new tests were added)."""
     from cosmic_ray.config import load_config
     from cosmic_ray.mutating import mutate_and_test
     from cosmic_ray.work_db import use_db
@@ -349,6 +350,7 @@ def rerun_survivors(config_path: Path, session: Path, tree: Path) -> None:
         survivors = [
             item for item, result in db.completed_work_items
             if result.test_outcome == TestOutcome.SURVIVED
+            and _verdict(target, item, result) is None
         ]  # fmt: skip
         for item in survivors:
             result = mutate_and_test(item.mutations, config.test_command, config.timeout)
@@ -369,6 +371,20 @@ def _changed_lines(diff: str) -> tuple[str, str]:
     return " / ".join(s.strip() for s in old), " / ".join(s.strip() for s in new)
 
 
+def _verdict(target: Target, item, result) -> dict | None:
+    """The hand classification of a survivor, or None."""
+    old, new = _changed_lines(result.diff or "")
+    operator = item.mutations[0].operator_name
+    for entry in _classified():
+        if (entry["path"], entry["operator"], entry["original"], entry["mutated"]) == (
+            target.path, operator, old, new,
+        ):  # fmt: skip
+            return entry
+    if _in_annotation(item, _annotation_spans(ROOT / target.path)):
+        return {"class": "equivalent", "reason": ANNOTATION}
+    return None
+
+
 def _classified() -> list[dict]:
     if not CLASSIFIED.exists():
         return []
@@ -380,7 +396,6 @@ def report(workdir: Path) -> dict:
     from cosmic_ray.work_db import WorkDB, use_db
     from cosmic_ray.work_item import TestOutcome, WorkerOutcome
 
-    classified = _classified()
     commit = subprocess.run(
         ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
     ).stdout.strip()
@@ -389,7 +404,6 @@ def report(workdir: Path) -> dict:
         _, session = _session_paths(workdir, name)
         if not session.exists():
             continue
-        spans = _annotation_spans(ROOT / target.path)
         sidecar = session.with_suffix(".json")
         counts = dict.fromkeys(["killed", "survived", "incompetent", "timeout", "no-test"], 0)
         survivors = []
@@ -403,14 +417,7 @@ def report(workdir: Path) -> dict:
                     counts["survived"] += 1
                     old, new = _changed_lines(result.diff or "")
                     mutation = item.mutations[0]
-                    verdict = next(
-                        (c for c in classified
-                         if c["path"] == target.path and c["operator"] == mutation.operator_name
-                         and c["original"] == old and c["mutated"] == new),
-                        None,
-                    )  # fmt: skip
-                    if verdict is None and _in_annotation(item, spans):
-                        verdict = {"class": "equivalent", "reason": ANNOTATION}
+                    verdict = _verdict(target, item, result)
                     survivors.append({
                         "where": f"{target.path}:{mutation.start_pos[0]}",
                         "operator": mutation.operator_name,
@@ -530,7 +537,7 @@ def main(argv: list[str] | None = None) -> None:
             name, workdir=args.workdir, tree=tree, sample=args.sample, seed=args.seed
         )
         if args.rerun_survivors:
-            rerun_survivors(config_path, session, tree)
+            rerun_survivors(config_path, session, tree, TARGETS[name])
         else:
             execute(config_path, session, tree)
     if args.planted:
