@@ -253,8 +253,13 @@ def _ordered(items):
     return sorted(items, key=lambda w: (w.mutations[0].operator_name, w.mutations[0].occurrence))
 
 
-def prepare(name: str, *, workdir: Path, tree: Path, sample: int | None, seed: int) -> tuple:
-    """Write the config, enumerate the mutants and put the sampled ones in the session."""
+def prepare(
+    name: str, *, workdir: Path, tree: Path, sample: int | None, seed: int, add: bool = True
+) -> tuple:
+    """Write the config, enumerate the mutants and put the sampled ones in the session.
+
+    ``add=False`` (re-running survivors) leaves the session's mutants as they are.
+    """
     from cosmic_ray.commands.init import init
     from cosmic_ray.config import load_config
     from cosmic_ray.work_db import WorkDB, use_db
@@ -313,11 +318,12 @@ def prepare(name: str, *, workdir: Path, tree: Path, sample: int | None, seed: i
     )
     with use_db(str(session), WorkDB.Mode.create) as db:
         known = {_key(w) for w in db.work_items}
-        db.add_work_items([w for w in chosen if _key(w) not in known])
+        if add:
+            db.add_work_items([w for w in chosen if _key(w) not in known])
         pending = db.num_work_items - db.num_results
     print(
         f"{name}: {len(items) - annotations} mutants (and {annotations} inside annotations), "
-        f"{len(chosen)} sampled (seed {seed}), {pending} to run"
+        + (f"{len(chosen)} sampled (seed {seed}), {pending} to run" if add else "")
     )
     return config_path, session, len(items)
 
@@ -534,8 +540,9 @@ def main(argv: list[str] | None = None) -> None:
         os.nice(19)  # the machine is shared; the jobs inherit the niceness
     for name in args.modules:
         config_path, session, _ = prepare(
-            name, workdir=args.workdir, tree=tree, sample=args.sample, seed=args.seed
-        )
+            name, workdir=args.workdir, tree=tree, sample=args.sample, seed=args.seed,
+            add=not args.rerun_survivors,
+        )  # fmt: skip
         if args.rerun_survivors:
             rerun_survivors(config_path, session, tree, TARGETS[name])
         else:
