@@ -102,7 +102,9 @@ TARGETS = {
         "src/hpdob/models/_plant.py", ("tests/test_model.py", "tests/test_two_mass.py")
     ),
     "simulation.kernel": Target(
-        "src/hpdob/simulation/_kernel.py", ("tests/test_compiled.py", "tests/test_simulate.py")
+        "src/hpdob/simulation/_kernel.py",
+        # the kernel has a rigid, a two-mass and a generic sub-step path: tests for each
+        ("tests/test_compiled.py", "tests/test_simulate.py", "tests/test_two_mass.py"),
     ),
     "identification.regression": Target(
         "src/hpdob/identification/_regression.py",
