@@ -259,5 +259,7 @@ def estimation_response(observer, frequency, *, error: bool = False) -> np.ndarr
         return ratio if error else 1.0 - ratio
     A, B, C, _ = _generic_statespace(system)
     eye = np.eye(A.shape[0])
-    Q = np.array([(C @ np.linalg.solve(zk * eye - A, B))[0, 0] for zk in z])
+    # One stacked solve (LAPACK's gesv per frequency, as one call each would do).
+    X = np.linalg.solve(z[:, None, None] * eye - A, np.broadcast_to(B, (z.size, *B.shape)))
+    Q = (C @ X)[:, 0, 0]
     return 1.0 - Q if error else Q

@@ -116,7 +116,9 @@ def _run(args: argparse.Namespace) -> int:
     nominal, origin = _nominal(args)
     design = design_on(args, nominal.discretize(log.Ts))
     result = estimate_disturbance(design, theta=log.theta, u=log.u, t=log.t)
-    tail = result.tau_hat[result.t >= result.t[0] + 0.1 * (result.t[-1] - result.t[0])]
+    # t increases strictly: the samples with t >= the cut are a slice (a view, not a copy)
+    cut = np.searchsorted(result.t, result.t[0] + 0.1 * (result.t[-1] - result.t[0]))
+    tail = result.tau_hat[cut:]
     with np.errstate(all="ignore"):  # a diverged estimate is refused below, not warned about
         mean, std = float(tail.mean()), float(tail.std())
     if not (np.all(np.isfinite(result.tau_hat)) and math.isfinite(mean) and math.isfinite(std)):
@@ -139,7 +141,8 @@ def _run(args: argparse.Namespace) -> int:
         result.to_csv(files.path("estimate.csv"))
         if not args.no_plot:
             files.plot(
-                "estimate.png", lambda: result.plot(title=f"{design.system.name} on {log.source}")
+                "estimate.png",
+                lambda: result.plot(title=f"{design.system.name} on {log.source}", axis=log.axis),
             )
             written.append("estimate.png")
         files.write_json("estimate.json", report)

@@ -97,6 +97,16 @@ def _require_columns(args) -> None:
     for name in ("position", "input"):
         if getattr(args, name) is None:
             raise CLIError(f"--{name} is required: the name of the log's {name} column")
+    if (args.time is None) == (args.Ts is None):  # in the command's terms, not read_log's
+        raise CLIError(
+            "give the log's time column as --time NAME or, for a log without one, its sampling "
+            "period as --Ts SECONDS"
+            + (
+                f" (not both: got --time {args.time} and --Ts {args.Ts:g})"
+                if args.Ts is not None
+                else ""
+            )
+        )
 
 
 def log_from_args(args: argparse.Namespace, columns=None):

@@ -461,8 +461,8 @@ def _build(signals, run, path, wanted, time, Ts, gain, axis, time_tolerance) -> 
         check_time(t, f"time column {time!r}{label}", time_tolerance)
     else:
         Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
-        t = np.arange(n) * Ts
-    u = gain * signals["input"]
+        t = readonly(np.arange(n) * Ts)
+    u = signals["input"] if gain == 1.0 else readonly(gain * signals["input"])
     if not np.all(np.isfinite(u)):  # pragma: no cover - only for gains near the float limit
         raise ParameterValueError(f"input_gain {gain!r} makes the input overflow")
     return Log(

@@ -298,6 +298,17 @@ class Identification:
         return validate(self, log, loop=loop, offset=offset)
 
     # -- reports -----------------------------------------------------------------------------
+    def _repr_markdown_(self) -> str:
+        """A compact table for Jupyter: each parameter with its standard deviation and unit."""
+        from .._repr import markdown_table
+
+        u, i = self.units, int(self.axis == "linear")
+        rows = [(f"{_LABELS[n][i]} [{u[n]}]", f"{v:.4g} ± {self.std[n]:.2g}")
+                for n, v in self.parameters.items()]  # fmt: skip
+        rows += [("method", f"{self.method} ({self.n_samples} samples)"),
+                 ("relative error [%]", self.relative_error)]  # fmt: skip
+        return markdown_table("IdentificationResult", rows)  # fmt: skip
+
     def summary(self) -> str:
         """A report of the identification.
 

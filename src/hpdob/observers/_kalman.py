@@ -32,13 +32,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._validation import (
-    ParameterTypeError,
     ParameterValueError,
     as_int,
     positive,
     readonly,
 )
-from ..models._servo import DiscreteServoModel, ServoModel
+from ..models._lti import as_discrete_model
+from ..models._servo import DiscreteServoModel
 from ._error_dynamics import schur_cohn_stable
 from ._realised import matrix_characteristic_polynomial
 from ._runtime import _DesignedObserver
@@ -71,14 +71,7 @@ def augmented_model(model: DiscreteServoModel, order: int):
 
 
 def _check_model(model) -> DiscreteServoModel:
-    if isinstance(model, ServoModel):
-        raise ParameterTypeError(
-            "model must be a DiscreteServoModel; discretise the continuous model first, e.g. "
-            "ServoModel(J_n, b_n).discretize(Ts)"
-        )
-    if not isinstance(model, DiscreteServoModel):
-        raise ParameterTypeError(f"model must be a DiscreteServoModel, got {type(model).__name__}")
-    return model
+    return as_discrete_model(model, "model")
 
 
 def _check_order(order) -> int:
@@ -151,8 +144,9 @@ def design_kalman(
 
     Parameters
     ----------
-    model : DiscreteServoModel
-        Nominal discrete model, ``ServoModel(J_n, b_n).discretize(Ts)``.
+    model : DiscreteServoModel or control.TransferFunction or control.StateSpace
+        Nominal discrete model, ``ServoModel(J_n, b_n).discretize(Ts)``. A sampled python-control
+        servo (``control.c2d(sys, Ts)``) is read by :meth:`DiscreteServoModel.from_lti`.
     order : int, optional
         ``m``: the disturbance model :math:`\Delta^{m+1}\tau = 0` (0, default: a random walk
         of :math:`\tau`; 1: of its increment). At most 4.

@@ -294,8 +294,9 @@ class DisturbanceObserver(_DesignedObserver):
 
     Parameters
     ----------
-    model : DiscreteServoModel
-        Nominal discrete model, ``ServoModel(J_n, b_n).discretize(Ts)``.
+    model : DiscreteServoModel or control.TransferFunction or control.StateSpace
+        Nominal discrete model, ``ServoModel(J_n, b_n).discretize(Ts)``. A sampled python-control
+        servo (``control.c2d(sys, Ts)``) is read by :meth:`DiscreteServoModel.from_lti`.
     order : int
         Truncation order ``m >= 0``.
     poles : sequence of complex, optional

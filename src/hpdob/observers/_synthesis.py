@@ -24,7 +24,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._validation import (
-    ParameterTypeError,
     ParameterValueError,
     _show,
     as_int,
@@ -34,7 +33,8 @@ from .._validation import (
     positive,
     readonly,
 )
-from ..models._servo import DiscreteServoModel, ServoModel
+from ..models._lti import as_discrete_model
+from ..models._servo import DiscreteServoModel
 from ._error_dynamics import (
     characteristic_basis,
     characteristic_polynomial,
@@ -192,8 +192,10 @@ def design_observer(
 
     Parameters
     ----------
-    model : DiscreteServoModel
-        Nominal discrete model, e.g. ``ServoModel(J_n, b_n).discretize(Ts)``.
+    model : DiscreteServoModel or control.TransferFunction or control.StateSpace
+        Nominal discrete model, e.g. ``ServoModel(J_n, b_n).discretize(Ts)``. A sampled
+        python-control servo (``control.c2d(sys, Ts)``) is read by
+        :meth:`DiscreteServoModel.from_lti`.
     order : int
         Truncation order ``m >= 0``: 0 is the conventional DOb (eqs. 9-13), 1 the HPDOb
         (eqs. 14-24), higher orders cancel disturbances whose samples are polynomials of
@@ -275,13 +277,7 @@ def design_observer(
     >>> pos.system.measures, pos.system.outputs, pos.poles.size
     (('theta',), ('tau_hat', 'omega_hat'), 4)
     """
-    if isinstance(model, ServoModel):
-        raise ParameterTypeError(
-            "model must be a DiscreteServoModel; discretise the continuous model "
-            "first, e.g. ServoModel(J, b).discretize(Ts)"
-        )
-    if not isinstance(model, DiscreteServoModel):
-        raise ParameterTypeError(f"model must be a DiscreteServoModel, got {type(model).__name__}")
+    model = as_discrete_model(model, "model")
     m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
     if m > MAX_ORDER:
         raise ParameterValueError(

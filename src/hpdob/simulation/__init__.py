@@ -7,8 +7,9 @@ PD, Encoder, Actuator
     Outer-loop controller, sensor and actuator models.
 simulate, SimulationResult, SimulationDivergedWarning
     One closed-loop run (continuous plant, sampled PD, observer inner loop).
-load_scenario
-    A TOML scenario file read into :func:`simulate`'s keyword arguments.
+load_scenario, scenario_toml
+    A TOML scenario file read into :func:`simulate`'s keyword arguments, and written from a
+    loop and a run.
 sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
 """
@@ -18,6 +19,7 @@ from ._devices import Actuator, Encoder
 from ._loop import ServoLoop
 from ._result import SimulationResult
 from ._scenario import load_scenario
+from ._scenario_toml import scenario_toml
 from ._simulate import SimulationDivergedWarning, simulate
 from ._sweep import sweep
 
@@ -29,6 +31,7 @@ __all__ = [
     "SimulationDivergedWarning",
     "SimulationResult",
     "load_scenario",
+    "scenario_toml",
     "simulate",
     "sweep",
 ]

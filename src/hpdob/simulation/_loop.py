@@ -7,6 +7,7 @@ import functools
 from dataclasses import dataclass, field, fields, replace
 
 from .._validation import ParameterTypeError, ParameterValueError, positive, require_instance
+from ..models._lti import as_servo_model, is_lti
 from ..models._plant import Plant
 from ..models._servo import ServoModel
 from ..observers._core import initial_state
@@ -36,16 +37,18 @@ class ServoLoop:
 
     Parameters
     ----------
-    plant : ServoModel, TwoMassServo or MujocoServo
-        The true motor (a :class:`hpdob.models.Plant`).
-    nominal : ServoModel
-        The model the controller (``J_n``) and the observer use.
+    plant : ServoModel, TwoMassServo, MujocoServo or control.TransferFunction
+        The true motor (a :class:`hpdob.models.Plant`); a continuous python-control servo
+        ``1/(J s^2 + b s)`` (``tf`` or ``ss``) is read by :meth:`ServoModel.from_lti`.
+    nominal : ServoModel or control.TransferFunction
+        The model the controller (``J_n``) and the observer use (python-control: as ``plant``).
     Ts : float
         Sampling period [s].
     controller : PD
     observer : observer, optional
         A runtime observer (:class:`~hpdob.DisturbanceObserver`, :class:`~hpdob.Observer`), a
-        design (:class:`~hpdob.ObserverDesign`) or a :class:`~hpdob.LinearObserver`, designed
+        design (:class:`~hpdob.ObserverDesign`), a :class:`~hpdob.LinearObserver` or a labelled
+        python-control ``StateSpace`` (:meth:`~hpdob.LinearObserver.from_statespace`), designed
         on ``nominal.discretize(Ts)`` (an observer without a nominal model must have the same
         ``Ts``). A runtime observer's current state is taken now (the loop does not change
         the object); a design or system starts each run from ``initial_state(x0, 0)``.
@@ -92,6 +95,16 @@ class ServoLoop:
     observer_state: tuple | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        # python-control systems in: 1/(J s^2 + b s) as a ServoModel, an observer's StateSpace
+        # as a LinearObserver (designed on the nominal model)
+        object.__setattr__(self, "plant", as_servo_model(self.plant, "plant"))
+        object.__setattr__(self, "nominal", as_servo_model(self.nominal, "nominal"))
+        if is_lti(self.observer) and isinstance(self.nominal, ServoModel):
+            Ts = positive(self.Ts, "Ts", "a positive finite sampling period [s]")
+            system = LinearObserver.from_statespace(
+                self.observer, model=self.nominal.discretize(Ts), name="observer"
+            )
+            object.__setattr__(self, "observer", system)
         if not isinstance(self.plant, Plant):
             raise ParameterTypeError(f"plant must be {_PLANTS}, got {type(self.plant).__name__}")
         require_instance(self.nominal, ServoModel, "nominal")

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import warnings
 
 import numpy as np
 
@@ -44,7 +43,9 @@ from ..analysis._linear_loop import MAX_DELAY_SAMPLES
 from ..models._servo import ServoModel
 from ..simulation._controller import PD
 from ..simulation._devices import Actuator, Encoder
+from ._blas import one_blas_thread
 from ._result import TuningResult
+from ._runs import VerificationRuns
 
 __all__ = ["FAMILIES", "OBJECTIVES", "tune"]
 
@@ -186,6 +187,7 @@ def _delay_margin(base, corners, plant, delay: int) -> int:
     return MAX_EXTRA_DELAY
 
 
+@one_blas_thread
 def tune(
     *,
     nominal: ServoModel,
@@ -201,6 +203,7 @@ def tune(
     noise_limit: float | None = None,
     coulomb: float | None = None,
     scenario: dict | None = None,
+    progress=None,
 ) -> TuningResult:
     r"""Recommend an observer for a motor, a sensor and an uncertainty, verified by simulation.
 
@@ -247,6 +250,10 @@ def tune(
         a sine at the disturbance frequency from 2.5 s, amplitudes scaled with ``J_n`` from the
         paper's (0.05 and 0.02 N m at ``J_n`` = 2.8e-4 kg m^2); 10 s (in whole samples). Its
         duration and signals are checked before the search.
+    progress : callable, optional
+        Called as ``progress(stage, done, total)`` while the search works (``stage`` one of
+        ``"analysis"``, ``"simulation"``, ``"verification"``; ``done`` of ``total`` steps), e.g.
+        to show progress; its return value is ignored. Default: silent.
 
     Returns
     -------
@@ -277,7 +284,7 @@ def tune(
     from ..analysis._noise import noise_gains
     from ..analysis._sensitivity import loop_margins
     from ..simulation._loop import ServoLoop
-    from ..simulation._simulate import _sample_count, sample_signals, simulate
+    from ..simulation._simulate import _sample_count, sample_signals
 
     nominal = require_instance(nominal, ServoModel, "nominal")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
@@ -313,6 +320,9 @@ def tune(
         )
     families = tuple(dict.fromkeys(check_choice(f, "families", FAMILIES) for f in families))
     objective = check_choice(objective, "objective", OBJECTIVES)
+    if progress is not None and not callable(progress):
+        raise ParameterTypeError(f"progress must be callable or None, got {progress!r}")
+    report = progress or (lambda stage, done, total: None)  # silent by default
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
     if coulomb is None:
@@ -341,7 +351,8 @@ def tune(
         return ServoModel(J_ratio * nominal.J, b)
 
     rows = []
-    for family, m, parameter, value, design in candidates:
+    for done, (family, m, parameter, value, design) in enumerate(candidates):
+        report("analysis", done, len(candidates))
         velocity = "observer" if (controller.velocity == "observer"
                                   and design.system.has_velocity) else "measured"  # fmt: skip
         ctrl = PD(controller.kp, controller.kd, feedforward=controller.feedforward,
@@ -375,6 +386,7 @@ def tune(
             "robust": robust,
             "within_noise": noise_limit is None or tau_noise <= noise_limit,
             "pareto": False, "simulated": math.nan, "_design": design, "_controller": ctrl,
+            "_base": base,
         })  # fmt: skip
     if not rows:
         raise ParameterValueError("no candidate could be designed: " + "; ".join(notes[:3]))
@@ -396,37 +408,29 @@ def tune(
             "finer encoder"
         )
     # Pareto front of (accuracy, noise) among the qualified, then simulated at the centre.
-    ordered = sorted(qualified, key=lambda r: (r["accuracy"], r["tau_noise"]))
     best_noise = math.inf
-    for r in ordered:
+    for r in sorted(qualified, key=lambda r: (r["accuracy"], r["tau_noise"])):
         if r["tau_noise"] < best_noise:
             r["pareto"] = True
             best_noise = r["tau_noise"]
-    simulation = {"sensor": sensor, "actuator": actuator}
-
-    def simulate_at(r, J_ratio, b):
-        true = ServoModel(J_ratio * nominal.J, b, coulomb=coulomb)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            result = simulate(plant=true, nominal=nominal, Ts=Ts, controller=r["_controller"],
-                              observer=r["_design"], **simulation, **run)  # fmt: skip
-        metrics = result.metrics()
-        position = max(metrics["rms_position_error_regulation"],
-                       metrics["rms_position_error_tracking"])  # fmt: skip
-        return result, metrics, position
-
-    for r in qualified:
-        result, metrics, position = simulate_at(r, *centre)
+    runs = VerificationRuns(nominal=nominal, Ts=Ts, sensor=sensor, actuator=actuator,
+                            coulomb=coulomb, run=run)  # fmt: skip
+    simulate_at = runs.simulate
+    report("analysis", len(candidates), len(candidates))
+    for r, (result, metrics, position) in zip(qualified, runs.at(qualified, *centre, report),
+                                              strict=True):  # fmt: skip
         r["simulated"] = math.inf if result.diverged else (
             metrics["rms_estimation_error"] if objective == "estimation" else position)  # fmt: skip
         r["simulated_estimation"] = metrics["rms_estimation_error"]
         r["simulated_position"] = position
+    report("simulation", len(qualified), len(qualified))
     verification = None
     for r in sorted(qualified, key=lambda r: r["simulated"]):
         if not math.isfinite(r["simulated"]):
             break
         checks = []
-        for J_ratio, b in corners:
+        for done, (J_ratio, b) in enumerate(corners):
+            report("verification", done, len(corners))
             result, metrics, position = simulate_at(r, J_ratio, b)
             loop = ServoLoop(plant=plant(J_ratio, b), nominal=nominal, Ts=Ts,
                              controller=r["_controller"], observer=r["_design"],
@@ -438,6 +442,7 @@ def tune(
                 "delay_margin": loop_margins(loop).delay_margin,
             })  # fmt: skip
         if all(not c["diverged"] and c["radius"] < 1.0 for c in checks):
+            report("verification", len(corners), len(corners))
             verification = (r, checks)
             break
         notes.append(f"{r['name']} at {r['parameter']}={r['value']:.4g} failed at a corner")
