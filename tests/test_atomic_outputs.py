@@ -392,7 +392,7 @@ class FakeComparison:
 def test_compare_writes_a_staged_set_with_its_json_last(capsys, tmp_path, monkeypatch):
     import hpdob.analysis
 
-    monkeypatch.setattr(hpdob.analysis, "compare_observers", lambda **kw: FakeComparison())
+    monkeypatch.setattr(hpdob.analysis, "compare_observers", lambda *a, **kw: FakeComparison())
     out = tmp_path / "out"
     assert run_cli(capsys, "compare", "--out", out)[0] == 0
     names = ["comparison.csv", "comparison.json", "comparison.md", "comparison.png"]

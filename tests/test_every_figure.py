@@ -47,6 +47,8 @@ def _commands(tmp_path):
     return {
         "reproduce": ["reproduce", *out("reproduce")],
         "simulate": ["simulate", str(ROOT / "examples" / "canonical_hpdob.toml"), *out("sim")],
+        "simulate arm": ["simulate", str(ROOT / "examples" / "two_link_observers.toml"),
+                         *out("arm")],
         "tune": ["tune", "--J-range", "0.9,1.1", "--families", "position", "--frequency", "2",
                  "--counts-per-rev", "16384", *out("tune")],
         "estimate": ["estimate", str(log), "--time", "t", "--position", "q", "--input", "u",
@@ -92,7 +94,7 @@ def test_every_command_that_draws_was_caught(figures):
     commands = {command for command, _ in figures}
     assert commands == {"reproduce", "simulate", "tune", "estimate", "identify", "analyze bode",
                         "analyze noise", "analyze tradeoff", "analyze stability",
-                        "compare"}  # fmt: skip
+                        "compare", "simulate arm"}  # fmt: skip
     assert {name for command, name in figures if command == "reproduce"} >= {
         "fig2", "fig3", "fig4", "fig5"}  # fmt: skip
 

@@ -35,6 +35,7 @@ SECTIONS = {
     "models": "Models and plants",
     "observers": "Observers",
     "simulation": "Loop and simulation",
+    "robots": "Robots: N-joint arms",
     "analysis": "Analysis",
     "identification": "Real data and identification",
     "tuning": "Tuning",

@@ -271,11 +271,11 @@ def design_kalman(
 
 def _bandwidth(design: KalmanDesign) -> float:
     """Highest frequency [rad/s] where the estimation response |Q| is still >= 1/sqrt(2)."""
-    from ..analysis._estimation import estimation_response
+    from ._response import estimation_frequency_response
 
     nyquist = math.pi / design.Ts
     w = np.geomspace(1e-2, nyquist * 0.999, 600)
-    gain = np.abs(estimation_response(design, w / (2 * math.pi)))
+    gain = np.abs(estimation_frequency_response(design.system, np.exp(1j * w * design.Ts), False))
     above = np.nonzero(gain >= 1 / math.sqrt(2))[0]
     if above.size == 0:
         return 0.0

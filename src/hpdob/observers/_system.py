@@ -344,9 +344,9 @@ class LinearObserver:
         >>> np.abs(control.poles(ss)).round(6)   # both at exp(-100 Ts)
         array([0.904837, 0.904837])
         """
-        from ..analysis._estimation import observer_statespace
+        from ._response import statespace
 
-        return observer_statespace(self)
+        return statespace(self)
 
     @classmethod
     def from_statespace(

@@ -7,8 +7,8 @@ PD, Encoder, Actuator
     Outer-loop controller, sensor and actuator models.
 simulate, SimulationResult, SimulationDivergedWarning
     One closed-loop run (continuous plant, sampled PD, observer inner loop).
-load_scenario, scenario_toml
-    A TOML scenario file read into :func:`simulate`'s keyword arguments, and written from a
+load_scenario, Scenario, scenario_toml
+    A TOML scenario file read into a :class:`ServoLoop` and the run settings, and written from a
     loop and a run.
 sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
@@ -18,7 +18,7 @@ from ._controller import PD
 from ._devices import Actuator, Encoder
 from ._loop import ServoLoop
 from ._result import SimulationResult
-from ._scenario import load_scenario
+from ._scenario import Scenario, load_scenario
 from ._scenario_toml import scenario_toml
 from ._simulate import SimulationDivergedWarning, simulate
 from ._sweep import sweep
@@ -27,6 +27,7 @@ __all__ = [
     "PD",
     "Actuator",
     "Encoder",
+    "Scenario",
     "ServoLoop",
     "SimulationDivergedWarning",
     "SimulationResult",

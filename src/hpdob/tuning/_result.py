@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -237,8 +238,9 @@ class TuningResult:
         from .._plotting import PAPER_WIDTH
 
         fig, ax = plt.subplots(figsize=(PAPER_WIDTH, 4.2), layout="constrained")
-        markers = {"state": "o", "position": "s", "eso": "^", "kalman": "D"}
-        colors = {0: "tab:blue", 1: "tab:red", 2: "tab:green"}
+        names = list(dict.fromkeys(r["family"] for r in self.rows))  # the searched variants
+        markers = dict(zip(names, itertools.cycle("os^DvP<>X"), strict=False))
+        colors = {0: "tab:blue", 1: "tab:red", 2: "tab:green", 3: "tab:purple", 4: "tab:brown"}
         quiet = min((r["tau_noise"] for r in self.rows if r["tau_noise"] > 0), default=1e-12)
         for family, marker in markers.items():
             for m, color in colors.items():

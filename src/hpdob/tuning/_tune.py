@@ -44,18 +44,35 @@ from ..models._servo import ServoModel
 from ..simulation._controller import PD
 from ..simulation._devices import Actuator, Encoder
 from ._blas import one_blas_thread
+from ..simulation._loop import MISSING, loop_parts
 from ._result import TuningResult
 from ._runs import VerificationRuns
 
-__all__ = ["FAMILIES", "OBJECTIVES", "tune"]
+__all__ = ["OBJECTIVES", "candidate_families", "tune"]
 
-#: Families the tuner searches: name -> (spec without bandwidth, orders).
-FAMILIES = {
-    "state": ({"type": "dob", "measurement": "state"}, (0, 1, 2)),
-    "position": ({"type": "dob", "measurement": "position"}, (0, 1, 2)),
-    "eso": ({"type": "eso", "form": "current"}, (0, 1, 2)),
-    "kalman": ({"type": "kalman"}, (0, 1, 2)),
-}
+
+def candidate_families() -> dict:
+    """The families the tuner searches, by name: ``{name: (family, spec, orders)}``.
+
+    Every registered family's ``variants`` (:func:`hpdob.observers.register_family`): the
+    paper's family as ``"state"`` and ``"position"``, ``"eso"`` (current form), ``"kalman"``,
+    and any family registered since.
+
+    Returns
+    -------
+    dict
+        ``{name: (Family, spec, orders)}``: the spec without the order and the tuned
+        parameter, and the orders searched.
+    """
+    from ..observers import families
+
+    return {
+        name: (family, {"type": family.name, **spec}, family.orders)
+        for family in families()
+        for name, spec in family.variants.items()
+    }
+
+
 OBJECTIVES = ("estimation", "position")
 N_BANDWIDTHS = 24
 MIN_BANDWIDTH = 5.0  # rad/s
@@ -103,8 +120,8 @@ def _scenario(nominal, Ts, disturbance_frequency, scenario):
     """The verification run: the paper's reference and disturbance shape, with the sine at the
     disturbance frequency and the amplitudes scaled by J_n (the same disturbance acceleration
     as the paper's), unless given."""
-    from .. import paper
     from ..signals import Sine, Step
+    from ..simulation import _canonical as paper  # the paper's set-up, as data
 
     if scenario is not None:
         if not isinstance(scenario, dict):
@@ -127,31 +144,29 @@ def _scenario(nominal, Ts, disturbance_frequency, scenario):
 
 
 def _candidates(model, families, sigma, notes):
-    """``[(family, order, parameter, value, design)]`` over the bandwidth grid."""
-    from ..observers._families import design_from_spec
-    from ..observers._kalman import kalman_process_noise
+    """``[(family, order, parameter, value, design)]`` over the bandwidth grid (each family's
+    tuned parameter over the values giving those bandwidths)."""
+    from ..observers import design_from_spec, tuned_value
 
     g_max = 0.4 * math.pi / model.Ts
     bandwidths = np.geomspace(MIN_BANDWIDTH, g_max, N_BANDWIDTHS)
     out = []
-    for family in families:
-        base, orders = FAMILIES[family]
-        key = "extended_order" if family == "eso" else "order"
+    variants = candidate_families()
+    for name in families:
+        family, base, orders = variants[name]
         for m in orders:
-            spec = {**base, key: m}
-            if family == "kalman":
+            spec = dict(base) if family.order is None else {**base, family.order: m}
+            if family.noise_parameter is not None:
                 if sigma == 0.0:
-                    notes.append("kalman: left out, it needs a measurement noise (no sensor)")
+                    notes.append(f"{name}: left out, it needs a measurement noise (no sensor)")
                     break
-                spec["position_noise_std"] = sigma
-                ends = [
-                    kalman_process_noise(model, bandwidth=g, position_noise_std=sigma, order=m)
-                    for g in (bandwidths[0], min(g_max, 0.45 * math.pi / model.Ts))
-                ]
-                low, high = ends
-                grid = ("process_noise_std", np.geomspace(low, high, N_BANDWIDTHS))
-            else:
-                grid = ("bandwidth", bandwidths)
+                spec[family.noise_parameter] = sigma
+            if family.tuned_from_bandwidth is None:
+                values = bandwidths
+            else:  # the tuned parameter at the grid's two ends, log-spaced between
+                low, high = (tuned_value(model, spec, float(g)) for g in bandwidths[[0, -1]])
+                values = np.geomspace(low, high, N_BANDWIDTHS)
+            grid = (family.tuned, values)
             left_out = []
             for value in grid[1]:
                 try:
@@ -159,14 +174,16 @@ def _candidates(model, families, sigma, notes):
                 except ParameterValueError as err:  # e.g. not realisable in double precision
                     left_out.append((float(value), str(err)))
                     continue
-                out.append((family, m, grid[0], float(value), design))
+                out.append((name, m, grid[0], float(value), design))
             if left_out:
                 values = [v for v, _ in left_out]
                 first = left_out[0][1] if not out else left_out[0][1].split(":")[0]
                 notes.append(
-                    f"{family} m={m}: {len(values)} of {len(grid[1])} {grid[0]} values in "
+                    f"{name} m={m}: {len(values)} of {len(grid[1])} {grid[0]} values in "
                     f"[{min(values):.4g}, {max(values):.4g}] left out ({first})"
                 )
+            if family.order is None:
+                break
     return out
 
 
@@ -189,12 +206,14 @@ def _delay_margin(base, corners, plant, delay: int) -> int:
 
 @one_blas_thread
 def tune(
+    loop=None,
+    /,
     *,
-    nominal: ServoModel,
-    Ts: float,
-    controller: PD | None = None,
-    sensor: Encoder | None = None,
-    actuator: Actuator | None = None,
+    nominal: ServoModel = MISSING,
+    Ts: float = MISSING,
+    controller: PD | None = MISSING,
+    sensor: Encoder | None = MISSING,
+    actuator: Actuator | None = MISSING,
     J_range=(1.0, 1.0),
     b_range=None,
     disturbance_frequency=None,
@@ -209,6 +228,12 @@ def tune(
 
     Parameters
     ----------
+    loop : ServoLoop, optional
+        The loop to tune the observer of: its nominal model, ``Ts``, controller, sensor,
+        actuator and (unless ``coulomb`` is given) its plant's Coulomb friction; its observer
+        is what the search replaces. Instead of a loop, the keyword arguments ``nominal``,
+        ``Ts``, ``controller``, ``sensor`` and ``actuator`` are accepted (the loop functions'
+        one alias), with the defaults below.
     nominal : ServoModel
         The nominal model (``J_n``, ``b_n``) of controller and observer.
     Ts : float
@@ -232,8 +257,8 @@ def tune(
         (RMS of ``|1 - Q|`` over it), below the Nyquist frequency ``1/(2 Ts)``. Default: the band
         0.1-10 Hz (and 2 Hz for the verification scenario's sine).
     families : sequence of str, optional
-        Any of ``"state"``, ``"position"``, ``"eso"``, ``"kalman"`` (:data:`FAMILIES`). Default
-        all.
+        Any of ``"state"``, ``"position"``, ``"eso"``, ``"kalman"`` and the variants of any
+        family registered since (:func:`candidate_families`). Default all.
     objective : {"estimation", "position"}, optional
         What the simulations rank by: the RMS estimation error, or the RMS position error
         (the larger of the regulation and tracking windows). Default ``"estimation"``.
@@ -286,6 +311,20 @@ def tune(
     from ..simulation._loop import ServoLoop
     from ..simulation._simulate import _sample_count, sample_signals
 
+    legacy = {"nominal": nominal, "Ts": Ts, "controller": controller, "sensor": sensor,
+              "actuator": actuator}  # fmt: skip
+    parts = loop_parts(loop, legacy, "tune")
+    missing = [k for k in ("nominal", "Ts") if k not in parts]
+    if missing:
+        raise ParameterTypeError(
+            "tune() needs a ServoLoop as first argument, or the keyword arguments nominal and "
+            f"Ts (missing: {', '.join(missing)})"
+        )
+    nominal, Ts = parts["nominal"], parts["Ts"]
+    controller, sensor = parts.get("controller"), parts.get("sensor")
+    actuator = parts.get("actuator")
+    if loop is not None and coulomb is None:
+        coulomb = getattr(loop.plant, "coulomb", None)
     nominal = require_instance(nominal, ServoModel, "nominal")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
     if not 0.4 * math.pi / Ts > MIN_BANDWIDTH:  # the grid of bandwidths, 5 rad/s .. 0.4 pi/Ts
@@ -311,14 +350,15 @@ def tune(
             b_range, "b_range", "non-negative viscous frictions [N m s/rad]", allow_zero=True
         )
     frequencies = _frequencies(disturbance_frequency, Ts)
+    variants = candidate_families()
     if families is None:
-        families = tuple(FAMILIES)
+        families = tuple(variants)
     if isinstance(families, str) or not families:
         raise ParameterValueError(
-            f"families must be a non-empty sequence of {', '.join(map(repr, FAMILIES))}, got "
+            f"families must be a non-empty sequence of {', '.join(map(repr, variants))}, got "
             f"{families!r}"
         )
-    families = tuple(dict.fromkeys(check_choice(f, "families", FAMILIES) for f in families))
+    families = tuple(dict.fromkeys(check_choice(f, "families", variants) for f in families))
     objective = check_choice(objective, "objective", OBJECTIVES)
     if progress is not None and not callable(progress):
         raise ParameterTypeError(f"progress must be callable or None, got {progress!r}")
@@ -326,7 +366,7 @@ def tune(
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
     if coulomb is None:
-        from ..paper._scenario import NOMINAL, PLANT
+        from ..simulation._canonical import NOMINAL, PLANT
 
         # The paper scenario's Coulomb friction (the paper's model has viscous friction only;
         # hpdob's scenario adds it), at the same acceleration for any J_n.
