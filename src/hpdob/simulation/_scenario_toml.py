@@ -17,7 +17,7 @@ from .._signals import Sum
 from .._validation import ParameterTypeError, ParameterValueError
 from ..models._servo import ServoModel
 from ..models._two_mass import TwoMassServo
-from ..observers._families import spec_of
+from ..observers import spec_of
 from ._loop import ServoLoop
 
 __all__ = ["scenario_toml"]
