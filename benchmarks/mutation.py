@@ -169,7 +169,7 @@ def run_planted(name: str, tree: Path) -> dict:
         "bug": name,
         "where": target.path,
         "mutated": planted.mutated,
-        "tests": " ".join(chosen.tests),
+        "tests": " ".join(t for t in chosen.tests if (tree / t).is_file()),
         "outcome": "killed" if run.returncode != 0 else "survived",
         "failed": failed,
     }
