@@ -43,8 +43,8 @@ from ..analysis._linear_loop import MAX_DELAY_SAMPLES
 from ..models._servo import ServoModel
 from ..simulation._controller import PD
 from ..simulation._devices import Actuator, Encoder
-from ._blas import one_blas_thread
 from ..simulation._loop import MISSING, loop_parts
+from ._blas import one_blas_thread
 from ._result import TuningResult
 from ._runs import VerificationRuns
 
