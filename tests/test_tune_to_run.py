@@ -23,6 +23,7 @@ from hpdob import (
     tune,
 )
 from hpdob.cli import main
+from hpdob.controllers import PID, FilteredPD
 from hpdob.observers import design_eso, design_kalman
 from hpdob.signals import Sine, Step
 from hpdob.simulation import load_scenario, scenario_toml
@@ -107,6 +108,10 @@ LOOPS = {
                                                         position_noise_std=1e-4,
                                                         process_noise_std=1.0)),
     "pd-only": ServoLoop(plant=MOTOR, nominal=MOTOR, Ts=TS, controller=PD(50.0, 5.0)),
+    "pid": ServoLoop(plant=MOTOR, nominal=MOTOR, Ts=TS, controller=PID(50.0, 100.0, 5.0),
+                     observer={"type": "dob", "order": 1, "bandwidth": 100.0}),
+    "filtered-pd": ServoLoop(plant=MOTOR, nominal=MOTOR, Ts=TS,
+                             controller=FilteredPD(50.0, 5.0, time_constant=2e-3)),
 }  # fmt: skip
 
 
@@ -117,10 +122,10 @@ def test_scenario_toml_reads_back_bit_for_bit(name, tmp_path):
            "disturbance": 0.5 * Step(0.25, 0.02)}  # fmt: skip
     path = tmp_path / "s.toml"
     path.write_text(scenario_toml(loop, label=name, comment="a test\nof comments", **run))
-    kwargs = load_scenario(path)
-    assert kwargs["label"] == name
+    scenario = load_scenario(path)
+    assert scenario.run["label"] == name
     mine = simulate(loop, **run)
-    theirs = simulate(**kwargs)
+    theirs = scenario.simulate()
     np.testing.assert_array_equal(theirs.theta, mine.theta)
     np.testing.assert_array_equal(theirs.tau_hat, mine.tau_hat)
 

@@ -34,6 +34,7 @@ logger = logging.getLogger(__name__)
 SECTIONS = {
     "models": "Models and plants",
     "observers": "Observers",
+    "controllers": "Controllers",
     "simulation": "Loop and simulation",
     "robots": "Robots: N-joint arms",
     "analysis": "Analysis",

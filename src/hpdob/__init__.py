@@ -24,7 +24,10 @@ export_c
     Export a design as dependency-free C99 for a microcontroller.
 ServoLoop
     The closed loop as a value: the first argument of simulate and the analysis functions.
-PD, Encoder, Actuator, simulate, SimulationResult
+PD, PID, FilteredPD, ADRC, LinearController
+    Controllers: the controller protocol (a linear system from the reference, the
+    measurement and the observer's outputs to the torque command) and its implementations.
+Encoder, Actuator, simulate, SimulationResult
     Sampled-data closed-loop simulation (continuous plant, sampled PD, DOb inner loop).
 TwoMassServo
     Motor and load coupled by a torsional spring and damper (a resonant drive), as ``plant=``.
@@ -71,6 +74,7 @@ from .analysis import (
     observer_noise_gain,
     robust_stability_map,
 )
+from .controllers import ADRC, PD, PID, FilteredPD, LinearController
 from .export import export_c
 from .identification import (
     EstimationResult,
@@ -98,7 +102,6 @@ from .observers import (
     update,
 )
 from .simulation import (
-    PD,
     Actuator,
     Encoder,
     ServoLoop,
@@ -110,7 +113,9 @@ from .simulation import (
 from .tuning import TuningResult, tune
 
 __all__ = [
+    "ADRC",
     "PD",
+    "PID",
     "Actuator",
     "Comparison",
     "DiscreteServoModel",
@@ -118,9 +123,11 @@ __all__ = [
     "Encoder",
     "EstimationResult",
     "ExtendedStateObserver",
+    "FilteredPD",
     "GangOfFour",
     "Identification",
     "KalmanDisturbanceObserver",
+    "LinearController",
     "LinearObserver",
     "Log",
     "LoopMargins",

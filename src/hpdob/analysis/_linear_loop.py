@@ -7,13 +7,17 @@ Per sample ``k`` (the order of :func:`hpdob.simulate`, Coulomb friction and satu
     \theta_{m,k} &= \theta_k + n_{\theta,k}, \qquad
     \omega_{m,k} = \omega_k + n_{\omega,k}
     \ \ (\text{or } (\theta_{m,k} - \theta_{m,k-1})/T_s + n_{\omega,k}), \\
-    \hat\tau_k &= \hat z_{m+1,k} - L_{m+1}^T x_{m,k}, \\
-    u_k &= J_n(\ddot r_k + k_p(r_k - \theta_{m,k}) + k_d(\dot r_k - \omega_{m,k})) + \hat\tau_k, \\
-    \hat z_{k+1} &= M \hat z_k + K_x x_{m,k} + K_u u_k, \\
+    y_k &= H s_k + E [x_{m,k}], \qquad s_{k+1} = F s_k + G [x_{m,k}, u_k]
+    \quad (\text{the observer: } y = \hat\tau(, \hat\omega)), \\
+    u_k &= H_c c_k + E_c v_k, \qquad c_{k+1} = F_c c_k + G_c [v_k, u_k]
+    \quad (\text{the controller, } \bar u_k = u_k), \\
     x_{k+1} &= A x_k + B\,(u_{k-d} - \tau_{ext,k}),
 
-with ``A, B`` the exact ZOH discretisation of the *true* plant and the external torque held
-over the sample. The state is ``[theta, omega, (theta_prev), (u_delay1..d), (z1..z{m+1})]``.
+with ``A, B`` the exact ZOH discretisation of the *true* plant, the external torque held over
+the sample and :math:`v_k` the controller's inputs wired by name (reference, measurement,
+observer outputs); for the PD :math:`u_k = J_n(\ddot r_k + k_p(r_k - \theta_{m,k}) + k_d(\dot
+r_k - \omega_{m,k})) + \hat\tau_k`. The state is
+``[theta, omega, (theta_prev), (u_delay1..d), (z1..z{m+1}), (controller states)]``.
 """
 
 from __future__ import annotations
@@ -23,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._validation import ParameterValueError
+from ..controllers import LinearController
 from ..observers._system import LinearObserver
 from ..simulation._loop import ServoLoop
 
@@ -48,14 +53,10 @@ class LoopSpec:
     """
 
     plant: object
-    J_n: float
-    kp: float
-    kd: float
-    feedforward: bool
+    controller: LinearController
     system: LinearObserver | None
     backward_difference: bool
     delay: int
-    observer_velocity: bool = False
 
     @property
     def Ts(self) -> float:
@@ -78,14 +79,10 @@ def loop_spec(loop: ServoLoop) -> LoopSpec:
     sensor = loop.sensor
     return LoopSpec(
         plant=loop.plant.discretize(loop.Ts),
-        J_n=loop.nominal.J,
-        kp=loop.controller.kp,
-        kd=loop.controller.kd,
-        feedforward=loop.controller.feedforward,
+        controller=loop.controller_system,
         system=loop.system,
         backward_difference=sensor is not None and sensor.velocity == "backward-difference",
         delay=actuator.delay_samples,
-        observer_velocity=loop.controller.velocity == "observer",
     )
 
 
@@ -97,6 +94,10 @@ def state_names(spec: LoopSpec) -> list[str]:
     if spec.system is not None:
         letter = "z" if spec.system.truncation_order is not None else "s"
         names += [f"{letter}{i + 1}" for i in range(spec.system.n_states)]
+    controller = spec.controller
+    given = controller.program.state_names
+    names += [f"controller_{given[i] if i < len(given) else f'c{i + 1}'}"
+              for i in range(controller.n_states)]  # fmt: skip
     return names
 
 
@@ -116,7 +117,10 @@ def loop_matrices(spec: LoopSpec, *, broken: bool = False):
     i_delay = i_prev + int(spec.backward_difference)
     i_z = i_delay + nd
     nz = 0 if system is None else system.n_states
-    ns = i_z + nz
+    i_c = i_z + nz
+    controller = spec.controller
+    nc = controller.n_states
+    ns = i_c + nc
     inputs = [*INPUTS, "a_in"] if broken else list(INPUTS)
     nv = len(inputs)
     col = {name: ns + j for j, name in enumerate(inputs)}
@@ -138,24 +142,24 @@ def loop_matrices(spec: LoopSpec, *, broken: bool = False):
     omega_m[col["n_omega"]] += 1.0
     Y = np.vstack([theta_m, omega_m])
 
-    tau_hat = row()
-    omega_ctl = omega_m
+    # the observer's outputs, then the controller's inputs, as rows over [state, inputs]
+    signals = {"theta": theta_m, "omega": omega_m, "tau_hat": row()}
+    for name in ("r", "r_dot", "r_ddot"):
+        signals[name] = row()
+        signals[name][col[name]] = 1.0
     if system is not None:
         p = len(system.measures)
         Ym = Y[:p]
         H, E = np.asarray(system.H), np.asarray(system.E)
-        tau_hat[i_z:ns] = H[0]
-        tau_hat += E[0, :p] @ Ym
-        if spec.observer_velocity:
-            omega_ctl = row()
-            omega_ctl[i_z:ns] = H[1]
-            omega_ctl += E[1, :p] @ Ym
-    u = tau_hat.copy()
-    u[col["r"]] += spec.J_n * spec.kp
-    u[col["r_dot"]] += spec.J_n * spec.kd
-    if spec.feedforward:
-        u[col["r_ddot"]] += spec.J_n
-    u -= spec.J_n * (spec.kp * theta_m + spec.kd * omega_ctl)
+        for j, name in enumerate(system.outputs):
+            signals[name] = row()
+            signals[name][i_z:i_c] = H[j]
+            signals[name] += E[j, :p] @ Ym
+    tau_hat = signals["tau_hat"]
+    V = np.vstack([signals[name] for name in controller.inputs]) if controller.inputs else (
+        np.zeros((0, ns + nv)))  # fmt: skip
+    u = controller.E[0] @ V
+    u[i_c:ns] += controller.H[0]
     if nd == 0:
         a = u.copy()
     else:
@@ -181,8 +185,12 @@ def loop_matrices(spec: LoopSpec, *, broken: bool = False):
         nxt[i_delay + nd - 1] = u
     if system is not None:
         G = np.asarray(system.G)
-        nxt[i_z:, i_z:ns] = system.F
-        nxt[i_z:] += G[:, :p] @ Ym + np.outer(G[:, p], u)
+        nxt[i_z:i_c, i_z:i_c] = system.F
+        nxt[i_z:i_c] += G[:, :p] @ Ym + np.outer(G[:, p], u)
+    if nc:
+        pc = len(controller.inputs)
+        nxt[i_c:, i_c:ns] = controller.F
+        nxt[i_c:] += controller.G[:, :pc] @ V + np.outer(controller.G[:, pc], u)
 
     theta_row, omega_row = row(), row()
     theta_row[:nx], omega_row[:nx] = Cp[0], Cp[1]

@@ -148,14 +148,10 @@ class _Setting:
         plant = ServoModel(J_ratio * self.nominal.J, b).discretize(self.Ts)
         spec = LoopSpec(
             plant=plant,
-            J_n=self.nominal.J,
-            kp=self.controller.kp,
-            kd=self.controller.kd,
-            feedforward=self.controller.feedforward,
+            controller=self.controller.design(self.nominal, self.Ts),
             system=design.system,
             backward_difference=self.backward_difference,
             delay=self.delay,
-            observer_velocity=self.controller.velocity == "observer",
         )
         return float(np.abs(np.linalg.eigvals(loop_matrices(spec)[0])).max())
 

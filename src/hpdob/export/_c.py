@@ -19,11 +19,13 @@ import numpy as np
 from .._files import staged_outputs
 from .._validation import ParameterTypeError, ParameterValueError, check_choice
 from .._version import __version__
+from ..controllers import LinearController
 from ..observers._program import RESET_OPERANDS, render_sum
 from ..observers._system import UNITS, LinearObserver, as_system
 from ._c_fixed import design_for, render_fixed
 from ._c_guard import guard_header, guard_helpers, guarded_init, guarded_output, guarded_update
 from ._c_names import _check_directory, _check_prefix
+from ._controller_c import render_controller
 from ._fixed import FixedPointDesign
 
 __all__ = ["export_c", "render_c"]
@@ -324,7 +326,7 @@ def render_c(
 
     Parameters
     ----------
-    obs : observer-like
+    obs : observer-like or LinearController
         As for :func:`export_c`.
     prefix, dtype, nan_guard, ranges
         As for :func:`export_c`.
@@ -351,6 +353,9 @@ def render_c(
     >>> [line for line in source.splitlines() if line.startswith("#include")]   # no library
     ['#include "axis1.h"']
     """
+    if isinstance(obs, LinearController):  # a controller: ._controller_c (floating point)
+        return render_controller(obs, prefix=prefix, dtype=dtype, nan_guard=nan_guard,
+                                 literal=_literal, ranges=ranges)  # fmt: skip
     dtype = check_choice(dtype, "dtype", DTYPES)
     prefix = _check_prefix(prefix)
     guard = _check_guard(nan_guard)
@@ -401,9 +406,10 @@ def export_c(
 
     Parameters
     ----------
-    obs : DisturbanceObserver or ObserverDesign
+    obs : DisturbanceObserver or ObserverDesign or LinearController
         The observer to export; only its design is used (the C state starts from
-        ``<prefix>_init``, not from the Python object's current state).
+        ``<prefix>_init``, not from the Python object's current state). A controller
+        (:class:`~hpdob.controllers.LinearController`) gets ``_command`` and ``_update``.
     directory : str or os.PathLike
         Output directory, created if missing; existing files of the same name are replaced.
     prefix : str, optional

@@ -29,6 +29,7 @@ from .._validation import ParameterTypeError, ParameterValueError, as_int
 __all__ = [
     "DEFAULT_SUBSTEPS",
     "MAX_PLANT_STEPS",
+    "SUBSTEP_PATHS",
     "ExactSubsteps",
     "Plant",
     "PlantSession",
@@ -43,6 +44,13 @@ DEFAULT_SUBSTEPS = 8
 _COULOMB_STEP = 0.5
 #: Most plant steps (samples times sub-steps) one run may take: 1e8 steps need 0.8 GB.
 MAX_PLANT_STEPS = 100_000_000
+#: The compiled kernel's sub-step paths, by name (the index is what the kernel reads): the rigid
+#: servo's 2 states kept in registers, the two-mass drive's 4, and the generic loop over any
+#: state size. A plant names its path in :class:`ExactSubsteps`; nothing is inferred from its
+#: state size.
+SUBSTEP_PATHS = ("rigid", "two-mass", "generic")
+#: What each specialised path assumes: ``(states, shared, velocity_index)``.
+_PATH_SHAPES = {"rigid": (2, True, 1), "two-mass": (4, False, 1)}
 
 
 def coulomb_substeps(coulomb: float, velocity: float, J: float, Ts: float) -> int:
@@ -92,6 +100,16 @@ class ExactSubsteps:
         The motor's Coulomb friction level [N m] and ``tanh`` velocity scale [rad/s].
     velocity_index : int
         Index of the motor velocity in the state. Default 1.
+    path : {"rigid", "two-mass", "generic"}
+        Which compiled sub-step path advances the plant (:data:`SUBSTEP_PATHS`): the
+        specialised ones hold the state in registers and require its shape (2 states, shared
+        external torque; 4 states, external torque on the load; motor velocity at index 1),
+        ``"generic"`` (default) runs any state size.
+
+    Raises
+    ------
+    ParameterValueError
+        For an unknown ``path`` or one whose shape the matrices do not have.
     """
 
     A_h: np.ndarray
@@ -106,6 +124,24 @@ class ExactSubsteps:
     coulomb: float
     coulomb_velocity: float
     velocity_index: int = 1
+    path: str = "generic"
+
+    def __post_init__(self):
+        if self.path not in SUBSTEP_PATHS:
+            raise ParameterValueError(
+                f"path must be one of {', '.join(SUBSTEP_PATHS)}, got {self.path!r}"
+            )
+        shape = (np.shape(self.A_h)[0], bool(self.shared), int(self.velocity_index))
+        if self.path in _PATH_SHAPES and shape != _PATH_SHAPES[self.path]:
+            raise ParameterValueError(
+                f"path {self.path!r} needs (states, shared, velocity_index) = "
+                f"{_PATH_SHAPES[self.path]}, got {shape}"
+            )
+
+    @property
+    def path_index(self) -> int:
+        """The index of :attr:`path` in :data:`SUBSTEP_PATHS` (what the kernel reads)."""
+        return SUBSTEP_PATHS.index(self.path)
 
     @classmethod
     def of(cls, plant, Ts: float, substeps: int, **structure) -> ExactSubsteps:
@@ -121,7 +157,8 @@ class ExactSubsteps:
         substeps : int
             Sub-steps per sample.
         **structure
-            ``shared``, ``internal`` and ``J_motor`` (see the attributes).
+            ``shared``, ``internal``, ``J_motor`` and optionally ``path`` and
+            ``velocity_index`` (see the attributes).
 
         Returns
         -------

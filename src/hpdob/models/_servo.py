@@ -214,7 +214,7 @@ class ServoModel(Plant):
         ExactSubsteps
             The ZOH matrices over ``h = Ts/substeps`` and ``h/2``, and the friction data.
         """
-        return ExactSubsteps.of(self, Ts, substeps, shared=True,
+        return ExactSubsteps.of(self, Ts, substeps, shared=True, path="rigid",
                                 internal=np.array([0.0, self.b]), J_motor=self.J)  # fmt: skip
 
     def replace(self, **changes) -> ServoModel:

@@ -255,7 +255,7 @@ class TwoMassServo(Plant):
         ExactSubsteps
         """
         k, c = self.stiffness, self.damping
-        return ExactSubsteps.of(self, Ts, substeps, shared=False,
+        return ExactSubsteps.of(self, Ts, substeps, shared=False, path="two-mass",
                                 internal=np.array([k, c + self.b_motor, -k, -c]),
                                 J_motor=self.J_motor)  # fmt: skip
 

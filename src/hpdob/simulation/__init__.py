@@ -1,10 +1,10 @@
-"""The sampled-data loop and its simulation: controller, sensor, actuator, simulate, sweep.
+"""The sampled-data loop and its simulation: sensor, actuator, simulate, sweep.
 
 ServoLoop
     The closed loop as a value (plant, nominal model, Ts, controller, observer, sensor,
     actuator): the first argument of simulation and analysis.
-PD, Encoder, Actuator
-    Outer-loop controller, sensor and actuator models.
+Encoder, Actuator
+    Sensor and actuator models (the controllers are in :mod:`hpdob.controllers`).
 simulate, SimulationResult, SimulationDivergedWarning
     One closed-loop run (continuous plant, sampled PD, observer inner loop).
 load_scenario, Scenario, scenario_toml
@@ -14,7 +14,7 @@ sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
 """
 
-from ._controller import PD
+from ._controller import PD as PD  # the PD lives in hpdob.controllers; kept importable here
 from ._devices import Actuator, Encoder
 from ._loop import ServoLoop
 from ._result import SimulationResult
@@ -24,7 +24,6 @@ from ._simulate import SimulationDivergedWarning, simulate
 from ._sweep import sweep
 
 __all__ = [
-    "PD",
     "Actuator",
     "Encoder",
     "Scenario",

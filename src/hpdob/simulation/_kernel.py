@@ -12,10 +12,13 @@ Per sample ``k`` (``t_k = k Ts``) the loop runs, for every plant:
 2. estimate: the observer's outputs :math:`\hat\tau_k (, \hat\omega_k) = H s_k + E v_k`
    (0 without observer), from its program (:class:`hpdob.observers.Program`), in exactly the
    operation order of the Python observer and the exported C;
-3. control: :math:`u_k = J_n(\ddot r_k + k_p(r_k-\theta_{m,k}) + k_d(\dot r_k-\omega_{m,k}))
-   + \hat\tau_k` (:math:`\hat\omega_k` instead of :math:`\omega_{m,k}` if the PD uses the
-   observer's velocity), clipped to the actuator limit;
-4. observer update :math:`s_{k+1} = F s_k + G [v_k, u_k]` with the clipped :math:`u_k`;
+3. control: the controller's signal rows in order (:class:`hpdob.controllers.ControllerProgram`),
+   from its state and its inputs wired by name (reference, measurement, observer outputs); the
+   last signal is the command :math:`u_k` (the PD:
+   :math:`J_n(k_p(r_k-\theta_{m,k}) + k_d(\dot r_k-\omega_{m,k}) + \ddot r_k) + \hat\tau_k`),
+   clipped to the actuator limit;
+4. observer update :math:`s_{k+1} = F s_k + G [v_k, u_k]` and controller update
+   :math:`c_{k+1} = F_c c_k + G_c [v_k, \bar u_k]` with the clipped command;
 5. the plant receives :math:`u_{k-d}` (``d`` samples of delay; 0 before the first command);
 6. ground truth (eq. 3) just after :math:`u_{k-d}` is applied:
    :math:`\tau_{dn,k} = u_k - b_n\omega_k - J_n\ddot\theta(t_k^+)` (:func:`ground_truth`);
@@ -34,7 +37,10 @@ midpoint rule. With :math:`F(\omega, t) = c\tanh(\omega/v) + \tau_{ext}(t)` and
     x_{j+1} = A_h x_j + B_h\,(u - F(\omega_{j+1/2}, t_{j+1/2})),
 
 second order in ``h`` for smooth forcing, and exact for disturbance steps on sub-step
-boundaries (the canonical ones are at half samples, so any even ``S`` aligns them). A plant
+boundaries (the canonical ones are at half samples, so any even ``S`` aligns them). The plant's
+sampler names the path that advances it (``ExactSubsteps.path``): ``"rigid"`` and
+``"two-mass"`` hold the state in registers, ``"generic"`` loops over any state size
+(``tests/test_plant_paths.py`` checks it against the exact ZOH recurrence). A plant
 advanced from Python (MuJoCo) calls :func:`run_samples` for one sample at a time, which then
 stops after step 5 and leaves steps 6-7 to the plant
 (``hpdob.simulation._python_plant``).
@@ -54,7 +60,7 @@ import math
 import numba
 import numpy as np
 
-from ._records import SENSOR_ENCODER_EXACT, SENSOR_IDEAL
+from ._records import PATH_RIGID, PATH_TWO_MASS, SENSOR_ENCODER_EXACT, SENSOR_IDEAL
 
 __all__ = ["ground_truth", "program_row", "run_observer", "run_samples"]
 
@@ -91,18 +97,21 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
     """
     r, r_dot, r_ddot, tau_sample, tau_mid, noise = sig
     theta, omega, theta_m, omega_m, u, tau_hat, tau_dn, omega_hat, states = out
-    s, s_new, w, previous, x, x_next, applied_out = work
+    s, s_new, w, c_s, c_new, cw, sv, previous, x, x_next, applied_out = work
     up_ptr, up_c, up_i = obs.update_pointer, obs.update_coefficient, obs.update_operand
     out_ptr, out_c, out_i = obs.output_pointer, obs.output_coefficient, obs.output_operand
-    n, p = obs.n, obs.p
-    has_observer, has_velocity = obs.present, obs.q == 2
-    J_n, b_n, kp, kd = ctl.J_n, ctl.b_n, ctl.kp, ctl.kd
-    feedforward, observer_velocity = ctl.feedforward, ctl.observer_velocity
+    n, p, q = obs.n, obs.p, obs.q
+    has_observer, velocity_row = obs.present, obs.velocity_row
+    J_n, b_n = ctl.J_n, ctl.b_n
+    nc, pc, qc, source = ctl.n, ctl.p, ctl.q, ctl.source
+    sig_ptr, sig_c, sig_i = ctl.signal_pointer, ctl.signal_coefficient, ctl.signal_operand
+    cup_ptr, cup_c, cup_i = ctl.update_pointer, ctl.update_coefficient, ctl.update_operand
+    first = nc + pc + 1  # operand index of the controller's first signal
     mode, resolution = sen.mode, sen.resolution
     torque_limit, delay = act.torque_limit, act.delay
     A_h, B_h, D_h = plant.A_h, plant.B_h, plant.D_h
     A_half, B_half, D_half = plant.A_half, plant.B_half, plant.D_half
-    internal, shared, v = plant.internal, plant.shared, plant.velocity_index
+    internal, shared, v, path = plant.internal, plant.shared, plant.velocity_index, plant.path
     c, c_scale, J_motor = plant.coulomb, plant.coulomb_velocity, plant.J_motor
     nx = x.shape[0]
     record = states.shape[0] > 0
@@ -131,7 +140,6 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
         omega_m[k] = omm
         # 2. estimate: output rows of the observer's program, left to right
         est = 0.0
-        om_ctl = omm
         if has_observer:
             for i in range(n):
                 w[i] = s[i]
@@ -139,29 +147,44 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
             if p == 2:
                 w[n + 1] = omm
             est = program_row(out_ptr, out_c, out_i, w, 0)
-            if has_velocity:
-                om_hat = program_row(out_ptr, out_c, out_i, w, 1)
-                omega_hat[k] = om_hat
-                if observer_velocity:
-                    om_ctl = om_hat
+            if q > 1:
+                for j in range(1, q):
+                    sv[5 + j] = program_row(out_ptr, out_c, out_i, w, j)
+                if velocity_row > 0:
+                    omega_hat[k] = sv[5 + velocity_row]
         tau_hat[k] = est
-        # 3. control, limited
-        acc = kp * (r[k] - thm) + kd * (r_dot[k] - om_ctl)
-        if feedforward:
-            acc += r_ddot[k]
-        uk = J_n * acc + est
+        sv[0] = r[k]
+        sv[1] = r_dot[k]
+        sv[2] = r_ddot[k]
+        sv[3] = thm
+        sv[4] = omm
+        sv[5] = est
+        # 3. control: the controller's signal rows in order, the last is the command; limited
+        for i in range(nc):
+            cw[i] = c_s[i]
+        for j in range(pc):
+            cw[nc + j] = sv[source[j]]
+        for j in range(qc):
+            cw[first + j] = program_row(sig_ptr, sig_c, sig_i, cw, j)
+        uk = cw[first + qc - 1]
         if uk > torque_limit:
             uk = torque_limit
         elif uk < -torque_limit:
             uk = -torque_limit
         u[k] = uk
-        # 4. observer update with the command really given: update rows, left to right
+        # 4. observer and controller updates with the command really given, left to right
         if has_observer:
             w[n + p] = uk
             for i in range(n):
                 s_new[i] = program_row(up_ptr, up_c, up_i, w, i)
             for i in range(n):
                 s[i] = s_new[i]
+        if nc > 0:
+            cw[nc + pc] = uk
+            for i in range(nc):
+                c_new[i] = program_row(cup_ptr, cup_c, cup_i, cw, i)
+            for i in range(nc):
+                c_s[i] = c_new[i]
         # 5. actuator delay
         applied = u[k - delay] if k >= delay else 0.0
         if not plant.linear:
@@ -179,7 +202,7 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
         tau_dn[k] = ground_truth(uk, om, accel / J_motor, J_n, b_n)
         # 7. the plant over [t_k, t_{k+1}): exponential midpoint sub-steps
         base = k * substeps
-        if nx == 2 and shared:  # the rigid servo, kept in registers
+        if path == PATH_RIGID:  # the rigid servo, kept in registers
             a00, a01, a10, a11 = A_h[0, 0], A_h[0, 1], A_h[1, 0], A_h[1, 1]
             h10, h11, b0, b1, g1 = A_half[1, 0], A_half[1, 1], B_h[0], B_h[1], B_half[1]
             for j in range(substeps):
@@ -190,7 +213,7 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
                 th, om = a00 * th + a01 * om + b0 * force, a10 * th + a11 * om + b1 * force
             x[0] = th
             x[1] = om
-        elif nx == 4 and not shared and v == 1:  # the two-mass drive, kept in registers
+        elif path == PATH_TWO_MASS:  # the two-mass drive, kept in registers
             x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
             h0, h1, h2, h3 = A_half[1, 0], A_half[1, 1], A_half[1, 2], A_half[1, 3]
             gb, gd = B_half[1], D_half[1]
@@ -208,7 +231,7 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
                 x2 = y2 + B_h[2] * force - D_h[2] * tau_e
                 x3 = y3 + B_h[3] * force - D_h[3] * tau_e
             x[0], x[1], x[2], x[3] = x0, x1, x2, x3
-        else:
+        else:  # any plant (the path its sampler names)
             for j in range(substeps):
                 tau_e = tau_mid[base + j]
                 force = applied - c * math.tanh(x[v] / c_scale)

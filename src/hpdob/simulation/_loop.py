@@ -7,6 +7,7 @@ import functools
 from dataclasses import dataclass, field, fields, replace
 
 from .._validation import ParameterTypeError, ParameterValueError, positive, require_instance
+from ..controllers import LOOP_SIGNALS, Controller, LinearController, controller_system
 from ..models._lti import as_servo_model, is_lti
 from ..models._plant import Plant
 from ..models._servo import ServoModel
@@ -20,7 +21,6 @@ from ..observers import (
     spec_of,
 )
 from ..observers._system import check_designed_on
-from ._controller import PD
 from ._devices import Actuator, Encoder
 
 __all__ = ["LOOP_KEYS", "MISSING", "ServoLoop", "accepts_loop", "loop_parts", "resolve_loop"]
@@ -51,7 +51,13 @@ class ServoLoop:
         The model the controller (``J_n``) and the observer use (python-control: as ``plant``).
     Ts : float
         Sampling period [s].
-    controller : PD
+    controller : Controller or LinearController
+        :class:`~hpdob.PD`, :class:`~hpdob.PID`, :class:`~hpdob.FilteredPD`,
+        :class:`~hpdob.ADRC`, any other :class:`~hpdob.controllers.Controller` (designed on
+        ``nominal`` and ``Ts``) or a :class:`~hpdob.controllers.LinearController` at ``Ts``.
+        Its inputs are wired by name: the reference and the measurement
+        (:data:`hpdob.controllers.LOOP_SIGNALS`) and the observer's outputs (``tau_hat``, 0
+        without an observer; ``omega_hat``; any further output an observer has).
     observer : dict, design, LinearObserver or StateSpace, optional
         A spec of a registered family (``{"type": "eso", "bandwidth": 150.0}``, see
         :func:`hpdob.observers.register_family`), which the loop designs on
@@ -74,6 +80,8 @@ class ServoLoop:
     ----------
     system : LinearObserver or None
         The observer as the linear system every consumer runs.
+    controller_system : LinearController
+        The controller as the linear system every consumer runs.
     design : design, LinearObserver or None
         The observer run: the design of a spec, or the fixed design/system given.
     observer_spec : dict or None
@@ -105,11 +113,12 @@ class ServoLoop:
     plant: Plant
     nominal: ServoModel
     Ts: float
-    controller: PD
+    controller: Controller | LinearController
     observer: object = None
     sensor: Encoder | None = None
     actuator: Actuator | None = None
     system: LinearObserver | None = field(init=False, repr=False)
+    controller_system: LinearController = field(init=False, repr=False)
     design: object = field(init=False, repr=False)
     observer_spec: dict | None = field(init=False, repr=False)
     observer_state: tuple | None = field(init=False, repr=False)
@@ -129,7 +138,7 @@ class ServoLoop:
             raise ParameterTypeError(f"plant must be {_PLANTS}, got {type(self.plant).__name__}")
         require_instance(self.nominal, ServoModel, "nominal")
         Ts = positive(self.Ts, "Ts", "a positive finite sampling period [s]")
-        require_instance(self.controller, PD, "controller")
+        controller = controller_system(self.controller, self.nominal, Ts)
         require_instance(self.sensor, Encoder, "sensor", optional=True)
         actuator = require_instance(self.actuator, Actuator, "actuator", optional=True)
         observer, system, state, spec = self.observer, None, None, None
@@ -145,15 +154,11 @@ class ServoLoop:
             system = as_system(observer, "observer")
             check_designed_on(system, self.nominal, Ts)
             spec = spec if spec is not None else spec_of(observer)
-        if self.controller.velocity == "observer" and (system is None or not system.has_velocity):
-            raise ParameterValueError(
-                "controller.velocity = 'observer' needs an observer with a velocity estimate "
-                "(a position-only observer), got "
-                + ("no observer" if system is None else f"one with outputs {system.outputs}")
-            )
+        _check_wiring(self.controller, controller, system)
         object.__setattr__(self, "Ts", Ts)
         object.__setattr__(self, "actuator", actuator or Actuator())
         object.__setattr__(self, "system", system)
+        object.__setattr__(self, "controller_system", controller)
         object.__setattr__(self, "design", observer)
         object.__setattr__(self, "observer_spec", spec)
         object.__setattr__(self, "observer_state", state)
@@ -218,6 +223,31 @@ class ServoLoop:
             ``ServoLoop(**loop.keywords())`` builds an equal loop.
         """
         return {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+
+
+def controller_sources(system) -> tuple:
+    """The names a controller input may have in a loop with observer ``system`` (or None):
+    :data:`~hpdob.controllers.LOOP_SIGNALS`, then the observer's outputs (``tau_hat`` always,
+    0 without an observer)."""
+    return (*LOOP_SIGNALS, *(system.outputs if system is not None else ("tau_hat",)))
+
+
+def _check_wiring(spec, controller: LinearController, system) -> None:
+    sources = controller_sources(system)
+    for name in controller.inputs:
+        if name in sources:
+            continue
+        if name == "omega_hat" and getattr(spec, "velocity", None) == "observer":
+            raise ParameterValueError(
+                "controller.velocity = 'observer' needs an observer with a velocity estimate "
+                "(a position-only observer), got "
+                + ("no observer" if system is None else f"one with outputs {system.outputs}")
+            )
+        raise ParameterValueError(
+            f"controller input {name!r} must be a loop signal ({', '.join(LOOP_SIGNALS)}) or "
+            "an output of the observer, got "
+            + ("no observer" if system is None else f"an observer with outputs {system.outputs}")
+        )
 
 
 _MISSING = object()

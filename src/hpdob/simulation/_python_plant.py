@@ -14,14 +14,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._records import LinearPlantRecord
+from ._records import PATH_GENERIC, LinearPlantRecord
 
 __all__ = ["run_python_plant"]
 
 _EMPTY = np.zeros((1, 1))
 #: The plant record of a plant advanced from Python: the kernel stops after step 5.
 _PYTHON_PLANT = LinearPlantRecord(
-    False, 1, _EMPTY, _EMPTY[0], _EMPTY[0], _EMPTY, _EMPTY[0], _EMPTY[0], True,
+    False, PATH_GENERIC, 1, _EMPTY, _EMPTY[0], _EMPTY[0], _EMPTY, _EMPTY[0], _EMPTY[0], True,
     np.zeros(2), 1.0, 0.0, 1.0,
 )  # fmt: skip
 

@@ -13,6 +13,9 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = [
+    "PATH_GENERIC",
+    "PATH_RIGID",
+    "PATH_TWO_MASS",
     "SENSOR_ENCODER_DIFFERENCE",
     "SENSOR_ENCODER_EXACT",
     "SENSOR_IDEAL",
@@ -30,16 +33,28 @@ SENSOR_IDEAL = 0
 SENSOR_ENCODER_DIFFERENCE = 1
 SENSOR_ENCODER_EXACT = 2
 
+#: The kernel's sub-step paths (indices into ``hpdob.models._plant.SUBSTEP_PATHS``).
+PATH_RIGID = 0
+PATH_TWO_MASS = 1
+PATH_GENERIC = 2
+
 
 class ControllerRecord(NamedTuple):
-    """The PD of :class:`~hpdob.PD` with the nominal model it scales by."""
+    """A controller's program as arrays (:meth:`hpdob.controllers.ControllerProgram.arrays`),
+    the wiring of its inputs and the nominal model of the ground truth (eq. 3)."""
 
     J_n: float
     b_n: float
-    kp: float
-    kd: float
-    feedforward: bool
-    observer_velocity: bool  # the PD's derivative uses the observer's omega_hat
+    n: int  # states
+    p: int  # inputs
+    q: int  # signals (the last is the command)
+    source: np.ndarray  # input j is entry source[j] of [r, r_dot, r_ddot, theta_m, omega_m, y_obs]
+    signal_pointer: np.ndarray
+    signal_coefficient: np.ndarray
+    signal_operand: np.ndarray
+    update_pointer: np.ndarray
+    update_coefficient: np.ndarray
+    update_operand: np.ndarray
 
 
 class SensorRecord(NamedTuple):
@@ -58,7 +73,8 @@ class ObserverRecord(NamedTuple):
     present: bool
     n: int  # states
     p: int  # measured signals (1 or 2)
-    q: int  # outputs (1 or 2)
+    q: int  # outputs: tau_hat first, then others by name (wired to controller inputs)
+    velocity_row: int  # the row of omega_hat (recorded), -1 without one
     update_pointer: np.ndarray
     update_coefficient: np.ndarray
     update_operand: np.ndarray
@@ -94,6 +110,10 @@ class Work(NamedTuple):
     s: np.ndarray  # observer state s_k
     s_new: np.ndarray
     w: np.ndarray  # operands [s_k, measurement, u_k]
+    c: np.ndarray  # controller state c_k
+    c_new: np.ndarray
+    cw: np.ndarray  # controller operands [c_k, inputs, u_bar_k, signals]
+    sv: np.ndarray  # the loop's signals [r, r_dot, r_ddot, theta_m, omega_m, observer outputs]
     previous: np.ndarray  # [theta_m of the previous sample]
     x: np.ndarray  # plant state (set by the caller for a plant advanced from Python)
     x_next: np.ndarray
@@ -110,6 +130,7 @@ class LinearPlantRecord(NamedTuple):
     """
 
     linear: bool  # False: a plant advanced from Python (the other fields are unused)
+    path: int  # the sub-step path: an index into hpdob.models._plant.SUBSTEP_PATHS
     velocity_index: int  # index of the motor velocity in x
     A_h: np.ndarray
     B_h: np.ndarray

@@ -21,10 +21,10 @@ from .._validation import (
     check_keys,
 )
 from .._waveforms import Chirp, Noise, Sine
+from ..controllers import CONTROLLER_TYPES
 from ..models._servo import ServoModel
 from ..models._two_mass import TwoMassServo
 from ..observers import Observer, check_spec, design_from_spec, get_family
-from ._controller import PD
 from ._devices import Actuator, Encoder
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
@@ -107,6 +107,19 @@ def _build(cls, fields: dict, key: str, allowed=None, required=None):
         return cls(**fields)
     except (ParameterTypeError, ParameterValueError) as err:
         raise _prefixed(key, err, allowed) from None
+
+
+def _controller(table: dict):
+    """The ``[controller]`` table: ``type`` (:data:`hpdob.controllers.CONTROLLER_TYPES`,
+    default ``"pd"``) and the constructor's arguments."""
+    fields = dict(table)
+    kind = fields.pop("type", "pd")
+    if kind not in CONTROLLER_TYPES:
+        raise ParameterValueError(
+            f"controller.type must be one of {', '.join(repr(k) for k in CONTROLLER_TYPES)}; "
+            f"got {kind!r}"
+        )
+    return _build(CONTROLLER_TYPES[kind], fields, "controller")
 
 
 def _signal(spec, key: str):
@@ -201,7 +214,7 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
         kwargs["label"] = data["label"]
     kwargs["plant"] = _plant(_table(data, "plant"))
     kwargs["nominal"] = _build(ServoModel, _table(data, "nominal"), "nominal")
-    kwargs["controller"] = _build(PD, _table(data, "controller"), "controller")
+    kwargs["controller"] = _controller(_table(data, "controller"))
     kwargs["reference"] = _signal_sum(data["reference"], "reference")
     if "disturbance" in data:
         kwargs["disturbance"] = _signal_sum(data["disturbance"], "disturbance")

@@ -15,9 +15,9 @@ import numpy as np
 
 from .._signals import Sum
 from .._validation import ParameterTypeError, ParameterValueError
+from ..controllers import CONTROLLER_TYPES
 from ..models._servo import ServoModel
 from ..models._two_mass import TwoMassServo
-from ..observers import spec_of
 from ._loop import ServoLoop
 
 __all__ = ["scenario_toml"]
@@ -135,7 +135,6 @@ def scenario_toml(loop: ServoLoop, *, reference, duration: float, disturbance=No
     J = 0.00028
     ...
     [observer]
-    type = "dob"
     order = 1
     gain_direction = [1.0, 1.0]
     bandwidth = 100.0
@@ -158,9 +157,17 @@ def scenario_toml(loop: ServoLoop, *, reference, duration: float, disturbance=No
             f"got {type(loop.plant).__name__}"
         )
     lines += _table("nominal", _fields(loop.nominal))
-    lines += _table("controller", _fields(loop.controller))
+    kinds = [name for name, cls in CONTROLLER_TYPES.items() if type(loop.controller) is cls]
+    if not kinds:
+        raise ParameterTypeError(
+            "loop.controller must be one of the scenario files' controller types "
+            f"({', '.join(repr(k) for k in CONTROLLER_TYPES)}) to be written to a scenario file, "
+            f"got {type(loop.controller).__name__}"
+        )
+    kind = {} if kinds[0] == "pd" else {"type": kinds[0]}
+    lines += _table("controller", {**kind, **_fields(loop.controller)})
     if loop.observer is not None:
-        spec = spec_of(loop.observer)
+        spec = loop.observer_spec  # the spec given, or that of a design of a registered family
         if spec is None:
             raise ParameterTypeError(
                 "loop.observer must be of a known family (order-m DOb, ESO, Kalman) to be "

@@ -17,7 +17,7 @@ from .._validation import (
     positive,
 )
 from ..models._plant import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, ExactSubsteps
-from ._loop import ServoLoop, accepts_loop
+from ._loop import ServoLoop, accepts_loop, controller_sources
 from ._records import (
     SENSOR_ENCODER_DIFFERENCE,
     SENSOR_ENCODER_EXACT,
@@ -313,12 +313,26 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
 def _observer_record(system) -> ObserverRecord:
     if system is None:
         empty_i, empty_f = np.zeros(1, dtype=np.int64), np.zeros(0)
-        return ObserverRecord(False, 0, 1, 1, empty_i, empty_f, empty_i[:0], empty_i,
+        return ObserverRecord(False, 0, 1, 1, -1, empty_i, empty_f, empty_i[:0], empty_i,
                               empty_f, empty_i[:0])  # fmt: skip
     update, output, _ = system.kernel_arrays
+    outputs = system.outputs
+    velocity = outputs.index("omega_hat") if "omega_hat" in outputs else -1
     return ObserverRecord(
-        True, system.n_states, len(system.measures), len(system.outputs), *update, *output
+        True, system.n_states, len(system.measures), len(outputs), velocity, *update, *output
     )
+
+
+def _controller_record(loop) -> ControllerRecord:
+    controller = loop.controller_system
+    sources = controller_sources(loop.system)
+    signals, update, _ = controller.kernel_arrays
+    return ControllerRecord(
+        loop.nominal.J, loop.nominal.b, controller.n_states, len(controller.inputs),
+        len(controller.program.signals),
+        np.array([sources.index(name) for name in controller.inputs], dtype=np.int64),
+        *signals, *update,
+    )  # fmt: skip
 
 
 def _sensor_record(sensor, n: int) -> tuple[SensorRecord, np.ndarray]:
@@ -345,15 +359,13 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
 
     Ts, S, t = signals.Ts, signals.substeps, signals.t
     n = t.size
-    plant, controller, system = loop.plant, loop.controller, loop.system
+    plant, system = loop.plant, loop.system
     sensor, noise = _sensor_record(loop.sensor, n)
     actuator = loop.actuator
     limit = math.inf if actuator.torque_limit is None else actuator.torque_limit
+    ctl = _controller_record(loop)
     records = {
-        "ctl": ControllerRecord(
-            loop.nominal.J, loop.nominal.b, controller.kp, controller.kd,
-            controller.feedforward, controller.velocity == "observer",
-        ),
+        "ctl": ctl,
         "sen": sensor,
         "act": ActuatorRecord(limit, actuator.delay_samples),
         "obs": _observer_record(system),
@@ -368,11 +380,14 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     )
     state = observer_state if observer_state is not None else loop.initial_observer_state(x0)
     s = np.array(state if state is not None else (), dtype=float)
-    work = Work(s, s.copy(), np.zeros(s.size + 3), np.zeros(1), x, x.copy(), np.zeros(1))
+    c = np.array(loop.controller_system.python.reset(float(x0[0]), float(x0[1]), 0.0))
+    work = Work(s, s.copy(), np.zeros(s.size + 3), c, c.copy(),
+                np.zeros(ctl.n + ctl.p + 1 + ctl.q), np.zeros(5 + records["obs"].q),
+                np.zeros(1), x, x.copy(), np.zeros(1))  # fmt: skip
     sampler = plant.sampler(Ts, S)
     if isinstance(sampler, ExactSubsteps):
         record = LinearPlantRecord(
-            True, sampler.velocity_index, sampler.A_h, sampler.B_h, sampler.D_h,
+            True, sampler.path_index, sampler.velocity_index, sampler.A_h, sampler.B_h, sampler.D_h,
             sampler.A_half, sampler.B_half, sampler.D_half, sampler.shared, sampler.internal,
             sampler.J_motor, sampler.coulomb, sampler.coulomb_velocity,
         )  # fmt: skip

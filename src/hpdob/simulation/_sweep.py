@@ -8,6 +8,7 @@ only.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import sys
@@ -24,7 +25,6 @@ from .._validation import (
     require_instance,
 )
 from ..observers import check_spec, design_from_spec, get_family, spec_of
-from ._controller import PD
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import _sample_count, check_run_arguments, run_loop, sample_signals
@@ -158,11 +158,8 @@ def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoL
     if sub("nominal."):
         changes["nominal"] = loop.nominal.replace(**sub("nominal."))
     if sub("controller."):
-        ctrl = loop.controller
-        gains = {"kp": ctrl.kp, "kd": ctrl.kd, **sub("controller.")}
-        changes["controller"] = PD(
-            gains["kp"], gains["kd"], feedforward=ctrl.feedforward, velocity=ctrl.velocity
-        )
+        # any controller specification (a dataclass: PD, PID, ...), through its constructor
+        changes["controller"] = dataclasses.replace(loop.controller, **sub("controller."))
     if "Ts" in params:
         changes["Ts"] = params["Ts"]
     spec = base["observer_spec"]
@@ -414,8 +411,10 @@ def sweep(
         ``nominal.b``, ``observer.order``, ``observer.bandwidth``,
         ``observer.velocity_bandwidth``, ``observer.measurement`` (``"state"`` or
         ``"position"``; the other family's ``gain_direction`` or ``velocity_bandwidth`` is
-        dropped), ``controller.kp``, ``controller.kd``, ``Ts``, ``disturbance_scale``
-        (multiplies the disturbance).
+        dropped), ``controller.kp``, ``controller.kd``, ``controller.ki``,
+        ``controller.time_constant``, ``controller.tracking_time``, ``controller.bandwidth``,
+        ``controller.observer_bandwidth`` (the parameters of the base's controller, through
+        its constructor), ``Ts``, ``disturbance_scale`` (multiplies the disturbance).
     vary : dict, optional
         Path -> ``("uniform", low, high)``, ``("normal", mean, std)`` or
         ``("loguniform", low, high)``; ``n`` draws per grid point.

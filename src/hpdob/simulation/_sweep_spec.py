@@ -29,7 +29,8 @@ LOOP_PATHS = (
     "plant.J_motor", "plant.J_load", "plant.stiffness", "plant.damping",
     "plant.b_motor", "plant.b_load",
     "nominal.J", "nominal.b",
-    "controller.kp", "controller.kd",
+    "controller.kp", "controller.kd", "controller.ki", "controller.time_constant",
+    "controller.tracking_time", "controller.bandwidth", "controller.observer_bandwidth",
     "Ts", "disturbance_scale",
 )  # fmt: skip
 
@@ -193,6 +194,19 @@ def check_paths_apply(paths, loop, spec) -> None:
                 why = (
                     f"a {type(model).__name__} has no parameter {name!r} (it has "
                     f"{', '.join(sorted(valid))})"
+                )
+        elif kind == "controller":
+            controller = loop.controller
+            import dataclasses
+
+            valid = (
+                {f.name for f in dataclasses.fields(controller) if f.init and f.name != "_"}
+                if dataclasses.is_dataclass(controller)
+                else set()
+            )
+            if name not in valid:
+                why = f"a {type(controller).__name__} has no parameter {name!r}" + (
+                    f" (it has {', '.join(sorted(valid))})" if valid else ""
                 )
         elif kind == "observer" and spec is None:
             why = (

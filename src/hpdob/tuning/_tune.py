@@ -26,6 +26,7 @@ The search (``docs/tuning.md``):
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 
@@ -40,8 +41,8 @@ from .._validation import (
     require_instance,
 )
 from ..analysis._linear_loop import MAX_DELAY_SAMPLES
+from ..controllers import PD, Controller, controller_settings, controller_system
 from ..models._servo import ServoModel
-from ..simulation._controller import PD
 from ..simulation._devices import Actuator, Encoder
 from ..simulation._loop import MISSING, loop_parts
 from ._blas import one_blas_thread
@@ -211,7 +212,7 @@ def tune(
     *,
     nominal: ServoModel = MISSING,
     Ts: float = MISSING,
-    controller: PD | None = MISSING,
+    controller: Controller | None = MISSING,
     sensor: Encoder | None = MISSING,
     actuator: Actuator | None = MISSING,
     J_range=(1.0, 1.0),
@@ -239,10 +240,12 @@ def tune(
     Ts : float
         Sampling period [s], below 0.25 s (the bandwidths searched run from 5 rad/s to
         ``0.4 pi/Ts``).
-    controller : PD, optional
-        Outer loop; default ``PD(50, 5, velocity="observer")`` (the paper's gains). With
-        ``velocity="observer"`` the derivative uses the observer's velocity estimate where it
-        has one and the measured velocity otherwise.
+    controller : Controller, optional
+        Outer loop (:class:`~hpdob.PD`, :class:`~hpdob.PID`, :class:`~hpdob.FilteredPD`,
+        :class:`~hpdob.ADRC` or another controller of the protocol); default
+        ``PD(50, 5, velocity="observer")`` (the paper's gains). With ``velocity="observer"``
+        the derivative uses the observer's velocity estimate where it has one and the
+        measured velocity otherwise.
     sensor : Encoder, optional
         Default: the ideal state. Its quantisation (``q/sqrt(12)``) and noise set the noise
         figures; without a sensor the noise is zero and the Kalman observer is left out.
@@ -333,8 +336,8 @@ def tune(
             f"{0.4 * math.pi / MIN_BANDWIDTH:.4g} s (the bandwidths searched run from "
             f"{MIN_BANDWIDTH:g} rad/s to 0.4 pi/Ts), got {Ts!r}"
         )
-    controller = PD(50.0, 5.0, velocity="observer") if controller is None else require_instance(
-        controller, PD, "controller")  # fmt: skip
+    controller = PD(50.0, 5.0, velocity="observer") if controller is None else controller
+    controller_system(controller, nominal, Ts)  # refuses what is not a controller, named
     sensor = require_instance(sensor, Encoder, "sensor", optional=True)
     actuator = require_instance(actuator, Actuator, "actuator", optional=True) or Actuator()
     if actuator.delay_samples + 1 > MAX_DELAY_SAMPLES:
@@ -393,10 +396,9 @@ def tune(
     rows = []
     for done, (family, m, parameter, value, design) in enumerate(candidates):
         report("analysis", done, len(candidates))
-        velocity = "observer" if (controller.velocity == "observer"
-                                  and design.system.has_velocity) else "measured"  # fmt: skip
-        ctrl = PD(controller.kp, controller.kd, feedforward=controller.feedforward,
-                  velocity=velocity)  # fmt: skip
+        ctrl = controller
+        if getattr(controller, "velocity", None) == "observer" and not design.system.has_velocity:
+            ctrl = dataclasses.replace(controller, velocity="measured")
         base = ServoLoop(plant=plant(*centre), nominal=nominal, Ts=Ts, controller=ctrl,
                          observer=design, sensor=sensor, actuator=linear_actuator)  # fmt: skip
         error = np.abs(estimation_response(design, frequencies, error=True))
@@ -500,11 +502,7 @@ def tune(
         settings={
             "nominal": {"J": nominal.J, "b": nominal.b},
             "Ts": Ts,
-            "controller": {
-                "kp": controller.kp,
-                "kd": controller.kd,
-                "velocity": controller.velocity,
-            },
+            "controller": controller_settings(controller),
             "sensor_noise_std": sigma,
             "delay_samples": actuator.delay_samples,
             "torque_limit": actuator.torque_limit,

@@ -1,0 +1,39 @@
+"""Controllers: the controller protocol and its implementations.
+
+LinearController, ControllerProgram, ProgramBuilder
+    The protocol: a controller is a linear discrete-time system from its named inputs (the
+    reference, the measurement, observer outputs) to the torque command, evaluated in the
+    order of its program by Python, the compiled kernel and exported C alike.
+Controller, controller_system
+    The base of controller specifications (designed on the loop's nominal model and ``Ts``),
+    and the linear system of any controller in a loop.
+PD, FilteredPD, PID, ADRC
+    The paper's PD, PD with a filtered derivative, PID with back-calculation anti-windup,
+    and linear ADRC (state feedback on its own extended state observer).
+"""
+
+from ._adrc import ADRC
+from ._base import Controller, controller_system
+from ._pd import PD, FilteredPD
+from ._pid import PID
+from ._program import ControllerProgram
+from ._settings import controller_settings
+from ._system import LOOP_SIGNALS, LinearController, ProgramBuilder
+
+#: The controller types of scenario files (``[controller] type = "pid"``).
+CONTROLLER_TYPES = {"pd": PD, "pid": PID, "filtered-pd": FilteredPD, "adrc": ADRC}
+
+__all__ = [
+    "ADRC",
+    "CONTROLLER_TYPES",
+    "LOOP_SIGNALS",
+    "PD",
+    "PID",
+    "Controller",
+    "ControllerProgram",
+    "FilteredPD",
+    "LinearController",
+    "ProgramBuilder",
+    "controller_settings",
+    "controller_system",
+]
