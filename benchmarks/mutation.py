@@ -1,0 +1,573 @@
+"""Mutation testing of the numerical core with cosmic-ray (docs/testing.md).
+
+Run with (the ``mutation`` extra installs cosmic-ray)
+
+    python benchmarks/mutation.py --modules observers.synthesis identification.regression \
+        --sample 20 --seed 1
+    python benchmarks/mutation.py --report
+
+Each module of the numerical core is paired with the FEW test files that exercise it, so one
+mutant costs one short pytest run, not the suite. cosmic-ray mutates the source on disk; this
+script never lets it touch the checkout: the tracked and untracked-but-not-ignored files are
+copied to ``<workdir>/tree`` (default ``.mutation/``, git-ignored) at the start of every run,
+which also undoes a mutant left behind by an interrupted run. Because the mutant is written to
+the file, numba's on-disk cache sees a new source stamp and recompiles the mutated kernel; this
+is why cosmic-ray, not mutmut 3, is used (mutmut's trampolines cannot run inside numba-jitted
+functions).
+
+The full set is thousands of mutants at seconds each, so ``--sample N --seed S`` runs the first
+N mutants of a seeded random permutation of each module's mutants (a larger N with the same seed
+extends the same sample), less those inside annotations (never evaluated: every module has
+``from __future__ import annotations``, so they are equivalent by construction). One cosmic-ray
+session (config + sqlite) per module and source hash lives in ``<workdir>/sessions``; a
+changed module starts a new session, an unchanged one resumes. The jobs run one after another
+under ``nice -n 19`` (the machine is shared).
+
+``--report`` prints, and writes as JSON and Markdown to ``<workdir>/report.{json,md}``, the kill
+rate per module and every survivor with file:line, operator and the mutated line. Survivors
+classified in ``benchmarks/mutation_survivors.toml`` (equivalent, or accepted, with the reason)
+are counted apart: the target is >= 90 % of the non-equivalent mutants killed.
+``--rerun-survivors`` runs the surviving mutants again (after a test was added to kill them).
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import dataclasses
+import fcntl
+import hashlib
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
+ROOT = Path(__file__).resolve().parent.parent
+CLASSIFIED = ROOT / "benchmarks" / "mutation_survivors.toml"
+ANNOTATION = "inside an annotation, never evaluated (from __future__ import annotations)"
+PYTEST = "-m pytest -x -q -p no:cacheprovider --hypothesis-seed=0 --timeout={timeout}"
+
+
+@dataclasses.dataclass(frozen=True)
+class Target:
+    """One module of the numerical core and the fast tests that exercise it."""
+
+    path: str
+    tests: tuple[str, ...]
+    select: str = ""  # a pytest -k expression that leaves out the slow, unrelated tests
+
+
+TARGETS = {
+    "observers.synthesis": Target(
+        "src/hpdob/observers/_synthesis.py", ("tests/test_synthesis.py", "tests/test_core.py")
+    ),
+    "observers.position": Target("src/hpdob/observers/_position.py", ("tests/test_position.py",)),
+    "observers.eso": Target(
+        "src/hpdob/observers/_eso.py",
+        ("tests/test_realised_families.py", "tests/test_peers.py"),
+        "eso or ESO or Eso",
+    ),
+    "observers.kalman": Target(
+        "src/hpdob/observers/_kalman.py",
+        ("tests/test_realised_families.py", "tests/test_peers.py"),
+        "kalman or Kalman",
+    ),
+    "observers.program": Target(
+        "src/hpdob/observers/_program.py", ("tests/test_protocol.py", "tests/test_core.py")
+    ),
+    "observers.system": Target(
+        "src/hpdob/observers/_system.py", ("tests/test_protocol.py", "tests/test_core.py")
+    ),
+    "observers.core": Target(
+        "src/hpdob/observers/_core.py", ("tests/test_core.py", "tests/test_observer.py")
+    ),
+    "observers.realised": Target(
+        "src/hpdob/observers/_realised.py", ("tests/test_realised_families.py",)
+    ),
+    "models.servo": Target("src/hpdob/models/_servo.py", ("tests/test_model.py",)),
+    "models.two_mass": Target("src/hpdob/models/_two_mass.py", ("tests/test_two_mass.py",)),
+    "models.plant": Target(
+        "src/hpdob/models/_plant.py", ("tests/test_model.py", "tests/test_two_mass.py")
+    ),
+    "simulation.kernel": Target(
+        "src/hpdob/simulation/_kernel.py",
+        # the kernel has a rigid, a two-mass and a generic sub-step path: tests for each
+        # (test_plant_paths.py, from issue 20 section 4, reaches the generic one)
+        (
+            "tests/test_compiled.py",
+            "tests/test_simulate.py",
+            "tests/test_two_mass.py",
+            "tests/test_plant_paths.py",
+        ),
+    ),
+    "identification.regression": Target(
+        "src/hpdob/identification/_regression.py",
+        ("tests/test_identification.py", "tests/test_identification_defaults.py"),
+        "not example_prints and not plot_labels and not result_exports",
+    ),
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class Planted:
+    """A bug planted by hand (issue 20): one source line replaced, the tests that must fail."""
+
+    target: str  # the TARGETS entry whose tests also run
+    original: str
+    mutated: str
+    tests: tuple[str, ...]  # the tests written to catch it
+
+
+#: The two bugs that survived the whole suite when issue 20 was filed.
+PLANTED = {
+    "kernel-generic-friction-doubled": Planted(
+        "simulation.kernel",
+        "force = applied - c * math.tanh(x[v] / c_scale)",
+        "force = applied - 2.0 * c * math.tanh(x[v] / c_scale)",
+        ("tests/test_plant_paths.py",),
+    ),
+    "eso-reset-without-b_n": Planted(
+        "observers.eso",
+        "N[2, 1], N[2, 2] = -b_n / J_n, -1.0 / J_n",
+        "N[2, 1], N[2, 2] = 0.0, -1.0 / J_n",
+        ("tests/observers/test_family_invariants.py",),
+    ),
+}
+
+
+def run_planted(name: str, tree: Path) -> dict:
+    """Plant one bug in the tree, run its tests and the module's, put the source back."""
+    planted = PLANTED[name]
+    target = TARGETS[planted.target]
+    path = tree / target.path
+    source = path.read_text()
+    if source.count(planted.original) != 1:
+        return {"bug": name, "outcome": f"not applicable: the line is not once in {target.path}"}
+    # the tests written for the bug once they are in the tree, else the module's own tests
+    tests = tuple(t for t in planted.tests if (tree / t).is_file())
+    chosen = dataclasses.replace(target, tests=tests, select="") if tests else target
+    command = shlex.split(test_command(chosen, 600))
+    try:
+        path.write_text(source.replace(planted.original, planted.mutated))
+        run = subprocess.run(command, cwd=tree, env=_env(tree), capture_output=True, text=True)
+    finally:
+        path.write_text(source)
+    failed = [line for line in run.stdout.splitlines() if line.startswith("FAILED")]
+    return {
+        "bug": name,
+        "where": target.path,
+        "mutated": planted.mutated,
+        "tests": " ".join(t for t in chosen.tests if (tree / t).is_file()),
+        "outcome": "killed" if run.returncode != 0 else "survived",
+        "failed": failed,
+    }
+
+
+def _tracked_files() -> list[str]:
+    out = subprocess.run(
+        ["git", "ls-files", "-co", "--exclude-standard", "-z"],
+        cwd=ROOT, check=True, capture_output=True,
+    ).stdout  # fmt: skip
+    return [name for name in out.decode().split("\0") if name]
+
+
+def sync_tree(tree: Path) -> None:
+    """Copy the checkout's files into ``tree`` (restoring any mutated file)."""
+    for name in _tracked_files():
+        source = ROOT / name
+        if not source.is_file():
+            continue
+        target = tree / name
+        if target.is_file() and target.read_bytes() == source.read_bytes():
+            continue
+        target.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(source, target)
+
+
+def test_command(target: Target, timeout: float) -> str:
+    # tests/<subpackage>/test_<module>_mutants.py hold the tests written to kill survivors
+    stem = Path(target.path)
+    extra = f"tests/{stem.parent.name}/test_{stem.stem.lstrip('_')}_mutants.py"
+    # (a file not in this checkout yet, e.g. one another branch adds, is left out)
+    tests = [t for t in (*target.tests, extra) if (ROOT / t).is_file()]
+    command = f"{sys.executable} {PYTEST.format(timeout=int(timeout))} {' '.join(tests)}"
+    if target.select:
+        # cosmic-ray splits the command with shlex: quote the -k expression
+        command += f" -k '{target.select}'"
+    return command
+
+
+def _env(tree: Path) -> dict[str, str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = str(tree / "src")
+    return env
+
+
+def _source_hash(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:12]
+
+
+def _session_paths(workdir: Path, name: str) -> tuple[Path, Path]:
+    # the checkout's source, not the tree's: the tree holds a mutant while a job runs
+    digest = _source_hash(ROOT / TARGETS[name].path)
+    stem = f"{name}-{digest}"  # not Path.with_suffix: the name has a dot
+    return workdir / "sessions" / f"{stem}.toml", workdir / "sessions" / f"{stem}.sqlite"
+
+
+def _annotation_spans(path: Path) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """Source spans of the annotations, if the module never evaluates them.
+
+    With ``from __future__ import annotations`` an annotation is a string nobody reads at run
+    time (the dataclasses here do not), so a mutant inside one is equivalent by construction.
+    """
+    tree = ast.parse(path.read_text())
+    future = any(
+        isinstance(node, ast.ImportFrom)
+        and node.module == "__future__"
+        and any(alias.name == "annotations" for alias in node.names)
+        for node in tree.body
+    )
+    if not future:
+        return []
+    spans = []
+    for node in ast.walk(tree):
+        annotations = []
+        if isinstance(node, ast.arg | ast.AnnAssign) and node.annotation is not None:
+            annotations.append(node.annotation)
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.returns is not None:
+            annotations.append(node.returns)
+        spans += [((a.lineno, a.col_offset), (a.end_lineno, a.end_col_offset)) for a in annotations]
+    return spans
+
+
+def _in_annotation(item, spans) -> bool:
+    start = tuple(item.mutations[0].start_pos)
+    return any(first <= start < last for first, last in spans)
+
+
+def _ordered(items):
+    """Work items in a stable order (cosmic-ray's job ids are random)."""
+    return sorted(items, key=lambda w: (w.mutations[0].operator_name, w.mutations[0].occurrence))
+
+
+def prepare(
+    name: str, *, workdir: Path, tree: Path, sample: int | None, seed: int, add: bool = True
+) -> tuple:
+    """Write the config, enumerate the mutants and put the sampled ones in the session.
+
+    ``add=False`` (re-running survivors) leaves the session's mutants as they are.
+    """
+    from cosmic_ray.commands.init import init
+    from cosmic_ray.config import load_config
+    from cosmic_ray.work_db import WorkDB, use_db
+
+    target = TARGETS[name]
+    config_path, session = _session_paths(workdir, name)
+    config_path.parent.mkdir(parents=True, exist_ok=True)
+    if config_path.exists():
+        timeout = load_config(str(config_path)).timeout
+    else:
+        start = time.perf_counter()
+        baseline = subprocess.run(
+            shlex.split(test_command(target, 600)), cwd=tree, env=_env(tree),
+            capture_output=True, text=True,
+        )  # fmt: skip
+        seconds = time.perf_counter() - start
+        if baseline.returncode != 0:
+            raise SystemExit(
+                f"{name}: the unmutated tests fail, so no mutant can be judged:\n"
+                f"{baseline.stdout[-3000:]}"
+            )
+        # Generous: a mutant that makes the tests 3x slower still counts as a timeout (killed).
+        timeout = round(3.0 * seconds + 30.0)
+        print(f"{name}: baseline passed in {seconds:.1f} s, timeout {timeout} s")
+    # Rewritten each run: the test command picks up test files added since the session began.
+    config_path.write_text(
+        "[cosmic-ray]\n"
+        f'module-path = "{target.path}"\n'
+        f"timeout = {timeout}\n"
+        "excluded-modules = []\n"
+        f"test-command = {json.dumps(test_command(target, timeout))}\n"
+        "\n[cosmic-ray.distributor]\n"
+        'name = "local"\n'
+    )
+    config = load_config(str(config_path))
+    with tempfile.TemporaryDirectory() as scratch:
+        everything = Path(scratch) / "all.sqlite"
+        with use_db(str(everything), WorkDB.Mode.create) as db:
+            cwd = os.getcwd()
+            os.chdir(tree)
+            try:
+                init([Path(target.path)], db, config.operators_config)
+            finally:
+                os.chdir(cwd)
+            items = _ordered(db.work_items)
+    spans = _annotation_spans(tree / target.path)
+    annotations = sum(_in_annotation(w, spans) for w in items)
+    order = np.random.default_rng(seed).permutation(len(items))
+    # the first N of the permutation of all mutants, less those inside annotations
+    chosen = [items[i] for i in (order if sample is None else order[:sample])]
+    chosen = [w for w in chosen if not _in_annotation(w, spans)]
+    session.with_suffix(".json").write_text(
+        json.dumps(
+            {"mutants": len(items) - annotations, "in_annotations": annotations, "seed": seed}
+        )
+    )
+    with use_db(str(session), WorkDB.Mode.create) as db:
+        known = {_key(w) for w in db.work_items}
+        if add:
+            db.add_work_items([w for w in chosen if _key(w) not in known])
+        pending = db.num_work_items - db.num_results
+    print(
+        f"{name}: {len(items) - annotations} mutants (and {annotations} inside annotations), "
+        + (f"{len(chosen)} sampled (seed {seed}), {pending} to run" if add else "")
+    )
+    return config_path, session, len(items)
+
+
+def _key(item) -> tuple[str, int]:
+    mutation = item.mutations[0]
+    return (mutation.operator_name, mutation.occurrence)
+
+
+def execute(config_path: Path, session: Path, tree: Path) -> None:
+    """Run the pending mutants of one session with cosmic-ray, niced."""
+    subprocess.run(
+        ["nice", "-n", "19", str(Path(sys.executable).with_name("cosmic-ray")), "exec",
+         str(config_path), str(session)],
+        cwd=tree, env=_env(tree), check=True,
+    )  # fmt: skip
+
+
+def rerun_survivors(config_path: Path, session: Path, tree: Path, target: Target) -> None:
+    """Run the unclassified survivors of a session again (after new tests were added)."""
+    from cosmic_ray.config import load_config
+    from cosmic_ray.mutating import mutate_and_test
+    from cosmic_ray.work_db import use_db
+    from cosmic_ray.work_item import TestOutcome
+
+    config = load_config(str(config_path))
+    os.environ["PYTHONPATH"] = str(tree / "src")
+    os.chdir(tree)
+    with use_db(str(session)) as db:
+        survivors = [
+            item for item, result in db.completed_work_items
+            if result.test_outcome == TestOutcome.SURVIVED
+            and _verdict(target, item, result) is None
+        ]  # fmt: skip
+        for item in survivors:
+            result = mutate_and_test(item.mutations, config.test_command, config.timeout)
+            db.set_result(item.job_id, result)
+            print(f"  {_where(item)}: {result.test_outcome}")
+
+
+def _where(item) -> str:
+    mutation = item.mutations[0]
+    return f"{mutation.module_path}:{mutation.start_pos[0]} {mutation.operator_name}"
+
+
+def _changed_lines(diff: str) -> tuple[str, str]:
+    """The original and mutated line of a one-mutation unified diff."""
+    lines = diff.splitlines()
+    old = [line[1:] for line in lines if line.startswith("-") and not line.startswith("---")]
+    new = [line[1:] for line in lines if line.startswith("+") and not line.startswith("+++")]
+    return " / ".join(s.strip() for s in old), " / ".join(s.strip() for s in new)
+
+
+def _verdict(target: Target, item, result) -> dict | None:
+    """The hand classification of a survivor, or None."""
+    old, new = _changed_lines(result.diff or "")
+    operator = item.mutations[0].operator_name
+    for entry in _classified():
+        if (entry["path"], entry["operator"], entry["original"], entry["mutated"]) == (
+            target.path, operator, old, new,
+        ):  # fmt: skip
+            return entry
+    if _in_annotation(item, _annotation_spans(ROOT / target.path)):
+        return {"class": "equivalent", "reason": ANNOTATION}
+    return None
+
+
+def _classified() -> list[dict]:
+    if not CLASSIFIED.exists():
+        return []
+    return tomllib.loads(CLASSIFIED.read_text())["survivor"]
+
+
+def report(workdir: Path) -> dict:
+    """Kill rates per module and the survivors of the current sources' sessions."""
+    from cosmic_ray.work_db import WorkDB, use_db
+    from cosmic_ray.work_item import TestOutcome, WorkerOutcome
+
+    commit = subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True, text=True
+    ).stdout.strip()
+    modules = {}
+    for name, target in TARGETS.items():
+        _, session = _session_paths(workdir, name)
+        if not session.exists():
+            continue
+        sidecar = session.with_suffix(".json")
+        counts = dict.fromkeys(["killed", "survived", "incompetent", "timeout", "no-test"], 0)
+        survivors = []
+        with use_db(str(session), WorkDB.Mode.open) as db:
+            for item, result in _ordered_pairs(db.completed_work_items):
+                if result.worker_outcome == WorkerOutcome.NO_TEST:
+                    counts["no-test"] += 1
+                elif result.test_outcome == TestOutcome.INCOMPETENT:
+                    counts["incompetent"] += 1
+                elif result.test_outcome == TestOutcome.SURVIVED:
+                    counts["survived"] += 1
+                    old, new = _changed_lines(result.diff or "")
+                    mutation = item.mutations[0]
+                    verdict = _verdict(target, item, result)
+                    survivors.append({
+                        "where": f"{target.path}:{mutation.start_pos[0]}",
+                        "operator": mutation.operator_name,
+                        "occurrence": mutation.occurrence,
+                        "original": old,
+                        "mutated": new,
+                        "class": verdict["class"] if verdict else "unclassified",
+                        "reason": verdict["reason"] if verdict else "",
+                    })  # fmt: skip
+                elif result.output == "timeout":
+                    counts["timeout"] += 1
+                else:
+                    counts["killed"] += 1
+            total = db.num_work_items
+        judged = counts["killed"] + counts["timeout"] + counts["survived"]
+        equivalent = sum(s["class"] == "equivalent" for s in survivors)
+        killed = counts["killed"] + counts["timeout"]
+        modules[name] = {
+            "path": target.path,
+            "tests": " ".join(target.tests) + (f" -k '{target.select}'" if target.select else ""),
+            "mutants": None,
+            **(json.loads(sidecar.read_text()) if sidecar.exists() else {}),
+            "sampled": total,
+            "run": judged + counts["incompetent"] + counts["no-test"],
+            **counts,
+            "equivalent": equivalent,
+            "kill_rate": killed / judged if judged else None,
+            "kill_rate_non_equivalent": (
+                killed / (judged - equivalent) if judged - equivalent else None
+            ),
+            "survivors": survivors,
+        }
+    result = {"commit": commit, "modules": modules}
+    killed = sum(m["killed"] + m["timeout"] for m in modules.values())
+    judged = sum(m["killed"] + m["timeout"] + m["survived"] for m in modules.values())
+    equivalent = sum(m["equivalent"] for m in modules.values())
+    result["total"] = {
+        "killed": killed, "judged": judged, "equivalent": equivalent,
+        "kill_rate_non_equivalent": killed / (judged - equivalent) if judged > equivalent else None,
+    }  # fmt: skip
+    return result
+
+
+def _ordered_pairs(pairs):
+    return sorted(pairs, key=lambda p: _key(p[0]))
+
+
+def _percent(x) -> str:
+    return "-" if x is None else f"{100 * x:.0f} %"
+
+
+def markdown(result: dict) -> str:
+    lines = [
+        f"Measured on commit {result['commit']}.",
+        "",
+        "| module | mutants | run | killed (timeouts) | survived | equivalent | incompetent "
+        "| kill rate | non-equivalent killed |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for name, m in result["modules"].items():
+        lines.append(
+            f"| {name} | {m['mutants']} | {m['run']} "
+            f"| {m['killed'] + m['timeout']} ({m['timeout']}) "
+            f"| {m['survived']} | {m['equivalent']} | {m['incompetent']} "
+            f"| {_percent(m['kill_rate'])} | {_percent(m['kill_rate_non_equivalent'])} |"
+        )
+    total = result["total"]
+    lines += [
+        "",
+        f"All modules: {total['killed']} of {total['judged'] - total['equivalent']} "
+        f"non-equivalent mutants killed ({_percent(total['kill_rate_non_equivalent'])}).",
+        "",
+        "| survivor | operator | mutated line | class | reason |",
+        "|---|---|---|---|---|",
+    ]
+    for m in result["modules"].values():
+        for s in m["survivors"]:
+            mutated = s["mutated"].replace("|", "\\|")
+            lines.append(
+                f"| {s['where']} | {s['operator'].removeprefix('core/')} | `{mutated}` "
+                f"| {s['class']} | {s['reason']} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--modules", nargs="+", choices=sorted(TARGETS), default=[])
+    parser.add_argument("--sample", type=int, default=None, help="mutants per module")
+    parser.add_argument("--seed", type=int, default=1)
+    parser.add_argument("--workdir", type=Path, default=ROOT / ".mutation")
+    parser.add_argument("--report", action="store_true")
+    parser.add_argument("--rerun-survivors", action="store_true")
+    parser.add_argument("--list", action="store_true", help="print each module's test command")
+    parser.add_argument(
+        "--planted", action="store_true", help="check that the tests kill issue 20's planted bugs"
+    )
+    args = parser.parse_args(argv)
+    if args.sample is not None and args.sample < 1:
+        parser.error(f"--sample must be a positive number of mutants, got {args.sample}")
+    if args.list:
+        for name, target in TARGETS.items():
+            print(f"{name}: {target.path}\n    {test_command(target, 600)}")
+        return
+    tree = args.workdir / "tree"
+    tree.mkdir(parents=True, exist_ok=True)
+    lock = (args.workdir / "lock").open("w")
+    if args.modules or args.planted:
+        try:  # one run at a time: a second one would restore the first one's mutant
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            parser.error(f"another mutation run holds {args.workdir / 'lock'}")
+        sync_tree(tree)
+        os.nice(19)  # the machine is shared; the jobs inherit the niceness
+    for name in args.modules:
+        config_path, session, _ = prepare(
+            name, workdir=args.workdir, tree=tree, sample=args.sample, seed=args.seed,
+            add=not args.rerun_survivors,
+        )  # fmt: skip
+        if args.rerun_survivors:
+            rerun_survivors(config_path, session, tree, TARGETS[name])
+        else:
+            execute(config_path, session, tree)
+    if args.planted:
+        results = [run_planted(name, tree) for name in PLANTED]
+        (args.workdir / "planted.json").write_text(json.dumps(results, indent=2))
+        for result in results:
+            print(f"{result['bug']}: {result['outcome']} {' '.join(result.get('failed', []))}")
+    if args.report or not (args.modules or args.planted):
+        result = report(args.workdir)
+        (args.workdir / "report.json").write_text(json.dumps(result, indent=2))
+        text = markdown(result)
+        (args.workdir / "report.md").write_text(text)
+        print(text)
+
+
+if __name__ == "__main__":
+    main()

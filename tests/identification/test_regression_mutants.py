@@ -1,0 +1,31 @@
+"""IDIM-LS regression: tests that kill the mutants benchmarks/mutation.py found surviving."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hpdob import identify
+
+
+def _analytic_log(Ts: float = 1e-3):
+    """Noise-free motion of eq. (1) with J = 2, b = 3, Coulomb 1.5, offset -0.4 (SI units)."""
+    t = np.arange(20000) * Ts
+    w1, w2 = 2 * np.pi * 0.5, 2 * np.pi * 3.0
+    q = 0.3 * np.sin(w1 * t) + 0.05 * np.sin(w2 * t + 0.3)
+    qd = 0.3 * w1 * np.cos(w1 * t) + 0.05 * w2 * np.cos(w2 * t + 0.3)
+    qdd = -0.3 * w1**2 * np.sin(w1 * t) - 0.05 * w2**2 * np.sin(w2 * t + 0.3)
+    return t, q, 2.0 * qdd + 3.0 * qd + 1.5 * np.sign(qd) - 0.4
+
+
+@pytest.mark.parametrize("decimation", [4, 10])
+def test_reported_decimation_cutoff_is_that_of_scipy_decimate(decimation):
+    """The reported cut-off is scipy.signal.decimate's: 0.8 of the decimated Nyquist frequency.
+
+    Reference: scipy.signal.decimate's documentation (Chebyshev type I, order 8, cut-off
+    0.8/q of the Nyquist frequency), here 0.8 * 500 Hz / q at 1 kHz.
+    """
+    t, q, u = _analytic_log()
+    fit = identify(t, q, u, method="idim-ls", decimation=decimation, diagnostics=False)
+    assert fit.settings["decimation"] == decimation
+    assert fit.settings["decimation_cutoff"] == pytest.approx(0.8 * 500.0 / decimation)

@@ -1,0 +1,40 @@
+"""Observer programs: tests that kill the mutants benchmarks/mutation.py found surviving."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from hpdob import ServoModel, design_observer
+from hpdob.observers import Term
+
+
+def test_constant_descriptions_name_their_matrix_entries():
+    """Each named constant of the order-m program describes its own entry (comments of
+    generated C): row i of G A - M G and G B is entry i - 1 (zero-based)."""
+    model = ServoModel(2.8e-4, 5e-5).discretize(1e-3)  # the paper's nominal motor (sec. IV)
+    order = 2
+    program = design_observer(model, order=order, bandwidth=300.0).system.program
+    described = dict(program.constants)
+    for i in range(1, order + 2):
+        assert described[f"K{i}"] == f"k_{i} = L_{i}^T D_Dn"
+        assert described[f"L{i}_THETA"] == f"L_{i}, theta entry [N m/rad]"
+        assert described[f"L{i}_OMEGA"] == f"L_{i}, omega entry [N m s/rad]"
+        assert described[f"KX{i}_THETA"] == f"(G A - M G)[{i - 1}][0]"
+        assert described[f"KX{i}_OMEGA"] == f"(G A - M G)[{i - 1}][1]"
+        assert described[f"KU{i}"] == f"(G B)[{i - 1}]"
+    assert len(described) == 6 * (order + 1)
+
+
+@pytest.mark.parametrize(("part", "width"), [("update", 5), ("output", 5), ("reset", 3)])
+def test_out_of_range_operand_is_refused_with_the_valid_range(part, width):
+    """Operands index [s_0, s_1, theta, omega, u] (update, output) or [theta0, omega0, tau0]
+    (reset) for the HPDOb: one past the end is refused, naming the valid range 0..width-1."""
+    model = ServoModel(2.8e-4, 5e-5).discretize(1e-3)
+    system = design_observer(model, order=1, bandwidth=300.0).system
+    rows = list(getattr(system.program, part))
+    rows[0] = (*rows[0], Term(1.0, width))
+    program = dataclasses.replace(system.program, **{part: tuple(rows)})
+    with pytest.raises(ValueError, match=rf"program\.{part}\[0\] .* operands in 0\.\.{width - 1},"):
+        dataclasses.replace(system, program=program)
