@@ -2,7 +2,7 @@
 
 For every family (the paper's order-m DOb, its position-only form, ADRC's ESO, the Kalman
 observer) and orders 0-2, on the canonical nominal model (J_n = 2.8e-4 kg m^2, Ts = 1 ms) with
-the ranges of tests/test_export_fixed.py (16384 counts/rev, 50 rad/s, 0.5 N m, 0.5 N m):
+the ranges of tests/export/test_fixed.py (16384 counts/rev, 50 rad/s, 0.5 N m, 0.5 N m):
 
 * part 1 -- the q31 export compiled with zig cc -O2 for the Cortex-M0+ and the Cortex-M3
   (soft float): bytes of the observer's object file (.text + .rodata), the helpers it calls,

@@ -2,7 +2,7 @@
 drift on a continuously rotating axis.
 
 Part 1 (bound vs. measurement): orders 0-3, gain direction (1, 1), driven by the 10^5 random
-samples of tests/test_export_c.py (same seed) and by the canonical closed-loop runs
+samples of tests/export/test_c.py (same seed) and by the canonical closed-loop runs
 (hpdob.paper; orders 2 and 3 on the HPDOb-100 scenario): the largest float error, the
 largest bound and the largest ratio error/bound over the samples.
 
@@ -21,7 +21,7 @@ For orders 0-3 and both directions this script drives the float export and the r
 * two short runs (20 s) of the same motion started at theta = 1e6 and 1e7 rad (the state
   initialised there with <prefix>_init), standing for hours and days of rotation.
 
-The reference is the double export, which tests/test_export_c.py shows to be bit-identical to
+The reference is the double export, which tests/export/test_c.py shows to be bit-identical to
 hpdob.DisturbanceObserver (it is 300 times faster here). Also printed: the largest rounding
 bound of docs/deployment.md in each window and, for scale, the double observer's own estimation
 error |tau_hat - tau| after the first second.
@@ -86,7 +86,7 @@ def run(c: dict, design, n: int, theta0: float):
 
 
 def random_trace(n: int = 100_000):
-    rng = np.random.default_rng(20261123)  # the seed of tests/test_export_c.py
+    rng = np.random.default_rng(20261123)  # the seed of tests/export/test_c.py
     return (
         rng.normal(scale=2.0, size=n),
         rng.normal(scale=50.0, size=n),

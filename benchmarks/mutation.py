@@ -71,50 +71,57 @@ class Target:
 
 TARGETS = {
     "observers.synthesis": Target(
-        "src/hpdob/observers/_synthesis.py", ("tests/test_synthesis.py", "tests/test_core.py")
+        "src/hpdob/observers/_synthesis.py",
+        ("tests/observers/test_synthesis.py", "tests/observers/test_core.py"),
     ),
-    "observers.position": Target("src/hpdob/observers/_position.py", ("tests/test_position.py",)),
+    "observers.position": Target(
+        "src/hpdob/observers/_position.py", ("tests/observers/test_position.py",)
+    ),
     "observers.eso": Target(
         "src/hpdob/observers/_eso.py",
-        ("tests/test_realised_families.py", "tests/test_peers.py"),
+        ("tests/observers/test_realised.py", "tests/observers/test_peers.py"),
         "eso or ESO or Eso",
     ),
     "observers.kalman": Target(
         "src/hpdob/observers/_kalman.py",
-        ("tests/test_realised_families.py", "tests/test_peers.py"),
+        ("tests/observers/test_realised.py", "tests/observers/test_peers.py"),
         "kalman or Kalman",
     ),
     "observers.program": Target(
-        "src/hpdob/observers/_program.py", ("tests/test_protocol.py", "tests/test_core.py")
+        "src/hpdob/observers/_program.py",
+        ("tests/observers/test_system.py", "tests/observers/test_core.py"),
     ),
     "observers.system": Target(
-        "src/hpdob/observers/_system.py", ("tests/test_protocol.py", "tests/test_core.py")
+        "src/hpdob/observers/_system.py",
+        ("tests/observers/test_system.py", "tests/observers/test_core.py"),
     ),
     "observers.core": Target(
-        "src/hpdob/observers/_core.py", ("tests/test_core.py", "tests/test_observer.py")
+        "src/hpdob/observers/_core.py",
+        ("tests/observers/test_core.py", "tests/observers/test_runtime.py"),
     ),
     "observers.realised": Target(
-        "src/hpdob/observers/_realised.py", ("tests/test_realised_families.py",)
+        "src/hpdob/observers/_realised.py", ("tests/observers/test_realised.py",)
     ),
-    "models.servo": Target("src/hpdob/models/_servo.py", ("tests/test_model.py",)),
-    "models.two_mass": Target("src/hpdob/models/_two_mass.py", ("tests/test_two_mass.py",)),
+    "models.servo": Target("src/hpdob/models/_servo.py", ("tests/models/test_servo.py",)),
+    "models.two_mass": Target("src/hpdob/models/_two_mass.py", ("tests/models/test_two_mass.py",)),
     "models.plant": Target(
-        "src/hpdob/models/_plant.py", ("tests/test_model.py", "tests/test_two_mass.py")
+        "src/hpdob/models/_plant.py",
+        ("tests/models/test_servo.py", "tests/models/test_two_mass.py"),
     ),
     "simulation.kernel": Target(
         "src/hpdob/simulation/_kernel.py",
         # the kernel has a rigid, a two-mass and a generic sub-step path: tests for each
         # (test_plant_paths.py, from issue 20 section 4, reaches the generic one)
         (
-            "tests/test_compiled.py",
-            "tests/test_simulate.py",
-            "tests/test_two_mass.py",
-            "tests/test_plant_paths.py",
+            "tests/simulation/test_kernel.py",
+            "tests/simulation/test_simulate.py",
+            "tests/models/test_two_mass.py",
+            "tests/models/test_plant.py",
         ),
     ),
     "identification.regression": Target(
         "src/hpdob/identification/_regression.py",
-        ("tests/test_identification.py", "tests/test_identification_defaults.py"),
+        ("tests/identification/test_identify.py", "tests/identification/test_identify_defaults.py"),
         "not example_prints and not plot_labels and not result_exports",
     ),
 }
@@ -136,7 +143,7 @@ PLANTED = {
         "simulation.kernel",
         "force = applied - c * math.tanh(x[v] / c_scale)",
         "force = applied - 2.0 * c * math.tanh(x[v] / c_scale)",
-        ("tests/test_plant_paths.py",),
+        ("tests/models/test_plant.py",),
     ),
     "eso-reset-without-b_n": Planted(
         "observers.eso",

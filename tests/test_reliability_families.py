@@ -4,8 +4,8 @@
 13 escapes (tracebacks, warnings, internal errors) and 59 calls that were accepted although
 an argument was silently ignored or the result was wrong (an unstable Kalman filter, an ESO
 with its poles at 1, a sweep path that failed in every row). Each case below reproduces one;
-the realised-pole findings are in tests/test_realised_families.py, the output sets of
-``hpdob estimate``/``compare``/``tune`` in tests/test_atomic_outputs.py.
+the realised-pole findings are in tests/observers/test_realised.py, the output sets of
+``hpdob estimate``/``compare``/``tune`` in tests/cli/test_atomic_outputs.py.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@ observers by name -- with no edit under src/ (issue 20, section 1).
 
 The family: the paper's order-m DOb followed by a first-order low-pass of its estimate,
 ``tau_f[k+1] = a tau_f[k] + (1 - a) tau_hat[k]`` with ``a = exp(-filter_bandwidth Ts)``,
-built from the DOb's F, G, H, E, N by hand (as tests/test_protocol.py does for one design).
+built from the DOb's F, G, H, E, N by hand (as tests/observers/test_system.py does for one design).
 """
 
 from __future__ import annotations

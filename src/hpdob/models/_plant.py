@@ -37,7 +37,7 @@ __all__ = [
 ]
 
 #: Default plant sub-steps per sample. Doubling it changes the canonical metrics by < 0.1 %
-#: (tests/test_simulate.py::test_substep_convergence).
+#: (tests/simulation/test_simulate.py::test_substep_convergence).
 DEFAULT_SUBSTEPS = 8
 #: Largest ``h c / (v J)`` (sub-step times the stiffness of the Coulomb term
 #: ``c tanh(omega / v)``) of the default sub-step count; the midpoint rule is unstable above 2.
@@ -59,7 +59,7 @@ def coulomb_substeps(coulomb: float, velocity: float, J: float, Ts: float) -> in
 
     Near ``omega = 0`` the friction ``c tanh(omega / v)`` acts like a damper ``c / v``, which
     the explicit midpoint rule only integrates accurately for ``h c / (v J) <= 0.5``
-    (``tests/test_simulate.py::test_stiff_coulomb_friction_converges``).
+    (``tests/simulation/test_simulate.py::test_stiff_coulomb_friction_converges``).
     """
     per_sample = Ts * (coulomb / velocity / J) if coulomb > 0.0 else 0.0  # Ts * stiffness
     if not per_sample <= MAX_PLANT_STEPS:  # also inf (overflow)

@@ -194,7 +194,7 @@ def schur_stable(k: np.ndarray) -> bool:
     (an ``(m+1)``-fold pole moves by ~``eps^(1/(m+1))``), so the characteristic polynomial
     :math:`(z-1)^{m+1} + \sum_j k_j q_j(z)` is built in exact rational arithmetic and tested by
     :func:`schur_cohn_stable`. Cross-checked against ``np.roots`` in
-    ``tests/test_synthesis.py``.
+    ``tests/observers/test_synthesis.py``.
     """
     if not np.all(np.isfinite(k)):
         return False

@@ -10,13 +10,13 @@ polynomial cannot show this: their own rounding splits the cluster as much. So t
 characteristic polynomial of the rounded gains is built exactly (integers: floats are dyadic
 rationals), shifted exactly to each requested pole, and only then solved in floating point,
 where the cluster's roots are well conditioned (checked against 80-digit ``mpmath`` roots in
-``tests/test_synthesis.py``).
+``tests/observers/test_synthesis.py``).
 
 The other families use the same check on their own exact polynomial: the position-only
 family's affine formula (:func:`polynomial_from_fractions` of its ``realised_polynomial``), the
 ESO's and the Kalman observer's state matrix (:func:`matrix_characteristic_polynomial`,
 Berkowitz's division-free algorithm on the matrix's exact binary values;
-``tests/test_realised_families.py``).
+``tests/observers/test_realised.py``).
 """
 
 from __future__ import annotations
@@ -112,7 +112,7 @@ def realised_roots(k: np.ndarray, centers, multiplicities) -> list[np.ndarray]:
     and solved in double precision. A cluster of ``n`` poles split by rounding (by up to
     ``~eps^(1/n)``) is then resolved to a few ulp of its spread, where the eigenvalues of ``M``
     or ``np.roots`` of the unshifted polynomial are off by as much as the splitting itself.
-    Cross-checked against 80-digit ``mpmath.polyroots`` in ``tests/test_synthesis.py``.
+    Cross-checked against 80-digit ``mpmath.polyroots`` in ``tests/observers/test_synthesis.py``.
     """
     numbers, e = exact_characteristic_polynomial(np.asarray(k, dtype=float))
     return roots_near(numbers, e, centers, multiplicities)

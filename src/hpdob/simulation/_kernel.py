@@ -40,7 +40,7 @@ second order in ``h`` for smooth forcing, and exact for disturbance steps on sub
 boundaries (the canonical ones are at half samples, so any even ``S`` aligns them). The plant's
 sampler names the path that advances it (``ExactSubsteps.path``): ``"rigid"`` and
 ``"two-mass"`` hold the state in registers, ``"generic"`` loops over any state size
-(``tests/test_plant_paths.py`` checks it against the exact ZOH recurrence). A plant
+(``tests/models/test_plant.py`` checks it against the exact ZOH recurrence). A plant
 advanced from Python (MuJoCo) calls :func:`run_samples` for one sample at a time, which then
 stops after step 5 and leaves steps 6-7 to the plant
 (``hpdob.simulation._python_plant``).

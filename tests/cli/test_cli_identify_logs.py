@@ -7,10 +7,10 @@ import json
 
 import numpy as np
 import pytest
+from test_cli_identify import _error, run, write_csv
 
 from hpdob.identification import differentiate
 from synthetic_logs import J_TRUE, synthetic_log
-from test_cli_identify import _error, run, write_csv
 
 COLUMNS = ("--time", "t", "--position", "q", "--input", "u")
 

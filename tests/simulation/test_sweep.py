@@ -253,7 +253,7 @@ def test_an_interrupted_dask_sweep_cancels_its_tasks(cluster):
 def test_cli_sweep_example(tmp_path, capsys):
     from hpdob.cli import main
 
-    example = Path(__file__).resolve().parents[1] / "examples" / "sweep_bandwidth.toml"
+    example = Path(__file__).resolve().parents[2] / "examples" / "sweep_bandwidth.toml"
     out = tmp_path / "rows.parquet"
     assert main(["sweep", str(example), "--out", str(out), "--workers", "2"]) == 0
     assert "240 scenarios (240 stable" in capsys.readouterr().out
@@ -268,7 +268,7 @@ def test_cli_sweep_example(tmp_path, capsys):
 def test_cli_sweep_errors(tmp_path, capsys):
     from hpdob.cli import main
 
-    example = Path(__file__).resolve().parents[1] / "examples" / "sweep_bandwidth.toml"
+    example = Path(__file__).resolve().parents[2] / "examples" / "sweep_bandwidth.toml"
     assert main(["sweep", str(example), "--out", str(tmp_path / "rows.xlsx")]) == 2
     assert "--out must end in .parquet or .csv" in capsys.readouterr().err
     spec = tmp_path / "spec.toml"

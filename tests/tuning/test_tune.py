@@ -14,7 +14,7 @@ import pytest
 from hpdob import Actuator, Encoder, ServoModel, paper, tune
 from hpdob.cli import main
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
 
 @pytest.fixture(scope="module")

@@ -29,7 +29,7 @@ from hpdob import (  # noqa: E402
 )
 from hpdob.signals import SmoothStep, Step  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: Cross-validation tolerance (relative to each metric, and to each trace's peak). MuJoCo's RK4
 #: with u and tau_ext held over a step of h = Ts/8 = 125 us (the values hpdob's integrator uses)

@@ -12,7 +12,7 @@ from hpdob import ServoModel, design_observer, export_c
 from hpdob.cli import main
 from hpdob.testing import find_compiler
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DTYPES = ("double", "float")
 
 needs_cc = pytest.mark.skipif(

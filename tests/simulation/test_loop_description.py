@@ -128,7 +128,7 @@ def test_sweep_of_a_scenario_file(tmp_path):
     from hpdob import sweep
     from hpdob.simulation import load_scenario
 
-    example = Path(__file__).parent.parent / "examples" / "canonical_hpdob.toml"
+    example = Path(__file__).parents[2] / "examples" / "canonical_hpdob.toml"
     path = tmp_path / "short.toml"
     path.write_text(example.read_text().replace("duration = 10.0", "duration = 1.0"))
     scenario = load_scenario(path)

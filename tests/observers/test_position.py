@@ -546,7 +546,7 @@ def test_sweep_toml_and_cli(tmp_path, capsys):
     assert main(["design", "--measurement", "position", "--poles", "0.9,0.9"]) == 2
     assert "poles must have order + 3 = 4 entries" in capsys.readouterr().err
     # simulate: the scenario file's observer switched to position-only, the PD to omega_hat
-    toml = Path(__file__).resolve().parents[1] / "examples" / "canonical_hpdob.toml"
+    toml = Path(__file__).resolve().parents[2] / "examples" / "canonical_hpdob.toml"
     argv = ["simulate", str(toml), "--measurement", "position", "--pd-velocity", "observer"]
     assert main([*argv, "--no-plot", "--out", str(tmp_path / "sim")]) == 0
     got = json.loads((tmp_path / "sim" / "metrics.json").read_text())["HPDOb-100"]

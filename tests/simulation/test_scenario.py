@@ -20,7 +20,7 @@ from hpdob.simulation._scenario import (
     tomllib,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = sorted(  # scenario files (sweep specs, with a [sweep] table, are tested in test_sweep;
     # N-joint arm scenarios in tests/robots/test_arm_scenarios.py)
     p

@@ -39,7 +39,7 @@ from hpdob.testing import (
     sanitizer_available,
 )
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 MODEL = paper.NOMINAL.discretize(
     paper.TS
 )  # the canonical nominal model: J_n = 2.8e-4, b_n = 0, 1 ms

@@ -35,7 +35,7 @@ JM, JL = 2.8e-4, 5.6e-4  # kg m^2
 K, C = 30.0, 0.004  # N m/rad, N m s/rad
 DRIVE = TwoMassServo(JM, JL, K, C, b_motor=1e-5, b_load=2e-5)
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "examples"))
 
 
 def test_discretisation_matches_python_control():

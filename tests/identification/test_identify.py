@@ -26,7 +26,7 @@ from hpdob.identification import (
 )
 from hpdob.signals import Sine
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def shared_emps_dir() -> Path | None:

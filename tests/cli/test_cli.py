@@ -213,7 +213,7 @@ def test_help_has_a_description_and_points_to_pages_that_exist(capsys, command):
     assert not description.startswith(("positional arguments", "options")), (
         f"`hpdob {' '.join(command)} --help` has no description line"
     )
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     for page in re.findall(r"docs/[\w-]+\.md", " ".join(out.split())):
         assert (root / page).exists(), f"--help points to {page}, which does not exist"
 

@@ -41,7 +41,7 @@ from hpdob.export import render_c
 from hpdob.signals import Step
 from hpdob.testing import STRICT_FLAGS, compile_c, find_compiler
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from zoh_loop import reference_step, zoh_loop
 
 TS = 1e-3
