@@ -11,7 +11,8 @@ the Kronecker solve of :func:`scipy.linalg.solve_discrete_lyapunov` is accurate 
 (quasi-)triangular Schur form where, on the companion form, it loses up to 3 digits for
 ``m = 3`` and bandwidths below ~10 rad/s (measured against frequency-domain quadrature in
 ``tests/analysis/test_noise.py``). scipy's condition warning refers to the Kronecker matrix's
-norm-wise condition number, which is pessimistic for this triangular system and is therefore silenced.
+norm-wise condition number, which is pessimistic for this triangular system and is therefore
+silenced.
 """
 
 from __future__ import annotations
