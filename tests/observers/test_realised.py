@@ -2,8 +2,8 @@
 
 As for the state-measuring family (tests/observers/test_synthesis.py), the gains rounded to
 doubles place a repeated pole of multiplicity n on a ring of radius up to ~eps^(1/n):
-position-only designs of order m (n = m + 3) and the ESO of extended order m (n = m + 3) were accepted with poles far off
-the requested ones (position-only order 8 at 100 rad/s: |z| = 0.947 for 0.905; ESO m = 2 at
+position-only designs of order m (n = m + 3) and the ESO of extended order m (n = m + 3)
+were accepted with poles far off the requested ones (position-only order 8 at 100 rad/s: |z| = 0.947 for 0.905; ESO m = 2 at
 5 rad/s: 0.9958 for 0.9950), the ESO even when unstable (m = 4 at 5 rad/s: |z| = 1.0023), and
 the Kalman design returned wildly unstable filters when scipy's Riccati solver gave a
 non-stabilising answer for noise levels far apart (spectral radius 1.6e4 for r = 1e-9 rad,
