@@ -1,14 +1,14 @@
 """Realised poles of the position-only family, the ESO and the Kalman observer (issue 16).
 
 As for the state-measuring family (tests/observers/test_synthesis.py), the gains rounded to
-doubles place a repeated pole of multiplicity n on a ring of radius up to ~eps^(1/n):
-position-only designs of order m (n = m + 3) and the ESO of extended order m (n = m + 3)
-were accepted with poles far off the requested ones (position-only order 8 at 100 rad/s: |z| = 0.947 for 0.905; ESO m = 2 at
-5 rad/s: 0.9958 for 0.9950), the ESO even when unstable (m = 4 at 5 rad/s: |z| = 1.0023), and
-the Kalman design returned wildly unstable filters when scipy's Riccati solver gave a
-non-stabilising answer for noise levels far apart (spectral radius 1.6e4 for r = 1e-9 rad,
-q = 1e-4, order 2). Reference: eigenvalues of the rounded state matrix by mpmath at 80 digits
-(an independent solver); the exact characteristic polynomial of a matrix against the
+doubles place a repeated pole of multiplicity n on a ring of radius up to ~eps^(1/n): position-
+only designs of order m (n = m + 3) and the ESO of extended order m (n = m + 3) were accepted
+with poles far off the requested ones (position-only order 8 at 100 rad/s: |z| = 0.947 for
+0.905; ESO m = 2 at 5 rad/s: 0.9958 for 0.9950), the ESO even when unstable (m = 4 at 5 rad/s:
+|z| = 1.0023), and the Kalman design returned wildly unstable filters when scipy's Riccati
+solver gave a non-stabilising answer for noise levels far apart (spectral radius 1.6e4 for r =
+1e-9 rad, q = 1e-4, order 2). Reference: eigenvalues of the rounded state matrix by mpmath at
+80 digits (an independent solver); the exact characteristic polynomial of a matrix against the
 position-only family's own affine formula (docs/theory.md, section 9).
 """
 
