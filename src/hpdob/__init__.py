@@ -31,6 +31,8 @@ Encoder, Actuator, simulate, SimulationResult
     Sampled-data closed-loop simulation (continuous plant, sampled PD, DOb inner loop).
 TwoMassServo
     Motor and load coupled by a torsional spring and damper (a resonant drive), as ``plant=``.
+Environment
+    A unilateral spring-damper contact the axis (or the load) presses against.
 MujocoServo
     A servo (optionally with a pendulum link) simulated by MuJoCo, as ``plant=`` of
     ``simulate`` and ``sweep``; MuJoCo is imported only when a model is built.
@@ -84,7 +86,7 @@ from .identification import (
     identify,
     read_log,
 )
-from .models import DiscreteServoModel, MujocoServo, ServoModel, TwoMassServo
+from .models import DiscreteServoModel, Environment, MujocoServo, ServoModel, TwoMassServo
 from .observers import (
     DisturbanceObserver,
     ExtendedStateObserver,
@@ -121,6 +123,7 @@ __all__ = [
     "DiscreteServoModel",
     "DisturbanceObserver",
     "Encoder",
+    "Environment",
     "EstimationResult",
     "ExtendedStateObserver",
     "FilteredPD",

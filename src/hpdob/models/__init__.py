@@ -6,10 +6,13 @@ ServoModel, DiscreteServoModel
     Rigid single-axis servo (eq. 1) and its exact zero-order-hold discretisation (eqs. 4-8).
 TwoMassServo, DiscreteTwoMassServo
     Motor and load coupled by a torsional spring and damper, and its exact ZOH discretisation.
+Environment
+    A unilateral spring-damper contact the rigid servo or a two-mass load presses against.
 MujocoServo
     A servo (optionally with a pendulum link) simulated by MuJoCo, usable as ``plant=``.
 """
 
+from ._environment import Environment
 from ._mujoco import MujocoServo
 from ._plant import ExactSubsteps, Plant, PlantSession
 from ._servo import DiscreteServoModel, ServoModel
@@ -18,6 +21,7 @@ from ._two_mass import DiscreteTwoMassServo, TwoMassServo
 __all__ = [
     "DiscreteServoModel",
     "DiscreteTwoMassServo",
+    "Environment",
     "ExactSubsteps",
     "MujocoServo",
     "Plant",

@@ -102,6 +102,8 @@ class Outputs(NamedTuple):
     tau_dn: np.ndarray
     omega_hat: np.ndarray
     states: np.ndarray  # (n, nx) full plant state, or (0, nx) when not recorded
+    tau_contact: np.ndarray  # the environment's contact torque at t_k [N m] (0 without one)
+    in_contact: np.ndarray  # 1.0 where the environment pushes at t_k, else 0.0
 
 
 class Work(NamedTuple):
@@ -143,3 +145,8 @@ class LinearPlantRecord(NamedTuple):
     J_motor: float
     coulomb: float
     coulomb_velocity: float
+    contact: bool  # a unilateral environment on x[contact_index], x[contact_index + 1]
+    contact_index: int
+    contact_stiffness: float  # k_e [N m/rad]
+    contact_damping: float  # c_e [N m s/rad]
+    contact_position: float  # theta_e [rad]

@@ -357,6 +357,8 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     out = Outputs(
         *(np.zeros(n) for _ in range(8)),
         np.zeros((n if nx > 2 else 0, nx)),
+        np.zeros(n),
+        np.zeros(n),
     )
     state = observer_state if observer_state is not None else loop.initial_observer_state(x0)
     s = np.array(state if state is not None else (), dtype=float)
@@ -365,11 +367,15 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
                 np.zeros(ctl.n + ctl.p + 1 + ctl.q), np.zeros(5 + records["obs"].q),
                 np.zeros(1), x, x.copy(), np.zeros(1))  # fmt: skip
     sampler = plant.sampler(Ts, S)
+    environment = getattr(plant, "environment", None)
     if isinstance(sampler, ExactSubsteps):
+        wall = sampler.environment
         record = LinearPlantRecord(
             True, sampler.path_index, sampler.velocity_index, sampler.A_h, sampler.B_h, sampler.D_h,
             sampler.A_half, sampler.B_half, sampler.D_half, sampler.shared, sampler.internal,
-            sampler.J_motor, sampler.coulomb, sampler.coulomb_velocity,
+            sampler.J_motor, sampler.coulomb, sampler.coulomb_velocity, wall is not None,
+            sampler.contact_index, *((wall.stiffness, wall.damping, wall.position)
+                                     if wall is not None else (1.0, 0.0, 0.0)),
         )  # fmt: skip
         done = _kernel.run_samples(
             0, n, S, Ts, record, **records, out=out, work=work, limit=DIVERGENCE_LIMIT
@@ -393,6 +399,9 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     extra = {}
     if system is not None and system.has_velocity:
         extra["omega_hat"] = out.omega_hat[keep]
+    if environment is not None:
+        extra["tau_contact"] = out.tau_contact[keep]
+        extra["in_contact"] = out.in_contact[keep]
     names = plant.state_names
     for name in ("theta_load", "omega_load"):
         if name in names and out.states.shape[0]:

@@ -150,7 +150,12 @@ def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoL
     loop: ServoLoop = base["loop"]
     changes = {}
     if sub("plant."):
-        changes["plant"] = loop.plant.replace(**sub("plant."))
+        plant_changes = sub("plant.")
+        contact = {k[len("environment.") :]: plant_changes.pop(k) for k in list(plant_changes)
+                   if k.startswith("environment.")}  # fmt: skip
+        if contact:  # check_paths_apply made sure the base plant has an environment
+            plant_changes["environment"] = loop.plant.environment.replace(**contact)
+        changes["plant"] = loop.plant.replace(**plant_changes)
     if sub("nominal."):
         changes["nominal"] = loop.nominal.replace(**sub("nominal."))
     if sub("controller."):

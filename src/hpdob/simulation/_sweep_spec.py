@@ -20,6 +20,7 @@ PATHS = (
     "plant.link_mass", "plant.link_length",
     "plant.J_motor", "plant.J_load", "plant.stiffness", "plant.damping",
     "plant.b_motor", "plant.b_load",
+    "plant.environment.stiffness", "plant.environment.damping", "plant.environment.position",
     "nominal.J", "nominal.b",
     "observer.order", "observer.bandwidth", "observer.velocity_bandwidth",
     "observer.measurement",
@@ -158,7 +159,14 @@ def check_paths_apply(paths, loop, spec) -> None:
         if kind in ("plant", "nominal"):
             model = loop.plant if kind == "plant" else loop.nominal
             valid = _replaceable(model)
-            if name not in valid:
+            if name.startswith("environment."):
+                if getattr(model, "environment", None) is None:
+                    why = (
+                        f"the {kind} ({type(model).__name__}) has no environment to vary (give "
+                        f"the base plant one: environment=Environment(...) or "
+                        f"[plant.environment])"
+                    )
+            elif name not in valid:
                 why = (
                     f"a {type(model).__name__} has no parameter {name!r} (it has "
                     f"{', '.join(sorted(valid))})"
