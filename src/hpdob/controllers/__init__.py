@@ -10,17 +10,22 @@ Controller, controller_system
 PD, FilteredPD, PID, ADRC
     The paper's PD, PD with a filtered derivative, PID with back-calculation anti-windup,
     and linear ADRC (state feedback on its own extended state observer).
+ForceControl, ImpedanceControl
+    Force control without a force sensor: explicit force and impedance control on the
+    reaction-torque estimate ``tau_reac`` (issue 21).
 """
 
 from ._adrc import ADRC
 from ._base import Controller, controller_system
+from ._force import ForceControl, ImpedanceControl
 from ._pd import PD, FilteredPD
 from ._pid import PID
 from ._program import ControllerProgram
 from ._system import LOOP_SIGNALS, LinearController, ProgramBuilder
 
 #: The controller types of scenario files (``[controller] type = "pid"``).
-CONTROLLER_TYPES = {"pd": PD, "pid": PID, "filtered-pd": FilteredPD, "adrc": ADRC}
+CONTROLLER_TYPES = {"pd": PD, "pid": PID, "filtered-pd": FilteredPD, "adrc": ADRC,
+                    "force": ForceControl, "impedance": ImpedanceControl}  # fmt: skip
 
 __all__ = [
     "ADRC",
@@ -31,6 +36,8 @@ __all__ = [
     "Controller",
     "ControllerProgram",
     "FilteredPD",
+    "ForceControl",
+    "ImpedanceControl",
     "LinearController",
     "ProgramBuilder",
     "controller_system",

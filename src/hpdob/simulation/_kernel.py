@@ -115,12 +115,12 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
     """
     r, r_dot, r_ddot, tau_sample, tau_mid, noise = sig
     theta, omega, theta_m, omega_m, u, tau_hat, tau_dn, omega_hat, states = out[:9]
-    tau_contact, in_contact = out[9], out[10]
+    tau_contact, in_contact, tau_reac = out[9], out[10], out[11]
     s, s_new, w, c_s, c_new, cw, sv, previous, x, x_next, applied_out = work
     up_ptr, up_c, up_i = obs.update_pointer, obs.update_coefficient, obs.update_operand
     out_ptr, out_c, out_i = obs.output_pointer, obs.output_coefficient, obs.output_operand
     n, p, q = obs.n, obs.p, obs.q
-    has_observer, velocity_row = obs.present, obs.velocity_row
+    has_observer, velocity_row, reaction_row = obs.present, obs.velocity_row, obs.reaction_row
     J_n, b_n = ctl.J_n, ctl.b_n
     nc, pc, qc, source = ctl.n, ctl.p, ctl.q, ctl.source
     sig_ptr, sig_c, sig_i = ctl.signal_pointer, ctl.signal_coefficient, ctl.signal_operand
@@ -178,6 +178,8 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
                     sv[5 + j] = program_row(out_ptr, out_c, out_i, w, j)
                 if velocity_row > 0:
                     omega_hat[k] = sv[5 + velocity_row]
+                if reaction_row > 0:
+                    tau_reac[k] = sv[5 + reaction_row]
         tau_hat[k] = est
         sv[0] = r[k]
         sv[1] = r_dot[k]

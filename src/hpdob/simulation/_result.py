@@ -42,7 +42,7 @@ COLUMNS = {
 #: Optional columns, present when the run has them: the observer's velocity estimate and the
 #: load side of a two-mass plant, the contact torque of an environment and its in-contact flag.
 OPTIONAL_COLUMNS = {"omega_hat": "rad/s", "theta_load": "rad", "omega_load": "rad/s",
-                    "tau_contact": "N m", "in_contact": "1"}  # fmt: skip
+                    "tau_contact": "N m", "in_contact": "1", "tau_reac": "N m"}  # fmt: skip
 
 
 def json_ready(value):
@@ -116,6 +116,9 @@ class SimulationResult:
     tau_contact, in_contact : ndarray or None
         Ground truth of a plant with an :class:`~hpdob.Environment` (else None): the contact
         torque at ``t`` [N m] and 1.0 where the environment pushes at ``t`` (else 0.0).
+    tau_reac : ndarray or None
+        The observer's reaction-torque estimate [N m] (an observer with a ``tau_reac`` output,
+        :func:`hpdob.observers.reaction_torque_observer`; else None).
     Ts : float
         Sampling period [s].
     label : str
@@ -147,6 +150,7 @@ class SimulationResult:
     omega_load: np.ndarray | None = None
     tau_contact: np.ndarray | None = None
     in_contact: np.ndarray | None = None
+    tau_reac: np.ndarray | None = None
 
     def __post_init__(self):
         n = len(self.t)
@@ -232,7 +236,7 @@ class SimulationResult:
             ``path``. Columns: ``t`` [s], ``theta``, ``omega``, ``theta_measured``,
             ``omega_measured``, ``r``, ``r_dot``, ``r_ddot``, ``u``, ``tau_hat``, ``tau_dn``,
             ``tau_ext`` (SI units), then ``omega_hat``, ``theta_load``, ``omega_load``,
-            ``tau_contact``, ``in_contact`` where the run has them.
+            ``tau_contact``, ``in_contact``, ``tau_reac`` where the run has them.
         """
         return columns_to_csv(self._columns(), path)
 

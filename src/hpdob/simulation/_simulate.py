@@ -293,13 +293,21 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
 def _observer_record(system) -> ObserverRecord:
     if system is None:
         empty_i, empty_f = np.zeros(1, dtype=np.int64), np.zeros(0)
-        return ObserverRecord(False, 0, 1, 1, -1, empty_i, empty_f, empty_i[:0], empty_i,
+        return ObserverRecord(False, 0, 1, 1, -1, -1, empty_i, empty_f, empty_i[:0], empty_i,
                               empty_f, empty_i[:0])  # fmt: skip
     update, output, _ = system.kernel_arrays
     outputs = system.outputs
     velocity = outputs.index("omega_hat") if "omega_hat" in outputs else -1
+    reaction = outputs.index("tau_reac") if "tau_reac" in outputs else -1
     return ObserverRecord(
-        True, system.n_states, len(system.measures), len(outputs), velocity, *update, *output
+        True,
+        system.n_states,
+        len(system.measures),
+        len(outputs),
+        velocity,
+        reaction,
+        *update,
+        *output,
     )
 
 
@@ -359,6 +367,7 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
         np.zeros((n if nx > 2 else 0, nx)),
         np.zeros(n),
         np.zeros(n),
+        np.zeros(n),
     )
     state = observer_state if observer_state is not None else loop.initial_observer_state(x0)
     s = np.array(state if state is not None else (), dtype=float)
@@ -399,6 +408,8 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     extra = {}
     if system is not None and system.has_velocity:
         extra["omega_hat"] = out.omega_hat[keep]
+    if system is not None and "tau_reac" in system.outputs:
+        extra["tau_reac"] = out.tau_reac[keep]
     if environment is not None:
         extra["tau_contact"] = out.tau_contact[keep]
         extra["in_contact"] = out.in_contact[keep]
