@@ -54,8 +54,10 @@ def main() -> None:
     result = simulate(loop(k_e, controller), duration=60.0, x0=(-0.01, 0.0),
                       reference=lambda t: (np.full_like(t, r), 0 * t, 0 * t))  # fmt: skip
     target = K_d * r / (K_d + k_e)
-    print(f"impedance on the soft wall: theta/target = {result.theta[-1] / target:.6f} "
-          f"(target {target:g} rad, reached {result.theta[-1]:.6f} rad after 60 s)")
+    print(
+        f"impedance on the soft wall: theta/target = {result.theta[-1] / target:.6f} "
+        f"(target {target:g} rad, reached {result.theta[-1]:.6f} rad after 60 s)"
+    )
 
 
 if __name__ == "__main__":

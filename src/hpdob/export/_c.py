@@ -169,6 +169,8 @@ def _header(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
     ]
     if system.has_velocity:
         steps.insert(2, (f"omega_hat = {prefix}_velocity(&s, {args});", "velocity [rad/s]"))
+    if "tau_reac" in system.outputs:
+        steps.insert(2, (f"tau_reac = {prefix}_reaction(&s, {args});", "reaction torque [N m]"))
     step_width = max(len(code) for code, _ in steps) + 2
     loop = "\n".join(f" *   {code:<{step_width}}{note}" for code, note in steps)
     order = ""
@@ -185,6 +187,13 @@ def _header(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
         velocity_decl = (
             f"\n/** Velocity estimate omega_hat_k [rad/s] from the measured {meas_doc}. */\n"
             f"{dtype} {prefix}_velocity({const}{prefix}_state *s, "
+            f"{_signature(system, dtype, with_u=False)});\n"
+        )
+    if "tau_reac" in system.outputs:
+        velocity_decl += (
+            f"\n/** Reaction-torque estimate tau_reac_k [N m] (the RTOB's disturbance estimate "
+            f"minus\n *  the friction model) from the measured {meas_doc}. */\n"
+            f"{dtype} {prefix}_reaction({const}{prefix}_state *s, "
             f"{_signature(system, dtype, with_u=False)});\n"
         )
     guard_fields = guard_doc = guard_define = ""
@@ -309,6 +318,13 @@ def _source(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
 {dtype} {prefix}_velocity({const}{prefix}_state *s, {_signature(system, dtype, with_u=False)})
 {{
 {output_body(1)}
+}}
+"""
+    if "tau_reac" in system.outputs:
+        velocity += f"""
+{dtype} {prefix}_reaction({const}{prefix}_state *s, {_signature(system, dtype, with_u=False)})
+{{
+{output_body(system.outputs.index("tau_reac"))}
 }}
 """
     helpers = guard_helpers(prefix, dtype, n) if guard else ""
