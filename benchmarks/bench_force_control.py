@@ -59,10 +59,15 @@ def main() -> None:
         f"(target {target:g} rad, reached {result.theta[-1]:.6f} rad after 60 s)"
     )
 
-    print("tracking tau_ref = 0.05 + 0.02 sin(2 pi 2 t) N m on the stiff wall, RMS over 1-3 s "
-          "(RTOB = the DOb, equal bandwidth 100 rad/s):")
-    print(f"{'observer':>10}{'RMS tau_reac - tau_env [N m]':>30}{'RMS tau_env - tau_ref [N m]':>30}")
+    print(
+        "tracking tau_ref = 0.05 + 0.02 sin(2 pi 2 t) N m on the stiff wall, RMS over 1-3 s "
+        "(RTOB = the DOb, equal bandwidth 100 rad/s):"
+    )
+    print(
+        f"{'observer':>10}{'RMS tau_reac - tau_env [N m]':>30}{'RMS tau_env - tau_ref [N m]':>30}"
+    )
     for name, order in (("DOb", 0), ("HPDOb", 1)):
+
         def reference(t):
             on = t >= 0.1
             return np.where(on, TAU_REF + 0.02 * np.sin(2 * np.pi * 2 * t), 0.0), 0 * t, 0 * t
