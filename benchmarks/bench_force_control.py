@@ -21,7 +21,6 @@ import numpy as np
 from hpdob import Environment, ServoLoop, design_observer, paper, simulate
 from hpdob.controllers import ForceControl, ImpedanceControl
 from hpdob.observers import reaction_torque_observer
-from hpdob.paper._scenario import VIRTUAL_ACTUATOR, VIRTUAL_SENSOR
 
 TAU_REF = 0.05
 
@@ -32,8 +31,8 @@ def loop(k_e, controller, order=1, bandwidth=100.0):
     observer = reaction_torque_observer(dob, viscous=paper.PLANT.b - paper.NOMINAL.b)
     return ServoLoop(plant=paper.PLANT.replace(environment=Environment(k_e)),
                      nominal=paper.NOMINAL, Ts=paper.TS, observer=observer,
-                     controller=controller, sensor=VIRTUAL_SENSOR,
-                     actuator=VIRTUAL_ACTUATOR)  # fmt: skip
+                     controller=controller, sensor=paper.VIRTUAL_SENSOR,
+                     actuator=paper.VIRTUAL_ACTUATOR)  # fmt: skip
 
 
 def main() -> None:

@@ -8,10 +8,13 @@ TwoMassServo, DiscreteTwoMassServo
     Motor and load coupled by a torsional spring and damper, and its exact ZOH discretisation.
 Environment
     A unilateral spring-damper contact the rigid servo or a two-mass load presses against.
+InContact
+    A plant bonded to its environment: the linear model of the loop in contact.
 MujocoServo
     A servo (optionally with a pendulum link) simulated by MuJoCo, usable as ``plant=``.
 """
 
+from ._contact import InContact
 from ._environment import Environment
 from ._mujoco import MujocoServo
 from ._plant import ExactSubsteps, Plant, PlantSession
@@ -23,6 +26,7 @@ __all__ = [
     "DiscreteTwoMassServo",
     "Environment",
     "ExactSubsteps",
+    "InContact",
     "MujocoServo",
     "Plant",
     "PlantSession",
