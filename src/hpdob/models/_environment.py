@@ -52,7 +52,7 @@ class Environment:
     --------
     >>> from hpdob import Environment
     >>> wall = Environment(10.0, position=0.1)
-    >>> float(wall.torque(0.105, 0.0)), float(wall.torque(0.09, 1.0))
+    >>> round(float(wall.torque(0.105, 0.0)), 12), float(wall.torque(0.09, 1.0))
     (0.05, 0.0)
     """
 
