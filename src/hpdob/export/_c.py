@@ -24,6 +24,8 @@ from ..controllers import LinearController
 from ..observers._program import RESET_OPERANDS, render_sum
 from ..observers._system import UNITS, LinearObserver, as_system
 from ._c_guard import guard_header, guard_helpers, guarded_init, guarded_output, guarded_update
+from ._c_outputs import reaction_declaration, reaction_definition, reaction_steps
+from ._c_outputs import signature as _signature
 from ._controller_c import render_controller
 
 __all__ = ["export_c", "render_c"]
@@ -125,13 +127,6 @@ def _unused(names: list[str], body: str) -> list[str]:
     return [f"    (void){n};" for n in names if not re.search(rf"\b{n}\b", body)]
 
 
-def _signature(system: LinearObserver, dtype: str, *, with_u: bool) -> str:
-    names = [f"{dtype} {m}" for m in system.measures]
-    if with_u:
-        names.append(f"{dtype} u")
-    return ", ".join(names)
-
-
 def _paper_form(system: LinearObserver) -> bool:
     """Whether ``system`` is the paper's auxiliary-variable observer (order m, measuring the
     state): the comments then cite its equations."""
@@ -169,8 +164,7 @@ def _header(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
     ]
     if system.has_velocity:
         steps.insert(2, (f"omega_hat = {prefix}_velocity(&s, {args});", "velocity [rad/s]"))
-    if "tau_reac" in system.outputs:
-        steps.insert(2, (f"tau_reac = {prefix}_reaction(&s, {args});", "reaction torque [N m]"))
+    steps[2:2] = reaction_steps(system, prefix, args)
     step_width = max(len(code) for code, _ in steps) + 2
     loop = "\n".join(f" *   {code:<{step_width}}{note}" for code, note in steps)
     order = ""
@@ -189,13 +183,7 @@ def _header(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
             f"{dtype} {prefix}_velocity({const}{prefix}_state *s, "
             f"{_signature(system, dtype, with_u=False)});\n"
         )
-    if "tau_reac" in system.outputs:
-        velocity_decl += (
-            f"\n/** Reaction-torque estimate tau_reac_k [N m] (the RTOB's disturbance estimate "
-            f"minus\n *  the friction model) from the measured {meas_doc}. */\n"
-            f"{dtype} {prefix}_reaction({const}{prefix}_state *s, "
-            f"{_signature(system, dtype, with_u=False)});\n"
-        )
+    velocity_decl += reaction_declaration(system, prefix, dtype, const, meas_doc)
     guard_fields = guard_doc = guard_define = ""
     if guard:
         guard_fields, guard_doc, guard_define = guard_header(prefix, dtype, len(system.outputs))
@@ -320,13 +308,7 @@ def _source(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
 {output_body(1)}
 }}
 """
-    if "tau_reac" in system.outputs:
-        velocity += f"""
-{dtype} {prefix}_reaction({const}{prefix}_state *s, {_signature(system, dtype, with_u=False)})
-{{
-{output_body(system.outputs.index("tau_reac"))}
-}}
-"""
+    velocity += reaction_definition(system, prefix, dtype, const, output_body)
     helpers = guard_helpers(prefix, dtype, n) if guard else ""
     constants = "\n".join(_constants(system, dtype, init + est + upd + velocity))
     recursion = (
