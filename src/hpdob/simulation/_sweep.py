@@ -28,7 +28,7 @@ from ..observers._families import check_spec, design_from_spec, spec_of
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import _sample_count, check_run_arguments, run_loop, sample_signals
-from ._sweep_spec import check_paths_apply, expand_scenarios
+from ._sweep_spec import check_paths_apply, expand_scenarios, replaced_plant
 
 __all__ = ["sweep"]
 
@@ -150,12 +150,7 @@ def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoL
     loop: ServoLoop = base["loop"]
     changes = {}
     if sub("plant."):
-        plant_changes = sub("plant.")
-        contact = {k[len("environment.") :]: plant_changes.pop(k) for k in list(plant_changes)
-                   if k.startswith("environment.")}  # fmt: skip
-        if contact:  # check_paths_apply made sure the base plant has an environment
-            plant_changes["environment"] = loop.plant.environment.replace(**contact)
-        changes["plant"] = loop.plant.replace(**plant_changes)
+        changes["plant"] = replaced_plant(loop.plant, sub("plant."))
     if sub("nominal."):
         changes["nominal"] = loop.nominal.replace(**sub("nominal."))
     if sub("controller."):

@@ -9,7 +9,14 @@ import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, as_int, as_real, check_choice
 
-__all__ = ["DISTRIBUTIONS", "MAX_SCENARIOS", "PATHS", "check_paths_apply", "expand_scenarios"]
+__all__ = [
+    "DISTRIBUTIONS",
+    "MAX_SCENARIOS",
+    "PATHS",
+    "check_paths_apply",
+    "expand_scenarios",
+    "replaced_plant",
+]
 
 #: Most scenarios one sweep may expand to (rows and draws are held in memory): checked up front.
 MAX_SCENARIOS = 1_000_000
@@ -132,6 +139,17 @@ def expand_scenarios(grid=None, vary=None, n=None, seed=0) -> list[dict]:
         for i in range(n or 1):
             scenarios.append({**fixed, **{path: float(v[i]) for path, v in draws.items()}})
     return scenarios
+
+
+def replaced_plant(plant, changes: dict):
+    """``plant.replace(**changes)``, with ``environment.*`` keys applied to its environment
+    (:func:`check_paths_apply` made sure the base plant has one)."""
+    changes = dict(changes)
+    contact = {key[len("environment.") :]: changes.pop(key) for key in list(changes)
+               if key.startswith("environment.")}  # fmt: skip
+    if contact:
+        changes["environment"] = plant.environment.replace(**contact)
+    return plant.replace(**changes)
 
 
 def _replaceable(model) -> set:
