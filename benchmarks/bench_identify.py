@@ -1,4 +1,4 @@
-"""Cost of identifying the EMPS measured run (24 841 samples at 1 kHz) with IDIM-LS and IDIM-IV.
+"""Cost of identifying the EMPS measured run (24 841 samples at 1 kHz): IDIM-LS, IDIM-IV, defaults.
 
 Run with
 
@@ -25,21 +25,27 @@ def main() -> None:
     log = emps()
     loop = emps_loop(log)
     start = time.perf_counter()
-    iv = identify(log.t, log.theta, log.u, method="idim-iv", loop=loop)
+    iv = identify(log, method="idim-iv", loop=loop, diagnostics=False)
     print(f"first IDIM-IV call (imports, numba compile or cache load): "
           f"{time.perf_counter() - start:.2f} s")  # fmt: skip
+    auto = identify(log)
     cases = {
-        "IDIM-LS": lambda: identify(log.t, log.theta, log.u),
+        "IDIM-LS": lambda: identify(log, method="idim-ls", diagnostics=False),
         f"IDIM-IV ({iv.iterations} iterations)": lambda: identify(
-            log.t, log.theta, log.u, method="idim-iv", loop=loop
+            log, method="idim-iv", loop=loop, diagnostics=False
         ),
+        f"defaults, no diagnostics ({auto.iterations} it.)": lambda: identify(
+            log, diagnostics=False
+        ),
+        "defaults (with diagnostics)": lambda: identify(log),
+        "defaults with the EMPS loop": lambda: identify(log, loop=loop),
         "one loop simulation": lambda: simulate_loop(
             loop, (95.1, 203.5, 20.4, -3.16), Ts=log.Ts, theta0=log.theta[0]
         ),
     }
     for name, call in cases.items():
         best = min(timeit.repeat(call, number=1, repeat=7))
-        print(f"{name:<28}{1e3 * best:8.2f} ms")
+        print(f"{name:<36}{1e3 * best:8.2f} ms")
 
 
 if __name__ == "__main__":

@@ -101,7 +101,12 @@ sphinx_gallery_conf = {
 html_theme = "pydata_sphinx_theme"
 html_title = f"hpdob {release}"
 html_show_sourcelink = False
-html_static_path: list[str] = []
+html_static_path = ["_static"]
+html_css_files = ["hpdob.css"]  # the layout at 1280 px: docs/check_layout.py checks it
+# The left sidebar lists a section's pages; the guides and topics are top-level pages with no
+# section, where it stood empty: it is shown on the API reference and the gallery only.
+# (Sphinx's "*" does not cross a "/": api/ and auto_examples/ keep the theme's default.)
+html_sidebars = {"*": [], "guides/*": []}
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,

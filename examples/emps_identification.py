@@ -76,7 +76,7 @@ def settings_table(log, loop) -> str:
         cells = []
         for method in ("idim-ls", "idim-iv"):
             fit = identify(log.t, log.theta, log.u, method=method, loop=loop, cutoff=cutoff,
-                           decimation=decimation)  # fmt: skip
+                           decimation=decimation, diagnostics=False)  # fmt: skip
             cells.append(f"{fit.J:.2f}, {fit.b:.2f}, {fit.coulomb:.3f}")
         lines.append(f"| {cutoff:g} | {decimation} | {cells[0]} | {cells[1]} |")
     return "\n".join(lines)
@@ -104,8 +104,10 @@ def synthetic_table() -> str:
         for decimation in (10, 5):
             cells = []
             for method in ("idim-ls", "idim-iv"):
+                # this table is the sensitivity study: no warnings about it
                 fit = identify(run.t, run.theta_measured, run.u, method=method, loop=loop,
-                               min_speed=0.05, decimation=decimation)  # fmt: skip
+                               min_speed=0.05, decimation=decimation,
+                               diagnostics=False)  # fmt: skip
                 errors = [100 * (fit.J / plant.J - 1), 100 * (fit.b / plant.b - 1),
                           100 * (fit.coulomb / plant.coulomb - 1)]  # fmt: skip
                 cells.append(", ".join(f"{e:+.1f}" for e in errors))

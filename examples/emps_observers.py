@@ -80,7 +80,7 @@ def study():
     """``(log, reference, results, identification)``: results[bandwidth][name] is an
     EstimationResult."""
     log = emps()
-    identification = log.identify()
+    identification = log.identify(method="idim-ls")
     nominal = ServoModel(identification.parameters["J"])  # b_n = 0: estimate all friction
     model = nominal.discretize(log.Ts)
     reference = friction_reference(log, identification)

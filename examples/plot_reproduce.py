@@ -18,7 +18,8 @@ print(paper.summary_table({name: res.metrics() for name, res in results.items()}
 # %%
 # Figs. 2 to 5, as ``hpdob reproduce`` writes them. In the estimation-error panels the
 # y-range is set by the steady-state error; the transient at the 1.5 s disturbance step
-# goes off scale and its peak is printed above the panel.
+# goes off scale, a triangle in each clipped series' colour marks where, and the note above
+# the panel gives every clipped series' extremes under its legend label.
 
 figures = paper.figures(results)
 plt.show()

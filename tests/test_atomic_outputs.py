@@ -15,7 +15,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hpdob import ServoModel, SimulationResult, design_observer, export_c, paper
+from hpdob import (
+    PD,
+    ServoLoop,
+    ServoModel,
+    SimulationResult,
+    design_observer,
+    export_c,
+    paper,
+)
 from hpdob.cli import main
 
 
@@ -384,7 +392,7 @@ class FakeComparison:
 def test_compare_writes_a_staged_set_with_its_json_last(capsys, tmp_path, monkeypatch):
     import hpdob.analysis
 
-    monkeypatch.setattr(hpdob.analysis, "compare_observers", lambda **kw: FakeComparison())
+    monkeypatch.setattr(hpdob.analysis, "compare_observers", lambda *a, **kw: FakeComparison())
     out = tmp_path / "out"
     assert run_cli(capsys, "compare", "--out", out)[0] == 0
     names = ["comparison.csv", "comparison.json", "comparison.md", "comparison.png"]
@@ -406,6 +414,14 @@ class FakeTuning:
         self.design = design_observer(ServoModel(2.8e-4).discretize(1e-3), order=1,
                                       bandwidth=100.0)  # fmt: skip
 
+        self.recommendation = {"name": "HPDOb", "parameter": "bandwidth", "value": 100.0}
+        self.scenario = {"reference": paper.REFERENCE, "duration": 1.0}
+
+    def loop(self):
+        nominal = ServoModel(2.8e-4)
+        return ServoLoop(plant=nominal, nominal=nominal, Ts=1e-3, controller=PD(50.0, 5.0),
+                         observer=self.design)  # fmt: skip
+
     def plot(self):
         import matplotlib.pyplot as plt
 
@@ -425,9 +441,9 @@ def test_tune_writes_a_staged_set_and_checks_the_c_options_first(capsys, tmp_pat
     monkeypatch.setattr(hpdob.tuning, "tune", lambda **kw: calls.append(kw) or FakeTuning())
     out, c = tmp_path / "out", tmp_path / "c"
     assert run_cli(capsys, "tune", "--out", out, "--export-c", c)[0] == 0
-    assert sorted(snapshot(out)) == ["tune.csv", "tune.json", "tune.png"]
+    assert sorted(snapshot(out)) == ["scenario.toml", "tune.csv", "tune.json", "tune.png"]
     assert sorted(snapshot(c)) == ["dob.c", "dob.h"]
-    before = previous_outputs(out, ["tune.csv", "tune.json", "tune.png"])
+    before = previous_outputs(out, ["scenario.toml", "tune.csv", "tune.json", "tune.png"])
     # a C export that fails (the directory is a file) leaves the previous tune.* as they were
     monkeypatch.setattr(hpdob.export, "export_c", fail_to_draw)
     code, _, err = run_cli(capsys, "tune", "--out", out, "--export-c", c)

@@ -61,7 +61,7 @@ def test_cli_export_matches_library(capsys, tmp_path):
     ("argv", "needle"),
     [
         (["--prefix", "9lives"], "prefix must be a C identifier"),
-        (["--dtype", "half"], "dtype must be one of 'double', 'float'; got 'half'"),
+        (["--dtype", "half"], "dtype must be one of 'double', 'float', 'q31', 'q15'; got 'half'"),
         (["--order", "-1"], "order must be a non-negative integer"),
     ],
 )

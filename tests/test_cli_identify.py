@@ -45,8 +45,11 @@ def test_emps_writes_json_csv_and_figure(tmp_path, capsys):
         "identification.png",
     ]  # and no temporary files left behind
     report = json.loads((tmp_path / "identification.json").read_text())
+    # the defaults (filters from the log, IV through the EMPS loop, the input aligned with the
+    # held command): within 2.5 % of the published IDIM-LS (docs/real-data.md says why)
     for name in ("J", "b", "coulomb"):
-        assert report["parameters"][name] == pytest.approx(EMPS_PUBLISHED[name], rel=0.02)
+        assert report["parameters"][name] == pytest.approx(EMPS_PUBLISHED[name], rel=0.03)
+    assert report["method"] == "idim-iv" and report["settings"]["adaptive"]
     assert report["units"]["J"] == "kg" and report["log"]["names"]["position"] == "qm"
     assert report["published"] == dict(EMPS_PUBLISHED)
     assert "mass M" in out and "published IDIM-LS" in out and "wrote" in out
@@ -77,6 +80,8 @@ def test_csv_log_with_column_options(tmp_path, capsys):
         "cmd",
         "--input-gain",
         "4",
+        "--method",
+        "idim-ls",  # continuous-time motion, not held: the benchmark's method is exact
         "--no-plot",
         "--out",
         tmp_path / "out",

@@ -288,10 +288,10 @@ def test_scenario_files_name_the_controller_type(tmp_path, table, controller):
 
     path = tmp_path / "run.toml"
     path.write_text(SCENARIO.format(controller=table))
-    kwargs = load_scenario(path)
-    assert kwargs["controller"] == controller
-    expected = simulate(**{**kwargs, "controller": controller})
-    np.testing.assert_array_equal(simulate(**kwargs).u, expected.u)
+    scenario = load_scenario(path)
+    assert scenario.loop.controller == controller
+    expected = simulate(scenario.loop.replace(controller=controller), **scenario.run)
+    np.testing.assert_array_equal(simulate(scenario.loop, **scenario.run).u, expected.u)
 
 
 def test_scenario_rejects_an_unknown_controller_type(tmp_path):

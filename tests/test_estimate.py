@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 
 from hpdob import (
+    DisturbanceObserver,
     Encoder,
     LinearObserver,
     Observer,
+    design_observer,
     estimate_disturbance,
     paper,
     simulate,
@@ -51,11 +53,11 @@ def test_backward_difference_is_the_encoders():
 
 def test_agrees_with_the_runtime_object_from_its_state(rng):
     obs = paper.observer("HPDOb-100")
-    obs.update((0.1, 2.0), 0.05)  # not at rest: the offline run starts from this state
+    obs.update((0.1, 2.0), 0.05)  # not at rest: the offline run continues from this state
     theta = np.cumsum(rng.normal(scale=1e-3, size=800))
     u = rng.normal(scale=0.05, size=800)
     before = obs.state
-    result = estimate_disturbance(obs, theta=theta, u=u)
+    result = estimate_disturbance(obs, theta=theta, u=u, state=obs.state)
     assert np.array_equal(obs.state, before)  # the runtime object is not changed
     assert np.array_equal(result.tau_hat, runtime_trace(obs, theta, result.omega, u))
 
@@ -139,3 +141,28 @@ def test_encoder_log_from_a_simulation_runs_through_read_log(tmp_path):
     log = read_log(path, time="t", position="theta_measured", input="u")
     result = estimate_disturbance(paper.observer("HPDOb-100"), theta=log.theta, u=log.u, t=log.t)
     assert np.array_equal(result.tau_hat, run.tau_hat)
+
+
+def test_one_start_rule_for_designs_systems_and_runtime_objects(rng):
+    """Every form starts converged at the log's first sample (theta[0] far from 0 here), so a
+    design, its system and a fresh runtime object give the same estimate bit for bit; and it
+    is the runtime object reset there and stepped by hand."""
+    design = design_observer(MODEL, order=1, bandwidth=100.0)
+    theta = 1.0 + np.cumsum(rng.normal(scale=1e-3, size=400))
+    u = rng.normal(scale=0.05, size=400)
+    forms = (design, design.system, DisturbanceObserver.from_design(design))
+    runs = [estimate_disturbance(form, theta=theta, u=u, tau0=0.01) for form in forms]
+    for other in runs[1:]:
+        np.testing.assert_array_equal(other.tau_hat, runs[0].tau_hat)
+    obs = DisturbanceObserver.from_design(design, x0=(theta[0], 0.0), tau0=0.01)
+    np.testing.assert_array_equal(runs[0].tau_hat, runtime_trace(obs, theta, runs[0].omega, u))
+    assert runs[0].tau_hat[0] == pytest.approx(0.01, rel=1e-12)  # converged at the start
+
+
+def test_start_state_is_checked():
+    design = design_observer(MODEL, order=1, bandwidth=100.0)
+    theta, u = np.zeros(10), np.zeros(10)
+    with pytest.raises(ValueError, match="state must"):
+        estimate_disturbance(design, theta=theta, u=u, state=[0.0])
+    with pytest.raises(ValueError, match="give tau0 or state, not both"):
+        estimate_disturbance(design, theta=theta, u=u, state=[0.0, 0.0], tau0=0.1)

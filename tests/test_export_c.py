@@ -187,7 +187,7 @@ def test_observer_and_design_export_the_same_code(tmp_path):
 @pytest.mark.parametrize(
     ("kwargs", "error", "needle"),
     [
-        ({"dtype": "single"}, ParameterValueError, "dtype must be one of 'double', 'float'; got"),
+        ({"dtype": "single"}, ParameterValueError, "dtype must be one of 'double', 'float', 'q31'"),
         ({"dtype": None}, ParameterValueError, "dtype must be one of 'double', 'float'"),
         ({"prefix": "1dob"}, ParameterValueError, "prefix must be a C identifier"),
         ({"prefix": "my-dob"}, ParameterValueError, "got 'my-dob'"),

@@ -100,7 +100,7 @@ def test_two_mass_discretisation_that_overflows_says_so_without_a_warning():
         ("rigid", {"type": "kalman", "position_noise_std": 1e-4, "process_noise_std": 1e-3},
          {"observer.bandwidth": [100.0]}, r"type 'kalman' has no design argument 'bandwidth'"),
         ("rigid", {"order": 1, "bandwidth": 100.0}, {"observer.velocity_bandwidth": [100.0]},
-         r"the observer measures the state"),
+         r"velocity_bandwidth applies with measurement='position' only"),
         ("rigid", "object", {"observer.order": [1]}, r"need base\['observer'\] as a dict"),
     ],
 )  # fmt: skip

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from hpdob.simulation._sweep_spec import PATHS, expand_scenarios
+from hpdob.simulation._sweep_spec import expand_scenarios, sweep_paths
 
 
 def test_grid_is_a_cartesian_product_in_key_order():
@@ -101,5 +101,5 @@ def test_bad_types():
 
 
 def test_paths_are_documented():
-    assert "disturbance_scale" in PATHS
-    assert "Ts" in PATHS
+    assert "disturbance_scale" in sweep_paths()
+    assert "Ts" in sweep_paths()

@@ -292,7 +292,9 @@ def test_order_type(paper_model, order):
 def test_needs_a_discrete_model():
     with pytest.raises(TypeError, match=r"discretise the continuous model first"):
         design_observer(ServoModel(1.0), order=0, bandwidth=10.0)
-    with pytest.raises(TypeError, match="model must be a DiscreteServoModel, got str"):
+    with pytest.raises(
+        TypeError, match="must be a DiscreteServoModel or a sampled python-control servo, got str"
+    ):
         design_observer("motor", order=0, bandwidth=10.0)
 
 

@@ -128,9 +128,9 @@ def test_scenario_file_and_sweep_paths(tmp_path):
         '[controller]\nkp = 50.0\nkd = 5.0\n[reference]\ntype = "step"\ntime = 0.1\n'
         "amplitude = 1.0\n[observer]\norder = 1\nbandwidth = 100.0\n"
     )
-    kwargs = load_scenario(path)
-    assert kwargs["plant"] == TwoMassServo(2.8e-4, 5.6e-4, 30.0, 0.004)
-    assert not simulate(**kwargs).diverged
+    scenario = load_scenario(path)
+    assert scenario.loop.plant == TwoMassServo(2.8e-4, 5.6e-4, 30.0, 0.004)
+    assert not simulate(scenario.loop, **scenario.run).diverged
     base = {**paper.scenario(), "plant": DRIVE, "nominal": ServoModel(JM + JL), "duration": 1.0,
             "observer": {"order": 1, "bandwidth": 100.0}}  # fmt: skip
     with warnings.catch_warnings():

@@ -36,6 +36,7 @@ SECTIONS = {
     "observers": "Observers",
     "controllers": "Controllers",
     "simulation": "Loop and simulation",
+    "robots": "Robots: N-joint arms",
     "analysis": "Analysis",
     "identification": "Real data and identification",
     "tuning": "Tuning",
@@ -46,8 +47,9 @@ SECTIONS = {
     "cli": "Command line",
 }
 
-#: Extra reStructuredText after the entries of a section.
-EXTRA = {
+#: reStructuredText that comes before a section's entries: the command-line reference opens
+#: with the commands, not with the module's internals (``CLIError``, ``main``).
+FIRST = {
     "cli": """
 Commands and options
 --------------------
@@ -225,12 +227,14 @@ def section_rst(modname: str, items: list[Entry]) -> str:
         f".. automodule:: {modname}\n   :no-members:\n",
         f".. currentmodule:: {modname}\n",
     ]
+    parts.append(FIRST.get(short, ""))
     if items:
+        if short in FIRST:
+            parts.append(_title("Python entry points", "-"))
         parts.append(
             ".. autosummary::\n   :nosignatures:\n\n" + "".join(f"   {e.name}\n" for e in items)
         )
         parts += [_entry_rst(e) for e in items]
-    parts.append(EXTRA.get(short, ""))
     return "\n".join(parts)
 
 

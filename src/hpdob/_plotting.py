@@ -2,10 +2,50 @@
 
 from __future__ import annotations
 
-__all__ = ["label_points", "legend_clear_of_data", "plot_result", "style_axes"]
+import numpy as np
+
+__all__ = [
+    "envelope",
+    "label_points",
+    "legend_clear_of_data",
+    "mark_clipped",
+    "plot_result",
+    "style_axes",
+    "time_axis",
+]
 
 #: Figure width [inch] of a two-column paper's full text width and line width of traces.
 PAPER_WIDTH = 7.0
+
+
+#: Traces longer than this are drawn as their envelope (:func:`envelope`).
+ENVELOPE_SAMPLES = 200_000
+
+
+def envelope(t, y, *, samples: int = ENVELOPE_SAMPLES):
+    """``(t, y)`` to draw: the trace itself up to ``samples`` points, else its envelope.
+
+    A long trace (a log of 1e7 samples) is cut into ``samples // 2`` runs of consecutive
+    samples, and each run is drawn as its minimum and maximum, in the order they occur: the
+    line covers exactly the pixels the full trace would at any figure width below
+    ``samples / 2`` pixels, and matplotlib does not hold a copy of the whole log. Samples after
+    the last full run are kept as they are.
+    """
+    t, y = np.asarray(t), np.asarray(y)
+    if y.size <= samples:
+        return t, y
+    runs = samples // 2
+    width = y.size // runs
+    blocks = y[: runs * width].reshape(runs, width)
+    first, second = np.empty(runs, dtype=np.intp), np.empty(runs, dtype=np.intp)
+    step = max(1, (1 << 20) // width)  # argmin copies what it scans: 8 MB at a time
+    for a in range(0, runs, step):
+        first[a : a + step] = np.argmin(blocks[a : a + step], axis=1)
+        second[a : a + step] = np.argmax(blocks[a : a + step], axis=1)
+    lo, hi = np.minimum(first, second), np.maximum(first, second)
+    index = (np.arange(runs) * width)[:, None] + np.column_stack([lo, hi])
+    index = np.concatenate([index.ravel(), np.arange(runs * width, y.size)])
+    return t[index], y[index]
 
 
 def style_axes(ax, *, xlabel: str | None, ylabel: str) -> None:
@@ -15,6 +55,43 @@ def style_axes(ax, *, xlabel: str | None, ylabel: str) -> None:
         ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.margins(x=0)
+
+
+def time_axis(ax, t, Ts: float) -> None:
+    """The x-range of a run's whole duration, ``[t_0, t_0 + n Ts]`` (a 10 s run ends at 10 s,
+    not at its last sample 9.999 s, so the axis shows the whole run and its last tick)."""
+    ax.set_xlim(float(t[0]), float(t[0]) + len(t) * Ts)
+
+
+def mark_clipped(ax, series, lo: float, hi: float) -> list[str]:
+    """Cut traces at the y-range ``[lo, hi]`` and mark where each leaves it, in its colour.
+
+    ``series`` is a sequence of ``(t, y, line, label)``: the samples, the drawn line and its
+    legend label. Every series that leaves the range gets a triangle at the edge where it
+    does (one per direction: ``v`` below, ``^`` above, at its extreme), in the colour of its
+    line; coincident marks of several series sit side by side. Returns one note per clipped
+    series, ``"<label>: <extremes> N m"`` (both directions where it leaves both ways), for a
+    caption.
+    """
+    from matplotlib.patches import Rectangle
+    from matplotlib.transforms import ScaledTranslation, blended_transform_factory
+
+    span = blended_transform_factory(ax.transAxes, ax.transData)
+    notes = []
+    count = len(series)
+    for i, (t, y, line, label) in enumerate(series):
+        line.set_clip_path(Rectangle((0.0, lo), 1.0, hi - lo, transform=span))
+        nudge = ScaledTranslation((i - (count - 1) / 2) * 6 / 72, 0.0, ax.figure.dpi_scale_trans)
+        extremes = []
+        for k, edge, marker in ((int(y.argmin()), lo, "v"), (int(y.argmax()), hi, "^")):
+            if lo <= y[k] <= hi:
+                continue
+            ax.plot(t[k], edge, marker=marker, color=line.get_color(), markersize=6,
+                    clip_on=False, transform=ax.transData + nudge, label="_clipped")  # fmt: skip
+            extremes.append(f"{float(y[k]):+.3f}".replace("-", "\N{MINUS SIGN}"))
+        if extremes:
+            notes.append(f"{label}: {' / '.join(extremes)} N m")
+    return notes
 
 
 def legend_clear_of_data(ax, *, ncol: int, pad: float = 0.03, **kwargs):
@@ -104,6 +181,7 @@ def plot_result(result, *, title: str | None = None):
     ax = axes[2]
     ax.plot(t, result.estimation_error, linewidth=1.0)
     style_axes(ax, xlabel="time [s]", ylabel=r"$\hat\tau_{dn} - \tau_{dn}$ [N m]")
+    time_axis(axes[-1], t, result.Ts)  # shared x: every panel
     fig.suptitle(title or result.label or "hpdob simulation")
     for ax in axes[:2]:  # legends in a band above the data
         legend_clear_of_data(ax, ncol=len(ax.get_legend_handles_labels()[1]))

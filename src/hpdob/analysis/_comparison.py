@@ -21,23 +21,21 @@ import numpy as np
 from .._table import columns_to_csv, columns_to_pandas
 from .._validation import ParameterTypeError, ParameterValueError, check_choice, positive
 
-__all__ = ["CANDIDATES", "Comparison", "compare_observers"]
+__all__ = ["Comparison", "compare_observers", "default_candidates"]
 
-#: The observers compared, by name: their family spec without the tuned parameter.
-CANDIDATES = {
-    "DOb": {"order": 0},
-    "HPDOb": {"order": 1},
-    "order 2": {"order": 2},
-    "DOb, position": {"order": 0, "measurement": "position"},
-    "HPDOb, position": {"order": 1, "measurement": "position"},
-    "order 2, position": {"order": 2, "measurement": "position"},
-    "ESO, current": {"type": "eso", "extended_order": 0, "form": "current"},
-    "ESO, predictive": {"type": "eso", "extended_order": 0, "form": "predictive"},
-    "GESO m=1, current": {"type": "eso", "extended_order": 1, "form": "current"},
-    "GESO m=1, predictive": {"type": "eso", "extended_order": 1, "form": "predictive"},
-    "Kalman m=0": {"type": "kalman", "order": 0},
-    "Kalman m=1": {"type": "kalman", "order": 1},
-}
+
+def default_candidates() -> dict:
+    """The observers compared by default, by name: every registered family's ``compared``
+    specs (:func:`hpdob.observers.families`), without the tuned parameter."""
+    from ..observers import families
+
+    return {
+        name: {"type": family.name, **spec}
+        for family in families()
+        for name, spec in family.compared.items()
+    }
+
+
 SENSORS = ("ideal", "encoder")
 #: Default target noise gain [N m/rad]: with the virtual experiment's 16384-count encoder
 #: (q/sqrt(12) = 1.1e-4 rad) an estimate noise of 1.1e-3 N m RMS; the lowest level at which
@@ -62,24 +60,20 @@ def _tune(model, spec: dict, target: float, sigma: float):
     """``(design, parameter, value, matched)``: the design whose noise gain is ``target``."""
     from scipy.optimize import brentq
 
-    from ..observers._families import design_from_spec
+    from ..observers import design_from_spec, get_family
 
-    if spec.get("type") == "kalman":
-        name = "process_noise_std"
+    family = get_family(spec.get("type", "dob"))
+    name = family.tuned
+    if family.noise_parameter is not None:  # set from the encoder's angle noise
+        spec = {**spec, family.noise_parameter: sigma}
 
-        def design(log_value):
-            return design_from_spec(
-                model, {**spec, "position_noise_std": sigma, name: 10**log_value}
-            )
+    def design(log_value):
+        return design_from_spec(model, {**spec, name: 10**log_value})
 
-        centre = math.log10(sigma * model.J / model.Ts**2)
-        lo, hi = centre - 8, centre + 4
+    if family.tuned_range is not None:
+        arguments = {k: v for k, v in spec.items() if k != "type"}
+        lo, hi = (math.log10(v) for v in family.tuned_range(model, arguments))
     else:
-        name = "bandwidth"
-
-        def design(log_value):
-            return design_from_spec(model, {**spec, name: 10**log_value})
-
         upper = min(_BANDWIDTHS[1], 0.45 * math.pi / model.Ts)
         lo, hi = math.log10(_BANDWIDTHS[0]), math.log10(upper)
 
@@ -105,15 +99,10 @@ def _tune(model, spec: dict, target: float, sigma: float):
     return design(best), name, 10**best, "matched"
 
 
-#: The design arguments the comparison tunes, by family: a candidate must not give them.
-_TUNED = {"dob": ("bandwidth", "poles"), "eso": ("bandwidth",),
-          "kalman": ("position_noise_std", "process_noise_std")}  # fmt: skip
-
-
 def _check_candidates(candidates) -> dict:
     """``{name: spec}`` with string names and family specs that leave the tuned parameter to
     the comparison (a bandwidth or noise given in a spec would be silently replaced)."""
-    from ..observers._families import check_spec
+    from ..observers import check_spec, get_family
 
     if not isinstance(candidates, dict) or not candidates:
         raise ParameterTypeError(
@@ -126,19 +115,19 @@ def _check_candidates(candidates) -> dict:
             raise ParameterTypeError(
                 f"candidates[{name!r}] must be a family spec (a dict), got {spec!r}"
             )
-        kind = spec.get("type", "dob")
-        given = [k for k in _TUNED.get(kind, ()) if k in spec]
+        family = get_family(spec.get("type", "dob"), f"candidates[{name!r}].type")
+        tuned = family.set_at_bandwidth + ((family.noise_parameter,) if family.noise_parameter
+                                           else ())  # fmt: skip
+        given = [k for k in tuned if k in spec]
         if given:
-            tuned = (
-                "the process noise (at the encoder's noise)"
-                if kind == "kalman"
-                else "the bandwidth"
-            )
+            what = "the bandwidth" if family.tuned == "bandwidth" else f"{family.tuned}"
+            if family.noise_parameter is not None:
+                what += f" (at the encoder's noise, which sets {family.noise_parameter})"
             raise ParameterValueError(
                 f"candidates[{name!r}] must not give {', '.join(given)}: the comparison tunes "
-                f"{tuned} to the target noise gain, got {spec!r}"
+                f"{what} to the target noise gain, got {spec!r}"
             )
-        placeholder = {k: 1.0 for k in _TUNED.get(kind, ()) if k != "poles"}
+        placeholder = {k: 1.0 for k in tuned if k not in family.replaced_by_bandwidth}
         check_spec({**spec, **placeholder}, f"candidates[{name!r}]")
     return dict(candidates)
 
@@ -345,7 +334,30 @@ class Comparison:
         return fig
 
 
+def _loop_scenario(loop, scenario: dict, encoder, actuator):
+    """The comparison's run in ``loop``: its plant, nominal, Ts and PD; the paper's reference
+    and its disturbance at the same acceleration; the loop's sensor and actuator, if any."""
+    from ..simulation import ServoLoop
+
+    if not isinstance(loop, ServoLoop):
+        raise ParameterTypeError(
+            f"compare_observers() takes a ServoLoop as its first argument, got "
+            f"{type(loop).__name__}"
+        )
+    scale = loop.nominal.J / scenario["nominal"].J
+    disturbance = scenario["disturbance"] if scale == 1.0 else scale * scenario["disturbance"]
+    run = {**scenario, "plant": loop.plant, "nominal": loop.nominal, "Ts": loop.Ts,
+           "controller": loop.controller, "disturbance": disturbance,
+           "duration": scenario["duration"] if loop.Ts == scenario["Ts"]
+           else loop.Ts * max(1, round(scenario["duration"] / loop.Ts))}  # fmt: skip
+    if loop.sensor is not None:
+        encoder, actuator = loop.sensor, loop.actuator
+    return run, encoder, actuator
+
+
 def compare_observers(
+    loop=None,
+    /,
     *,
     sensors=SENSORS,
     noise_gain: float = DEFAULT_NOISE_GAIN,
@@ -365,14 +377,23 @@ def compare_observers(
 
     Parameters
     ----------
+    loop : ServoLoop, optional
+        The loop the observers are compared in: its plant, nominal model, ``Ts`` and PD gains
+        (its observer is replaced by each candidate's), and, if it has one, its sensor and
+        actuator for the ``"encoder"`` case. The run is the paper's reference and disturbance,
+        the disturbance scaled by ``J_n / 2.8e-4 kg m^2`` (the paper's acceleration), over the
+        paper's 10 s in whole samples. Default: the paper's loop (:func:`hpdob.paper.scenario`)
+        with the virtual experiment's encoder and actuator.
     sensors : sequence of {"ideal", "encoder"}, optional
         Default both.
     noise_gain : float, optional
         Target noise gain [N m/rad]. Default 10 (see :data:`DEFAULT_NOISE_GAIN`).
     candidates : dict, optional
-        ``{name: family spec}`` with ``str`` names; default :data:`CANDIDATES`. A spec must not
-        give the tuned parameter (``bandwidth`` or ``poles``; for the Kalman observer
-        ``position_noise_std`` and ``process_noise_std``): it is refused, not replaced.
+        ``{name: family spec}`` with ``str`` names; default every registered family's
+        ``compared`` specs (:func:`hpdob.observers.register_family`). A spec must not give
+        what the comparison sets (the family's ``tuned`` parameter and what it replaces:
+        ``bandwidth`` or ``poles``; for the Kalman observer ``process_noise_std`` and its
+        ``noise_parameter``, ``position_noise_std``): it is refused, not replaced.
     duration : float, optional
         Simulated time [s]; default the scenario's 10 s.
 
@@ -400,8 +421,8 @@ def compare_observers(
     ...     for row in table.rows if row["tuning"] == "matched")   # all at the same noise
     True
     """
-    from .. import paper
     from ..simulation import PD, ServoLoop, simulate
+    from ..simulation import _canonical as paper  # the paper's set-up, as data
     from ..simulation._simulate import _sample_count
     from ._noise import noise_gains
     from ._sensitivity import loop_margins
@@ -417,14 +438,16 @@ def compare_observers(
     if not sensors:
         raise ParameterValueError("sensors must name at least one of 'ideal', 'encoder'")
     target = positive(noise_gain, "noise_gain", "a positive finite noise gain [N m/rad]")
-    candidates = _check_candidates(CANDIDATES if candidates is None else candidates)
-    scenario = paper.scenario()
+    candidates = _check_candidates(default_candidates() if candidates is None else candidates)
+    scenario = paper.canonical_run()
+    encoder, actuator = paper.VIRTUAL_SENSOR, paper.VIRTUAL_ACTUATOR
+    if loop is not None:
+        scenario, encoder, actuator = _loop_scenario(loop, scenario, encoder, actuator)
     if duration is not None:
         scenario["duration"] = positive(duration, "duration", "a positive duration [s]")
         _sample_count(scenario["Ts"], scenario["duration"])  # before the tuning, not after
     nominal, Ts = scenario["nominal"], scenario["Ts"]
     model = nominal.discretize(Ts)
-    encoder, actuator = paper.VIRTUAL_SENSOR, paper.VIRTUAL_ACTUATOR
     sigma = encoder.resolution / math.sqrt(12.0)
     linear_plant = scenario["plant"].replace(coulomb=0.0)
     rows, results = [], {}
@@ -434,7 +457,8 @@ def compare_observers(
         except (ParameterTypeError, ParameterValueError) as err:
             raise type(err)(f"candidates[{name!r}]: {err}") from None
         velocity = "observer" if design.system.has_velocity else "measured"
-        controller = PD(scenario["controller"].kp, scenario["controller"].kd, velocity=velocity)
+        pd = scenario["controller"]
+        controller = PD(pd.kp, pd.kd, feedforward=pd.feedforward, velocity=velocity)
         for sensor in sensors:
             devices = {"sensor": encoder, "actuator": actuator} if sensor == "encoder" else {}
             with warnings.catch_warnings():

@@ -28,9 +28,11 @@ import math
 
 import numpy as np
 
-from .._validation import ParameterTypeError, ParameterValueError, as_grid
+from .._validation import ParameterTypeError, as_grid
 from ..observers._error_dynamics import unit_root_polynomial
-from ..observers._system import LinearObserver, as_system
+from ..observers._response import estimation_frequency_response, nominal_loop
+from ..observers._response import observer_matrices as _matrices
+from ..observers._system import as_system
 
 __all__ = [
     "estimation_response",
@@ -45,8 +47,7 @@ OBSERVER_OUTPUT = "tau_hat"
 
 def observer_matrices(observer):
     """``(A, B, C, D)`` numpy arrays of the observer: ``(F, G, H, E)`` of its system."""
-    system = as_system(observer)
-    return (np.array(m, dtype=float) for m in (system.F, system.G, system.H, system.E))
+    return _matrices(as_system(observer))
 
 
 def observer_statespace(observer):
@@ -90,49 +91,7 @@ def observer_statespace(observer):
     >>> sys.input_labels, sys.output_labels, sys.dt
     (['theta', 'omega', 'u'], ['tau_hat'], 0.001)
     """
-    import control
-
-    system = as_system(observer)
-    A, B, C, D = observer_matrices(system)
-    state = "z" if system.truncation_order is not None else "s"
-    return control.ss(
-        A,
-        B,
-        C,
-        D,
-        system.Ts,
-        inputs=list(system.input_names),
-        outputs=list(system.outputs),
-        states=[f"{state}{i + 1}" for i in range(system.n_states)],
-    )
-
-
-def _nominal_model(system: LinearObserver):
-    if system.model is None:
-        raise ParameterValueError(
-            "the estimation response of an observer is defined on its nominal plant: give the "
-            "observer's LinearObserver a model (the DiscreteServoModel it was designed on)"
-        )
-    return system.model
-
-
-def _generic_statespace(system: LinearObserver):
-    r"""``(A, B, C, D)``: :math:`\tau_{dn} \to \hat\tau` with the observer on its nominal plant,
-    ``u = 0``: state ``[x, s]``, :math:`x_{k+1} = A_n x_k - D_n \tau_k`."""
-    model = _nominal_model(system)
-    An, Dn = np.asarray(model.A), np.asarray(model.D)
-    p = len(system.measures)
-    Cm = np.eye(2)[:p]  # measured rows of x
-    F, G, H, E = (np.asarray(a) for a in (system.F, system.G, system.H, system.E))
-    n = system.n_states
-    A = np.zeros((2 + n, 2 + n))
-    A[:2, :2] = An
-    A[2:, :2] = G[:, :p] @ Cm
-    A[2:, 2:] = F
-    B = np.zeros((2 + n, 1))
-    B[:2, 0] = -Dn
-    C = np.hstack([E[:1, :p] @ Cm, H[:1]])
-    return A, B, C, np.zeros((1, 1))
+    return as_system(observer).to_statespace()
 
 
 def estimation_transfer(observer, *, error: bool = False):
@@ -201,7 +160,7 @@ def estimation_transfer(observer, *, error: bool = False):
             E = np.convolve(E, np.real(np.poly(dynamics.zeros)))
         num = E if error else (P - E)[1:]  # the leading z^n cancels: Q is strictly proper
         return control.tf(num, P, system.Ts, inputs=["tau_dn"], outputs=[output])
-    A, B, C, D = _generic_statespace(system)
+    A, B, C, D = nominal_loop(system)
     Q = control.ss2tf(control.ss(A, B, C, D, system.Ts)).minreal(tol=1e-9)
     tf = (1 - Q) if error else Q
     return control.tf(tf.num, tf.den, system.Ts, inputs=["tau_dn"], outputs=[output])
@@ -247,17 +206,4 @@ def estimation_response(observer, frequency, *, error: bool = False) -> np.ndarr
         raise ParameterTypeError(f"error must be True or False, got {error!r}")
     f = as_grid(frequency, "frequency", "non-negative frequencies [Hz]", allow_zero=True)
     z = np.exp(2j * math.pi * f * system.Ts)
-    dynamics = system.error_dynamics
-    if dynamics is not None:
-        # Factored forms: (z - 1)^(m+1) / prod(z - p_i). Expanded polynomials would cancel
-        # catastrophically near z = 1, where 1 - Q is tiny.
-        ratio = (z - 1.0) ** (dynamics.order + 1)
-        for pole in dynamics.poles:
-            ratio = ratio / (z - pole)
-        for zero in dynamics.zeros:
-            ratio = ratio * (z - zero)
-        return ratio if error else 1.0 - ratio
-    A, B, C, _ = _generic_statespace(system)
-    eye = np.eye(A.shape[0])
-    Q = np.array([(C @ np.linalg.solve(zk * eye - A, B))[0, 0] for zk in z])
-    return 1.0 - Q if error else Q
+    return estimation_frequency_response(system, z, error)

@@ -41,8 +41,15 @@ def h2_gains(A, B, C, D) -> np.ndarray:
 
     ``A`` must be asymptotically stable (checked by the callers).
     """
-    from scipy.linalg import LinAlgWarning, schur, solve_discrete_lyapunov
+    from scipy.linalg import LinAlgWarning, matrix_balance, schur, solve_discrete_lyapunov
 
+    # Diagonal balancing first: a state in physical units (the ESO's [theta, omega, f, f', ...]
+    # spans ~1e11) makes C X C^T a difference of huge terms that cancel to garbage or a
+    # negative variance. The scaling is by powers of 2, an exact similarity.
+    _, (scale, _) = matrix_balance(A, permute=False, separate=True)
+    A = A * scale[None, :] / scale[:, None]
+    B = B / scale[:, None]
+    C = C * scale[None, :]
     T, U = schur(A, output="real")
     Bs = U.T @ B
     with warnings.catch_warnings():
@@ -52,6 +59,12 @@ def h2_gains(A, B, C, D) -> np.ndarray:
         X = solve_discrete_lyapunov(T, Bs @ Bs.T)
     Cs = C @ U
     variance = np.einsum("ij,jk,ik->i", Cs, X, Cs) + np.einsum("ij,ij->i", D, D)
+    # A variance below zero is a failed solve, not a noiseless output: never report it as 0.
+    scale_of_terms = np.einsum("ij,ik->i", np.abs(Cs), np.abs(Cs)) * np.abs(X).max()
+    if np.any(variance < -1e-8 * scale_of_terms):
+        raise ArithmeticError(
+            f"the Lyapunov solve of the noise gain lost its accuracy (variance {variance!r})"
+        )
     return np.sqrt(np.maximum(variance, 0.0))
 
 

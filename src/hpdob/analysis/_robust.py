@@ -25,16 +25,114 @@ from .._validation import (
     positive,
 )
 from ..models._servo import ServoModel
-from ..observers._families import design_at_bandwidth
+from ..observers import design_at_bandwidth, spec_label
 from ..observers._system import MEASUREMENTS
 from ..simulation._controller import PD
 from ..simulation._devices import Encoder
-from ._linear_loop import LoopSpec, loop_matrices
-from ._map_limits import check_delay, check_map_size, check_plants, observer_spec
+from ..simulation._loop import MISSING, loop_parts
+from ._linear_loop import MAX_DELAY_SAMPLES, LoopSpec, loop_matrices
 
 __all__ = ["StabilityMap", "robust_stability_map"]
 
+# -- checks of a map's arguments, made before any work ----------------------------------------
+# Checks of a stability map's arguments made before any work: sizes, delay, plants.
+#
+# A map costs one closed-loop eigenvalue problem per grid point and one state per sample of
+# delay, so both are bounded up front with a message that states the limit (issue 16: a
+# 10^6-sample delay asked numpy for 7 TiB); a grid entry whose true plant cannot be
+# discretised is named instead of failing later inside the linear algebra.
+
+#: Most grid points (values x bandwidths) of one map.
+MAX_MAP_POINTS = 1_000_000
+
+
+def check_delay(delay_samples) -> int:
+    """The actuator delay [samples]: an int in ``[0, MAX_DELAY_SAMPLES]``."""
+    return as_int(
+        delay_samples,
+        "delay_samples",
+        "a non-negative integer number of samples (each adds a state to the linear loop)",
+        minimum=0,
+        maximum=MAX_DELAY_SAMPLES,
+    )
+
+
+def check_map_size(values, bandwidths) -> None:
+    """Refuse maps of more than :data:`MAX_MAP_POINTS` points."""
+    points = values.size * bandwidths.size
+    if points > MAX_MAP_POINTS:
+        raise ParameterValueError(
+            f"the map has {values.size} x {bandwidths.size} = {points:.3g} points; at most "
+            f"{MAX_MAP_POINTS} are supported (use coarser grids)"
+        )
+
+
+def check_plants(values, ratio_grid: bool, ratios, frictions, nominal, Ts: float) -> None:
+    """Discretise every true plant of the grid; name the entry of one that cannot be."""
+    for v in values:
+        J_r, b_r = (float(v), float(frictions)) if ratio_grid else (float(ratios), float(v))
+        try:
+            ServoModel(J_r * nominal.J, b_r).discretize(Ts)
+        except ParameterValueError as err:
+            raise ParameterValueError(
+                f"{'J_ratio' if ratio_grid else 'b'} entry {float(v)!r} gives a true plant "
+                f"ServoModel(J={J_r * nominal.J!r}, b={b_r!r}) that cannot be discretised at "
+                f"Ts={Ts!r}: {err}"
+            ) from None
+
+
+def observer_spec(observer, measurement, gain_direction) -> tuple[dict, int]:
+    """``(spec, order)`` of ``robust_stability_map(observer=...)``, validated before any work.
+
+    The spec's keys are checked for its family (``observer.<key>``), its order is an integer,
+    and what the map sets itself is refused instead of silently replaced: the family's
+    ``set_at_bandwidth`` (the bandwidth or poles; for the Kalman observer the process noise,
+    chosen per bandwidth), and the ``measurement``/``gain_direction`` arguments, which
+    describe the paper's family only.
+    """
+    from ..observers import check_spec, get_family
+
+    if not isinstance(observer, dict):
+        raise ParameterTypeError(
+            f"observer must be a dict of design arguments (a family spec), got {observer!r}"
+        )
+    family = get_family(observer.get("type", "dob"), "observer.type")
+    check_spec({**observer, family.tuned: 1.0}, "observer")
+    given = [k for k in family.set_at_bandwidth if k in observer]
+    if given:
+        raise ParameterValueError(
+            f"observer must not give {', '.join(given)}: the map designs the observer at every "
+            f"bandwidth of its grid, got {observer!r}"
+        )
+    if measurement != "state" or tuple(np.ravel(gain_direction).tolist()) != (1.0, 1.0):
+        raise ParameterValueError(
+            "measurement and gain_direction apply with order (the paper's family); with "
+            f"observer give them in the spec, got measurement={measurement!r}, "
+            f"gain_direction={gain_direction!r}"
+        )
+    m = 0
+    if family.order is not None:
+        key = family.order
+        m = as_int(observer.get(key, 0), f"observer.{key}", "a non-negative integer", minimum=0)
+    return dict(observer), m
+
+
 PARAMETERS = ("J_ratio", "b")
+
+
+def _map_spec(loop) -> dict:
+    """The family spec of the loop's observer without what the map sets at each bandwidth."""
+    from ..observers import get_family
+
+    spec = loop.observer_spec
+    if spec is None:
+        raise ParameterValueError(
+            "robust_stability_map needs order, observer (a family spec) or a loop whose "
+            "observer is a spec or a design of a registered family, got "
+            + ("no observer" if loop.system is None else f"observer {loop.system.name!r}")
+        )
+    family = get_family(spec.get("type", "dob"))
+    return {k: v for k, v in spec.items() if k not in family.set_at_bandwidth}
 
 
 @dataclass(frozen=True)
@@ -62,17 +160,7 @@ class _Setting:
 
     @property
     def name(self) -> str:
-        spec = self.spec
-        kind = spec.get("type", "dob")
-        if kind == "eso":
-            m = spec.get("extended_order", 0)
-            return f"ESO (m={m}, {spec.get('form', 'current')})"
-        if kind == "kalman":
-            return f"Kalman (m={spec.get('order', 0)})"
-        m = spec.get("order")
-        name = {0: "DOb (m=0)", 1: "HPDOb (m=1)"}.get(m, f"order-{m} DOb")
-        position = "position-only " if spec.get("measurement") == "position" else ""
-        return position + name
+        return spec_label(self.spec)
 
 
 @dataclass(frozen=True, eq=False)
@@ -271,17 +359,19 @@ def _grid_or_scalar(value, name: str, what: str, *, allow_zero: bool):
 
 
 def robust_stability_map(
+    loop=None,
+    /,
     *,
     J_ratio=1.0,
     bandwidth,
     order: int | None = None,
-    nominal: ServoModel,
-    Ts: float,
-    controller: PD,
+    nominal: ServoModel = MISSING,
+    Ts: float = MISSING,
+    controller: PD = MISSING,
     b=None,
-    delay_samples: int = 0,
+    delay_samples: int | None = None,
     gain_direction=(1.0, 1.0),
-    sensor: Encoder | None = None,
+    sensor: Encoder | None = MISSING,
     measurement: str = "state",
     observer: dict | None = None,
 ) -> StabilityMap:
@@ -295,6 +385,12 @@ def robust_stability_map(
 
     Parameters
     ----------
+    loop : ServoLoop, optional
+        The loop: its ``nominal``, ``Ts``, ``controller``, ``sensor``, its actuator's delay and
+        (unless ``order`` or ``observer`` is given) its observer's family spec; its plant is
+        replaced at every grid point. Instead of a loop, its keyword arguments ``nominal``,
+        ``Ts``, ``controller`` and ``sensor`` are accepted (the loop functions' one alias,
+        the parts of a :class:`~hpdob.ServoLoop`).
     J_ratio : float or array_like, optional
         True/nominal inertia ratio(s) ``J / J_n``, positive; a grid must be strictly
         increasing. Default 1.
@@ -312,7 +408,8 @@ def robust_stability_map(
         True viscous friction(s) [N m s/rad], >= 0; a grid must be strictly increasing.
         Default: ``nominal.b``.
     delay_samples : int, optional
-        Actuator delay [samples] the observer does not know. Default 0.
+        Actuator delay [samples] the observer does not know. Default: the loop's actuator's
+        (0 without a loop).
     gain_direction : sequence of 2 floats, optional
         As for :func:`hpdob.design_observer` (observers measuring the state).
     sensor : Encoder, optional
@@ -361,6 +458,22 @@ def robust_stability_map(
     >>> bool(abs(edge - 1 / lm.gain_margin) < 1e-6 * edge)  # b = 0: J/J_n = 1/gain margin
     True
     """
+    legacy = {"nominal": nominal, "Ts": Ts, "controller": controller, "sensor": sensor}
+    parts = loop_parts(loop, legacy, "robust_stability_map")
+    missing = [k for k in ("nominal", "Ts", "controller") if k not in parts]
+    if missing:
+        raise ParameterTypeError(
+            "robust_stability_map() needs a ServoLoop as first argument, or the keyword "
+            f"arguments nominal, Ts and controller (missing: {', '.join(missing)})"
+        )
+    nominal, Ts, controller = parts["nominal"], parts["Ts"], parts["controller"]
+    sensor = parts.get("sensor")
+    if loop is not None:
+        if delay_samples is None:
+            delay_samples = loop.actuator.delay_samples
+        if order is None and observer is None:
+            observer = _map_spec(loop)
+    delay_samples = 0 if delay_samples is None else delay_samples
     if not isinstance(nominal, ServoModel):
         raise ParameterTypeError(f"nominal must be a ServoModel, got {type(nominal).__name__}")
     if not isinstance(controller, PD):

@@ -8,12 +8,12 @@ b = 5e-5 N m s/rad; nominal J_n = 2.8e-4 kg m^2, b_n = 0; Ts = 1 ms; PD(50, 5).
 from __future__ import annotations
 
 import argparse
+import math
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
-from . import _analyze_types as _types
 from ._options import (
     add_loop_arguments,
     add_nominal_arguments,
@@ -26,6 +26,64 @@ from ._outputs import MAX_DPI, dpi_argument, save_figure, write_json
 __all__ = ["register"]
 
 ANALYSES = ("bode", "noise", "tradeoff", "stability")
+
+
+# -- argparse types: grids, orders, families and tolerances ------------------------------
+
+
+def _grid(text: str) -> list[float]:
+    """``LO:HI:N`` (N log-spaced values) or a non-empty comma-separated list of numbers."""
+    try:
+        if ":" in text:
+            lo, hi, n = text.split(":")
+            lo, hi, count = float(lo), float(hi), int(n)
+            if not (lo > 0 and hi > 0 and count >= 1):
+                raise ValueError
+            return np.geomspace(lo, hi, count).tolist()
+        values = [float(item) for item in text.split(",") if item.strip()]
+        if not values:
+            raise ValueError
+        return values
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected LO:HI:N (N log-spaced positive values) or at least one "
+            f"comma-separated number, got {text!r}"
+        ) from None
+
+
+def _positive_real(text: str) -> float:
+    """A finite number > 0 (e.g. ``--bandwidth`` of ``stability``)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive finite number, got {text!r}")
+    return value
+
+
+def _orders(text: str) -> list[int]:
+    try:
+        return [int(item) for item in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated integer orders, got {text!r}"
+        ) from None
+
+
+def _measurements(text: str) -> list[str]:
+    items = [item.strip() for item in text.split(",") if item.strip()]
+    if not items or any(item not in ("state", "position") for item in items):
+        raise argparse.ArgumentTypeError(
+            f"expected comma-separated 'state' and/or 'position', got {text!r}"
+        )
+    return items
+
+
+def _pole_tolerance(text: str):
+    """``none`` or a number (argparse type of ``--pole-tolerance``; the value is checked by
+    the design)."""
+    return None if text.strip().lower() == "none" else finite(text)
 
 
 def _add_common(parser: argparse.ArgumentParser, *, loop: bool = True) -> None:
@@ -81,8 +139,8 @@ def _design(args, model, order: int, bandwidth: float):
 def _add_orders(parser: argparse.ArgumentParser, default: str) -> None:
     parser.add_argument(
         "--orders",
-        type=_types.orders,
-        default=_types.orders(default),
+        type=_orders,
+        default=_orders(default),
         help=f"comma-separated truncation orders, 0 DOb, 1 HPDOb (default {default})",
     )
 
@@ -127,8 +185,8 @@ def register(subparsers) -> None:
     _add_measurement(noise)
     noise.add_argument(
         "--bandwidths",
-        type=_types.grid,
-        default=_types.grid("10:2000:25"),
+        type=_grid,
+        default=_grid("10:2000:25"),
         help="[rad/s], LO:HI:N or a list (default 10:2000:25)",
     )
     tradeoff = sub.add_parser(
@@ -141,8 +199,8 @@ def register(subparsers) -> None:
     _add_orders(tradeoff, "0,1,2,3")
     tradeoff.add_argument(
         "--bandwidths",
-        type=_types.grid,
-        default=_types.grid("10:3000:61"),
+        type=_grid,
+        default=_grid("10:3000:61"),
         help="[rad/s], LO:HI:N or a list (default 10:3000:61)",
     )
     tradeoff.add_argument(
@@ -157,13 +215,13 @@ def register(subparsers) -> None:
     )
     tradeoff.add_argument(
         "--measurements",
-        type=_types.measurements,
+        type=_measurements,
         default=["state"],
         help="observer families, e.g. state,position (default: state)",
     )
     tradeoff.add_argument(
         "--pole-tolerance",
-        type=_types.pole_tolerance,
+        type=_pole_tolerance,
         default=0.05,
         metavar="TOL|none",
         help="largest realised-pole error, in units of a pole's distance to the unit circle, "
@@ -190,19 +248,19 @@ def register(subparsers) -> None:
     )
     stab.add_argument(
         "--values",
-        type=_types.grid,
+        type=_grid,
         default=None,
         help="its grid (default 0.1:10:61 for J_ratio, 1e-4:10:61 for b)",
     )
     stab.add_argument(
         "--bandwidths",
-        type=_types.grid,
-        default=_types.grid("10:2000:61"),
+        type=_grid,
+        default=_grid("10:2000:61"),
         help="[rad/s], LO:HI:N or a list (default 10:2000:61)",
     )
     stab.add_argument(
         "--bandwidth",
-        type=_types.positive_real,
+        type=_positive_real,
         default=None,
         metavar="G",
         help="observer bandwidth [rad/s] of your design: a star marks it at the loop's true "
@@ -409,7 +467,7 @@ def _stability(args, files) -> list[str]:
     J_ratio = args.J / args.J_n
     values = args.values
     if values is None:
-        values = _types.grid("0.1:10:61" if args.parameter == "J_ratio" else "1e-4:10:61")
+        values = _grid("0.1:10:61" if args.parameter == "J_ratio" else "1e-4:10:61")
     # Map axes must increase; on the command line a grid is a set of values (10:1:5 or 3,1,2).
     values, bandwidths = sorted(set(values)), sorted(set(args.bandwidths))
     grid = (

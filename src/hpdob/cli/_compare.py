@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ._options import finite, output_path
+from ._options import add_nominal_arguments, finite, output_path
 
 __all__ = ["register"]
 
@@ -21,6 +21,30 @@ def register(subparsers) -> None:
         "and write comparison.csv, comparison.json, comparison.md and comparison.png. See "
         "docs/comparison.md.",
     )
+    add_nominal_arguments(parser.add_argument_group("nominal model"))
+    loop = parser.add_argument_group(
+        "loop", "the true plant and the PD; defaults: the paper's, the plant scaled with J_n"
+    )
+    loop.add_argument(
+        "--J",
+        type=finite,
+        default=None,
+        help="true inertia [kg m^2] (default: J_n 3.06/2.8, the paper's ratio)",
+    )
+    loop.add_argument(
+        "--b",
+        type=finite,
+        default=None,
+        help="true viscous friction [N m s/rad] (default: 5e-5 J_n/2.8e-4)",
+    )
+    loop.add_argument(
+        "--coulomb",
+        type=finite,
+        default=None,
+        help="true Coulomb friction [N m] (default: 0.01 J_n/2.8e-4)",
+    )
+    loop.add_argument("--kp", type=finite, default=None, help="PD gain kp [1/s^2] (50)")
+    loop.add_argument("--kd", type=finite, default=None, help="PD gain kd [1/s] (5)")  # fmt: skip
     parser.add_argument(
         "--sensor",
         choices=("ideal", "encoder", "both"),
@@ -44,6 +68,24 @@ def register(subparsers) -> None:
     parser.set_defaults(handler=_run)
 
 
+def _loop(args: argparse.Namespace):
+    """The loop of the comparison: the paper's, at the given J_n (plant scaled with it)."""
+    from ..models import ServoModel
+    from ..paper import CONTROLLER, NOMINAL, PLANT
+    from ..simulation import PD, ServoLoop
+
+    scale = args.J_n / NOMINAL.J
+    plant = PLANT.replace(
+        J=PLANT.J * scale if args.J is None else args.J,
+        b=PLANT.b * scale if args.b is None else args.b,
+        coulomb=PLANT.coulomb * scale if args.coulomb is None else args.coulomb,
+    )
+    kp = CONTROLLER.kp if args.kp is None else args.kp
+    kd = CONTROLLER.kd if args.kd is None else args.kd
+    return ServoLoop(plant=plant, nominal=ServoModel(args.J_n, args.b_n), Ts=args.Ts,
+                     controller=PD(kp, kd, feedforward=CONTROLLER.feedforward))  # fmt: skip
+
+
 def _run(args: argparse.Namespace) -> int:
 
     from .._files import staged_outputs
@@ -52,7 +94,7 @@ def _run(args: argparse.Namespace) -> int:
 
     sensors = ("ideal", "encoder") if args.sensor == "both" else (args.sensor,)
     gain = DEFAULT_NOISE_GAIN if args.noise_gain is None else args.noise_gain
-    comparison = compare_observers(sensors=sensors, noise_gain=gain)
+    comparison = compare_observers(_loop(args), sensors=sensors, noise_gain=gain)
     written = ["comparison.csv", "comparison.md"]
     # Staged and renamed together, comparison.json last (docs/reliability.md).
     with staged_outputs(args.out, markers=["comparison.json"]) as files:

@@ -8,7 +8,6 @@ import json
 import numpy as np
 
 from ..models._servo import ServoModel
-from ..observers._synthesis import design_observer
 from ._options import add_nominal_arguments, finite, reject_plant_arguments
 
 __all__ = ["register"]
@@ -40,53 +39,52 @@ def add_design_arguments(parser: argparse.ArgumentParser) -> None:
     add_observer_arguments(parser)
 
 
+_KIND_TYPES = {"int": _integer, "float": finite, "complex_list": _number_list(complex),
+               "float_list": _number_list(float)}  # fmt: skip
+#: Options every family shares: a bandwidth (what a design at a bandwidth sets, for every
+#: family) or explicit poles.
+_SHARED = ("bandwidth", "poles")
+#: The default bandwidth [rad/s] when neither --bandwidth nor the tuned parameter is given.
+DEFAULT_BANDWIDTH = 100.0
+
+
+def _option(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def _observer_options() -> dict:
+    """``{name: [(family, Parameter), ...]}``: every registered family's parameters."""
+    from ..observers import families
+
+    options: dict = {}
+    for family in families():
+        for p in family.parameters:
+            options.setdefault(p.name, []).append((family, p))
+    return options
+
+
 def add_observer_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the observer options: family, order, bandwidth or poles, and each family's own."""
+    """Add the observer options: ``--type`` and one option per parameter of every registered
+    family (:func:`hpdob.observers.families`), ``--bandwidth`` and ``--poles`` exclusive."""
+    from ..observers import families
+
+    names = [f.name for f in families()]
     obs = parser.add_argument_group("observer")
     obs.add_argument(
         "--type",
-        choices=("dob", "eso", "kalman"),
+        choices=names,
         default="dob",
-        help="observer family: the paper's order-m observers (dob), ADRC's extended state "
-        "observer (eso) or the Kalman disturbance observer (kalman) (default: %(default)s)",
-    )
-    obs.add_argument(
-        "--order",
-        type=_integer,
-        default=None,
-        help="truncation order: 0 DOb, 1 HPDOb, >= 2 generalised (dob, default 1); disturbance "
-        "order of the Kalman observer (default 0)",
-    )
-    obs.add_argument(
-        "--extended-order",
-        type=_integer,
-        default=None,
-        help="eso: f^(m+1) = 0 (0 the classical ESO, default)",
-    )
-    obs.add_argument(
-        "--form",
-        choices=("current", "predictive"),
-        default=None,
-        help="eso: discrete implementation (default: current)",
-    )
-    obs.add_argument(
-        "--position-noise-std",
-        type=finite,
-        default=None,
-        help="kalman: angle noise std [rad] (an encoder's resolution/sqrt(12))",
-    )
-    obs.add_argument(
-        "--process-noise-std",
-        type=finite,
-        default=None,
-        help="kalman: process noise std (default: chosen for --bandwidth, 100 rad/s)",
+        help="observer family: "
+        + "; ".join(f"{f.name}: {f.title}" for f in families() if f.title)
+        + " (default: %(default)s)",
     )
     which = obs.add_mutually_exclusive_group()
     which.add_argument(
         "--bandwidth",
         type=finite,
         default=None,
-        help="bandwidth g [rad/s], all poles at exp(-g Ts) (default: 100)",
+        help="bandwidth g [rad/s], all poles at exp(-g Ts); a family tuned by another parameter "
+        f"(kalman: its process noise) is designed for it (default: {DEFAULT_BANDWIDTH:g})",
     )
     which.add_argument(
         "--poles",
@@ -95,34 +93,17 @@ def add_observer_arguments(parser: argparse.ArgumentParser) -> None:
         help="order+1 comma-separated poles (order+3 with --measurement position), "
         "e.g. 0.9,0.9 or 0.9+0.1j,0.9-0.1j",
     )
-    obs.add_argument(
-        "--measurement",
-        choices=("state", "position"),
-        default="state",
-        help="what the observer measures: angle and velocity (state, the paper's) or the "
-        "angle only (position; the velocity is estimated) (default: %(default)s)",
-    )
-    obs.add_argument(
-        "--velocity-bandwidth",
-        type=finite,
-        default=None,
-        help="--measurement position: bandwidth of the two velocity poles [rad/s] "
-        "(default: the bandwidth)",
-    )
-    obs.add_argument(
-        "--gain-direction",
-        type=_number_list(float),
-        default=None,
-        help="--measurement state: gain direction d, e.g. 1,1 (eq. 25) or 0,1 (default: 1,1)",
-    )
-
-
-#: The options of each family (the others refuse them); --order is dob's and kalman's.
-_FAMILY_OPTIONS = {
-    "dob": ("poles", "velocity_bandwidth", "gain_direction"),
-    "eso": ("extended_order", "form"),
-    "kalman": ("position_noise_std", "process_noise_std"),
-}
+    for name, owners in _observer_options().items():
+        if name in _SHARED:
+            continue
+        parameter = owners[0][1]
+        described = "; ".join(f"{f.name}: {p.help}" for f, p in owners)
+        defaults = [f"{f.name} {f.defaults[name]}" for f, _ in owners if name in f.defaults]
+        if defaults:
+            described += f" (default: {', '.join(defaults)})"
+        kwargs = {"choices": parameter.choices} if parameter.kind == "choice" else {
+            "type": _KIND_TYPES[parameter.kind]}  # fmt: skip
+        obs.add_argument(_option(name), default=None, help=described, **kwargs)
 
 
 def design_from_args(args: argparse.Namespace):
@@ -130,59 +111,65 @@ def design_from_args(args: argparse.Namespace):
     return design_on(args, ServoModel(args.J_n, args.b_n).discretize(args.Ts))
 
 
-def design_on(args: argparse.Namespace, model):
-    """The design parsed ``add_observer_arguments`` describe, on the discrete ``model``."""
+def observer_spec_of_args(args: argparse.Namespace) -> tuple[dict, float | None]:
+    """``(spec, bandwidth)`` parsed ``add_observer_arguments`` describe: the family's spec
+    and, where the spec leaves the tuned parameter out, the bandwidth to design it at."""
+    from ..observers import families, get_family
     from ._errors import CLIError
 
-    bandwidth = args.bandwidth
-    if bandwidth is None and args.poles is None:
-        bandwidth = 100.0
-    kind = getattr(args, "type", "dob")
-    if kind == "eso" and args.order is not None:
-        raise CLIError("--type eso takes --extended-order, not --order")
+    family = get_family(getattr(args, "type", "dob"), "--type")
+    kind = family.name
+    owners = _observer_options()
+    given = {name: getattr(args, name) for name in owners
+             if getattr(args, name, None) is not None}  # fmt: skip
+    if family.order is not None:  # an order key several families share: name this one's
+        for other in families():
+            key = other.order
+            shared = len(owners.get(key, ())) > 1
+            if (
+                key not in (None, family.order)
+                and key in given
+                and key not in family.keys
+                and shared
+            ):
+                raise CLIError(f"--type {kind} takes {_option(family.order)}, not {_option(key)}")
     # options of another family are refused, not silently ignored
-    for family, names in _FAMILY_OPTIONS.items():
-        given = [f"--{k.replace('_', '-')}" for k in names if getattr(args, k) is not None]
-        if family == "dob" and args.measurement != "state":
-            given.append("--measurement")
-        if given and family != kind:
-            verb = "applies" if len(given) == 1 else "apply"
-            raise CLIError(f"{', '.join(given)} {verb} to --type {family} only, not --type {kind}")
-    if kind == "eso":
-        from ..observers._eso import design_eso
-
-        return design_eso(
-            model,
-            bandwidth=bandwidth,
-            extended_order=0 if args.extended_order is None else args.extended_order,
-            form=args.form or "current",
-        )
-    if kind == "kalman":
-        from ..observers._kalman import design_kalman, kalman_process_noise
-
-        if args.position_noise_std is None:
-            raise CLIError("--type kalman needs --position-noise-std (the angle noise [rad])")
-        order = 0 if args.order is None else args.order
-        q = args.process_noise_std
-        if q is not None and args.bandwidth is not None:
+    for other in families():
+        if other is family:
+            continue
+        foreign = [_option(k) for k in other.keys
+                   if k in given and k not in family.keys and k != "bandwidth"]  # fmt: skip
+        if foreign:
+            verb = "applies" if len(foreign) == 1 else "apply"
             raise CLIError(
-                "--type kalman takes --bandwidth (the process noise is chosen for it) or "
-                "--process-noise-std, not both"
+                f"{', '.join(foreign)} {verb} to --type {other.name} only, not --type {kind}"
             )
-        if q is None:
-            r = args.position_noise_std
-            q = kalman_process_noise(model, bandwidth=bandwidth, position_noise_std=r, order=order)
-        return design_kalman(model, order=order, position_noise_std=args.position_noise_std,
-                             process_noise_std=q)  # fmt: skip
-    return design_observer(
-        model,
-        order=1 if args.order is None else args.order,
-        poles=args.poles,
-        bandwidth=bandwidth,
-        measurement=args.measurement,
-        velocity_bandwidth=args.velocity_bandwidth,
-        gain_direction=args.gain_direction,
-    )
+    spec = {"type": kind, **{k: v for k, v in family.defaults.items() if k not in given},
+            **{k: v for k, v in given.items() if k in family.keys}}  # fmt: skip
+    tuned_given = any(k in given for k in family.set_at_bandwidth)
+    if family.tuned != "bandwidth" and family.tuned in given and "bandwidth" in given:
+        raise CLIError(
+            f"--type {kind} takes --bandwidth (the {family.tuned.replace('_', ' ')} is chosen for "
+            f"it) or {_option(family.tuned)}, not both"
+        )
+    missing = [k for k in family.required if k not in spec and k not in family.set_at_bandwidth]
+    if missing:
+        help_ = family.parameter(missing[0]).help
+        raise CLIError(f"--type {kind} needs {_option(missing[0])} ({help_})")
+    if tuned_given:
+        return spec, None
+    spec.pop("bandwidth", None)
+    return spec, DEFAULT_BANDWIDTH if args.bandwidth is None else args.bandwidth
+
+
+def design_on(args: argparse.Namespace, model):
+    """The design parsed ``add_observer_arguments`` describe, on the discrete ``model``."""
+    from ..observers import design_at_bandwidth, design_from_spec
+
+    spec, bandwidth = observer_spec_of_args(args)
+    if bandwidth is None:
+        return design_from_spec(model, spec)
+    return design_at_bandwidth(model, spec, bandwidth)
 
 
 def register(subparsers) -> None:

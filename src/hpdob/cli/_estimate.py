@@ -83,25 +83,26 @@ def _nominal(args):
     return ServoModel(args.J_n, 0.0 if args.b_n is None else args.b_n), "given"
 
 
-#: The settings each family's design records, reported as in effect (the design, not the
-#: command line: defaults and derived values such as the Kalman process noise included).
-_SETTINGS = ("order", "extended_order", "form", "bandwidth", "velocity_bandwidth",
-             "gain_direction", "position_noise_std", "process_noise_std")  # fmt: skip
-
-
 def _observer_settings(args: argparse.Namespace, design) -> dict:
-    """The observer's settings in effect, read from ``design``, as JSON-ready values."""
+    """The observer's settings in effect, read from ``design`` (the design, not the command
+    line: defaults and derived values such as the Kalman process noise included), as
+    JSON-ready values: every parameter of its registered family the design records."""
+    from ..observers import get_family
+
+    family = get_family(args.type, "--type")
     settings = {"type": args.type}
-    if args.type == "dob":
-        settings["measurement"] = design.system.measurement
-    for name in _SETTINGS:
-        value = getattr(design, name, None)
+    for p in family.parameters:
+        if p.kind == "complex_list":
+            continue  # poles: reported below from the command line, as given
+        value = getattr(design, p.name, None)
+        if value is None:
+            value = getattr(design.system, p.name, None)
         if value is not None:
-            settings[name] = np.asarray(value).tolist() if np.ndim(value) else value
-    if args.type == "kalman" and args.process_noise_std is None:  # chosen for a bandwidth
-        settings["process_noise_for_bandwidth"] = (
-            100.0 if args.bandwidth is None else args.bandwidth
-        )
+            settings[p.name] = np.asarray(value).tolist() if np.ndim(value) else value
+    tuned_given = getattr(args, family.tuned, None) is not None
+    if family.tuned != "bandwidth" and not tuned_given:  # chosen for a bandwidth
+        name = family.tuned.removesuffix("_std")
+        settings[f"{name}_for_bandwidth"] = 100.0 if args.bandwidth is None else args.bandwidth
     if args.poles is not None:
         settings.pop("bandwidth", None)
         settings["poles"] = [[float(p.real), float(p.imag)] for p in args.poles]
@@ -116,7 +117,9 @@ def _run(args: argparse.Namespace) -> int:
     nominal, origin = _nominal(args)
     design = design_on(args, nominal.discretize(log.Ts))
     result = estimate_disturbance(design, theta=log.theta, u=log.u, t=log.t)
-    tail = result.tau_hat[result.t >= result.t[0] + 0.1 * (result.t[-1] - result.t[0])]
+    # t increases strictly: the samples with t >= the cut are a slice (a view, not a copy)
+    cut = np.searchsorted(result.t, result.t[0] + 0.1 * (result.t[-1] - result.t[0]))
+    tail = result.tau_hat[cut:]
     with np.errstate(all="ignore"):  # a diverged estimate is refused below, not warned about
         mean, std = float(tail.mean()), float(tail.std())
     if not (np.all(np.isfinite(result.tau_hat)) and math.isfinite(mean) and math.isfinite(std)):
@@ -139,7 +142,8 @@ def _run(args: argparse.Namespace) -> int:
         result.to_csv(files.path("estimate.csv"))
         if not args.no_plot:
             files.plot(
-                "estimate.png", lambda: result.plot(title=f"{design.system.name} on {log.source}")
+                "estimate.png",
+                lambda: result.plot(title=f"{design.system.name} on {log.source}", axis=log.axis),
             )
             written.append("estimate.png")
         files.write_json("estimate.json", report)

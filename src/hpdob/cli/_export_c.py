@@ -5,9 +5,42 @@ from __future__ import annotations
 import argparse
 
 from ._design import add_design_arguments, design_from_args
-from ._options import output_path
+from ._options import finite, output_path
 
-__all__ = ["register"]
+__all__ = ["add_range_arguments", "ranges_from_args", "register"]
+
+#: The ranges of the fixed-point formats: option name -> (key of export_c's ranges, help).
+_RANGES = {
+    "counts_per_rev": ("encoder counts per revolution (the angle input is the count)", int),
+    "omega_max": ("velocity range [rad/s] (the input saturates there)", finite),
+    "u_max": ("torque command range [N m] (the input saturates there)", finite),
+    "tau_max": ("estimate range [N m] (the estimate saturates there)", finite),
+}
+
+
+def add_range_arguments(parser: argparse.ArgumentParser) -> None:
+    """The declared ranges of ``--dtype q31``/``q15``."""
+    group = parser.add_argument_group(
+        "fixed point (--dtype q31 or q15; all four are required, docs/deployment.md)"
+    )
+    for name, (note, kind) in _RANGES.items():
+        group.add_argument(f"--{name.replace('_', '-')}", type=kind, default=None, help=note)
+
+
+def ranges_from_args(args: argparse.Namespace) -> dict | None:
+    """The ``ranges`` dict of export_c for a fixed-point dtype (None for double/float)."""
+    from ._errors import CLIError
+
+    given = {k: getattr(args, k) for k in _RANGES if getattr(args, k) is not None}
+    if args.dtype not in ("q31", "q15"):
+        if given:
+            names = ", ".join(f"--{k.replace('_', '-')}" for k in given)
+            raise CLIError(f"{names}: only for --dtype q31 or q15, got --dtype {args.dtype}")
+        return None
+    missing = [f"--{k.replace('_', '-')}" for k in _RANGES if k not in given]
+    if missing:
+        raise CLIError(f"--dtype {args.dtype} needs {', '.join(missing)} (the declared ranges)")
+    return given
 
 
 def register(subparsers) -> None:
@@ -17,7 +50,8 @@ def register(subparsers) -> None:
         description="Design an observer (same options as 'hpdob design') and write it as "
         "dependency-free C99 for a microcontroller: <prefix>.h declares <prefix>_state, "
         "<prefix>_init, <prefix>_estimate and <prefix>_update; <prefix>.c holds the gains as "
-        "constants. See docs/deployment.md.",
+        "constants. --dtype q31 writes integer fixed-point code from the declared ranges. "
+        "See docs/deployment.md.",
     )
     add_design_arguments(parser)
     out = parser.add_argument_group("output")
@@ -29,7 +63,8 @@ def register(subparsers) -> None:
     out.add_argument(
         "--dtype",
         default="double",
-        help="scalar type, 'double' or 'float' (default: %(default)s)",
+        help="scalar type, 'double', 'float', or fixed point 'q31' (int32) or 'q15' (int16) "
+        "(default: %(default)s)",
     )
     out.add_argument(
         "--nan-guard",
@@ -45,15 +80,22 @@ def register(subparsers) -> None:
         metavar="DIR",
         help="output directory, created if missing (default: current directory)",
     )
+    add_range_arguments(parser)
     parser.set_defaults(handler=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
     from ..export._c import export_c
 
+    ranges = ranges_from_args(args)
     design = design_from_args(args)
     paths = export_c(
-        design, args.out, prefix=args.prefix, dtype=args.dtype, nan_guard=args.nan_guard
+        design,
+        args.out,
+        prefix=args.prefix,
+        dtype=args.dtype,
+        nan_guard=args.nan_guard,
+        ranges=ranges,
     )
     for path in paths:
         print(path)

@@ -1,4 +1,9 @@
-"""``hpdob identify LOG``: identify J, b, Coulomb friction and offset from a logged run."""
+"""``hpdob identify LOG [LOG ...]``: identify J, b, Coulomb friction and offset from logged runs.
+
+Option names mean what they mean in every other command (docs/naming.md): ``--kp/--kd`` are
+hpdob's PD gains [1/s^2, 1/s] with the nominal inertia ``--J-n``; the gains of a loop in
+torque units are ``--loop-kp/--loop-kd``.
+"""
 
 from __future__ import annotations
 
@@ -7,49 +12,102 @@ from pathlib import Path
 
 from ._design import _integer, _number_list
 from ._errors import CLIError
-from ._logs import add_log_arguments, log_from_args
+from ._logs import add_log_arguments, log_from_args, logs_from_args
 from ._options import finite as _real
 from ._options import output_path
 
 __all__ = ["register"]
 
+_PARAMETERS = ("J", "b", "coulomb", "offset")
+
+
+def _fixed(text: str) -> tuple[str, float]:
+    name, _, value = text.partition("=")
+    if name not in _PARAMETERS or not value:
+        raise argparse.ArgumentTypeError(
+            f"expected NAME=VALUE with NAME one of {', '.join(_PARAMETERS)}, got {text!r}"
+        )
+    return name, _real(value)
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "identify",
-        help="identify inertia, friction and offset of an axis from a logged run",
-        description="Identify u = J qdd + b qd + coulomb sign(qd) + offset from a log (CSV, "
-        "Parquet or MATLAB .mat) by the EMPS benchmark's IDIM-LS or by IDIM-IV; writes "
+        help="identify inertia, friction and offset of an axis from logged runs",
+        description="Identify u = J qdd + b qd + coulomb sign(qd) + offset from one or more logs "
+        "(CSV, Parquet or MATLAB .mat) with filters read from the log and instrumental "
+        "variables (default), or by the EMPS benchmark's IDIM-LS or IDIM-IV; writes "
         "identification.json, identification.csv and identification.png into the output "
-        "directory and prints a summary. A linear axis (m, N, kg) works like a rotary one "
-        "(rad, N m, kg m^2): --axis sets the units of the report. See docs/real-data.md.",
+        "directory and prints a summary (and validation.json/.png with --validate). A linear "
+        "axis (m, N, kg) works like a rotary one (rad, N m, kg m^2): --axis sets the units of "
+        "the report. See docs/real-data.md.",
     )
     add_log_arguments(
         parser,
         emps_help="use the EMPS benchmark's measured run shipped with hpdob (and its "
         "controller for --method idim-iv) instead of LOG",
         reference=True,
+        several=True,
     )
-    method = parser.add_argument_group("method")
+    method = parser.add_argument_group("method and model")
     method.add_argument(
         "--method",
-        choices=("idim-ls", "idim-iv"),
-        default="idim-ls",
-        help="inverse-model least squares, or instrumental variables from the simulated loop "
-        "(needs --reference, --kp, --kd) (default: %(default)s)",
+        choices=("auto", "idim-ls", "idim-iv", "idim-iv-input"),
+        default="auto",
+        help="auto: filters from the log and instrumental variables (through the loop if one "
+        "is given); idim-ls/idim-iv: the EMPS benchmark's methods and rules (default: "
+        "%(default)s)",
     )
-    method.add_argument("--kp", type=_real, help="loop position gain [N m/rad or N/m]")
-    method.add_argument("--kd", type=_real, help="loop velocity gain [N m s/rad or N s/m]")
     method.add_argument(
-        "--velocity-filter",
-        type=_number_list(float),
-        default=None,
-        metavar="C0,C1,...",
-        help="the loop's velocity estimate sum c_i y_(k-i) / Ts (default: 1,-1)",
+        "--friction", choices=("viscous+coulomb", "viscous"), default="viscous+coulomb",
+        help="friction model; viscous lumps Coulomb friction into the offset of a one-way log "
+        "(default: %(default)s)",
+    )  # fmt: skip
+    method.add_argument(
+        "--fix", type=_fixed, action="append", default=[], metavar="NAME=VALUE",
+        help="hold a parameter (J, b, coulomb, offset) at a value; repeatable",
+    )  # fmt: skip
+    method.add_argument(
+        "--offsets", choices=("per-log", "shared"), default="per-log",
+        help="with several logs: one offset each, or one for all (default: %(default)s)",
+    )  # fmt: skip
+    method.add_argument("--no-diagnostics", action="store_true",
+                        help="skip the simulation-fit and filter-sensitivity checks")  # fmt: skip
+    loop = parser.add_argument_group(
+        "the loop that produced the log (for IDIM-IV; needs --reference)",
+        "hpdob's PD, u = J_n (kp (r - y) + kd (r_dot - v) + r_ddot): --kp, --kd, --J-n; or "
+        "any PD in torque units, u = loop_kp (r - y) + loop_kd (r_dot - v) + feedforward: "
+        "--loop-kp, --loop-kd.",
     )
-    method.add_argument("--limit", type=_real, help="the loop's output limit [N m or N]")
-    filters = parser.add_argument_group("filters (defaults: the EMPS rules, see identify())")
-    filters.add_argument("--bandwidth", type=_real, help="closed-loop bandwidth [Hz]")
+    loop.add_argument("--kp", type=_real, help="PD gain kp [1/s^2] (as in tune, simulate)")
+    loop.add_argument("--kd", type=_real, help="PD gain kd [1/s] (as in tune, simulate)")
+    loop.add_argument("--J-n", type=_real, help="nominal inertia J_n of that PD [kg m^2 or kg]")
+    loop.add_argument("--no-feedforward", action="store_true",
+                      help="that PD has no J_n r_ddot feed-forward")  # fmt: skip
+    loop.add_argument(
+        "--loop-kp", type=_real, help="position gain in torque units [N m/rad or N/m]"
+    )
+    loop.add_argument(
+        "--loop-kd", type=_real, help="velocity gain in torque units [N m s/rad or N s/m]"
+    )
+    loop.add_argument("--reference-velocity", metavar="NAME", help="reference velocity column")
+    loop.add_argument("--reference-acceleration", metavar="NAME",
+                      help="reference acceleration column (the PD's feed-forward)")  # fmt: skip
+    loop.add_argument(
+        "--derive-reference", action="store_true",
+        help="derive the reference velocity and acceleration from --reference by identify's "
+        "filtered differentiation (Butterworth, forward-backward, then central differences; "
+        "default with --kp/--kd when no column is given)",
+    )  # fmt: skip
+    loop.add_argument("--feedforward", metavar="NAME", help="feed-forward torque column [N m or N]")
+    loop.add_argument(
+        "--velocity-filter", type=_number_list(float), default=None, metavar="C0,C1,...",
+        help="the loop's velocity estimate sum c_i y_(k-i) / Ts (default: 1,-1)",
+    )  # fmt: skip
+    loop.add_argument("--limit", type=_real, help="the loop's output limit [N m or N]")
+    filters = parser.add_argument_group("filters (default: from the log, see identify())")
+    filters.add_argument("--bandwidth", type=_real,
+                         help="bandwidth of the motion to keep [Hz] (cutoff 5x)")  # fmt: skip
     filters.add_argument("--cutoff", type=_real, help="Butterworth cut-off [Hz]")
     filters.add_argument("--order", type=_integer, default=4, help="Butterworth order (4)")
     filters.add_argument("--decimation", type=_integer, help="decimation factor")
@@ -58,77 +116,178 @@ def register(subparsers) -> None:
         "--min-speed", type=_real, default=0.0, help="drop rows slower than this [rad/s or m/s]"
     )
     parser.add_argument(
+        "--validate", type=Path, default=None, metavar="LOG",
+        help="simulate the identified model on LOG (same columns; through its loop if the "
+        "loop options are given) and report the fit (MATLAB compare)",
+    )  # fmt: skip
+    parser.add_argument(
         "--out",
         type=output_path,
         default=None,
         metavar="DIR",
         help="output directory (default: hpdob-results/identify-<log name>)",
     )
-    parser.add_argument("--no-plot", action="store_true", help="skip the figure")
+    parser.add_argument("--no-plot", action="store_true", help="skip the figures")
     parser.set_defaults(handler=_run)
+
+
+def _columns(args) -> dict:
+    names = {
+        "reference_velocity": args.reference_velocity,
+        "reference_acceleration": args.reference_acceleration,
+        "feedforward": args.feedforward,
+    }
+    return {key: name for key, name in names.items() if name is not None}
+
+
+def _wants_loop(args) -> bool:
+    return any(
+        getattr(args, k) is not None for k in ("kp", "kd", "J_n", "loop_kp", "loop_kd")
+    ) or bool(_columns(args))
+
+
+def _loop(args, log, name: str):
+    """The :class:`FeedbackLoop` of ``log`` from the loop options, and how its reference
+    velocity was obtained."""
+    from ..identification import FeedbackLoop, differentiate
+
+    pd = [k for k in ("kp", "kd", "J_n") if getattr(args, k) is not None]
+    torque = [k for k in ("loop_kp", "loop_kd") if getattr(args, k) is not None]
+    if pd and torque:
+        raise CLIError(
+            "give hpdob's PD (--kp, --kd, --J-n) or the gains in torque units (--loop-kp, "
+            "--loop-kd), not both"
+        )
+    if pd and len(pd) < 3:
+        missing = [f"--{k.replace('_', '-')}" for k in ("kp", "kd", "J_n") if k not in pd]
+        raise CLIError(
+            f"--kp/--kd are hpdob's PD gains [1/s^2, 1/s] (as in tune and simulate), scaled by "
+            f"the nominal inertia: give {', '.join(missing)}; for gains in torque units "
+            "[N m/rad, N m s/rad] use --loop-kp/--loop-kd"
+        )
+    if torque and len(torque) < 2:
+        raise CLIError("give both --loop-kp and --loop-kd")
+    if not pd and not torque:
+        raise CLIError(
+            "the loop needs its gains: --kp, --kd and --J-n (hpdob's PD) or --loop-kp and "
+            "--loop-kd (torque units)"
+        )
+    if log.reference is None:
+        raise CLIError(f"the loop needs the reference position of {name}: give --reference")
+    velocity = log.columns.get("reference_velocity")
+    acceleration = log.columns.get("reference_acceleration")
+    derive = args.derive_reference or (pd and velocity is None and acceleration is None)
+    if derive and (velocity is not None or acceleration is not None):
+        raise CLIError("--derive-reference replaces --reference-velocity/acceleration: drop one")
+    source = "columns" if velocity is not None else "none (velocity feedback only)"
+    if derive:
+        velocity, acceleration = differentiate(log.reference, log.Ts, like=log.theta)
+        source = "derived from the reference (filtered differentiation, cutoff as identify's)"
+    feedforward = log.columns.get("feedforward")
+    if pd:
+        kp, kd = args.J_n * args.kp, args.J_n * args.kd
+        if not args.no_feedforward and acceleration is not None:
+            extra = args.J_n * acceleration
+            feedforward = extra if feedforward is None else feedforward + extra
+    else:
+        kp, kd = args.loop_kp, args.loop_kd
+    loop = FeedbackLoop(
+        log.reference, kp=kp, kd=kd, reference_velocity=velocity, feedforward=feedforward,
+        velocity_filter=tuple(args.velocity_filter or (1.0, -1.0)), limit=args.limit,
+    )  # fmt: skip
+    return loop, source
 
 
 def _load(args):
     from ..identification import emps_loop
-    from ..identification._loop import FeedbackLoop
 
-    log = log_from_args(args)
+    logs = logs_from_args(args, _columns(args) or None)
     if args.emps:
-        return log, emps_loop(log) if args.method == "idim-iv" else None
-    loop = None
-    if args.method == "idim-iv":
-        missing = [f"--{k}" for k in ("reference", "kp", "kd") if getattr(args, k) is None]
-        if missing:
+        if _wants_loop(args):
+            raise CLIError("--emps brings its own controller: drop the loop options")
+        with_loop = args.method in ("auto", "idim-iv")
+        return logs, [emps_loop(logs[0]) if with_loop else None], None
+    if not _wants_loop(args):
+        if args.method == "idim-iv":
             raise CLIError(
-                f"--method idim-iv needs the loop that produced the log: give {', '.join(missing)}"
+                "--method idim-iv needs the loop that produced the log: give --reference and "
+                "its gains (--kp, --kd, --J-n, or --loop-kp, --loop-kd)"
             )
-        loop = FeedbackLoop(
-            log.reference,
-            kp=args.kp,
-            kd=args.kd,
-            velocity_filter=tuple(args.velocity_filter or (1.0, -1.0)),
-            limit=args.limit,
-        )
-    return log, loop
+        return logs, [None] * len(logs), None
+    built = [_loop(args, log, log.source) for log in logs]
+    return logs, [b[0] for b in built], built[0][1]
+
+
+def _validate(args, result, files):
+    """``--validate LOG``: the identified model simulated on another log."""
+    from ..identification import emps_loop
+
+    log = log_from_args(argparse.Namespace(**{**vars(args), "log": args.validate, "emps": False}),
+                        _columns(args) or None)  # fmt: skip
+    loop = None
+    if args.emps:
+        loop = emps_loop(log) if log.reference is not None else None
+    elif _wants_loop(args):
+        loop = _loop(args, log, log.source)[0]
+    check = result.validate(log, loop=loop)
+    files.write_json("validation.json", check.to_dict())
+    if not args.no_plot:
+        files.plot("validation.png", lambda: check.plot())
+    return check
 
 
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
     from .._files import staged_outputs
-    from ..identification import EMPS_PUBLISHED, IdentificationWarning
+    from ..identification import EMPS_PUBLISHED, IdentificationWarning, identify
 
-    log, loop = _load(args)
+    if args.emps and args.validate is not None:
+        raise CLIError("--validate takes a LOG with the same columns as LOG; not with --emps")
+    logs, loops, loop_source = _load(args)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", IdentificationWarning)
-        result = log.identify(
-            method=args.method, loop=loop, bandwidth=args.bandwidth, cutoff=args.cutoff,
-            order=args.order, decimation=args.decimation, border=args.border,
-            min_speed=args.min_speed, axis=args.axis or log.axis,
+        result = identify(
+            logs if len(logs) > 1 else logs[0], method=args.method,
+            loop=loops if len(logs) > 1 else loops[0], bandwidth=args.bandwidth,
+            cutoff=args.cutoff, order=args.order, decimation=args.decimation,
+            border=args.border, min_speed=args.min_speed, friction=args.friction,
+            fixed=dict(args.fix) or None, offsets=args.offsets,
+            diagnostics=not args.no_diagnostics, axis=args.axis or logs[0].axis,
         )  # fmt: skip
-    out = args.out or Path("hpdob-results") / f"identify-{Path(log.source).stem}"
+    first = logs[0]
+    name = Path(first.source.split(" run ")[0]).stem
+    out = args.out or Path("hpdob-results") / f"identify-{name}"
     report = result.to_dict()
-    report["log"] = {
-        "source": log.source,
-        "names": dict(log.names),
-        "input_gain": log.input_gain,
-        "samples": len(log),
-        "Ts": log.Ts,
-    }
+    report["logs"] = [
+        {"source": log.source, "names": dict(log.names), "input_gain": log.input_gain,
+         "samples": len(log), "Ts": log.Ts}
+        for log in logs
+    ]  # fmt: skip
+    report["log"] = report["logs"][0]
+    if loop_source is not None:
+        report["loop"] = {"reference_velocity": loop_source}
     if args.emps:
         report["published"] = dict(EMPS_PUBLISHED)
     written = ["identification.json", "identification.csv"]
+    check = None
     # Staged and renamed together, identification.json last (docs/reliability.md).
     with staged_outputs(out, markers=["identification.json"]) as files:
         result.to_csv(files.path("identification.csv"))
         if not args.no_plot:
             files.plot(
                 "identification.png",
-                lambda: result.plot(title=f"{result.method.upper()} on {log.source}"),
+                lambda: result.plot(title=f"{result.method.upper()} on {first.source}"),
             )
             written.append("identification.png")
+        if args.validate is not None:
+            check = _validate(args, result, files)
+            written += ["validation.json"] + ([] if args.no_plot else ["validation.png"])
         files.write_json("identification.json", report)
-    print(f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s")
+    for log in logs:
+        print(f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s")
+    if loop_source is not None:
+        print(f"loop reference velocity: {loop_source}")
     print(result.summary())
     if args.emps:
         p = EMPS_PUBLISHED
@@ -136,8 +295,8 @@ def _run(args: argparse.Namespace) -> int:
             f"  published IDIM-LS (EMPS description, section 3.4): M {p['J']} kg, "
             f"Fv {p['b']} N s/m, Fc {p['coulomb']} N, offset {p['offset']} N"
         )
+    if check is not None:
+        print(check.summary())
     print(f"wrote {', '.join(written)} to {out}")
     caught = [w for w in caught if issubclass(w.category, IdentificationWarning)]
-    for warning in caught:
-        print(f"warning: {warning.message}")
     return 1 if caught else 0

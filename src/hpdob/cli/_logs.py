@@ -10,14 +10,25 @@ from pathlib import Path
 from ._errors import CLIError
 from ._options import finite
 
-__all__ = ["add_log_arguments", "log_from_args"]
+__all__ = ["add_log_arguments", "log_from_args", "logs_from_args"]
 
 
 def add_log_arguments(
-    parser: argparse.ArgumentParser, *, emps_help: str, reference: bool = False
+    parser: argparse.ArgumentParser,
+    *,
+    emps_help: str,
+    reference: bool = False,
+    several: bool = False,
 ) -> None:
-    """``LOG`` or ``--emps``, and the column options (``--reference`` with ``reference``)."""
-    parser.add_argument("log", type=Path, nargs="?", help="log file (.csv, .parquet, .mat)")
+    """``LOG`` or ``--emps``, and the column options (``--reference`` with ``reference``;
+    several ``LOG`` files and ``--run`` with ``several``)."""
+    if several:
+        parser.add_argument(
+            "log", type=Path, nargs="*", metavar="LOG",
+            help="log file(s) (.csv, .parquet, .mat), all with the same columns",
+        )  # fmt: skip
+    else:
+        parser.add_argument("log", type=Path, nargs="?", help="log file (.csv, .parquet, .mat)")
     parser.add_argument("--emps", action="store_true", help=emps_help)
     columns = parser.add_argument_group("columns of LOG")
     columns.add_argument("--time", metavar="NAME", help="time column [s] (or give --Ts)")
@@ -32,6 +43,11 @@ def add_log_arguments(
     )
     if reference:
         columns.add_argument("--reference", metavar="NAME", help="reference position column")
+    if several:
+        columns.add_argument(
+            "--run", metavar="NAME",
+            help="column telling which run each row belongs to: one file holding several runs",
+        )  # fmt: skip
     columns.add_argument("--Ts", type=finite, help="sampling period [s] of a log without time")
     columns.add_argument(
         "--axis", choices=("rotary", "linear"), help="units of the report (default: unstated)"
@@ -48,7 +64,52 @@ def _input_gain(text: str):
     return value
 
 
-def log_from_args(args: argparse.Namespace):
+def logs_from_args(args: argparse.Namespace, columns=None) -> list:
+    """The logs of ``LOG ...`` (several files, or one with ``--run``) or ``--emps``."""
+    from ..identification import read_logs
+
+    files = list(args.log)
+    if args.emps == bool(files):
+        raise CLIError("give LOG file(s) or --emps (the shipped EMPS run), exactly one")
+    if args.emps:
+        if getattr(args, "run", None) is not None:
+            raise CLIError("--emps is one run; drop --run")
+        return [log_from_args(argparse.Namespace(**{**vars(args), "log": None}))]
+    if getattr(args, "run", None) is None:
+        return [log_from_args(argparse.Namespace(**{**vars(args), "log": f}), columns)
+                for f in files]  # fmt: skip
+    if len(files) > 1:
+        raise CLIError("--run splits one file into its runs: give one LOG with it")
+    _require_columns(args)
+    roles = [r for r in ("time", "position", "input", "reference") if hasattr(args, r)]
+    return read_logs(
+        files[0],
+        run=args.run,
+        **{role: getattr(args, role) for role in roles},
+        input_gain=1.0 if args.input_gain is None else _input_gain(args.input_gain),
+        Ts=args.Ts,
+        axis=args.axis,
+        columns=columns,
+    )
+
+
+def _require_columns(args) -> None:
+    for name in ("position", "input"):
+        if getattr(args, name) is None:
+            raise CLIError(f"--{name} is required: the name of the log's {name} column")
+    if (args.time is None) == (args.Ts is None):  # in the command's terms, not read_log's
+        raise CLIError(
+            "give the log's time column as --time NAME or, for a log without one, its sampling "
+            "period as --Ts SECONDS"
+            + (
+                f" (not both: got --time {args.time} and --Ts {args.Ts:g})"
+                if args.Ts is not None
+                else ""
+            )
+        )
+
+
+def log_from_args(args: argparse.Namespace, columns=None):
     """The :class:`~hpdob.identification.Log` that ``add_log_arguments`` options describe."""
     from ..identification import emps, read_log
 
@@ -64,13 +125,12 @@ def log_from_args(args: argparse.Namespace):
                 f"units; drop {', '.join(given)}"
             )
         return emps()
-    for name in ("position", "input"):
-        if getattr(args, name) is None:
-            raise CLIError(f"--{name} is required: the name of the log's {name} column")
+    _require_columns(args)
     return read_log(
         args.log,
         **{role: getattr(args, role) for role in roles},
         input_gain=1.0 if args.input_gain is None else _input_gain(args.input_gain),
         Ts=args.Ts,
         axis=args.axis,
+        columns=columns,
     )

@@ -16,8 +16,10 @@ def register(subparsers) -> None:
         help="run a closed-loop scenario described in a TOML file",
         description="Simulate the scenario in a TOML file (plant, nominal, Ts, duration, "
         "controller, observer, reference, disturbance, sensor, actuator; see "
-        "docs/simulation.md and the .toml files in examples/). Writes <label>.csv, "
-        "metrics.json and <label>.png into the output directory.",
+        "docs/simulation.md and the .toml files in examples/), or an N-joint arm "
+        '([plant] type = "mujoco-arm" or "two-link-arm", per-joint [[observer]] tables; see '
+        "docs/robots.md). Writes <label>.csv, metrics.json and <label>.png into the output "
+        "directory.",
     )
     parser.add_argument("scenario", type=Path, help="scenario file (.toml)")
     parser.add_argument(
@@ -69,13 +71,58 @@ def _scenario(args):
     return kwargs, metric_windows(data)
 
 
+def _run_arm(args: argparse.Namespace, data: dict) -> int:
+    """An N-joint scenario (``[plant] type = "mujoco-arm"``; docs/robots.md)."""
+    import warnings
+
+    from .._files import check_file_stem, json_text, staged_outputs
+    from ..robots import simulate_arm
+    from ..robots._scenario import arm_scenario_from_dict
+    from ..simulation import SimulationDivergedWarning
+    from ._errors import CLIError
+
+    if args.measurement is not None or args.pd_velocity is not None:
+        raise CLIError("--measurement and --pd-velocity apply to single-axis scenarios only")
+    loop, run = arm_scenario_from_dict(data, args.scenario.parent)
+    start = run.pop("metrics_start")
+    run["label"] = run["label"] or args.scenario.stem
+    out = args.out or Path("hpdob-results") / args.scenario.stem
+    stem = check_file_stem(run["label"], "label")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SimulationDivergedWarning)  # reported below instead
+        result = simulate_arm(loop, **run)
+    metrics = result.metrics(start=start)
+    with staged_outputs(out, markers=["metrics.json"]) as files:
+        result.to_csv(files.path(f"{stem}.csv"))
+        if not args.no_plot:
+            files.plot(f"{stem}.png", lambda: result.plot())
+        per_joint = {
+            joint: {name: values[j] for name, values in metrics.items()}
+            for j, joint in enumerate(result.joint_names)
+        }
+        files.write_text("metrics.json", json_text({stem: per_joint}))
+    print(f"{'joint':<10}" + "".join(f"{name:>24}" for name in metrics))
+    for joint, values in per_joint.items():
+        print(f"{joint:<10}" + "".join(f"{v:>24.6e}" for v in values.values()))
+    print(f"wrote {stem}.csv, metrics.json{'' if args.no_plot else f', {stem}.png'} to {out}")
+    if result.diverged:
+        print("warning: the run diverged")
+        return 1
+    return 0
+
+
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
     from .._files import check_file_stem, staged_outputs
+    from ..robots._scenario import is_arm_scenario
     from ..simulation._result import metrics_json
+    from ..simulation._scenario import _read_toml
     from ..simulation._simulate import SimulationDivergedWarning, simulate
 
+    data = _read_toml(args.scenario)
+    if is_arm_scenario(data):
+        return _run_arm(args, data)
     kwargs, windows = _scenario(args)
     out = args.out or Path("hpdob-results") / args.scenario.stem
     # The label names the output files: never a path (e.g. "../escaped") nor a hidden name.

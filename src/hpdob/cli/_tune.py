@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
+from typing import ClassVar
 
 from ._errors import CLIError
 from ._options import add_nominal_arguments, finite, output_path, reject_plant_arguments
+from ._ranges import check_uncertainty_ranges
 
 __all__ = ["register"]
 
@@ -33,8 +36,8 @@ def register(subparsers) -> None:
         "and robust stability over the inertia/friction uncertainty (with one extra sample of "
         "delay) analytically, then the robust candidates in simulation; the best is verified "
         "at every corner of the uncertainty set. Prints the recommendation and why, writes "
-        "tune.json, tune.csv and tune.png, and can export the observer as C. See "
-        "docs/tuning.md.",
+        "tune.json, tune.csv, tune.png and scenario.toml (the verified loop and run, for "
+        "'hpdob simulate'), and can export the observer as C. See docs/tuning.md.",
     )
     add_nominal_arguments(parser.add_argument_group("nominal model"))
     reject_plant_arguments(parser)
@@ -49,9 +52,9 @@ def register(subparsers) -> None:
                       help="simulated Coulomb friction [N m] (0.01 J_n/2.8e-4)")  # fmt: skip
     search = parser.add_argument_group("search")
     search.add_argument("--J-range", type=_pair, default=(1.0, 1.0), metavar="LOW,HIGH",
-                        help="true/nominal inertia ratios (default: 1,1)")  # fmt: skip
+                        help="true/nominal inertia ratios, e.g. 0.8,1.25 (1,1)")  # fmt: skip
     search.add_argument("--b-range", type=_pair, default=None, metavar="LOW,HIGH",
-                        help="true viscous frictions [N m s/rad] (default: b_n)")  # fmt: skip
+                        help="absolute true viscous frictions [N m s/rad] (b_n)")  # fmt: skip
     search.add_argument("--frequency", type=_frequency, default=None, metavar="F|LOW,HIGH",
                         help="disturbance frequency [Hz] or band (default: 0.1,10)")  # fmt: skip
     search.add_argument("--families", default=None, metavar="LIST",
@@ -68,13 +71,15 @@ def register(subparsers) -> None:
     out.add_argument("--prefix", default="dob", help="C prefix with --export-c (dob)")
     out.add_argument("--dtype", default="double", help="C scalar type with --export-c")
     out.add_argument("--no-plot", action="store_true", help="skip the figure")
+    out.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                     help="progress on stderr (default: when stderr is a terminal)")  # fmt: skip
     parser.set_defaults(handler=_run)
 
 
 def _run(args: argparse.Namespace) -> int:
     from .._files import staged_outputs
     from ..models import ServoModel
-    from ..simulation import PD, Actuator, Encoder
+    from ..simulation import PD, Actuator, Encoder, scenario_toml
     from ..tuning import tune
 
     if args.export_c is not None:  # checked before the search, not after it
@@ -91,7 +96,9 @@ def _run(args: argparse.Namespace) -> int:
     sensor = None
     if args.counts_per_rev is not None or args.noise_std != 0:  # Encoder checks the values
         sensor = Encoder(args.counts_per_rev or 2**31, noise_std=args.noise_std)
+    check_uncertainty_ranges(args.J_range, args.b_range, J_n=args.J_n, b_n=args.b_n)
     families = None if args.families is None else [f.strip() for f in args.families.split(",")]
+    show = sys.stderr.isatty() if args.progress is None else args.progress
     result = tune(
         nominal=ServoModel(args.J_n, args.b_n),
         Ts=args.Ts,
@@ -105,13 +112,22 @@ def _run(args: argparse.Namespace) -> int:
         objective=args.objective,
         noise_limit=args.noise_limit,
         coulomb=args.coulomb,
+        progress=_Progress(sys.stderr) if show else None,
     )
-    written = ["tune.csv"]
+    loop = result.loop()
+    scenario = scenario_toml(
+        loop, label="tuned", **result.scenario,
+        comment="The loop and run 'hpdob tune' verified its recommendation in (the centre of the "
+        f"uncertainty set):\n{result.recommendation['name']}, {result.recommendation['parameter']}"
+        f" = {result.recommendation['value']:.6g}. Run: hpdob simulate scenario.toml",
+    )  # fmt: skip
+    written = ["tune.csv", "scenario.toml"]
     # Staged and renamed together, tune.json last (docs/reliability.md); the C files (their own
     # atomic pair, in their own directory) are written before the commit, so a failed export
     # leaves the previous tune.* untouched.
     with staged_outputs(args.out, markers=["tune.json"]) as files:
         result.table.to_csv(files.path("tune.csv"), index=False)
+        files.write_text("scenario.toml", scenario)
         if not args.no_plot:
             files.plot("tune.png", lambda: result.plot())
             written.append("tune.png")
@@ -125,3 +141,21 @@ def _run(args: argparse.Namespace) -> int:
     print(result.report())
     print(f"wrote {', '.join(written)} (in {args.out})")
     return 0
+
+
+class _Progress:
+    """``tune``'s progress on one line of a terminal: the stage and its share done."""
+
+    NAMES: ClassVar[dict] = {
+        "analysis": "analysing candidates",
+        "simulation": "simulating the robust ones",
+        "verification": "verifying at the corners",
+    }
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        end = "\n" if stage == "verification" and done == total else ""
+        self.stream.write(f"\r\x1b[Ktune: {self.NAMES[stage]} {done}/{total}{end}")
+        self.stream.flush()

@@ -21,6 +21,7 @@ from ._force import ForceControl, ImpedanceControl
 from ._pd import PD, FilteredPD
 from ._pid import PID
 from ._program import ControllerProgram
+from ._settings import controller_settings
 from ._system import LOOP_SIGNALS, LinearController, ProgramBuilder
 
 #: The controller types of scenario files (``[controller] type = "pid"``).
@@ -41,5 +42,6 @@ __all__ = [
     "ImpedanceControl",
     "LinearController",
     "ProgramBuilder",
+    "controller_settings",
     "controller_system",
 ]

@@ -10,7 +10,6 @@ describes the verification and the error bound of a ``float`` build.
 
 from __future__ import annotations
 
-import os
 import re
 import struct
 from pathlib import Path
@@ -23,64 +22,19 @@ from .._version import __version__
 from ..controllers import LinearController
 from ..observers._program import RESET_OPERANDS, render_sum
 from ..observers._system import UNITS, LinearObserver, as_system
+from ._c_fixed import design_for, render_fixed
 from ._c_guard import guard_header, guard_helpers, guarded_init, guarded_output, guarded_update
+from ._c_names import _check_directory, _check_prefix
 from ._c_outputs import reaction_declaration, reaction_definition, reaction_steps
 from ._c_outputs import signature as _signature
 from ._controller_c import render_controller
+from ._fixed import FixedPointDesign
 
 __all__ = ["export_c", "render_c"]
 
-#: Scalar types the code can be generated for.
-DTYPES = ("double", "float")
-#: Longest prefix: ``<prefix>_estimate`` then stays within the 31 significant characters
-#: C99 (5.2.4.1) guarantees for external identifiers.
-MAX_PREFIX = 31 - len("_estimate")
-_IDENTIFIER = re.compile(r"[A-Za-z][A-Za-z0-9_]*\Z")
-#: The standard headers of C99 (7.1.2) and C11: a prefix equal to one of them (in any case, for
-#: case-insensitive file systems) would write e.g. ``math.h`` and shadow the system header for
-#: every file of the firmware compiled with ``-I`` on the output directory.
-STANDARD_HEADERS = (
-    "assert", "complex", "ctype", "errno", "fenv", "float", "inttypes", "iso646", "limits",
-    "locale", "math", "setjmp", "signal", "stdarg", "stdbool", "stddef", "stdint", "stdio",
-    "stdlib", "string", "tgmath", "time", "wchar", "wctype",
-    "stdalign", "stdatomic", "stdnoreturn", "threads", "uchar",
-)  # fmt: skip
-
-
-def _check_prefix(prefix) -> str:
-    if not isinstance(prefix, str):
-        raise ParameterTypeError(
-            f"prefix must be a str (a C identifier such as 'dob'), got {prefix!r} of type "
-            f"{type(prefix).__name__}"
-        )
-    if not _IDENTIFIER.match(prefix):
-        raise ParameterValueError(
-            "prefix must be a C identifier starting with a letter (letters, digits and "
-            f"underscores only, e.g. 'dob' or 'axis1_dob'), got {prefix!r}"
-        )
-    if prefix.lower() in STANDARD_HEADERS:
-        raise ParameterValueError(
-            f"prefix {prefix!r} would write {prefix}.h, which shadows the C standard header "
-            f"<{prefix.lower()}.h>; choose another prefix, e.g. 'dob' or '{prefix}_dob'"
-        )
-    if len(prefix) > MAX_PREFIX:
-        raise ParameterValueError(
-            f"prefix must have at most {MAX_PREFIX} characters so that "
-            f"'{prefix}_estimate' stays within C99's 31 significant characters, "
-            f"got {prefix!r} ({len(prefix)} characters)"
-        )
-    return prefix
-
-
-def _check_directory(directory) -> Path:
-    if not isinstance(directory, (str, os.PathLike)):
-        raise ParameterTypeError(
-            f"directory must be a path (str or os.PathLike), got {type(directory).__name__}"
-        )
-    path = Path(directory)
-    if path.exists() and not path.is_dir():
-        raise ParameterValueError(f"directory must be a directory, got the file {str(path)!r}")
-    return path
+#: Scalar types the code can be generated for (the last two: fixed point, ``_fixed.py``).
+DTYPES = ("double", "float", "q31", "q15")
+FIXED = ("q31", "q15")
 
 
 def _literal(value: float, dtype: str, name: str) -> str:
@@ -359,7 +313,12 @@ def _check_guard(nan_guard) -> bool:
 
 
 def render_c(
-    obs, *, prefix: str = "dob", dtype: str = "double", nan_guard: bool = False
+    obs,
+    *,
+    prefix: str = "dob",
+    dtype: str = "double",
+    nan_guard: bool = False,
+    ranges: dict | None = None,
 ) -> tuple[str, str]:
     """Text of ``<prefix>.h`` and ``<prefix>.c`` for ``obs``, without writing files.
 
@@ -367,7 +326,7 @@ def render_c(
     ----------
     obs : observer-like or LinearController
         As for :func:`export_c`.
-    prefix, dtype, nan_guard
+    prefix, dtype, nan_guard, ranges
         As for :func:`export_c`.
 
     Returns
@@ -392,17 +351,40 @@ def render_c(
     >>> [line for line in source.splitlines() if line.startswith("#include")]   # no library
     ['#include "axis1.h"']
     """
-    if isinstance(obs, LinearController):  # a controller: ._controller_c
-        return render_controller(obs, prefix=prefix, dtype=dtype, nan_guard=nan_guard)
-    system = as_system(obs, "obs")
+    if isinstance(obs, LinearController):  # a controller: ._controller_c (floating point)
+        return render_controller(obs, prefix=prefix, dtype=dtype, nan_guard=nan_guard,
+                                 literal=_literal, ranges=ranges)  # fmt: skip
     dtype = check_choice(dtype, "dtype", DTYPES)
     prefix = _check_prefix(prefix)
     guard = _check_guard(nan_guard)
+    if dtype in FIXED:
+        if guard:
+            raise ParameterValueError(
+                f"nan_guard must be False for dtype {dtype!r}: integers cannot be NaN, and the "
+                "fixed-point inputs saturate instead"
+            )
+        return render_fixed(design_for(obs, dtype, ranges), prefix)
+    if ranges is not None:
+        raise ParameterValueError(
+            f"ranges are only used for the fixed-point dtypes q31 and q15, got dtype {dtype!r}"
+        )
+    if isinstance(obs, FixedPointDesign):
+        raise ParameterValueError(
+            f"dtype must be {obs.word!r} for a FixedPointDesign (export the observer itself for "
+            f"floating point), got {dtype!r}"
+        )
+    system = as_system(obs, "obs")
     return _header(system, prefix, dtype, guard), _source(system, prefix, dtype, guard)
 
 
 def export_c(
-    obs, directory, *, prefix: str = "dob", dtype: str = "double", nan_guard: bool = False
+    obs,
+    directory,
+    *,
+    prefix: str = "dob",
+    dtype: str = "double",
+    nan_guard: bool = False,
+    ranges: dict | None = None,
 ) -> tuple[Path, Path]:
     r"""Write the observer as dependency-free C99: ``<prefix>.h`` and ``<prefix>.c``.
 
@@ -431,15 +413,23 @@ def export_c(
     prefix : str, optional
         C identifier prefix of every exported name and of the file names, default ``"dob"``.
         Letters, digits and underscores, starting with a letter, at most 22 characters.
-    dtype : {"double", "float"}, optional
+    dtype : {"double", "float", "q31", "q15"}, optional
         Scalar type of the generated code. ``"double"`` reproduces :func:`hpdob.update` bit
         for bit; ``"float"`` suits single-precision FPUs, within the error bound derived in
-        ``docs/deployment.md``. Default ``"double"``.
+        ``docs/deployment.md``; ``"q31"`` (``"q15"``) is fixed point for FPU-less parts: int32
+        (int16) states and coefficients, int64 (int32) sums, the encoder count as input
+        (:func:`hpdob.export.fixed_point_design`, bit-exact model
+        :class:`hpdob.export.FixedPointObserver`). Default ``"double"``.
     nan_guard : bool, optional
         Generate the opt-in guard: a sample with a non-finite input, or whose result would
         overflow, is skipped (the state is unchanged, ``_estimate`` returns the last estimate
         from finite inputs) and the state's ``fault``/``skipped`` fields say so
-        (``docs/deployment.md``). Default False.
+        (``docs/deployment.md``). Default False; must be False in fixed point.
+    ranges : dict, optional
+        For ``"q31"``/``"q15"`` when ``obs`` is an observer: ``counts_per_rev``,
+        ``omega_max`` [rad/s], ``u_max`` [N m] and ``tau_max`` [N m], the arguments of
+        :func:`hpdob.export.fixed_point_design`. None (default) when ``obs`` is already a
+        :class:`hpdob.export.FixedPointDesign`, and for the floating-point types.
 
     Returns
     -------
@@ -452,9 +442,11 @@ def export_c(
         If ``obs`` is neither a DisturbanceObserver nor an ObserverDesign, or ``directory``
         is not a path.
     ValueError
-        If ``dtype`` is not one of ``"double"``, ``"float"``, ``prefix`` is not a valid C
-        identifier prefix, ``directory`` is an existing file, or a constant does not fit in
-        binary32 for ``dtype="float"``. Nothing is written then.
+        If ``dtype`` is not one of ``"double"``, ``"float"``, ``"q31"``, ``"q15"``, ``prefix``
+        is not a valid C identifier prefix, ``directory`` is an existing file, a constant
+        does not fit in binary32 for ``dtype="float"``, or the fixed-point ``ranges`` are
+        missing or cannot be represented (:func:`hpdob.export.fixed_point_design`). Nothing
+        is written then.
 
     Notes
     -----
@@ -484,7 +476,7 @@ def export_c(
     True
     """
     path = _check_directory(directory)
-    header, source = render_c(obs, prefix=prefix, dtype=dtype, nan_guard=nan_guard)
+    header, source = render_c(obs, prefix=prefix, dtype=dtype, nan_guard=nan_guard, ranges=ranges)
     names = (f"{prefix}.h", f"{prefix}.c")
     for name in names:  # refused before anything is written, the other file untouched
         if (path / name).is_dir():

@@ -25,13 +25,11 @@ __all__ = ["render_controller"]
 _RESET = ("theta0", "omega0", "tau0")
 
 
-def _sum(terms, operands, dtype) -> str:
-    from ._c import _c_literal
-
-    return render_sum(terms, operands, _c_literal(dtype), named=False)
+def _sum(terms, operands, dtype, literal) -> str:
+    return render_sum(terms, operands, lambda v: literal(v, dtype, "(inline)"), named=False)
 
 
-def _body(controller, dtype: str) -> tuple[list[str], list[str]]:
+def _body(controller, dtype: str, literal) -> tuple[list[str], list[str]]:
     program = controller.program
     n = controller.n_states
     state = [f"c{i}" for i in range(n)]
@@ -39,7 +37,7 @@ def _body(controller, dtype: str) -> tuple[list[str], list[str]]:
     operands = [*state, *controller.inputs, "u_bar", *signals]
     load = [f"    const {dtype} {c} = s->c[{i}];" for i, c in enumerate(state)]
     lines = [
-        f"    const {dtype} {y} = {_sum(terms, operands, dtype)};"
+        f"    const {dtype} {y} = {_sum(terms, operands, dtype, literal)};"
         for y, terms in zip(signals, program.signals, strict=True)
     ]
     # a state or signal that no later row reads would warn under -Wall
@@ -51,13 +49,21 @@ def _unused(names, body: str) -> list[str]:
     return [f"    (void){n};" for n in names if not re.search(rf"\b{n}\b", body)]
 
 
-def render_controller(controller, *, prefix: str, dtype: str, nan_guard) -> tuple[str, str]:
+def render_controller(controller, *, prefix: str, dtype: str, nan_guard, literal, ranges=None):
     """Text of ``<prefix>.h`` and ``<prefix>.c`` for a :class:`LinearController` (the
-    arguments as for :func:`hpdob.export.render_c`; ``nan_guard`` must be False)."""
-    from ._c import DTYPES, _check_prefix, _literal
+    arguments as for :func:`hpdob.export.render_c`; floating point only: ``nan_guard`` False,
+    no ``ranges``; ``literal(value, dtype, name)`` prints a constant, from ``_c.py``)."""
+    from ._c_names import _check_prefix
 
-    dtype = check_choice(dtype, "dtype", DTYPES)
+    _literal = literal
+
+    dtype = check_choice(dtype, "dtype", ("double", "float"))
     prefix = _check_prefix(prefix)
+    if ranges is not None:
+        raise ParameterValueError(
+            "ranges are for the fixed-point export of observers; a controller is exported in "
+            "double or float"
+        )
     if nan_guard is not False:
         raise ParameterTypeError(
             f"nan_guard must be False for a controller (the guard is for observers), got "
@@ -128,8 +134,9 @@ void {prefix}_update({prefix}_state *s, {args}, {dtype} u_bar);
 #endif /* {up}_H */
 """
     program = controller.program
-    body, operands = _body(controller, dtype)
-    init = [f"    s->c[{i}] = {_sum(row, _RESET, dtype)};" for i, row in enumerate(program.reset)]
+    body, operands = _body(controller, dtype, literal)
+    init = [f"    s->c[{i}] = {_sum(row, _RESET, dtype, literal)};"
+            for i, row in enumerate(program.reset)]  # fmt: skip
     if not n:
         init = ["    s->c[0] = 0;"]
     init_text = "\n".join(init)
@@ -138,7 +145,7 @@ void {prefix}_update({prefix}_state *s, {args}, {dtype} u_bar);
     command_unused = _unused(controller.inputs, command)
     if not n:
         command_unused.insert(0, "    (void)s;")
-    update = [f"    const {dtype} next{i} = {_sum(row, operands, dtype)};"
+    update = [f"    const {dtype} next{i} = {_sum(row, operands, dtype, literal)};"
               for i, row in enumerate(program.update)]  # fmt: skip
     store = [f"    s->c[{i}] = next{i};" for i in range(n)]
     update_text = "\n".join(body + update + store) if n else ""

@@ -15,7 +15,9 @@ __all__ = [
     "check_axis",
     "check_lengths",
     "check_time",
+    "immutable",
     "sample_vector",
+    "sample_view",
     "units",
 ]
 
@@ -69,8 +71,26 @@ def units(axis) -> dict:
     return UNITS[check_axis(axis)]
 
 
+def immutable(array) -> bool:
+    """Whether ``array``'s values cannot change: it is read-only, and so is every array it is a
+    view of, down to memory it owns or an immutable buffer (pyarrow's, ``bytes``).
+
+    Such an array (a column of a :class:`Log`, of a result, or read from a Parquet file) is
+    shared instead of copied: a log of 1e7 samples is not held twice. (Setting it writeable
+    again, which numpy allows the owner of the memory, breaks that promise.)
+    """
+    while isinstance(array, np.ndarray):
+        if array.flags.writeable:
+            return False
+        if array.base is None:
+            return True
+        array = array.base
+    return isinstance(array, bytes) or type(array).__module__.split(".")[0] == "pyarrow"
+
+
 def sample_vector(values, name: str, what: str) -> np.ndarray:
-    """``values`` as a new 1-D float array of finite samples.
+    """``values`` as a new 1-D float array of finite samples (an :func:`immutable` float64
+    vector is returned as it is: nobody can change it).
 
     Raises
     ------
@@ -79,7 +99,10 @@ def sample_vector(values, name: str, what: str) -> np.ndarray:
     ParameterValueError
         If it is not 1-D or holds a NaN or infinite sample (the first one is named).
     """
-    array = numeric_array(values, name, what)
+    if type(values) is np.ndarray and values.dtype == np.float64 and immutable(values):
+        array = values
+    else:
+        array = numeric_array(values, name, what)
     if array.ndim == 2 and 1 in array.shape:  # a MATLAB column or row vector
         array = array.ravel()
     if array.ndim != 1:
@@ -92,6 +115,25 @@ def sample_vector(values, name: str, what: str) -> np.ndarray:
             f"({bad.size} non-finite in all); every sample of {what} must be finite"
         )
     return array
+
+
+def sample_view(values, name: str, what: str) -> np.ndarray:
+    """``values`` as a 1-D float array of finite samples, as :func:`sample_vector` checks it,
+    but not copied if it already is one (a 1-D float64 ndarray): the caller copies it.
+
+    Raises
+    ------
+    ParameterTypeError, ParameterValueError
+        As :func:`sample_vector`.
+    """
+    if (
+        type(values) is np.ndarray
+        and values.dtype == np.float64
+        and values.ndim == 1
+        and np.isfinite(values).all()
+    ):
+        return values
+    return sample_vector(values, name, what)
 
 
 def check_lengths(arrays: dict) -> int:
@@ -112,6 +154,21 @@ def check_time(t: np.ndarray, name: str = "t", tolerance: float = DEFAULT_TIME_T
     tolerance = positive(tolerance, "time_tolerance", "a positive relative tolerance")
     if t.size < 2:
         raise ParameterValueError(f"{name} must hold at least 2 samples, got {t.size}")
+    # One array of steps and no other temporaries (logs reach 1e7 samples): the largest
+    # deviation from the median is at the smallest or the largest step; the median partitions
+    # the steps in place, so the index of a bad step is looked up again in _time_error.
+    steps = np.diff(t)
+    low, high = float(steps.min()), float(steps.max())
+    if low <= 0.0:
+        _time_error(t, name, tolerance)
+    median = float(np.median(steps, overwrite_input=True))
+    if max(high - median, median - low) / median > tolerance:
+        _time_error(t, name, tolerance)
+    return float((t[-1] - t[0]) / (t.size - 1))
+
+
+def _time_error(t: np.ndarray, name: str, tolerance: float):
+    """Raise the error of :func:`check_time` for times that are not uniform."""
     steps = np.diff(t)
     bad = np.flatnonzero(steps <= 0.0)
     if bad.size:
@@ -123,11 +180,9 @@ def check_time(t: np.ndarray, name: str = "t", tolerance: float = DEFAULT_TIME_T
     median = float(np.median(steps))
     deviation = np.abs(steps - median) / median
     worst = int(np.argmax(deviation))
-    if deviation[worst] > tolerance:
-        raise ParameterValueError(
-            f"{name} must be uniformly sampled: the step {name}[{worst + 1}] - {name}[{worst}] "
-            f"= {steps[worst]:.6g} s differs from the median step {median:.6g} s by "
-            f"{100 * deviation[worst]:.3g} % (tolerance {100 * tolerance:.3g} %); resample the "
-            "log on a uniform grid first"
-        )
-    return float((t[-1] - t[0]) / (t.size - 1))
+    raise ParameterValueError(
+        f"{name} must be uniformly sampled: the step {name}[{worst + 1}] - {name}[{worst}] "
+        f"= {steps[worst]:.6g} s differs from the median step {median:.6g} s by "
+        f"{100 * deviation[worst]:.3g} % (tolerance {100 * tolerance:.3g} %); resample the "
+        "log on a uniform grid first"
+    )

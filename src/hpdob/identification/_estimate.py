@@ -8,11 +8,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._table import columns_to_csv, columns_to_pandas
-from .._validation import ParameterTypeError, ParameterValueError, as_real, readonly
+from .._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    as_real,
+    as_real_vector,
+    readonly,
+)
 from ..observers._core import initial_state
-from ..observers._runtime import Observer
 from ..observers._system import as_system
-from ._checks import check_lengths, check_time, sample_vector
+from ._checks import check_lengths, check_time, sample_view
 
 __all__ = ["EstimationResult", "estimate_disturbance"]
 
@@ -53,6 +58,18 @@ class EstimationResult:
 
     def __len__(self) -> int:
         return self.t.size
+
+    def _repr_markdown_(self) -> str:
+        """A compact table for Jupyter: the run and the range of the estimate."""
+        from .._repr import markdown_table
+
+        tau = self.tau_hat
+        return markdown_table(f"EstimationResult {self.label!r}", [
+            ("samples", f"{len(self)} (Ts = {self.Ts:g} s)"),
+            ("tau_hat [N m or N]", None if tau.size == 0 else
+             f"{tau.min():.4g} to {tau.max():.4g}, last {tau[-1]:.4g}"),
+            ("omega_hat", None if self.omega_hat is None else "estimated"),
+        ])  # fmt: skip
 
     def _columns(self) -> dict:
         columns = {"t": self.t, "theta": self.theta}
@@ -134,7 +151,7 @@ class EstimationResult:
             columns_to_csv(self._columns(), temporary)
         return path
 
-    def plot(self, *, reference=None, reference_label: str = "reference", title=None):
+    def plot(self, *, reference=None, reference_label: str = "reference", title=None, axis=None):
         """Figure: position, and the estimate (with an optional reference such as a friction
         model evaluated on the log).
 
@@ -146,41 +163,51 @@ class EstimationResult:
             Its legend entry. Default ``"reference"``.
         title : str, optional
             The figure's title. Default none.
+        axis : {"rotary", "linear"}, optional
+            The units of the labels: rad and N m, or m and N. Default: both named
+            ("rad or m").
 
         Returns
         -------
         matplotlib.figure.Figure
+            Traces longer than 200 000 samples are drawn as their envelope (the minimum and
+            maximum of each run of samples), which spans what the full trace would.
+
+        Raises
+        ------
+        ParameterValueError
+            For an unknown ``axis``.
         """
         import matplotlib.pyplot as plt
 
-        from .._plotting import PAPER_WIDTH, style_axes
+        from .._plotting import PAPER_WIDTH, envelope, style_axes, time_axis
+        from .._validation import check_choice
+
+        position, force = {"rotary": ("rad", "N m"), "linear": ("m", "N"),
+                           None: ("rad or m", "N m or N")}[
+            None if axis is None else check_choice(axis, "axis", ("rotary", "linear"))
+        ]  # fmt: skip
 
         fig, (top, bottom) = plt.subplots(
             2, 1, figsize=(PAPER_WIDTH, 4.6), sharex=True, layout="constrained"
         )
-        top.plot(self.t, self.theta, color="tab:blue", linewidth=1.0)
-        style_axes(top, xlabel=None, ylabel="position [rad or m]")
+        top.plot(*envelope(self.t, self.theta), color="tab:blue", linewidth=1.0)
+        style_axes(top, xlabel=None, ylabel=f"position [{position}]")
         if reference is not None:
-            bottom.plot(self.t, reference, color="0.4", linewidth=1.0, label=reference_label)
-        bottom.plot(self.t, self.tau_hat, color="tab:red", linewidth=0.8,
+            bottom.plot(*envelope(self.t, reference), color="0.4", linewidth=1.0,
+                        label=reference_label)  # fmt: skip
+        bottom.plot(*envelope(self.t, self.tau_hat), color="tab:red", linewidth=0.8,
                     label=rf"$\hat\tau$ ({self.label or 'observer'})")  # fmt: skip
-        style_axes(bottom, xlabel="time [s]", ylabel="disturbance [N m or N]")
+        style_axes(bottom, xlabel="time [s]", ylabel=f"disturbance [{force}]")
+        time_axis(bottom, self.t, self.Ts)
         bottom.legend(loc="upper center", bbox_to_anchor=(0.5, -0.28), ncols=2, fontsize="small")
         if title:
             fig.suptitle(title, fontsize="medium")
         return fig
 
 
-def _velocity(theta: np.ndarray, Ts: float) -> np.ndarray:
-    """Backward difference of ``theta``; the first sample's velocity is 0 (at rest before the
-    log starts), as the encoder model of :class:`hpdob.Encoder`."""
-    omega = np.empty_like(theta)
-    omega[0] = 0.0
-    omega[1:] = np.diff(theta) / Ts
-    return omega
-
-
-def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float = 0.0):
+def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float = 0.0,
+                         state=None):  # fmt: skip
     r"""Run an observer of any family over a logged run; return its estimates.
 
     At every sample ``k`` the observer gives its estimate from the measurement, then is
@@ -188,13 +215,18 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
     exactly as in the sample loop; the loop runs compiled (numba), evaluating the observer's
     program in the same order as the runtime object, which it reproduces bit for bit.
 
+    One rule for where the run starts, whatever form the observer is given in (a design, a
+    :class:`~hpdob.LinearObserver`, a runtime object): converged at the log's first sample,
+    ``initial_state(observer, (theta[0], omega[0]), tau0)`` (with ``omega[0] = 0`` when the
+    velocity is differenced or estimated), unless ``state`` gives the start explicitly, e.g.
+    ``state=obs.state`` to continue from a runtime object. The observer passed in is never
+    changed.
+
     Parameters
     ----------
     observer : LinearObserver, design or runtime observer
         Designed on the nominal model of the logged axis (e.g. ``identify(...).model()``) at the
-        log's sampling period. A runtime object starts from its current state (and is not
-        changed); otherwise the observer starts at rest at the first sample:
-        ``initial_state(observer, (theta[0], omega[0]), tau0)``.
+        log's sampling period.
     theta : array_like
         Measured position [rad or m], one entry per sample.
     u : array_like
@@ -208,6 +240,9 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
         ``k Ts``.
     tau0 : float, optional
         Initial disturbance of the reset [N m or N]. Default 0.
+    state : array_like, optional
+        The observer's state at the first sample instead (``n_states`` finite values, e.g. a
+        runtime object's ``.state``); not together with a non-zero ``tau0``.
 
     Returns
     -------
@@ -217,8 +252,8 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
     ------
     TypeError, ValueError
         For a wrong observer, signals of different lengths or with non-finite samples,
-        non-uniform time, a time step other than the observer's ``Ts``, or ``omega`` given to a
-        position-only observer.
+        non-uniform time, a time step other than the observer's ``Ts``, ``omega`` given to a
+        position-only observer, or a ``state`` of the wrong size.
 
     Examples
     --------
@@ -231,11 +266,12 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
     >>> round(float(result.tau_hat[-1]), 9)
     0.02
     """
-    from ..simulation._kernel import run_observer
+    from . import _estimate_kernel as kernel
 
     system = as_system(observer)
-    theta = sample_vector(theta, "theta", "measured positions [rad or m]")
-    u = sample_vector(u, "u", "applied torques or forces [N m or N]")
+    # Checked without a copy where possible: the loop copies the signals while it reads them.
+    theta = sample_view(theta, "theta", "measured positions [rad or m]")
+    u = sample_view(u, "u", "applied torques or forces [N m or N]")
     signals = {"theta": theta, "u": u}
     position_only = len(system.measures) == 1
     if omega is not None:
@@ -244,11 +280,11 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
                 "omega must be None for an observer that measures the position only "
                 f"(measures {system.measures}); it estimates the velocity itself"
             )
-        signals["omega"] = sample_vector(omega, "omega", "measured velocities [rad/s or m/s]")
+        signals["omega"] = sample_view(omega, "omega", "measured velocities [rad/s or m/s]")
     n = check_lengths(signals)
     Ts = system.Ts
     if t is not None:
-        t = sample_vector(t, "t", "sampling instants [s]")
+        t = sample_view(t, "t", "sampling instants [s]")
         check_lengths({**signals, "t": t})
         if n > 1:
             step = check_time(t, "t", 1e-3)
@@ -257,33 +293,38 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
                     f"t must advance by the observer's sampling period Ts = {float(Ts)!r} s, got a "
                     f"step of {float(step)!r} s"
                 )
-    else:
-        t = np.arange(n) * Ts
     tau0 = as_real(tau0, "tau0", "a finite initial disturbance [N m or N]")
-    if position_only:
-        velocity = None
-        measurements = theta[:, None]
-    else:
-        velocity = signals["omega"] if omega is not None else _velocity(theta, Ts)
-        measurements = np.column_stack([theta, velocity])
-    if isinstance(observer, Observer):
-        s0 = observer.state
-    else:
-        omega0 = 0.0 if velocity is None else float(velocity[0])
-        s0 = np.array(initial_state(system, (float(theta[0]), omega0), tau0))
-    update, output, _ = system.kernel_arrays
-    y = run_observer(*update, *output, np.ascontiguousarray(measurements), u, s0,
-                     len(system.outputs))  # fmt: skip
+    if state is not None:
+        state = as_real_vector(state, "state", f"the observer's {system.n_states} finite states",
+                               length=system.n_states)  # fmt: skip
+        if tau0 != 0.0:
+            raise ParameterValueError(
+                f"give tau0 or state, not both: state sets the start, got tau0={tau0!r}"
+            )
     label = getattr(observer, "label", "") or system.name
     if not isinstance(label, str):
         raise ParameterTypeError(f"the observer's label must be a str, got {label!r}")
+    if position_only:
+        mode = kernel.VELOCITY_NONE
+    elif omega is not None:
+        mode = kernel.VELOCITY_GIVEN
+    else:  # the backward difference, written by the loop (0 at the first sample)
+        mode = kernel.VELOCITY_DERIVED
+    if state is not None:
+        s0 = np.array(state, dtype=float)
+    else:  # one rule for every form of observer: converged at the first sample
+        omega0 = float(signals["omega"][0]) if mode == kernel.VELOCITY_GIVEN else 0.0
+        s0 = np.array(initial_state(system, (float(theta[0]), omega0), tau0))
+    theta, velocity, u, tau_hat, omega_hat, t = kernel.run(
+        system, s0, theta, signals.get("omega"), u, t, mode
+    )
     return EstimationResult(
-        t=readonly(np.array(t, dtype=float)),
+        t=readonly(t),
         theta=readonly(theta),
-        omega=None if velocity is None else readonly(np.array(velocity)),
+        omega=None if velocity is None else readonly(velocity),
         u=readonly(u),
-        tau_hat=readonly(y[:, 0].copy()),
-        omega_hat=readonly(y[:, 1].copy()) if y.shape[1] > 1 else None,
+        tau_hat=readonly(tau_hat),
+        omega_hat=None if omega_hat is None else readonly(omega_hat),
         Ts=Ts,
         label=label,
     )

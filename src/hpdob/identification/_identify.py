@@ -1,5 +1,8 @@
 r"""Identification of a rigid axis from a logged run: IDIM-LS and IDIM-IV.
 
+The default (``method="auto"``) reads its filter settings from the log and estimates by
+instrumental variables (see :func:`identify`, Notes, and docs/real-data.md).
+
 IDIM-LS (inverse dynamic identification model, least squares) is the EMPS benchmark's
 reference method: the regression of :mod:`hpdob.identification._regression` solved by least
 squares, :math:`\hat\theta = (X^T X)^{-1} X^T y` (EMPS description, eq. 10).
@@ -22,172 +25,63 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from .._validation import (
+    ParameterTypeError,
     ParameterValueError,
     as_int,
     check_choice,
     positive,
-    require_instance,
 )
-from ._checks import DEFAULT_TIME_TOLERANCE, check_axis, check_lengths, check_time, sample_vector
-from ._loop import FeedbackLoop, simulate_loop
+from ._checks import DEFAULT_TIME_TOLERANCE, check_axis
+from ._design import FRICTION_MODELS, OFFSETS, make_layout
+from ._log import Log
 from ._regression import (
-    MIN_ROWS,
     PARAMETERS,
-    build_regression,
-    instrument_rows,
-    minimum_samples,
-    resolve_settings,
 )
 from ._result import Identification
+from ._runs import as_runs, prepare, resolve
+from ._sensitivity import sensitivity, sensitivity_warnings
+from ._simfit import MIN_FIT, simulate_fit
+from ._solve import relative_error, solve
 
-__all__ = ["METHODS", "IdentificationWarning", "identify"]
+__all__ = ["FRICTION_MODELS", "METHODS", "OFFSETS", "IdentificationWarning", "identify"]
 
 #: The identification methods.
-METHODS = ("idim-ls", "idim-iv")
-#: Largest condition number (columns scaled to unit norm) of an identifiable regression.
-MAX_CONDITION = 1e6
-#: Largest variance inflation factor 1/(1 - R^2) of J, b or coulomb: above it the column is
-#: all but a combination of the others (R^2 > 0.999) and its estimate is meaningless. Measured:
-#: 5.2 for b and coulomb on EMPS, 3.1 on two superposed sines, 3.8e4 at one constant speed.
-MAX_VARIANCE_INFLATION = 1e3
+METHODS = ("auto", "idim-ls", "idim-iv", "idim-iv-input")
+
 #: A loop simulation whose position differs from the log by more than this [%] makes poor
 #: instruments (the loop model is probably wrong); IDIM-IV then warns.
 MAX_LOOP_POSITION_ERROR = 10.0
-#: ... and by more than this [%] with the IDIM-LS estimate, the loop cannot be the one that
-#: produced the log (EMPS: 0.001 %; the synthetic PD logs of the tests: 0.1-4 %).
-MAX_LOOP_MISMATCH = 50.0
 
 
 class IdentificationWarning(RuntimeWarning):
-    """IDIM-IV did not converge, or its loop simulation does not follow the log."""
-
-
-def _relative_error(measured: np.ndarray, simulated: np.ndarray) -> float:
-    scale = float(np.linalg.norm(measured))
-    error = float(np.linalg.norm(measured - simulated))
-    return 100.0 * error / scale if scale > 0 else (0.0 if error == 0 else math.inf)
-
-
-def _variance_inflation(columns: np.ndarray) -> np.ndarray:
-    """Variance inflation factor of each column given the others and a constant.
-
-    ``1 / (1 - R^2)`` of the column's regression on the other columns and a constant: the
-    diagonal of the inverse correlation matrix (inf for a constant or collinear column).
-    """
-    centred = columns - columns.mean(axis=0)
-    scale = np.linalg.norm(centred, axis=0)
-    if np.any(scale == 0.0):
-        return np.where(scale == 0.0, math.inf, 1.0)
-    correlation = (centred / scale).T @ (centred / scale)
-    try:
-        return np.diag(np.linalg.inv(correlation))
-    except np.linalg.LinAlgError:
-        return np.full(columns.shape[1], math.inf)
-
-
-def _scaled_condition(X: np.ndarray) -> float:
-    """Condition number of ``X`` with its columns scaled to unit norm (inf if singular)."""
-    norms = np.linalg.norm(X, axis=0)
-    if np.any(norms == 0.0):
-        return math.inf
-    singular = np.linalg.svd(X / norms, compute_uv=False)
-    return singular[0] / singular[-1] if singular[-1] > 0 else math.inf
-
-
-def _check_excitation(theta: np.ndarray, u: np.ndarray, regression, settings) -> None:
-    """Refuse logs that cannot identify the four parameters, saying why."""
-    if np.ptp(theta) == 0.0:
-        raise ParameterValueError(
-            f"theta does not move (every sample is {float(theta[0])!r}): a log at rest cannot "
-            "identify J, b, coulomb and offset; log a run that moves both ways"
-        )
-    if np.ptp(u) == 0.0:
-        raise ParameterValueError(
-            f"u is constant (every sample is {float(u[0])!r}): the input must vary to identify "
-            "J, b, coulomb and offset"
-        )
-    rows = regression.X.shape[0]
-    if rows < MIN_ROWS:
-        raise ParameterValueError(
-            f"min_speed = {settings.min_speed:g} leaves {rows} regression rows, fewer than "
-            f"{MIN_ROWS}: theta is slower than min_speed almost everywhere; lower min_speed"
-        )
-    direction = np.sign(regression.velocity[regression.index])
-    for sign, word in ((1.0, "positive"), (-1.0, "negative")):
-        if np.all(direction == sign):
-            raise ParameterValueError(
-                f"theta moves in one direction only (the velocity is {word} in every "
-                "regression row): coulomb and offset cannot be told apart; log a run that "
-                "moves both ways"
-            )
-    X = regression.X
-    inflation = _variance_inflation(X[:, :3])
-    collinear = [PARAMETERS[j] for j in np.flatnonzero(inflation > MAX_VARIANCE_INFLATION)]
-    if collinear:
-        hint = (
-            "the speed is nearly the same in every row: log motion at several speeds"
-            if {"b", "coulomb"} <= set(collinear)
-            else "log a run with more varied motion"
-        )
-        raise ParameterValueError(
-            f"{' and '.join(collinear)} cannot be told apart in this log (variance inflation "
-            f"{', '.join(f'{v:.3g}' for v in inflation[inflation > MAX_VARIANCE_INFLATION])}, "
-            f"limit {MAX_VARIANCE_INFLATION:g}): {hint}"
-        )
-    norms = np.linalg.norm(X, axis=0)
-    _, singular, vt = np.linalg.svd(X / np.where(norms > 0, norms, 1.0), full_matrices=False)
-    condition = singular[0] / singular[-1] if singular[-1] > 0 else math.inf
-    if condition > MAX_CONDITION:
-        weakest = PARAMETERS[int(np.argmax(np.abs(vt[-1])))]
-        raise ParameterValueError(
-            f"the log does not excite the model: the observation matrix has condition number "
-            f"{condition:.3g} (limit {MAX_CONDITION:g}); {weakest} is the least identifiable "
-            "parameter. Log a run with more varied motion (accelerations and constant speeds "
-            "in both directions)"
-        )
-
-
-def _simulable(estimate: np.ndarray, iteration: int) -> np.ndarray:
-    """``estimate`` with negative friction set to 0, so that the loop can be simulated.
-
-    ``iteration`` (1 for the IDIM-LS estimate) names the estimate in the error for ``J <= 0``.
-    """
-    if estimate[0] <= 0.0:
-        source = "the IDIM-LS estimate" if iteration == 1 else f"IV iteration {iteration - 1}"
-        raise ParameterValueError(
-            f"IDIM-IV cannot simulate the loop: {source} has J = {estimate[0]:.6g} <= 0; the "
-            "regression is dominated by noise: lower cutoff or raise decimation"
-        )
-    return np.array([estimate[0], max(estimate[1], 0.0), max(estimate[2], 0.0), estimate[3]])
-
-
-def _estimate(X: np.ndarray, y: np.ndarray, Z: np.ndarray):
-    """IV estimate ``(Z^T X)^-1 Z^T y`` (least squares for ``Z = X``) and its covariance."""
-    theta = np.linalg.lstsq(X, y, rcond=None)[0] if Z is X else np.linalg.solve(Z.T @ X, Z.T @ y)
-    error = y - X @ theta
-    sigma2 = float(error @ error) / (y.size - X.shape[1])
-    A = np.linalg.inv(Z.T @ X)
-    covariance = sigma2 * A @ (Z.T @ Z) @ A.T
-    return theta, covariance
+    """The identification is doubtful: IDIM-IV did not converge, its loop simulation does not
+    follow the log, the identified model does not reproduce the log, or the parameters
+    depend on the filter settings. The message says what to try."""
 
 
 def identify(
     t,
-    theta,
-    u,
+    theta=None,
+    u=None,
     *,
-    method: str = "idim-ls",
-    loop: FeedbackLoop | None = None,
+    method: str = "auto",
+    loop=None,
     bandwidth: float | None = None,
     cutoff: float | None = None,
     order: int = 4,
     decimation: int | None = None,
     border: int | None = None,
     min_speed: float = 0.0,
+    zoh: bool | None = None,
+    friction: str = "viscous+coulomb",
+    fixed: Mapping | None = None,
+    offsets: str = "per-log",
+    diagnostics: bool = True,
     axis: str | None = None,
     max_iterations: int = 20,
     tolerance: float = 0.01,
@@ -199,28 +93,40 @@ def identify(
     (EMPS description, eq. 1) to the log. A linear axis (m, N, kg) obeys the same equations
     as a rotary one (rad, N m, kg m^2): ``axis`` only sets the units of reports.
 
+    Several logs of one axis (a list of :class:`Log`) are fitted together: shared ``J``,
+    ``b`` and ``coulomb``, one offset per log or a shared one (``offsets``).
+
     Parameters
     ----------
-    t : array_like
-        Sampling instants [s], strictly increasing and uniform.
+    t : array_like, Log or sequence of Log
+        Sampling instants [s], strictly increasing and uniform; or a :class:`Log`, or a list
+        of them (then without ``theta`` and ``u``).
     theta : array_like
         Measured position [rad or m].
     u : array_like
         Applied torque or force [N m or N].
-    method : {"idim-ls", "idim-iv"}, optional
-        ``"idim-ls"`` (default): the benchmark's inverse-model least squares.
+    method : {"auto", "idim-ls", "idim-iv", "idim-iv-input"}, optional
+        ``"auto"`` (default): instrumental variables with settings read from the log
+        (see Notes): ``"idim-iv"`` if ``loop`` is given, else ``"idim-iv-input"``.
+        ``"idim-ls"``: the benchmark's inverse-model least squares, with its rules.
         ``"idim-iv"``: instrumental variables from the closed loop simulated with the
         current estimate, iterated from the IDIM-LS estimate; needs ``loop``. It removes
-        the bias IDIM-LS suffers from measurement noise in closed loop and depends much
-        less on the filter settings (see docs/real-data.md).
-    loop : FeedbackLoop, optional
-        The controller and reference that produced the log. Required by ``"idim-iv"``;
-        with ``"idim-ls"`` it is only simulated once to report how well the identified
-        model reproduces the run (``simulation``).
+        the bias IDIM-LS suffers from measurement noise and depends much less on the filter
+        settings (see docs/real-data.md).
+        ``"idim-iv-input"``: the same with instruments from the model driven by the logged
+        input (held by a slow PD near the low-passed measured position, so that it cannot
+        drift); needs no loop, in open or closed loop.
+    loop : FeedbackLoop or sequence of (FeedbackLoop or None), optional
+        The controller and reference that produced the log (with several logs, one per log,
+        None for an open-loop one). Required by ``"idim-iv"``; otherwise it is only
+        simulated to report how well the identified model reproduces the run
+        (``simulation``, ``fits``).
     bandwidth : float, optional
-        Closed-loop bandwidth [Hz] that sets the default ``cutoff = 5 bandwidth`` and
-        ``decimation = round(0.2 fs / bandwidth)``. Default ``fs/50`` (20 Hz at 1 kHz,
-        the EMPS settings: cutoff 100 Hz, decimation 10).
+        Bandwidth [Hz] of the motion to keep: it sets ``cutoff = 5 bandwidth`` and
+        ``decimation = round(0.2 fs / bandwidth)`` (the EMPS benchmark's rules, with its
+        closed-loop bandwidth). Default with ``"auto"``: half the log's signal bandwidth
+        (Notes); with the other methods ``fs/50`` (20 Hz at 1 kHz, the EMPS settings:
+        cutoff 100 Hz, decimation 10).
     cutoff : float, optional
         Cut-off [Hz] of the Butterworth low-pass filter on the position (forward-backward).
     order : int, optional
@@ -232,8 +138,27 @@ def identify(
     min_speed : float, optional
         Drop rows where the filtered speed falls below this [rad/s or m/s] (stick phases,
         where ``sign`` does not describe friction). Default 0: keep all, as the benchmark.
+    zoh : bool, optional
+        Align the input with the second difference of the position, ``(u_(k-1) + u_k)/2``:
+        exact for an input held over each sample (the ZOH of :math:`1/s^2` is
+        :math:`T_s^2 (z + 1) / (2 (z - 1)^2)`). Default True with ``"auto"``, False (the
+        benchmark's script) otherwise.
+    friction : {"viscous+coulomb", "viscous"}, optional
+        The friction model: viscous and Coulomb friction (default), or viscous only
+        (``coulomb`` = 0; on a log that moves one way the Coulomb friction is then lumped into
+        the offset: ``offset + coulomb`` for positive motion, ``offset - coulomb`` negative).
+    fixed : mapping, optional
+        Parameters held at given values instead of estimated, e.g. ``{"b": 2e-3}`` or
+        ``{"coulomb": 0.03}`` (keys ``J``, ``b``, ``coulomb``, ``offset``).
+    offsets : {"per-log", "shared"}, optional
+        With several logs: one offset per log (default; ``offsets`` of the result) or one for
+        all (then logs that move one way each, in opposite directions, identify the Coulomb
+        friction).
+    diagnostics : bool, optional
+        Simulate the identified model on the log and repeat the estimate with the filters'
+        bandwidth doubled and halved, and warn if either looks wrong (default True).
     axis : {"rotary", "linear"} or None, optional
-        Units of the report; None states none ("N m or N").
+        Units of the report; None states none ("N m or N"); a Log's by default.
     max_iterations : int, optional
         Most IDIM-IV iterations (20).
     tolerance : float, optional
@@ -252,7 +177,8 @@ def identify(
     ParameterValueError
         If the log cannot identify the model: signals of different lengths, a non-finite
         sample, time not increasing or not uniform, too few samples for the filters, no
-        motion, constant input, motion in one direction only, an ill-conditioned regression;
+        motion, constant input, motion in one direction only (the message says how to lump
+        Coulomb friction and offset), an ill-conditioned regression;
         or if a setting is out of range, or ``loop`` does not match the log (length, or a
         simulation with the IDIM-LS estimate more than 50 % off the logged position).
     ParameterTypeError
@@ -262,7 +188,24 @@ def identify(
     -----
     IdentificationWarning
         If IDIM-IV does not converge in ``max_iterations`` or its loop simulation differs
-        from the logged position by more than 10 %.
+        from the logged position by more than 10 %; with ``diagnostics``, if the identified
+        model simulated on the log (through its loop, or open loop from its input) fits its
+        velocity, or through a loop its position, by less than 80 % (MATLAB ``compare``), or
+        if a parameter moves by more than its standard deviation when the filters' bandwidth
+        is doubled or halved. The message says what to try; the result keeps them
+        (``warnings``).
+
+    Notes
+    -----
+    The defaults of ``"auto"`` follow the log. The position's noise floor is the larger of
+    the quantisation noise :math:`q^2 T_s / 6` (``q`` the smallest step between samples) and
+    the median PSD of the top quarter of the band; the signal bandwidth is the highest
+    frequency where the position's PSD (Welch, from its second difference) stands 20 dB above
+    that floor. The decimation filter's cut-off ``2 bandwidth`` is put there, clipped to
+    ``[fs/250, fs/6]``: faster motion drowns in the differentiated noise, and a wider band
+    only adds noise. Instrumental variables then remove what bias the noise still causes,
+    and ``sign(velocity)`` is its own instrument (noise changes it only near rest, and a
+    simulated one jumps with every stick event).
 
     References
     ----------
@@ -276,129 +219,160 @@ def identify(
     >>> import hpdob
     >>> from hpdob.identification import emps
     >>> log = emps()
-    >>> fit = hpdob.identify(log.t, log.theta, log.u, axis="linear")
+    >>> fit = hpdob.identify(log.t, log.theta, log.u, method="idim-ls", axis="linear")
     >>> print(f"M = {fit.J:.1f} kg, Fv = {fit.b:.0f} N s/m, Fc = {fit.coulomb:.1f} N")
     M = 95.1 kg, Fv = 203 N s/m, Fc = 20.4 N
+    >>> fit = hpdob.identify(log.t, log.theta, log.u, axis="linear")   # the defaults
+    >>> print(f"{fit.method}: M = {fit.J:.1f} kg, Fv = {fit.b:.0f} N s/m, Fc = {fit.coulomb:.1f} N")
+    idim-iv-input: M = 94.5 kg, Fv = 208 N s/m, Fc = 20.0 N
     """
     method = check_choice(method, "method", METHODS)
+    adaptive = method == "auto"
+    if axis is None and theta is None and u is None:
+        first = t if isinstance(t, Log) else (t[0] if isinstance(t, Sequence) and t else None)
+        axis = getattr(first, "axis", None)
     axis = check_axis(axis)
-    t = sample_vector(t, "t", "times [s]")
-    theta = sample_vector(theta, "theta", "positions [rad or m]")
-    u = sample_vector(u, "u", "torques or forces [N m or N]")
-    n = check_lengths({"t": t, "theta": theta, "u": u})
-    Ts = check_time(t, "t", time_tolerance)
-    loop = require_instance(loop, FeedbackLoop, "loop", optional=True)
-    if method == "idim-iv" and loop is None:
+    runs = as_runs(t, theta, u, loop, time_tolerance)
+    has_loop = [run.loop is not None for run in runs]
+    if method == "idim-iv" and not all(has_loop):
         raise ParameterValueError(
             "method='idim-iv' needs loop=FeedbackLoop(...): the controller and reference that "
             "produced the log, to simulate the instruments (see FeedbackLoop)"
+            + ("; with several logs, one per log" if len(runs) > 1 else "")
         )
-    if loop is not None and len(loop) != n:
-        raise ParameterValueError(
-            f"loop must have one reference sample per logged sample: the log has {n}, "
-            f"loop.reference has {len(loop)}"
-        )
+    if adaptive:
+        method = "idim-iv" if any(has_loop) else "idim-iv-input"
+    own_sign = adaptive or method == "idim-iv-input"
     max_iterations = as_int(max_iterations, "max_iterations", "a positive integer", minimum=1)
     tolerance = positive(tolerance, "tolerance", "a positive relative tolerance")
-    settings = resolve_settings(
-        Ts, bandwidth=bandwidth, cutoff=cutoff, order=order, decimation=decimation,
-        border=border, min_speed=min_speed,
-    )  # fmt: skip
-    needed = minimum_samples(settings)
-    if n < needed:
-        raise ParameterValueError(
-            f"the log is too short to identify: {n} samples, but decimation = "
-            f"{settings.decimation} and border = {settings.border} need at least {needed} "
-            f"for {MIN_ROWS} regression rows"
+    if not isinstance(diagnostics, bool):
+        raise ParameterTypeError(f"diagnostics must be True or False, got {diagnostics!r}")
+    layout = make_layout(friction, fixed, offsets, len(runs))
+    for run in runs:
+        where = f" ({run.name})" if len(runs) > 1 else ""
+        settings = resolve(
+            run, adaptive, bandwidth, cutoff, order, decimation, border, min_speed, zoh
         )
-    regression = build_regression(theta, u, settings)
-    _check_excitation(theta, u, regression, settings)
-    X, y = regression.X, regression.y
-    estimate, covariance = _estimate(X, y, X)
-    iterations, converged = 0, True
-    velocity0 = float(regression.velocity[0])
-    if method == "idim-iv":
-        converged = False
-        for iterations in range(1, max_iterations + 1):
-            simulated, _ = simulate_loop(
-                loop, _simulable(estimate, iterations), Ts=Ts, theta0=theta[0],
-                velocity0=velocity0,
-            )  # fmt: skip
-            mismatch = _relative_error(theta, simulated)
-            if iterations == 1 and mismatch > MAX_LOOP_MISMATCH:
-                raise ParameterValueError(
-                    "loop does not describe the controller that produced the log: simulated "
-                    f"with the IDIM-LS estimate it differs from the logged position by "
-                    f"{mismatch:.3g} % (eq. 11; limit {MAX_LOOP_MISMATCH:g} %); check its "
-                    "reference, gains, velocity filter and units"
+        prepare(run, settings, where)
+    solution = solve(runs, layout, method, own_sign, max_iterations, tolerance)
+    caught = []
+    if method != "idim-ls" and not solution.converged:
+        caught.append(
+            f"IDIM-IV did not converge in {max_iterations} iterations (tolerance "
+            f"{tolerance:g} standard deviations); the last estimate is returned. Stick "
+            "phases make the simulated loop jump between iterations: if the log rests "
+            "at times, drop them with min_speed"
+        )
+    per_run = [layout.parameters(solution.estimate, i) for i in range(len(runs))]
+    fits, simulation, traces = [], None, None
+    for i, run in enumerate(runs):
+        if per_run[i][0] <= 0.0 or not (diagnostics or (i == 0 and run.loop is not None)):
+            fits.append(None)
+            continue
+        fit = simulate_fit(per_run[i], run.t, run.theta, run.u, run.loop, run.settings)
+        fits.append(fit)
+        if i == 0 and run.loop is not None:
+            simulation = {
+                "position_error_percent": relative_error(run.theta, fit.theta_simulated),
+                "input_error_percent": relative_error(run.u, fit.u_simulated),
+            }
+            traces = (run.t, run.theta, fit.theta_simulated)
+            if (
+                method == "idim-iv"
+                and simulation["position_error_percent"] > MAX_LOOP_POSITION_ERROR
+            ):
+                caught.append(
+                    "the loop simulated with the IDIM-IV estimate differs from the logged "
+                    f"position by {simulation['position_error_percent']:.3g} % (eq. 11): the "
+                    "instruments are poor; check the loop's gains, velocity filter and reference"
                 )
-            Z = instrument_rows(simulated, regression, settings)
-            try:
-                if _scaled_condition(Z) > MAX_CONDITION:
-                    raise np.linalg.LinAlgError
-                new, covariance = _estimate(X, y, Z)
-            except np.linalg.LinAlgError:
-                raise ParameterValueError(
-                    "IDIM-IV: the instruments from the simulated loop are singular (the loop "
-                    f"simulated with J = {estimate[0]:.6g}, b = {estimate[1]:.6g}, coulomb = "
-                    f"{estimate[2]:.6g} barely moves or never reverses); check the loop's "
-                    "reference, gains and units"
-                ) from None
-            change = np.abs(new - estimate)
-            estimate = new
-            if np.all(change <= tolerance * np.sqrt(np.diag(covariance))):
-                converged = True
-                break
-        if not converged:
-            warnings.warn(
-                f"IDIM-IV did not converge in {max_iterations} iterations (tolerance "
-                f"{tolerance:g} standard deviations); the last estimate is returned. Stick "
-                "phases make the simulated loop jump between iterations: if the log rests "
-                "at times, drop them with min_speed",
-                IdentificationWarning,
-                stacklevel=2,
-            )
-    simulation = theta_simulated = None
-    if loop is not None and estimate[0] > 0.0:
-        theta_simulated, u_simulated = simulate_loop(
-            loop, _simulable(estimate, 0), Ts=Ts, theta0=theta[0], velocity0=velocity0
+    moves = {}
+    if diagnostics:
+        for run, fit in zip(runs, fits, strict=True):
+            if fit is None:
+                continue
+            poor = [(name, value) for name, value in
+                    (("velocity", fit.velocity_fit),
+                     ("position", fit.position_fit if fit.closed_loop else math.inf))
+                    if value < MIN_FIT]  # fmt: skip
+            if poor:
+                listed = " and ".join(f"{name} fit {value:.3g} %" for name, value in poor)
+                mode = "through its loop" if fit.closed_loop else "open loop from its input"
+                caught.append(
+                    f"the identified model does not reproduce {run.name}: simulated {mode}, "
+                    f"its {listed} (MATLAB compare; below {MIN_FIT:g} %). Try min_speed "
+                    "(stick phases), friction='viscous' or fixed parameters, loop= for a "
+                    "closed-loop log (the controller and reference), and check input_gain "
+                    "and the units"
+                )
+        moves = sensitivity(runs, layout, method, own_sign, solution, border is not None,
+                             max_iterations, tolerance)  # fmt: skip
+        names = [PARAMETERS[j] for j in layout.free] + (
+            ["offset"] if layout.n_offsets == 1 else [f"offset of {r.name}" for r in runs]
+        )[: layout.n_offsets]
+        caught.extend(sensitivity_warnings(moves, solution, layout, runs, adaptive, names))
+    for message in caught:
+        warnings.warn(message, IdentificationWarning, stacklevel=2)
+    T = layout.transform()
+    covariance = T @ solution.covariance @ T.T
+    offsets_values = tuple(float(p[3]) for p in per_run)
+    offset_std = []
+    for i in range(len(runs)):
+        column = layout.offset_column(i)
+        offset_std.append(
+            0.0 if column is None else float(math.sqrt(solution.covariance[column, column]))
         )
-        simulation = {
-            "position_error_percent": _relative_error(theta, theta_simulated),
-            "input_error_percent": _relative_error(u, u_simulated),
-        }
-        if method == "idim-iv" and simulation["position_error_percent"] > MAX_LOOP_POSITION_ERROR:
-            warnings.warn(
-                "the loop simulated with the IDIM-IV estimate differs from the logged position "
-                f"by {simulation['position_error_percent']:.3g} % (eq. 11): the instruments are "
-                "poor; check the loop's gains, velocity filter and reference",
-                IdentificationWarning,
-                stacklevel=2,
-            )
-    singular = np.linalg.svd(X, compute_uv=False)
-    record = settings.to_dict()
-    record.update(method=method, n_rows=int(y.size), time_tolerance=float(time_tolerance))
-    if method == "idim-iv":
+    u_model = np.concatenate([run.regression.X @ per_run[i] for i, run in enumerate(runs)])
+    u_rows = np.concatenate([run.regression.y for run in runs])
+    t_rows = np.concatenate([run.t[run.regression.index] for run in runs])
+    run_rows = np.concatenate([np.full(run.regression.index.size, i) for i, run in enumerate(runs)])
+    singular = np.linalg.svd(solution.X, compute_uv=False)
+    record = runs[0].settings.to_dict()
+    record.update(
+        method=method, adaptive=adaptive, n_rows=int(u_rows.size),
+        time_tolerance=float(time_tolerance), friction=friction,
+        fixed=dict(layout.fixed), offsets=offsets if len(runs) > 1 else "per-log",
+    )  # fmt: skip
+    if len(runs) > 1:
+        record["logs"] = [
+            dict(run.settings.to_dict(), name=run.name, samples=int(run.theta.size)) for run in runs
+        ]
+    if method != "idim-ls":
         record.update(max_iterations=max_iterations, tolerance=tolerance)
+    estimate4 = T @ solution.estimate + np.array(
+        [layout.fixed.get(name, 0.0) for name in PARAMETERS]
+    ) * np.array([1.0, 1.0, 1.0, 0.0 if layout.n_offsets else 1.0])
     return Identification(
         method=method,
-        J=float(estimate[0]),
-        b=float(estimate[1]),
-        coulomb=float(estimate[2]),
-        offset=float(estimate[3]),
+        J=float(estimate4[0]),
+        b=float(estimate4[1]),
+        coulomb=float(estimate4[2]),
+        offset=float(estimate4[3]),
         covariance=covariance,
-        t=t[regression.index],
-        u=y,
-        u_model=X @ estimate,
+        t=t_rows,
+        u=u_rows,
+        u_model=u_model,
         axis=axis,
         settings=record,
-        n_samples=n,
+        n_samples=int(sum(run.theta.size for run in runs)),
         condition_number=float(singular[0] / singular[-1]),
-        max_speed=float(np.max(np.abs(regression.velocity))),
-        iterations=iterations,
-        converged=converged,
+        max_speed=float(max(np.max(np.abs(run.regression.velocity)) for run in runs)),
+        iterations=solution.iterations,
+        converged=solution.converged,
         simulation=simulation,
-        t_log=None if loop is None else t,
-        theta_log=None if loop is None else theta,
-        theta_simulated=theta_simulated,
+        t_log=None if traces is None else traces[0],
+        theta_log=None if traces is None else traces[1],
+        theta_simulated=None if traces is None else traces[2],
+        offsets=offsets_values,
+        offsets_std=tuple(offset_std),
+        sources=tuple(run.name for run in runs),
+        run=run_rows,
+        fits=tuple(None if f is None else f.to_dict() for f in fits),
+        sensitivity={
+            ("x2" if factor > 1 else "/2"): dict(zip(names, move.tolist(), strict=True))
+            for factor, move in moves.items()
+        }
+        if diagnostics
+        else None,
+        warnings=tuple(caught),
     )

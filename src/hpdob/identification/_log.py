@@ -27,7 +27,7 @@ from ._checks import (
 )
 from ._readers import read_columns, scalar
 
-__all__ = ["MIN_LOG_SAMPLES", "Log", "read_log"]
+__all__ = ["MIN_LOG_SAMPLES", "Log", "read_log", "read_logs"]
 
 #: Fewest samples a :class:`Log` may hold (identification needs far more; see identify()).
 MIN_LOG_SAMPLES = 10
@@ -62,6 +62,8 @@ class Log:
     axis : {"rotary", "linear"} or None, optional
     time_tolerance : float, optional
         Relative tolerance of the uniform-sampling check. Default 1e-3.
+    columns : mapping, optional
+        Further logged signals by name (e.g. ``reference_velocity``), one sample each.
 
     Attributes
     ----------
@@ -95,6 +97,7 @@ class Log:
     input_gain: float = 1.0
     axis: str | None = None
     time_tolerance: float = DEFAULT_TIME_TOLERANCE
+    columns: Mapping = field(default_factory=dict)
     Ts: float = field(init=False)
 
     def __post_init__(self) -> None:
@@ -109,7 +112,13 @@ class Log:
             signals["reference"] = sample_vector(
                 self.reference, "reference", f"reference positions [{unit['position']}]"
             )
-        n = check_lengths(signals)
+        if not isinstance(self.columns, Mapping):
+            raise ParameterTypeError(
+                f"columns must be a mapping of names to signals, got {type(self.columns).__name__}"
+            )
+        extra = {str(k): sample_vector(v, f"columns[{k!r}]", "samples")
+                 for k, v in self.columns.items()}  # fmt: skip
+        n = check_lengths({**signals, **{f"columns[{k!r}]": v for k, v in extra.items()}})
         if n < MIN_LOG_SAMPLES:
             raise ParameterValueError(
                 f"a log must hold at least {MIN_LOG_SAMPLES} samples, got {n}"
@@ -127,6 +136,9 @@ class Log:
         for name, array in signals.items():
             object.__setattr__(self, name, readonly(array))
         object.__setattr__(self, "names", types.MappingProxyType(dict(self.names)))
+        object.__setattr__(
+            self, "columns", types.MappingProxyType({k: readonly(v) for k, v in extra.items()})
+        )
         object.__setattr__(self, "input_gain", gain)
         object.__setattr__(self, "time_tolerance", float(self.time_tolerance))
         object.__setattr__(self, "Ts", Ts)
@@ -164,7 +176,8 @@ class Log:
         Parameters
         ----------
         **options
-            Keyword arguments of :func:`hpdob.identify` (``method``, ``loop``, filters, ...).
+            Keyword arguments of :func:`hpdob.identify` (``method``, ``loop``, filters, ...);
+            the log's ``axis`` is the default.
 
         Returns
         -------
@@ -178,16 +191,63 @@ class Log:
         Examples
         --------
         >>> from hpdob.identification import EMPS_PUBLISHED, EMPS_PUBLISHED_STD, emps
-        >>> fit = emps().identify()   # IDIM-LS, as the benchmark's reference script
+        >>> fit = emps().identify(method="idim-ls")   # as the benchmark's reference script
         >>> all(abs(fit.parameters[k] - EMPS_PUBLISHED[k]) < EMPS_PUBLISHED_STD[k]
         ...     for k in EMPS_PUBLISHED)   # within one published standard deviation
         True
         """
         from ._identify import identify
 
-        options.setdefault("axis", self.axis)
-        options.setdefault("time_tolerance", self.time_tolerance)
-        return identify(self.t, self.theta, self.u, **options)
+        return identify(self, **options)
+
+    def slice(self, start: float | None = None, stop: float | None = None) -> Log:
+        """The samples with ``start <= t < stop`` [s] as a new log (e.g. to identify on one
+        part and validate on another).
+
+        Parameters
+        ----------
+        start, stop : float or None
+            Bounds [s]; None for the log's first or last sample.
+
+        Returns
+        -------
+        Log
+            The same columns, ``reference`` included, and the same metadata; ``source``
+            gains the interval kept, e.g. ``"run.csv (t 0 to 12.4 s)"``.
+
+        Raises
+        ------
+        ParameterValueError
+            If fewer than 10 samples fall in the interval.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hpdob.identification import Log
+        >>> log = Log(t=np.arange(100) * 1e-3, theta=np.zeros(100), u=np.ones(100))
+        >>> len(log.slice(0.02, 0.05)), float(log.slice(0.02, 0.05).t[0])
+        (30, 0.02)
+        """
+        lo = -np.inf if start is None else as_real(start, "start", "a time [s] or None")
+        hi = np.inf if stop is None else as_real(stop, "stop", "a time [s] or None")
+        keep = (self.t >= lo - 1e-9 * self.Ts) & (self.t < hi - 1e-9 * self.Ts)
+        if np.count_nonzero(keep) < MIN_LOG_SAMPLES:
+            raise ParameterValueError(
+                f"log.slice({start!r}, {stop!r}) keeps {np.count_nonzero(keep)} samples of "
+                f"t = {self.t[0]:g} .. {self.t[-1]:g} s; a log needs at least {MIN_LOG_SAMPLES}"
+            )
+        return Log(
+            self.t[keep],
+            self.theta[keep],
+            self.u[keep],
+            reference=None if self.reference is None else self.reference[keep],
+            source=f"{self.source or 'log'} (t {self.t[keep][0]:g} to {self.t[keep][-1]:g} s)",
+            names=self.names,
+            input_gain=self.input_gain,
+            axis=self.axis,
+            time_tolerance=self.time_tolerance,
+            columns={name: values[keep] for name, values in self.columns.items()},
+        )
 
 
 def _name(value, role: str, *, optional: bool = False) -> str | None:
@@ -212,6 +272,7 @@ def read_log(
     Ts: float | None = None,
     axis: str | None = None,
     time_tolerance: float = DEFAULT_TIME_TOLERANCE,
+    columns: Mapping | None = None,
 ) -> Log:
     """Read a logged run from a CSV, Parquet or MATLAB ``.mat`` file by column names.
 
@@ -241,6 +302,9 @@ def read_log(
         Units of the log (rad and N m, or m and N); None leaves them unstated.
     time_tolerance : float, optional
         Relative tolerance of the uniform-sampling check of the time column (1e-3).
+    columns : mapping, optional
+        Further columns to read, ``{name: column}`` (e.g. ``{"reference_velocity":
+        "rdot"}``); the log's ``columns`` holds them.
 
     Returns
     -------
@@ -266,12 +330,87 @@ def read_log(
     >>> len(log), log.Ts, round(log.input_gain, 2)
     (24841, 0.001, 35.15)
     """
+    logs = _read(path, time=time, position=position, input=input, input_gain=input_gain,
+                 reference=reference, Ts=Ts, axis=axis, time_tolerance=time_tolerance,
+                 run=None, columns=columns)  # fmt: skip
+    return logs[0]
+
+
+def read_logs(
+    path,
+    *,
+    run: str,
+    time: str | None = None,
+    position: str,
+    input: str,
+    input_gain: float | str = 1.0,
+    reference: str | None = None,
+    Ts: float | None = None,
+    axis: str | None = None,
+    time_tolerance: float = DEFAULT_TIME_TOLERANCE,
+    columns: Mapping | None = None,
+) -> list[Log]:
+    r"""Read several runs from one file: a column ``run`` tells which run each row belongs to.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A CSV, Parquet or MATLAB ``.mat`` file (see :func:`read_log`).
+    run : str
+        Column of the run each row belongs to (numbers; rows of one run need not be
+        contiguous but keep their order). Each run's time must increase uniformly; it may
+        restart from 0.
+    time, position, input, input_gain, reference, Ts, axis, time_tolerance, columns
+        As :func:`read_log`.
+
+    Returns
+    -------
+    list of Log
+        One per run, in the order the runs first appear; ``source`` is
+        ``"<file> run <value>"``.
+
+    Raises
+    ------
+    ParameterValueError
+        As :func:`read_log`, naming the run; or if a run has fewer than 10 samples.
+    ParameterTypeError
+        For arguments of the wrong type.
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, pathlib
+    >>> from hpdob.identification import read_logs
+    >>> t = np.arange(20) * 1e-3
+    >>> rows = ["run,t,q,u"] + [f"{r},{x},{np.sin(x)},{np.cos(x)}" for r in (1, 2) for x in t]
+    >>> path = pathlib.Path(tempfile.mkdtemp()) / "runs.csv"
+    >>> _ = path.write_text("\n".join(rows))
+    >>> [(log.source, len(log)) for log in read_logs(path, run="run", time="t", position="q",
+    ...                                              input="u")]
+    [('runs.csv run 1', 20), ('runs.csv run 2', 20)]
+    """
+    return _read(path, time=time, position=position, input=input, input_gain=input_gain,
+                 reference=reference, Ts=Ts, axis=axis, time_tolerance=time_tolerance,
+                 run=_name(run, "run"), columns=columns)  # fmt: skip
+
+
+def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_tolerance, run,
+          columns):  # fmt: skip
+    """The logs of a file: one, or one per value of the ``run`` column."""
     path = Path(path)
     wanted = {"position": _name(position, "position"), "input": _name(input, "input")}
     if _name(time, "time", optional=True) is not None:
         wanted["time"] = time
     if _name(reference, "reference", optional=True) is not None:
         wanted["reference"] = reference
+    if run is not None:
+        wanted["run"] = run
+    if columns is not None:
+        if not isinstance(columns, Mapping):
+            raise ParameterTypeError(
+                f"columns must be a mapping of names to columns, got {columns!r}"
+            )
+        for key, name in columns.items():
+            wanted[f"column {key}"] = _name(name, f"columns[{key!r}]")
     if isinstance(input_gain, str):
         wanted["input_gain"] = input_gain
     elif isinstance(input_gain, (bool, np.bool_)) or not isinstance(input_gain, (int, float)):
@@ -294,20 +433,36 @@ def read_log(
         "position": f"positions [{unit['position']}]",
         "input": "logged inputs",
         "reference": f"reference positions [{unit['position']}]",
+        "run": "run numbers",
     }
     signals = {
-        role: sample_vector(data[role], f"{role} column {name!r}", what[role])
+        role: sample_vector(data[role], f"{role} column {name!r}", what.get(role, "samples"))
         for role, name in wanted.items()
     }
     check_lengths({f"{role} {wanted[role]!r}": values for role, values in signals.items()})
+    runs = signals.pop("run", None)
+    if runs is None:
+        return [_build(signals, None, path, wanted, time, Ts, gain, axis, time_tolerance)]
+    values = list(dict.fromkeys(runs.tolist()))
+    return [_build({role: v[runs == value] for role, v in signals.items()}, value, path,
+                   wanted, time, Ts, gain, axis, time_tolerance) for value in values]  # fmt: skip
+
+
+def _build(signals, run, path, wanted, time, Ts, gain, axis, time_tolerance) -> Log:
+    """One :class:`Log` from validated columns (one run of the file, or all of it)."""
+    label = "" if run is None else f" run {run:g}"
     n = signals["position"].size
+    if run is not None and n < MIN_LOG_SAMPLES:
+        raise ParameterValueError(
+            f"{path.name}{label} has {n} samples; a log needs at least {MIN_LOG_SAMPLES}"
+        )
     if "time" in signals:
         t = signals["time"]
-        check_time(t, f"time column {time!r}", time_tolerance)
+        check_time(t, f"time column {time!r}{label}", time_tolerance)
     else:
         Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
-        t = np.arange(n) * Ts
-    u = gain * signals["input"]
+        t = readonly(np.arange(n) * Ts)
+    u = signals["input"] if gain == 1.0 else readonly(gain * signals["input"])
     if not np.all(np.isfinite(u)):  # pragma: no cover - only for gains near the float limit
         raise ParameterValueError(f"input_gain {gain!r} makes the input overflow")
     return Log(
@@ -315,9 +470,10 @@ def read_log(
         theta=signals["position"],
         u=u,
         reference=signals.get("reference"),
-        source=path.name,
-        names={"time": time, "position": position, "input": input, "reference": reference},
+        source=path.name + label,
+        names={role: wanted.get(role) for role in ("time", "position", "input", "reference")},
         input_gain=gain,
         axis=axis,
         time_tolerance=time_tolerance,
+        columns={role[7:]: v for role, v in signals.items() if role.startswith("column ")},
     )

@@ -58,6 +58,7 @@ class Settings:
     decimation: int
     border: int
     min_speed: float
+    zoh: bool = False
 
     @property
     def decimation_cutoff(self) -> float:
@@ -70,6 +71,60 @@ class Settings:
         return out
 
 
+#: The adaptive defaults keep frequencies where the position's spectrum stands this far above
+#: its noise floor (20 dB): there the differentiated noise is a hundredth of the motion.
+SIGNAL_TO_NOISE = 100.0
+#: ... and rows slower than this fraction of the largest filtered speed (stick phases).
+MIN_SPEED_FRACTION = 0.02
+
+
+def _whitened_psd(theta: np.ndarray, Ts: float):
+    """Frequencies [Hz] and PSD of the position [unit^2/Hz] estimated from its second
+    difference (Welch) divided by the difference's gain ``(2 sin(pi f Ts))^4``: the window's
+    leakage from the large slow motion would otherwise mask the noise floor."""
+    from scipy import signal
+
+    second = np.diff(theta, 2)
+    f, psd = signal.welch(
+        second, fs=1.0 / Ts, window="blackmanharris", nperseg=min(second.size, 4096)
+    )
+    gain = (2.0 * np.sin(np.pi * f * Ts)) ** 4
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return f[1:], psd[1:] / gain[1:]
+
+
+def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
+    """One-sided noise PSD [unit^2/Hz] of a logged position, and its quantisation step.
+
+    The larger of the encoder's quantisation noise ``q^2 Ts / 6`` (``q`` the smallest step
+    between consecutive samples; white noise of variance ``q^2/12`` over ``fs/2``) and the
+    median PSD of the top quarter of the band, where a motion system's position is noise.
+    """
+    steps = np.abs(np.diff(theta))
+    steps = steps[steps > 0]
+    q = float(steps.min()) if steps.size else 0.0
+    f, psd = _whitened_psd(theta, Ts)
+    top = psd[f >= 0.375 / Ts]
+    return max(q * q * Ts / 6.0, float(np.median(top)) if top.size else 0.0), q
+
+
+def signal_bandwidth(theta: np.ndarray, Ts: float) -> float:
+    """Highest frequency [Hz] where the position's PSD is :data:`SIGNAL_TO_NOISE` times its
+    noise floor (:func:`noise_floor`); 0 if none is."""
+    floor, _ = noise_floor(theta, Ts)
+    f, psd = _whitened_psd(theta, Ts)
+    above = np.flatnonzero(psd > SIGNAL_TO_NOISE * floor)
+    return float(f[above[-1]]) if above.size else 0.0
+
+
+def adaptive_bandwidth(theta: np.ndarray, Ts: float) -> float:
+    """The ``bandwidth`` [Hz] that puts the decimation filter's cut-off ``2 bandwidth`` at the
+    log's :func:`signal_bandwidth`, within ``[fs/500, fs/12]`` (the cut-off ``5 bandwidth``
+    below Nyquist; at least 0.4 % of the band kept)."""
+    fs = 1.0 / Ts
+    return float(np.clip(0.5 * signal_bandwidth(theta, Ts), fs / 500.0, fs / 12.0))
+
+
 def resolve_settings(
     Ts: float,
     *,
@@ -79,6 +134,7 @@ def resolve_settings(
     decimation=None,
     border=None,
     min_speed=0.0,
+    zoh=False,
 ) -> Settings:
     """Fill in and check the filter settings for sampling period ``Ts`` [s].
 
@@ -127,6 +183,7 @@ def resolve_settings(
         decimation=decimation,
         border=border,
         min_speed=min_speed,
+        zoh=bool(zoh),
     )
 
 
@@ -197,6 +254,11 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
     """Build the decimated observation matrix and input (steps 1-4 of the module docstring)."""
     _, velocity, acceleration = kinematics(theta, settings)
     X = decimate(observation(velocity, acceleration), settings.decimation)
+    if settings.zoh:
+        # with the input held over each sample, the second central difference of the
+        # position at k sees (u_(k-1) + u_k) / 2, exactly for an inertia (ZOH of 1/s^2 is
+        # Ts^2 (z + 1) / (2 (z - 1)^2)): align the input with it, half a sample later
+        u = np.concatenate([u[:1], 0.5 * (u[1:] + u[:-1])])
     y = decimate(u, settings.decimation)
     index = rows_inside_border(theta.size, settings)
     inside = index // settings.decimation
@@ -215,3 +277,57 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
         velocity=velocity,
         kept=kept,
     )
+
+
+def differentiate(x, Ts: float, *, cutoff: float | None = None, order: int = 4, like=None):
+    r"""Velocity and acceleration of a sampled position by identify's filtered differentiation.
+
+    The position is low-pass filtered by a Butterworth filter run forward and backward (no
+    lag) and differentiated twice by central differences: steps 1-2 of IDIM-LS (EMPS
+    description, section 3). Use it for a logged reference position, to give
+    :class:`FeedbackLoop` its ``reference_velocity`` and feed-forward consistently with the
+    identification.
+
+    Parameters
+    ----------
+    x : array_like
+        Position [rad or m], uniformly sampled.
+    Ts : float
+        Sampling period [s].
+    cutoff : float, optional
+        Cut-off [Hz] of the filter. Default: the one ``identify(method="auto")`` chooses for
+        the position ``like`` (5 x half its signal bandwidth; see :func:`identify`, Notes).
+    order : int, optional
+        Butterworth order (4).
+    like : array_like, optional
+        The measured position whose default cut-off to use (default ``x`` itself).
+
+    Returns
+    -------
+    velocity, acceleration : ndarray
+        [rad/s or m/s], [rad/s^2 or m/s^2].
+
+    Raises
+    ------
+    ParameterValueError
+        If ``cutoff`` is not below the Nyquist frequency, or ``x`` is not finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from hpdob.identification import differentiate
+    >>> t = np.arange(4000) * 1e-3
+    >>> v, a = differentiate(np.sin(2 * np.pi * t), 1e-3, cutoff=50.0)
+    >>> round(float(v[2000]), 3), round(float(a[2250]), 2)   # 2 pi cos, -(2 pi)^2 sin
+    (6.283, -39.48)
+    """
+    from ._checks import sample_vector
+
+    x = sample_vector(x, "x", "positions [rad or m]")
+    Ts = positive(Ts, "Ts", "a positive sampling period [s]")
+    if cutoff is None:
+        reference = x if like is None else sample_vector(like, "like", "positions [rad or m]")
+        cutoff = 5.0 * adaptive_bandwidth(reference, Ts)
+    settings = resolve_settings(Ts, cutoff=cutoff, order=order, decimation=1, border=0)
+    _, velocity, acceleration = kinematics(x, settings)
+    return velocity, acceleration

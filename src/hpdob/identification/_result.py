@@ -26,6 +26,18 @@ _LABELS = {
 }
 
 
+def _relative(value: float, std: float, fixed: bool) -> str:
+    """The relative uncertainty, or why none is printed: a near-zero value (below 2 standard
+    deviations) has only its absolute one (a relative 2232 % says nothing)."""
+    if fixed:
+        return "fixed"
+    if std == 0.0 and value == 0.0:
+        return "-"
+    if abs(value) < 2.0 * std:
+        return "within 2 std of 0"
+    return f"{100 * std / abs(value):.2f} %"
+
+
 def _json_ready(value):
     if isinstance(value, Mapping):
         return {str(k): _json_ready(v) for k, v in value.items()}
@@ -88,6 +100,22 @@ class Identification:
         as eq. 11 of the EMPS description).
     t_log, theta_log, theta_simulated : ndarray or None
         With a loop: the log's time and position and the simulated position, for the plot.
+    offsets, offsets_std : tuple of float
+        The offset of each log and its standard deviation (one log: ``(offset,)``). With
+        one offset per log, ``offset`` is their mean.
+    sources : tuple of str
+        The name of each log.
+    run : ndarray of int
+        The log each regression row comes from (index into ``sources``).
+    fits : tuple of (mapping or None)
+        Per log: the identified model simulated on it (through its loop, or open loop from
+        its input) and the NRMSE fits [%] of position and velocity (MATLAB ``compare``);
+        None without ``diagnostics`` (but for a first log with a loop: ``simulation``).
+    sensitivity : mapping or None
+        ``{"x2": {...}, "/2": {...}}``: how far each estimated parameter moves, in standard
+        deviations, with the filters' bandwidth doubled and halved.
+    warnings : tuple of str
+        The :class:`IdentificationWarning` messages of the identification.
     """
 
     method: str
@@ -110,8 +138,21 @@ class Identification:
     t_log: np.ndarray | None = field(default=None, repr=False)
     theta_log: np.ndarray | None = field(default=None, repr=False)
     theta_simulated: np.ndarray | None = field(default=None, repr=False)
+    offsets: tuple = ()
+    offsets_std: tuple = ()
+    sources: tuple = ()
+    run: np.ndarray | None = field(default=None, repr=False)
+    fits: tuple = ()
+    sensitivity: Mapping | None = None
+    warnings: tuple = ()
 
     def __post_init__(self) -> None:
+        if not self.offsets:
+            object.__setattr__(self, "offsets", (float(self.offset),))
+            object.__setattr__(self, "offsets_std", (float(np.sqrt(self.covariance[3, 3])),))
+        if self.run is None:
+            object.__setattr__(self, "run", np.zeros(np.shape(self.t), dtype=int))
+        object.__setattr__(self, "run", readonly(np.array(self.run, dtype=int)))
         for name in ("covariance", "t", "u", "u_model", "t_log", "theta_log", "theta_simulated"):
             value = getattr(self, name)
             if value is not None:
@@ -210,7 +251,64 @@ class Identification:
         )
         return ServoModel(self.J, self.b, coulomb=self.coulomb, coulomb_velocity=velocity)
 
+    def validate(self, log, *, loop=None, offset: float | None = None):
+        """Simulate the identified model on another log and measure how well it fits.
+
+        Open loop from the log's input, or through ``loop`` (the controller and reference
+        that produced it) if given; from the log's first position and filtered velocity.
+        Position and velocity (the identification's filtered differentiation, at the log's
+        own sampling period) are compared by MATLAB ``compare``'s NRMSE fit.
+
+        Parameters
+        ----------
+        log : Log
+            A log the model was not fitted to (identify on one part, validate on another).
+        loop : FeedbackLoop, optional
+            The logged loop; None simulates open loop from the logged input.
+        offset : float, optional
+            The input offset to simulate [N m or N]. Default: the identified one (with one
+            offset per log, their mean).
+
+        Returns
+        -------
+        Validation
+            ``position_fit``, ``velocity_fit`` [%], the traces, ``summary()``, ``to_dict()``
+            and ``plot()``.
+
+        Raises
+        ------
+        ParameterTypeError
+            If ``log`` is not a :class:`Log` or ``loop`` not a :class:`FeedbackLoop`.
+        ParameterValueError
+            If the identified ``J`` is not positive, or ``loop`` does not have one sample
+            per logged sample, or the simulation diverges.
+
+        Examples
+        --------
+        >>> from hpdob.identification import emps
+        >>> log = emps()
+        >>> first = log.slice(0.0, 12.4)
+        >>> fit = first.identify(method="idim-ls")
+        >>> check = fit.validate(log.slice(12.4, None))
+        >>> bool(check.velocity_fit > 80.0)
+        True
+        """
+        from ._simfit import validate
+
+        return validate(self, log, loop=loop, offset=offset)
+
     # -- reports -----------------------------------------------------------------------------
+    def _repr_markdown_(self) -> str:
+        """A compact table for Jupyter: each parameter with its standard deviation and unit."""
+        from .._repr import markdown_table
+
+        u, i = self.units, int(self.axis == "linear")
+        rows = [(f"{_LABELS[n][i]} [{u[n]}]", f"{v:.4g} ± {self.std[n]:.2g}")
+                for n, v in self.parameters.items()]  # fmt: skip
+        rows += [("method", f"{self.method} ({self.n_samples} samples)"),
+                 ("relative error [%]", self.relative_error)]  # fmt: skip
+        return markdown_table("IdentificationResult", rows)  # fmt: skip
+
     def summary(self) -> str:
         """A report of the identification.
 
@@ -226,11 +324,20 @@ class Identification:
         linear = self.axis == "linear"
         lines = [f"{self.method.upper()}: {self.t.size} regression rows from "
                  f"{self.n_samples} samples (Ts = {self.settings['Ts']:g} s)"]  # fmt: skip
+        fixed = self.settings.get("fixed", {})
+        several = len(self.offsets) > 1
         for name, value in self.parameters.items():
             std = self.std[name]
-            relative = f"{100 * std / abs(value):.2f} %" if value else "-"
             label = _LABELS[name][1 if linear else 0]
-            lines.append(f"  {label:<22}{value:>14.6g} +- {std:<11.4g} {u[name]:<16} ({relative})")
+            if several and name == "offset":
+                label = "mean offset"
+            lines.append(f"  {label:<22}{value:>14.6g} +- {std:<11.4g} {u[name]:<16} "
+                         f"({_relative(value, std, name in fixed)})")  # fmt: skip
+        if several:
+            for source, value, std in zip(self.sources, self.offsets, self.offsets_std,
+                                          strict=True):  # fmt: skip
+                lines.append(f"    offset of {source}: {value:.6g} +- {std:.4g} {u['offset']} "
+                             f"({_relative(value, std, False)})")  # fmt: skip
         lines.append(
             f"  relative error {self.relative_error:.3f} %, residual std "
             f"{self.residual_std:.4g} {u['input']}, condition number {self.condition_number:.1f}"
@@ -244,6 +351,15 @@ class Identification:
                 f"{self.simulation['position_error_percent']:.4g} %, input error "
                 f"{self.simulation['input_error_percent']:.4g} %"
             )
+        for source, fit in zip(self.sources, self.fits, strict=False):
+            if fit is not None:
+                lines.append(
+                    f"  simulated on {source} ({fit['mode']}): position fit "
+                    f"{fit['position_fit_percent']:.2f} %, velocity fit "
+                    f"{fit['velocity_fit_percent']:.2f} % (MATLAB compare)"
+                )
+        for message in self.warnings:
+            lines.append(f"  warning: {message}")
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
@@ -255,7 +371,8 @@ class Identification:
             JSON-ready (non-finite values as None): ``method``, ``axis``, ``parameters``,
             ``std``, ``units``, ``covariance``, ``relative_error_percent``,
             ``residual_std``, ``rows``, ``n_samples``, ``condition_number``, ``max_speed``,
-            ``iterations``, ``converged``, ``simulation`` and ``settings``.
+            ``iterations``, ``converged``, ``simulation``, ``offsets``, ``offsets_std``,
+            ``fits``, ``sensitivity``, ``warnings`` and ``settings``.
         """
         return _json_ready(
             {
@@ -274,6 +391,11 @@ class Identification:
                 "iterations": self.iterations,
                 "converged": self.converged,
                 "simulation": None if self.simulation is None else dict(self.simulation),
+                "offsets": dict(zip(self.sources or ("log",), self.offsets, strict=False)),
+                "offsets_std": dict(zip(self.sources or ("log",), self.offsets_std, strict=False)),
+                "fits": list(self.fits),
+                "sensitivity": None if self.sensitivity is None else dict(self.sensitivity),
+                "warnings": list(self.warnings),
                 "settings": dict(self.settings),
             }
         )
@@ -295,7 +417,10 @@ class Identification:
         return path
 
     def _columns(self) -> dict:
-        return {"t": self.t, "u": self.u, "u_model": self.u_model, "residual": self.residual}
+        columns = {"t": self.t, "u": self.u, "u_model": self.u_model, "residual": self.residual}
+        if len(self.offsets) > 1:
+            columns["run"] = self.run.astype(float)
+        return columns
 
     def to_csv(self, path):
         """Write the fit as CSV (atomically).
@@ -304,7 +429,7 @@ class Identification:
         ----------
         path : str or os.PathLike
             The file to write (replaced if it exists): columns ``t``, ``u``, ``u_model``,
-            ``residual`` on the regression rows.
+            ``residual`` on the regression rows (and ``run``, the log's index, with several).
 
         Returns
         -------

@@ -86,6 +86,48 @@ class ServoModel(Plant):
         object.__setattr__(self, "coulomb_velocity", velocity)
         object.__setattr__(self, "environment", check_environment(self.environment))
 
+    @classmethod
+    def from_lti(cls, sys, *, torque_gain: float = 1.0, name: str = "sys", **friction):
+        r"""The servo of a continuous python-control system ``k/(J s^2 + b s)``.
+
+        Parameters
+        ----------
+        sys : control.TransferFunction or control.StateSpace
+            Continuous (``dt = 0``), from the command to the angle [rad]: a pole at the origin,
+            one real pole at ``-b/J`` (or a second one at the origin) and no zero.
+        torque_gain : float, optional
+            Torque per unit of the input, ``k`` [N m per input unit] (e.g. the torque constant
+            for a current input). Default 1: the input is the torque [N m].
+        name : str, optional
+            Parameter name used in messages. Default ``"sys"``.
+        **friction
+            ``coulomb`` and ``coulomb_velocity``, which a linear system does not hold.
+
+        Returns
+        -------
+        ServoModel
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            One line naming what is not a servo: a discrete system, a zero, a pole off the
+            origin that is not real, no pole at the origin, more inputs or outputs.
+
+        Examples
+        --------
+        >>> import control
+        >>> from hpdob import ServoModel
+        >>> s = control.tf("s")
+        >>> ServoModel.from_lti(1 / (3.06e-4 * s**2 + 5e-5 * s))
+        ServoModel(J=0.000306, b=5e-05, coulomb=0.0, coulomb_velocity=0.01)
+        >>> ServoModel.from_lti(0.05 / (2.8e-4 * s**2), torque_gain=0.05)  # from a current [A]
+        ServoModel(J=0.00028, b=0.0, coulomb=0.0, coulomb_velocity=0.01)
+        """
+        from ._lti import servo_parameters
+
+        J, b = servo_parameters(sys, torque_gain=torque_gain, name=name)
+        return cls(J, b, **friction)
+
     @property
     def A_C(self) -> np.ndarray:
         """Continuous state matrix ``[[0, 1], [0, -b/J]]`` of eq. (1)."""
@@ -323,6 +365,44 @@ class DiscreteServoModel:
         object.__setattr__(self, "A", readonly(A))
         object.__setattr__(self, "B", readonly(B))
         object.__setattr__(self, "D", readonly(B.copy()))
+
+    @classmethod
+    def from_lti(cls, sys, *, torque_gain: float = 1.0, name: str = "sys") -> DiscreteServoModel:
+        r"""The model of a sampled python-control servo (``control.c2d(servo, Ts)``, ZOH).
+
+        Parameters
+        ----------
+        sys : control.TransferFunction or control.StateSpace
+            Discrete (``dt = Ts > 0``), from the command to the angle [rad]: poles ``z = 1``
+            and ``z = exp(-b Ts/J)``, the numerator of the zero-order-hold sampling.
+        torque_gain : float, optional
+            Torque per unit of the input [N m per input unit]. Default 1.
+        name : str, optional
+            Parameter name used in messages. Default ``"sys"``.
+
+        Returns
+        -------
+        DiscreteServoModel
+            ``ServoModel(J, b).discretize(Ts)`` with the transfer function of ``sys``.
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            If ``sys`` is continuous or not the ZOH sampling of a servo.
+
+        Examples
+        --------
+        >>> import control
+        >>> from hpdob import DiscreteServoModel
+        >>> s = control.tf("s")
+        >>> model = DiscreteServoModel.from_lti(control.c2d(1 / (2.8e-4 * s**2), 1e-3))
+        >>> round(model.J, 12), model.b, model.Ts
+        (0.00028, 0.0, 0.001)
+        """
+        from ._lti import discrete_servo_parameters
+
+        J, b, Ts = discrete_servo_parameters(sys, torque_gain=torque_gain, name=name)
+        return cls(ServoModel(J, b), Ts)
 
     #: Names of the state entries (rows of ``C``: the motor angle and velocity).
     state_names = ("theta", "omega")

@@ -12,17 +12,37 @@ design_eso, ExtendedStateObserver, ESODesign
     The linear extended state observer of ADRC (classical and generalised, two forms).
 design_kalman, KalmanDisturbanceObserver, KalmanDesign, kalman_process_noise
     The steady-state Kalman filter with a disturbance state.
+Family, Parameter, register_family, unregister_family, families, get_family
+    The family registry: one record per family, read by sweeps, scenario files, the CLI,
+    ``tune``, ``compare_observers`` and the robust maps; ``design_from_spec``,
+    ``design_at_bandwidth`` and ``spec_of`` design from and back to a spec.
 initial_state, estimate, outputs, update
     The pure functional core of the sample loop, for any observer.
 characteristic_polynomial, error_matrix, extrapolation_weights
     The structure of the error dynamics (eqs. 12, 22, 24 generalised).
 """
 
+from . import _families  # noqa: F401  (registers the built-in families)
 from ._core import estimate, initial_state, outputs, update
 from ._eso import ESODesign, ExtendedStateObserver, design_eso
 from ._kalman import KalmanDesign, KalmanDisturbanceObserver, design_kalman, kalman_process_noise
 from ._position import PositionObserverDesign
 from ._reaction import reaction_torque_observer
+from ._registry import (
+    Family,
+    Parameter,
+    check_spec,
+    design_at_bandwidth,
+    design_from_spec,
+    families,
+    family_of,
+    get_family,
+    register_family,
+    spec_label,
+    spec_of,
+    tuned_value,
+    unregister_family,
+)
 from ._runtime import DisturbanceObserver, Observer
 from ._synthesis import (
     ObserverDesign,
@@ -38,25 +58,38 @@ __all__ = [
     "ESODesign",
     "ErrorDynamics",
     "ExtendedStateObserver",
+    "Family",
     "KalmanDesign",
     "KalmanDisturbanceObserver",
     "LinearObserver",
     "Observer",
     "ObserverDesign",
+    "Parameter",
     "PositionObserverDesign",
     "Program",
     "Term",
     "as_system",
     "characteristic_polynomial",
+    "check_spec",
+    "design_at_bandwidth",
     "design_eso",
+    "design_from_spec",
     "design_kalman",
     "design_observer",
     "error_matrix",
     "estimate",
     "extrapolation_weights",
+    "families",
+    "family_of",
+    "get_family",
     "initial_state",
     "kalman_process_noise",
     "outputs",
     "reaction_torque_observer",
+    "register_family",
+    "spec_label",
+    "spec_of",
+    "tuned_value",
+    "unregister_family",
     "update",
 ]

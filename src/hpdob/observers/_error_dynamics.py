@@ -11,13 +11,15 @@ poles with it.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from fractions import Fraction
 
 import numpy as np
 
-from .._validation import ParameterValueError, as_int, as_real_vector
+from .._validation import ParameterValueError, as_int, as_real_vector, readonly
 
 __all__ = [
+    "ErrorDynamics",
     "characteristic_polynomial",
     "error_matrix",
     "extrapolation_weights",
@@ -224,3 +226,48 @@ def schur_cohn_stable(coefficients) -> bool:
         reduced = [c[n] * c[i] - c[0] * c[n - i] for i in range(1, n + 1)]
         c = [v / reduced[-1] for v in reduced]  # monic again: keeps the numbers small
     return True
+
+
+@dataclass(frozen=True, eq=False)
+class ErrorDynamics:
+    r"""Closed form of an observer's estimation error on its nominal plant.
+
+    .. math:: 1 - Q(z) = \frac{\tau_{dn}(z) - \hat\tau(z)}{\tau_{dn}(z)}
+              = \frac{(z-1)^{m+1} R(z)}{P(z)},\qquad P(z) = \prod_i (z - p_i),\quad
+              R(z) = \prod_j (z - r_j),
+
+    the structure of the order-m families (``docs/analysis.md``): the error is driven by
+    :math:`\Delta^{m+1}\tau` only. For the observers that measure the state ``R = 1``; for the
+    position-only ones ``R`` is the characteristic polynomial of their position/velocity part
+    (two zeros).
+
+    Attributes
+    ----------
+    order : int
+        Truncation order ``m``.
+    poles : ndarray
+        The roots :math:`p_i` of ``P`` (the poles that were placed):
+        ``order + 1 + len(zeros)`` of them.
+    polynomial : ndarray
+        ``P`` (highest power first) as the gains realise it.
+    zeros : ndarray, optional
+        The roots :math:`r_j` of ``R``; default none.
+    """
+
+    order: int
+    poles: np.ndarray
+    polynomial: np.ndarray
+    zeros: np.ndarray = ()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "poles", readonly(np.array(np.atleast_1d(self.poles))))
+        zeros = np.array(self.zeros, dtype=complex if np.iscomplexobj(self.zeros) else float)
+        object.__setattr__(self, "zeros", readonly(zeros.reshape(-1)))
+        polynomial = np.array(self.polynomial, dtype=float)
+        n = self.order + 1 + self.zeros.size
+        if polynomial.shape != (n + 1,) or self.poles.shape != (n,):
+            raise ParameterValueError(
+                f"error dynamics of order {self.order} with {self.zeros.size} zeros need {n} "
+                f"poles and {n + 1} polynomial coefficients"
+            )
+        object.__setattr__(self, "polynomial", readonly(polynomial))

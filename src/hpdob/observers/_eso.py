@@ -43,7 +43,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._validation import (
-    ParameterTypeError,
     ParameterValueError,
     as_int,
     check_choice,
@@ -51,7 +50,8 @@ from .._validation import (
     positive,
     readonly,
 )
-from ..models._servo import DiscreteServoModel, ServoModel
+from ..models._lti import as_discrete_model
+from ..models._servo import DiscreteServoModel
 from ._error_dynamics import schur_cohn_stable
 from ._realised import POLE_TOLERANCE, check_realised, matrix_characteristic_polynomial
 from ._runtime import _DesignedObserver
@@ -155,8 +155,9 @@ def design_eso(
 
     Parameters
     ----------
-    model : DiscreteServoModel
-        Nominal discrete model, ``ServoModel(J_n, b_n).discretize(Ts)``.
+    model : DiscreteServoModel or control.TransferFunction or control.StateSpace
+        Nominal discrete model, ``ServoModel(J_n, b_n).discretize(Ts)``. A sampled python-control
+        servo (``control.c2d(sys, Ts)``) is read by :meth:`DiscreteServoModel.from_lti`.
     bandwidth : float
         Observer bandwidth :math:`\omega_o` [rad/s], positive: all ``extended_order + 3``
         discrete poles at :math:`e^{-\omega_o T_s}`.
@@ -202,13 +203,7 @@ def design_eso(
     >>> bool(np.allclose(np.linalg.eigvals(eso.system.F), np.exp(-0.2), atol=1e-4))
     True
     """
-    if isinstance(model, ServoModel):
-        raise ParameterTypeError(
-            "model must be a DiscreteServoModel; discretise the continuous model first, e.g. "
-            "ServoModel(J_n, b_n).discretize(Ts)"
-        )
-    if not isinstance(model, DiscreteServoModel):
-        raise ParameterTypeError(f"model must be a DiscreteServoModel, got {type(model).__name__}")
+    model = as_discrete_model(model, "model")
     g = positive(bandwidth, "bandwidth", "a positive finite observer bandwidth [rad/s]")
     m = as_int(extended_order, "extended_order", "a non-negative integer", minimum=0)
     if m > MAX_EXTENDED_ORDER:

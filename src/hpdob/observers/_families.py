@@ -1,133 +1,196 @@
-"""Observer families by name: how sweeps, scenario files and the command line build observers.
+"""The built-in families' registry records: the paper's order-m observers, the ESO, Kalman.
 
-A *spec* is a dict of a family's design arguments plus an optional ``type`` (default
-``"dob"``, the paper's order-m family); :func:`design_from_spec` designs it on a nominal
-model. :func:`spec_of` turns a design of a known family back into its spec, so that a sweep can
-redesign it when the nominal model, ``Ts`` or a design parameter varies.
+Registered when :mod:`hpdob.observers` is imported; see :mod:`hpdob.observers._registry`.
 """
 
 from __future__ import annotations
 
-from .._validation import ParameterTypeError, ParameterValueError, check_keys
-from ._eso import ESODesign, design_eso
-from ._kalman import KalmanDesign, design_kalman
+import math
+
+from .._validation import ParameterValueError
+from ._eso import ESO_FORMS, ESODesign, ExtendedStateObserver, design_eso
+from ._kalman import KalmanDesign, KalmanDisturbanceObserver, design_kalman, kalman_process_noise
 from ._position import PositionObserverDesign
+from ._registry import Family, Parameter, register_family
 from ._runtime import DisturbanceObserver
 from ._synthesis import ObserverDesign, design_observer
 
-__all__ = ["FAMILIES", "design_at_bandwidth", "design_from_spec", "spec_of"]
+__all__ = ["DOB", "ESO", "KALMAN"]
 
-#: type -> (design function(model, **arguments), its argument names, required ones).
-FAMILIES = {
-    "dob": (
-        design_observer,
-        ("order", "poles", "bandwidth", "measurement", "velocity_bandwidth", "gain_direction"),
-        ("order",),
-    ),
-    "eso": (design_eso, ("bandwidth", "extended_order", "form"), ("bandwidth",)),
-    "kalman": (
-        design_kalman,
-        ("order", "position_noise_std", "process_noise_std"),
-        ("position_noise_std", "process_noise_std"),
-    ),
-}
+_ORDER_NAMES = {0: "DOb (m=0)", 1: "HPDOb (m=1)"}
 
 
-def _family(spec: dict, where: str):
-    kind = spec.get("type", "dob")
-    if kind not in FAMILIES:
-        raise ParameterValueError(
-            f"{where}.type must be one of {', '.join(repr(k) for k in FAMILIES)}; got {kind!r}"
-        )
-    return kind, FAMILIES[kind]
-
-
-def check_spec(spec, where: str = "observer", *, owner: str | None = None) -> dict:
-    """``spec`` validated for its keys (not its values); returns a copy.
-
-    Unknown keys are reported as ``<where>.<key>``, a missing key against ``owner`` (default
-    ``where``).
-    """
-    owner = owner or where
-    if not isinstance(spec, dict):
-        raise ParameterTypeError(f"{owner} must be a dict of design arguments, got {spec!r}")
-    _, (_, keys, required) = _family(spec, where)
-    check_keys(spec, (*keys, "type"), where)
-    missing = [k for k in required if k not in spec]
-    if missing:
-        raise ParameterValueError(
-            f"{owner} must have the required key {missing[0]!r} (keys: {', '.join(keys)}), "
-            f"got {spec!r}"
-        )
-    return dict(spec)
-
-
-def design_from_spec(model, spec: dict, where: str = "observer"):
-    """Design the observer ``spec`` describes on the nominal discrete ``model``."""
-    spec = check_spec(spec, where)
-    _, (design, _, _) = _family(spec, where)
-    arguments = {k: v for k, v in spec.items() if k != "type"}
-    return design(model, **arguments)
-
-
-def spec_of(observer) -> dict | None:
-    """The spec of a design of a known family (None for any other observer)."""
-    design = getattr(observer, "design", None)
-    if isinstance(design, (ObserverDesign, PositionObserverDesign, ESODesign, KalmanDesign)):
-        observer = design
-    if isinstance(observer, ESODesign):
-        return {"type": "eso", "bandwidth": observer.bandwidth,
-                "extended_order": observer.extended_order, "form": observer.form}  # fmt: skip
-    if isinstance(observer, KalmanDesign):
-        return {"type": "kalman", "order": observer.order,
-                "position_noise_std": observer.position_noise_std,
-                "process_noise_std": observer.process_noise_std}  # fmt: skip
-    if isinstance(observer, DisturbanceObserver):
-        observer = observer.design
-    if isinstance(observer, ObserverDesign):
-        spec = {"order": observer.order, "gain_direction": tuple(observer.gain_direction)}
-        if observer.bandwidth is not None:
-            spec["bandwidth"] = observer.bandwidth
+def _dob_spec(design) -> dict:
+    if isinstance(design, ObserverDesign):
+        spec = {"type": "dob", "order": design.order,
+                "gain_direction": tuple(design.gain_direction)}  # fmt: skip
+        if design.bandwidth is not None:
+            spec["bandwidth"] = design.bandwidth
         else:
-            spec["poles"] = tuple(observer.poles)
+            spec["poles"] = tuple(design.poles)
         return spec
-    if isinstance(observer, PositionObserverDesign):
-        spec = {"order": observer.order, "measurement": "position"}
-        if observer.bandwidth is not None:
-            spec["bandwidth"] = observer.bandwidth
-            if observer.velocity_bandwidth != observer.bandwidth:
-                spec["velocity_bandwidth"] = observer.velocity_bandwidth
-        else:
-            spec["poles"] = tuple(observer.poles)
-        return spec
-    return None
-
-
-def design_at_bandwidth(model, spec: dict, bandwidth: float, where: str = "observer"):
-    """Design ``spec``'s family at ``bandwidth`` [rad/s] (what robust-stability maps, the
-    comparison and the tuner sweep over).
-
-    For the order-m and ESO families the bandwidth replaces ``poles``/``bandwidth`` of the
-    spec; for the Kalman observer, which has no bandwidth parameter, the process noise is
-    chosen by :func:`~hpdob.observers.kalman_process_noise` so that the estimation response
-    has that bandwidth (the spec must give ``position_noise_std``).
-    """
-    if not isinstance(spec, dict):
-        raise ParameterTypeError(f"{where} must be a dict of design arguments, got {spec!r}")
-    kind = spec.get("type", "dob")
-    placeholder = {"process_noise_std": 1.0} if kind == "kalman" else {"bandwidth": 1.0}
-    spec = {**check_spec({**spec, **placeholder}, where), **spec}
-    spec.pop("process_noise_std" if kind == "kalman" else "bandwidth", None)
-    arguments = {k: v for k, v in spec.items() if k not in ("type", "poles")}
-    if kind == "kalman":
-        from ._kalman import kalman_process_noise
-
-        arguments["process_noise_std"] = kalman_process_noise(
-            model,
-            bandwidth=bandwidth,
-            position_noise_std=arguments["position_noise_std"],
-            order=arguments.get("order", 0),
-        )
+    spec = {"type": "dob", "order": design.order, "measurement": "position"}
+    if design.bandwidth is not None:
+        spec["bandwidth"] = design.bandwidth
+        if design.velocity_bandwidth != design.bandwidth:
+            spec["velocity_bandwidth"] = design.velocity_bandwidth
     else:
-        arguments["bandwidth"] = bandwidth
-    return FAMILIES[kind][0](model, **arguments)
+        spec["poles"] = tuple(design.poles)
+    return spec
+
+
+def _dob_label(spec: dict) -> str:
+    m = spec.get("order")
+    name = _ORDER_NAMES.get(m, f"order-{m} DOb")
+    return ("position-only " if spec.get("measurement") == "position" else "") + name
+
+
+def _dob_respec(spec: dict, varied: set, base_spec: dict) -> dict:
+    """A sweep's redesign: a varied measurement drops the other measurement's arguments (the
+    number of poles differs between them)."""
+    if "measurement" in varied:
+        other = "gain_direction" if spec["measurement"] == "position" else "velocity_bandwidth"
+        spec.pop(other, None)
+        if "poles" in spec and spec["measurement"] != base_spec.get("measurement", "state"):
+            raise ParameterValueError(
+                "observer.measurement can vary only for an observer designed by bandwidth "
+                f"(the number of poles differs between the families), got poles={spec['poles']}"
+            )
+    return spec
+
+
+DOB = Family(
+    name="dob",
+    design=design_observer,
+    parameters=(
+        Parameter("order", "int", "truncation order m: 0 DOb, 1 HPDOb, >= 2 generalised"),
+        Parameter("poles", "complex_list", "the m+1 poles (m+3 measuring the position)"),
+        Parameter("bandwidth", "float", "bandwidth g [rad/s], all poles at exp(-g Ts)"),
+        Parameter(
+            "measurement",
+            "choice",
+            "what it measures: angle and velocity, or the angle",
+            choices=("state", "position"),
+            default="state",
+        ),
+        Parameter(
+            "velocity_bandwidth",
+            "float",
+            "bandwidth of the two velocity poles [rad/s]",
+            only_with=("measurement", "position"),
+        ),
+        Parameter(
+            "gain_direction",
+            "float_list",
+            "gain direction d (eq. 25)",
+            only_with=("measurement", "state"),
+        ),
+    ),
+    required=("order",),
+    order="order",
+    tuned="bandwidth",
+    replaced_by_bandwidth=("poles",),
+    designs=(ObserverDesign, PositionObserverDesign),
+    spec_of=_dob_spec,
+    runtime=lambda design, x0, tau0: DisturbanceObserver.from_design(design, x0=x0, tau0=tau0),
+    label=_dob_label,
+    title="the paper's order-m observers (eqs. 11-25), measuring the state or the angle only",
+    variants={"state": {"measurement": "state"}, "position": {"measurement": "position"}},
+    orders=(0, 1, 2),
+    compared={
+        "DOb": {"order": 0},
+        "HPDOb": {"order": 1},
+        "order 2": {"order": 2},
+        "DOb, position": {"order": 0, "measurement": "position"},
+        "HPDOb, position": {"order": 1, "measurement": "position"},
+        "order 2, position": {"order": 2, "measurement": "position"},
+    },
+    respec=_dob_respec,
+    defaults={"order": 1},
+)
+
+ESO = Family(
+    name="eso",
+    design=design_eso,
+    parameters=(
+        Parameter("bandwidth", "float", "observer bandwidth omega_o [rad/s]"),
+        Parameter("extended_order", "int", "f^(m+1) = 0: 0 the classical ESO"),
+        Parameter(
+            "form", "choice", "discrete implementation", choices=ESO_FORMS, default="current"
+        ),
+    ),
+    required=("bandwidth",),
+    order="extended_order",
+    tuned="bandwidth",
+    designs=(ESODesign,),
+    spec_of=lambda d: {
+        "type": "eso",
+        "bandwidth": d.bandwidth,
+        "extended_order": d.extended_order,
+        "form": d.form,
+    },
+    runtime=lambda design, x0, tau0: ExtendedStateObserver._of(design, x0, tau0),
+    label=lambda spec: f"ESO (m={spec.get('extended_order', 0)}, {spec.get('form', 'current')})",
+    title="ADRC's linear extended state observer (classical and generalised)",
+    variants={"eso": {"form": "current"}},
+    orders=(0, 1, 2),
+    compared={
+        "ESO, current": {"extended_order": 0, "form": "current"},
+        "ESO, predictive": {"extended_order": 0, "form": "predictive"},
+        "GESO m=1, current": {"extended_order": 1, "form": "current"},
+        "GESO m=1, predictive": {"extended_order": 1, "form": "predictive"},
+    },
+)
+
+
+def _kalman_process_noise(model, arguments: dict, bandwidth: float) -> float:
+    """The Kalman process-noise-from-bandwidth rule (written once)."""
+    if "position_noise_std" not in arguments:
+        raise ParameterValueError(
+            "a Kalman observer designed for a bandwidth needs position_noise_std (the angle "
+            f"noise [rad]), got {arguments!r}"
+        )
+    return kalman_process_noise(
+        model,
+        bandwidth=bandwidth,
+        position_noise_std=arguments["position_noise_std"],
+        order=arguments.get("order", 0),
+    )
+
+
+def _kalman_range(model, arguments: dict) -> tuple[float, float]:
+    """The process noises the comparison searches: 12 decades around sigma J/Ts^2."""
+    centre = math.log10(arguments["position_noise_std"] * model.J / model.Ts**2)
+    return 10 ** (centre - 8), 10 ** (centre + 4)
+
+
+KALMAN = Family(
+    name="kalman",
+    design=design_kalman,
+    parameters=(
+        Parameter("order", "int", "disturbance order m of the random-walk model"),
+        Parameter("position_noise_std", "float", "angle noise std [rad] (resolution/sqrt(12))"),
+        Parameter("process_noise_std", "float", "process noise std (sets the bandwidth)"),
+    ),
+    required=("position_noise_std", "process_noise_std"),
+    order="order",
+    tuned="process_noise_std",
+    tuned_from_bandwidth=_kalman_process_noise,
+    noise_parameter="position_noise_std",
+    designs=(KalmanDesign,),
+    spec_of=lambda d: {
+        "type": "kalman",
+        "order": d.order,
+        "position_noise_std": d.position_noise_std,
+        "process_noise_std": d.process_noise_std,
+    },
+    runtime=lambda design, x0, tau0: KalmanDisturbanceObserver._of(design, x0, tau0),
+    label=lambda spec: f"Kalman (m={spec.get('order', 0)})",
+    title="the steady-state Kalman filter with a disturbance state",
+    orders=(0, 1, 2),
+    compared={"Kalman m=0": {"order": 0}, "Kalman m=1": {"order": 1}},
+    tuned_range=_kalman_range,
+)
+
+for _family in (DOB, ESO, KALMAN):
+    register_family(_family, replace=True)

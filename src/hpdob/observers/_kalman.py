@@ -32,13 +32,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._validation import (
-    ParameterTypeError,
     ParameterValueError,
     as_int,
     positive,
     readonly,
 )
-from ..models._servo import DiscreteServoModel, ServoModel
+from ..models._lti import as_discrete_model
+from ..models._servo import DiscreteServoModel
 from ._error_dynamics import schur_cohn_stable
 from ._realised import matrix_characteristic_polynomial
 from ._runtime import _DesignedObserver
@@ -71,14 +71,7 @@ def augmented_model(model: DiscreteServoModel, order: int):
 
 
 def _check_model(model) -> DiscreteServoModel:
-    if isinstance(model, ServoModel):
-        raise ParameterTypeError(
-            "model must be a DiscreteServoModel; discretise the continuous model first, e.g. "
-            "ServoModel(J_n, b_n).discretize(Ts)"
-        )
-    if not isinstance(model, DiscreteServoModel):
-        raise ParameterTypeError(f"model must be a DiscreteServoModel, got {type(model).__name__}")
-    return model
+    return as_discrete_model(model, "model")
 
 
 def _check_order(order) -> int:
@@ -151,8 +144,9 @@ def design_kalman(
 
     Parameters
     ----------
-    model : DiscreteServoModel
-        Nominal discrete model, ``ServoModel(J_n, b_n).discretize(Ts)``.
+    model : DiscreteServoModel or control.TransferFunction or control.StateSpace
+        Nominal discrete model, ``ServoModel(J_n, b_n).discretize(Ts)``. A sampled python-control
+        servo (``control.c2d(sys, Ts)``) is read by :meth:`DiscreteServoModel.from_lti`.
     order : int, optional
         ``m``: the disturbance model :math:`\Delta^{m+1}\tau = 0` (0, default: a random walk
         of :math:`\tau`; 1: of its increment). At most 4.
@@ -277,11 +271,11 @@ def design_kalman(
 
 def _bandwidth(design: KalmanDesign) -> float:
     """Highest frequency [rad/s] where the estimation response |Q| is still >= 1/sqrt(2)."""
-    from ..analysis._estimation import estimation_response
+    from ._response import estimation_frequency_response
 
     nyquist = math.pi / design.Ts
     w = np.geomspace(1e-2, nyquist * 0.999, 600)
-    gain = np.abs(estimation_response(design, w / (2 * math.pi)))
+    gain = np.abs(estimation_frequency_response(design.system, np.exp(1j * w * design.Ts), False))
     above = np.nonzero(gain >= 1 / math.sqrt(2))[0]
     if above.size == 0:
         return 0.0

@@ -43,6 +43,9 @@ from ._error_dynamics import (
     schur_cohn_stable,
     unit_root_polynomial,
 )
+from ._poles import fmt_complex as _fmt_complex
+from ._poles import fmt_pole as _fmt_pole
+from ._poles import validate_poles as _validate_poles
 from ._realised import POLE_TOLERANCE, check_realised, polynomial_from_fractions
 from ._system import ErrorDynamics, LinearObserver, _Designed
 
@@ -216,8 +219,6 @@ class PositionObserverDesign(_Designed):
     gain_direction = None
 
     def __repr__(self) -> str:
-        from ._synthesis import _fmt_pole
-
         poles = ", ".join(_fmt_pole(p) for p in np.atleast_1d(self.poles))
         return (
             f"PositionObserverDesign(order={self.order}, poles=[{poles}], "
@@ -239,8 +240,6 @@ def design_position_observer(
 ) -> PositionObserverDesign:
     """The position-only observer of order ``m`` (validated arguments; see
     :func:`hpdob.design_observer`, which is the public entry point)."""
-    from ._synthesis import _fmt_complex, _validate_poles
-
     n = m + 3
     Ts = model.Ts
     if (poles is None) == (bandwidth is None):

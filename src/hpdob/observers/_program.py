@@ -24,6 +24,8 @@ __all__ = [
     "Term",
     "check_program",
     "compile_python",
+    "program_coefficients",
+    "program_structure",
     "render_sum",
     "structured_program",
 ]
@@ -262,15 +264,82 @@ def render_sum(terms, operands, literal, *, named=True) -> str:
     return text
 
 
-def _py_literal(value: float) -> str:
-    text = repr(float(value))
-    return f"({text})" if text.startswith("-") else text
+def _shape(rows) -> tuple:
+    """The structure of ``rows``: per term its operand and whether it is written without a
+    factor (coefficient +1 or -1, as ``+ x``/``- x``); ``(operand, 0)`` for a factor."""
+    return tuple(
+        tuple((t.operand, 1 if t.coefficient == 1.0 else -1 if t.coefficient == -1.0 else 0)
+              for t in terms)
+        for terms in rows
+    )  # fmt: skip
 
 
-@functools.lru_cache(maxsize=256)
-def _compiled(source: str):
-    """The code object of generated ``source`` (the same program is compiled once)."""
-    return compile(source, "<hpdob observer program>", "exec")
+def program_structure(program: Program) -> tuple:
+    """What generated code depends on, apart from the coefficients' values: for the update,
+    output and reset rows, each term's operand and whether it is a unit term.
+
+    Two programs with the same structure run the same generated function with different
+    coefficients (:func:`program_coefficients`), so the code is generated and compiled once per
+    structure, not once per design (a sweep designs one observer per scenario).
+    """
+    return (_shape(program.update), _shape(program.output), _shape(program.reset))
+
+
+def program_coefficients(program: Program) -> tuple:
+    """The coefficients of the non-unit terms, in the order of :func:`program_structure`."""
+    return tuple(
+        t.coefficient
+        for rows in (program.update, program.output, program.reset)
+        for terms in rows
+        for t in terms
+        if abs(t.coefficient) != 1.0
+    )
+
+
+def _sum_source(shape, operands, names) -> str:
+    """A row of ``shape`` summed left to right: ``c * x`` with the coefficient's variable (the
+    signed coefficient), ``x`` or ``- x`` for a unit term (exact: ``a - x`` rounds like
+    ``a + (-1.0) * x``), ``0.0`` for an empty row."""
+    if not shape:
+        return "0.0"
+    text = ""
+    for operand, unit in shape:
+        x = operands[operand]
+        if unit:
+            part, sign = x, "+" if unit > 0 else "-"
+        else:
+            part, sign = f"{next(names)} * {x}", "+"
+        text += ("-" if sign == "-" else "") + part if not text else f" {sign} {part}"
+    return text
+
+
+@functools.lru_cache(maxsize=64)
+def _python_factory(structure: tuple, n: int, p: int):
+    """``make(*coefficients) -> (reset, outputs, estimate, update)``, generated and compiled
+    once per program structure; the coefficients become the functions' closure variables."""
+    update, output, reset = structure
+    names = iter(f"c{i}" for i in range(10_000))
+    state = [f"s{i}" for i in range(n)]
+    inputs = [f"v{j}" for j in range(p)]
+    operands = [*state, *inputs, "u"]
+    update_rows = [_sum_source(r, operands, names) for r in update]
+    output_rows = [_sum_source(r, operands, names) for r in output]
+    reset_rows = [_sum_source(r, RESET_OPERANDS, names) for r in reset]
+    used = [f"c{i}" for i in range(sum(1 for rows in structure for r in rows for _, u in r
+                                       if not u))]  # fmt: skip
+    unpack = f"        ({', '.join(state)},) = s\n"
+    args = ", ".join(inputs)
+    source = (
+        f"def make({', '.join(used)}):\n"
+        f"    def reset(theta0, omega0, tau0):\n        return ({', '.join(reset_rows)},)\n"
+        f"    def outputs(s, {args}):\n{unpack}        return ({', '.join(output_rows)},)\n"
+        f"    def estimate(s, {args}):\n{unpack}        return {output_rows[0]}\n"
+        f"    def update(s, {args}, u):\n{unpack}        return ({', '.join(update_rows)},)\n"
+        "    return reset, outputs, estimate, update\n"
+    )
+    namespace: dict = {}
+    exec(compile(source, "<hpdob observer program>", "exec"), namespace)  # generated above
+    return namespace["make"]
 
 
 def compile_python(system):
@@ -279,26 +348,12 @@ def compile_python(system):
     Returns ``(reset, outputs, estimate, update)`` with ``reset(theta0, omega0, tau0) -> s``,
     ``outputs(s, *measures) -> y``, ``estimate(s, *measures) -> tau_hat`` and
     ``update(s, *measures, u) -> s_next``; each evaluates its rows exactly as the program
-    orders them (the numba kernel and exported C do the same).
+    orders them (the numba kernel and exported C do the same). The code is generated once per
+    program structure (:func:`program_structure`); the coefficients are bound per observer.
     """
     program = system.program
-    n = system.n_states
-    state = [f"s{i}" for i in range(n)]
-    inputs = [f"v{j}" for j in range(len(system.measures))]
-    operands = [*state, *inputs, "u"]
-    unpack = f"    ({', '.join(state)},) = s\n"
-    source = []
-    reset_rows = [render_sum(r, RESET_OPERANDS, _py_literal, named=False) for r in program.reset]
-    source.append(f"def reset(theta0, omega0, tau0):\n    return ({', '.join(reset_rows)},)\n")
-    out_rows = [render_sum(r, operands, _py_literal, named=False) for r in program.output]
-    args = ", ".join(inputs)
-    source.append(f"def outputs(s, {args}):\n{unpack}    return ({', '.join(out_rows)},)\n")
-    source.append(f"def estimate(s, {args}):\n{unpack}    return {out_rows[0]}\n")
-    upd_rows = [render_sum(r, operands, _py_literal, named=False) for r in program.update]
-    source.append(f"def update(s, {args}, u):\n{unpack}    return ({', '.join(upd_rows)},)\n")
-    namespace: dict = {}
-    exec(_compiled("\n".join(source)), namespace)  # source generated above from floats
-    return (namespace["reset"], namespace["outputs"], namespace["estimate"], namespace["update"])
+    make = _python_factory(program_structure(program), system.n_states, len(system.measures))
+    return make(*program_coefficients(program))
 
 
 def structured_program(k, G, Kx, Ku, p) -> Program:

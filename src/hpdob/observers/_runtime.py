@@ -88,22 +88,17 @@ class Observer:
         Returns
         -------
         Observer
-            A :class:`DisturbanceObserver` for a design of the order-m families, an
-            :class:`~hpdob.ExtendedStateObserver` or a
-            :class:`~hpdob.KalmanDisturbanceObserver` for their designs, a plain
-            :class:`Observer` for any other observer.
+            The runtime class of the design's registered family
+            (:func:`hpdob.observers.register_family`): a :class:`DisturbanceObserver` for the
+            order-m families, an :class:`~hpdob.ExtendedStateObserver` or a
+            :class:`~hpdob.KalmanDisturbanceObserver`; a plain :class:`Observer` for any other
+            observer.
         """
-        from ._eso import ESODesign, ExtendedStateObserver
-        from ._kalman import KalmanDesign, KalmanDisturbanceObserver
+        from ._registry import family_of
 
-        if isinstance(design, DESIGNS):
-            return DisturbanceObserver.from_design(design, x0=x0, tau0=tau0)
-        for design_class, runtime in (
-            (ESODesign, ExtendedStateObserver),
-            (KalmanDesign, KalmanDisturbanceObserver),
-        ):
-            if isinstance(design, design_class):
-                return runtime._of(design, x0, tau0)
+        family = family_of(design)  # a design of a registered family: its runtime class
+        if family is not None and family.runtime is not None and isinstance(design, family.designs):
+            return family.runtime(design, x0, tau0)
         return Observer(design, x0=x0, tau0=tau0)
 
     @classmethod
@@ -294,8 +289,9 @@ class DisturbanceObserver(_DesignedObserver):
 
     Parameters
     ----------
-    model : DiscreteServoModel
-        Nominal discrete model, ``ServoModel(J_n, b_n).discretize(Ts)``.
+    model : DiscreteServoModel or control.TransferFunction or control.StateSpace
+        Nominal discrete model, ``ServoModel(J_n, b_n).discretize(Ts)``. A sampled python-control
+        servo (``control.c2d(sys, Ts)``) is read by :meth:`DiscreteServoModel.from_lti`.
     order : int
         Truncation order ``m >= 0``.
     poles : sequence of complex, optional
@@ -476,9 +472,7 @@ class DisturbanceObserver(_DesignedObserver):
         >>> obs.to_statespace().A
         array([[0.9]])
         """
-        from ..analysis._estimation import observer_statespace
-
-        return observer_statespace(self._design)
+        return as_system(self._design).to_statespace()
 
     def __repr__(self) -> str:
         poles = np.array2string(np.asarray(self.poles), precision=6, separator=", ")

@@ -24,17 +24,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._validation import (
-    ParameterTypeError,
     ParameterValueError,
     _show,
     as_int,
     as_real_vector,
     check_choice,
-    numeric_array,
     positive,
     readonly,
 )
-from ..models._servo import DiscreteServoModel, ServoModel
+from ..models._lti import as_discrete_model
+from ..models._servo import DiscreteServoModel
 from ._error_dynamics import (
     characteristic_basis,
     characteristic_polynomial,
@@ -43,6 +42,9 @@ from ._error_dynamics import (
     schur_stable,
     unit_root_polynomial,
 )
+from ._poles import fmt_complex as _fmt_complex
+from ._poles import fmt_pole as _fmt_pole
+from ._poles import validate_poles as _validate_poles
 from ._program import structured_program
 from ._realised import POLE_TOLERANCE, finite_gains, realised_poles
 from ._system import MEASUREMENTS, ErrorDynamics, LinearObserver, _Designed
@@ -57,55 +59,12 @@ __all__ = [
 
 #: Highest truncation order: binom(m+1, i) < 2**53 stays exact in double precision.
 MAX_ORDER = 50
-#: Relative tolerance for matching complex-conjugate partners.
-_PAIR_RTOL = 1e-9
 #: gain directions with |d^T D| <= _DEGENERATE * |d| |D| are rejected.
 _DEGENERATE = 1e-8
 
 
-def _validate_poles(poles, count: int, label: str, order: int) -> np.ndarray:
-    """``poles`` checked: ``count`` finite numbers inside the unit circle, complex ones in
-    conjugate pairs (``label`` names the count in messages, e.g. ``"order + 1 = 2"``)."""
-    values = numeric_array(poles, "poles", f"a sequence of {count} numbers", dtype=complex)
-    if values.ndim == 0:
-        values = values.reshape(1)
-    if values.ndim != 1 or values.size != count:
-        raise ParameterValueError(
-            f"poles must have {label} entries for order {order}, got {values.size} ({poles!r})"
-        )
-    if not np.all(np.isfinite(values)):
-        raise ParameterValueError(f"poles must be finite, got {poles!r}")
-    outside = values[np.abs(values) >= 1.0]
-    if outside.size:
-        raise ParameterValueError(
-            f"poles must lie strictly inside the unit circle (|p| < 1), got "
-            f"{_fmt_pole(outside[0])} with |p| = {abs(outside[0]):.6g}"
-        )
-    # Complex poles must come in conjugate pairs (with equal multiplicity).
-    unmatched = [p for p in values if p.imag != 0.0]
-    while unmatched:
-        p = unmatched.pop(0)
-        scale = max(abs(p), 1e-300)
-        partner = next((q for q in unmatched if abs(q - p.conjugate()) <= _PAIR_RTOL * scale), None)
-        if partner is None:
-            raise ParameterValueError(
-                f"poles must come in complex-conjugate pairs so the gains are real: "
-                f"{_fmt_pole(p)} has no partner {_fmt_pole(p.conjugate())} in "
-                f"{poles!r}"
-            )
-        unmatched.remove(partner)
-    if np.all(values.imag == 0.0):
-        return values.real.copy()
-    return values
-
-
 def _show_k(k: np.ndarray) -> str:
     return np.array2string(np.asarray(k), threshold=6, precision=6, max_line_width=1_000_000)
-
-
-def _fmt_pole(p: complex) -> str:
-    p = complex(p)
-    return f"{p.real:.6g}" if p.imag == 0.0 else f"({p.real:.6g}{p.imag:+.6g}j)"
 
 
 @dataclass(frozen=True, eq=False)
@@ -192,8 +151,10 @@ def design_observer(
 
     Parameters
     ----------
-    model : DiscreteServoModel
-        Nominal discrete model, e.g. ``ServoModel(J_n, b_n).discretize(Ts)``.
+    model : DiscreteServoModel or control.TransferFunction or control.StateSpace
+        Nominal discrete model, e.g. ``ServoModel(J_n, b_n).discretize(Ts)``. A sampled
+        python-control servo (``control.c2d(sys, Ts)``) is read by
+        :meth:`DiscreteServoModel.from_lti`.
     order : int
         Truncation order ``m >= 0``: 0 is the conventional DOb (eqs. 9-13), 1 the HPDOb
         (eqs. 14-24), higher orders cancel disturbances whose samples are polynomials of
@@ -275,13 +236,7 @@ def design_observer(
     >>> pos.system.measures, pos.system.outputs, pos.poles.size
     (('theta',), ('tau_hat', 'omega_hat'), 4)
     """
-    if isinstance(model, ServoModel):
-        raise ParameterTypeError(
-            "model must be a DiscreteServoModel; discretise the continuous model "
-            "first, e.g. ServoModel(J, b).discretize(Ts)"
-        )
-    if not isinstance(model, DiscreteServoModel):
-        raise ParameterTypeError(f"model must be a DiscreteServoModel, got {type(model).__name__}")
+    model = as_discrete_model(model, "model")
     m = as_int(order, "order", "a non-negative integer truncation order", minimum=0)
     if m > MAX_ORDER:
         raise ParameterValueError(
@@ -408,8 +363,3 @@ def _design_info(model, m, poles, bandwidth, d) -> tuple:
         ("poles", text),
         ("gain direction", f"({float(d[0])!r}, {float(d[1])!r}): L_i = k_i d / (d^T D_Dn)"),
     )
-
-
-def _fmt_complex(p) -> str:
-    p = complex(p)
-    return repr(p.real) if p.imag == 0.0 else f"{p.real!r}{p.imag:+}j"

@@ -29,6 +29,7 @@ of rounded sums such as :math:`p_{m+1} - k_{m+1}`.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,6 +42,7 @@ from .._validation import (
     positive,
     readonly,
 )
+from ._error_dynamics import ErrorDynamics
 from ._program import RESET_OPERANDS, Program, Term, check_program, compile_python
 
 __all__ = [
@@ -90,50 +92,17 @@ class _Designed:
         """
         return self.system.to_statespace()
 
+    def _repr_markdown_(self) -> str:
+        """A compact table for Jupyter: family, nominal model, poles, signals."""
+        from .._repr import markdown_table
 
-@dataclass(frozen=True, eq=False)
-class ErrorDynamics:
-    r"""Closed form of an observer's estimation error on its nominal plant.
-
-    .. math:: 1 - Q(z) = \frac{\tau_{dn}(z) - \hat\tau(z)}{\tau_{dn}(z)}
-              = \frac{(z-1)^{m+1} R(z)}{P(z)},\qquad P(z) = \prod_i (z - p_i),\quad
-              R(z) = \prod_j (z - r_j),
-
-    the structure of the order-m families (``docs/analysis.md``): the error is driven by
-    :math:`\Delta^{m+1}\tau` only. For the observers that measure the state ``R = 1``; for the
-    position-only ones ``R`` is the characteristic polynomial of their position/velocity part
-    (two zeros).
-
-    Attributes
-    ----------
-    order : int
-        Truncation order ``m``.
-    poles : ndarray
-        The roots :math:`p_i` of ``P`` (the poles that were placed):
-        ``order + 1 + len(zeros)`` of them.
-    polynomial : ndarray
-        ``P`` (highest power first) as the gains realise it.
-    zeros : ndarray, optional
-        The roots :math:`r_j` of ``R``; default none.
-    """
-
-    order: int
-    poles: np.ndarray
-    polynomial: np.ndarray
-    zeros: np.ndarray = ()
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "poles", readonly(np.array(np.atleast_1d(self.poles))))
-        zeros = np.array(self.zeros, dtype=complex if np.iscomplexobj(self.zeros) else float)
-        object.__setattr__(self, "zeros", readonly(zeros.reshape(-1)))
-        polynomial = np.array(self.polynomial, dtype=float)
-        n = self.order + 1 + self.zeros.size
-        if polynomial.shape != (n + 1,) or self.poles.shape != (n,):
-            raise ParameterValueError(
-                f"error dynamics of order {self.order} with {self.zeros.size} zeros need {n} "
-                f"poles and {n + 1} polynomial coefficients"
-            )
-        object.__setattr__(self, "polynomial", readonly(polynomial))
+        system, model = self.system, self.model
+        return markdown_table(system.name, [
+            ("nominal model", f"J_n = {model.J:.4g} kg m², b_n = {model.b:.4g} N m s/rad"),
+            ("Ts [s]", model.Ts), ("bandwidth [rad/s]", getattr(self, "bandwidth", None)),
+            ("poles", getattr(self, "poles", None)), ("states", system.n_states),
+            ("measures", ", ".join(system.measures)), ("outputs", ", ".join(system.outputs)),
+        ])  # fmt: skip
 
 
 def _matrix(value, name: str, shape: tuple) -> np.ndarray:
@@ -379,9 +348,65 @@ class LinearObserver:
         >>> np.abs(control.poles(ss)).round(6)   # both at exp(-100 Ts)
         array([0.904837, 0.904837])
         """
-        from ..analysis._estimation import observer_statespace
+        from ._response import statespace
 
-        return observer_statespace(self)
+        return statespace(self)
+
+    @classmethod
+    def from_statespace(
+        cls, sys, *, measures=None, outputs=None, model=None, N=None, name: str | None = None
+    ) -> LinearObserver:
+        r"""An estimator designed elsewhere, from a discrete python-control ``StateSpace``.
+
+        The inverse of :meth:`to_statespace` (``F, G, H, E = A, B, C, D``, ``Ts = dt``): the
+        outputs of sample ``k`` use the state and measurements of ``k``, not ``u_k``. (A
+        *current* estimator ``x_k = A' x_{k-1} + B' u_{k-1} + L y_k``, output ``C x_k``, takes
+        the prediction as state: ``F = A'``, ``G = [A' L, B']``, ``H = C``, ``E = [C L, 0]``.)
+
+        Parameters
+        ----------
+        sys : control.StateSpace
+            Discrete (``dt > 0``); inputs the measured signals then ``u`` [N m], outputs
+            ``tau_hat`` [N m] (and ``omega_hat`` [rad/s]).
+        measures, outputs : tuple of str, optional
+            As in the constructor. Default: read from ``sys``'s labels where they are these
+            names (as :meth:`to_statespace` writes them); one output is ``("tau_hat",)``.
+        model : DiscreteServoModel or sampled python-control servo, optional
+            The nominal model it was designed on (loops check it).
+        N : array_like, shape (n, 3), optional
+            Default: derived, where the system allows it, as the state the observer holds once
+            converged on a constant :math:`\tau_0` while the axis turns at a constant
+            :math:`\omega_0` from :math:`\theta_0`. Where it does not (``F`` has an eigenvalue
+            at 1, or the estimate does not settle at a constant disturbance) the error says so
+            and ``N`` must be given.
+        name : str, optional
+            Short description. Default: the system's name.
+
+        Returns
+        -------
+        LinearObserver
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            For a continuous system, labels or shapes that do not fit, a feed-through from
+            ``u``, or an ``N`` that cannot be derived.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hpdob import LinearObserver, ServoModel, design_observer
+        >>> model = ServoModel(2.8e-4).discretize(1e-3)
+        >>> dob = design_observer(model, order=1, bandwidth=100.0).system
+        >>> back = LinearObserver.from_statespace(dob.to_statespace(), model=model)
+        >>> back.measures, bool(np.allclose(back.N, dob.N))
+        (('theta', 'omega'), True)
+        """
+        from ._external import observer_from_statespace
+
+        return observer_from_statespace(
+            cls, sys, measures=measures, outputs=outputs, model=model, N=N, name=name
+        )
 
     def __getstate__(self) -> dict:
         # generated code is rebuilt on demand, not pickled (e.g. for dask workers)
@@ -408,7 +433,9 @@ def as_system(observer, name: str = "observer") -> LinearObserver:
     observer : LinearObserver or observer-like
         A :class:`LinearObserver`, or anything with a ``system`` attribute that is one
         (designs such as :class:`~hpdob.ObserverDesign`, runtime objects such as
-        :class:`~hpdob.DisturbanceObserver`, your own observer classes).
+        :class:`~hpdob.DisturbanceObserver`, your own observer classes), or a discrete
+        python-control ``StateSpace`` labelled as :meth:`LinearObserver.to_statespace` labels
+        (read by :meth:`LinearObserver.from_statespace`, ``N`` derived).
     name : str, optional
         The parameter name the error message uses. Default ``"observer"``.
 
@@ -437,6 +464,10 @@ def as_system(observer, name: str = "observer") -> LinearObserver:
     system = getattr(observer, "system", None)
     if isinstance(system, LinearObserver):
         return system
+    from ..models._lti import is_lti
+
+    if is_lti(observer):
+        return LinearObserver.from_statespace(observer, name=name)
     raise ParameterTypeError(
         f"{name} must be a DisturbanceObserver, an ObserverDesign or another observer (a "
         f"LinearObserver, or an object whose .system is one), got {type(observer).__name__}"
@@ -444,7 +475,8 @@ def as_system(observer, name: str = "observer") -> LinearObserver:
 
 
 def check_designed_on(system, nominal, Ts: float, name: str = "observer") -> None:
-    """Raise unless ``system`` was synthesised on ``nominal.discretize(Ts)`` (same J, b, Ts).
+    """Raise unless ``system`` was synthesised on ``nominal.discretize(Ts)`` (same J, b, Ts;
+    J and ``b Ts/J`` to 1e-9 relative).
 
     ``system`` is a :class:`LinearObserver` or anything with one (``.system``); an observer
     without a nominal model (``model=None``) is checked for ``Ts`` only.
@@ -458,7 +490,12 @@ def check_designed_on(system, nominal, Ts: float, name: str = "observer") -> Non
                 f"loop has Ts={Ts}"
             )
         return
-    if (model.J, model.b, model.Ts) != (nominal.J, nominal.b, Ts):
+    # to 1e-9 relative: a model read back from python-control (ServoModel.from_lti,
+    # DiscreteServoModel.from_lti) is the same nominal model to its last digits, not to all
+    same_J = math.isclose(model.J, nominal.J, rel_tol=1e-9)
+    same_b = math.isclose(model.b * Ts / model.J, nominal.b * Ts / nominal.J, rel_tol=1e-9,
+                          abs_tol=1e-12)  # fmt: skip
+    if not (same_J and same_b and model.Ts == Ts):
         raise ParameterValueError(
             f"{name} must be designed on nominal.discretize(Ts): its model has J={model.J}, "
             f"b={model.b}, Ts={model.Ts} but nominal has J={nominal.J}, b={nominal.b} and Ts={Ts}"

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .._plotting import PAPER_WIDTH, legend_clear_of_data, style_axes
+from .._plotting import PAPER_WIDTH, legend_clear_of_data, mark_clipped, style_axes, time_axis
 
 __all__ = ["paper_figures"]
 
@@ -63,38 +63,22 @@ def _error_panel(ax, results, names):
     traces are cut at that range (so nothing runs into the legend band above it), a
     triangle marks where a spike leaves it, and the largest peak is printed above the panel.
     """
-    from matplotlib.patches import Rectangle
-    from matplotlib.transforms import blended_transform_factory
-
-    lo, hi, lines = 0.0, 0.0, []
+    lo, hi, series = 0.0, 0.0, []
     for name in names:
         res = results[name]
         e = res.estimation_error
-        lines += ax.plot(res.t, e, color=COLORS[name], linewidth=0.9, label=LABELS.get(name, name))
+        label = LABELS.get(name, name)
+        (line,) = ax.plot(res.t, e, color=COLORS[name], linewidth=0.9, label=label)
+        series.append((res.t, e, line, label))
         steady = (res.t < STEP_TIME) | (res.t > STEP_TIME + TRANSIENT)
         lo, hi = min(lo, float(e[steady].min())), max(hi, float(e[steady].max()))
     margin = 0.08 * (hi - lo)
     lo, hi = lo - margin, hi + margin
     ax.set_ylim(lo, hi)
-    span = blended_transform_factory(ax.transAxes, ax.transData)
-    peaks = []
-    for name, line in zip(names, lines, strict=True):
-        line.set_clip_path(Rectangle((0.0, lo), 1.0, hi - lo, transform=span))
-        res = results[name]
-        e = res.estimation_error
-        for k, edge, marker in ((int(e.argmin()), lo, "v"), (int(e.argmax()), hi, "^")):
-            if lo <= e[k] <= hi:
-                continue
-            ax.plot(res.t[k], edge, marker=marker, color=COLORS[name], markersize=6, clip_on=False)
-            peaks.append((abs(float(e[k])), float(e[k]), name))
-    if peaks:
-        _, value, name = max(peaks)
-        number = f"{value:.3f}".replace("-", "\N{MINUS SIGN}")
-        ax.set_title(
-            f"y-range clipped: {number} N m at the {STEP_TIME:.1f} s step ({name})",
-            loc="right",
-            fontsize="x-small",
-        )
+    notes = mark_clipped(ax, series, lo, hi)  # every clipped series, in its colour
+    if notes:
+        ax.set_title("y-range clipped (triangles):\n" + "\n".join(notes), loc="right",
+                     fontsize="x-small")  # fmt: skip
     style_axes(ax, xlabel="time [s]", ylabel=r"$\hat\tau_{dn} - \tau_{dn}$ [N m]")
 
 
@@ -197,23 +181,28 @@ def paper_figures(results) -> dict:
     fig, (a, b, c) = plt.subplots(3, 1, figsize=(PAPER_WIDTH, 8.0), layout="constrained")
     _position(a, results, runs, inset=False)
     _letter(a, "a) Position control of the servo system")
-    b.plot(ve.t, ve.tau_ext, color="0.55", linewidth=0.9, label=r"external $\tau_{ext}$")
-    b.plot(ve.t, ve.tau_hat, color=COLORS[runs[0]], linewidth=0.7, alpha=0.6,
+    # The noisy differenced-velocity estimate underneath (light), the references on top.
+    b.plot(ve.t, ve.tau_hat, color=COLORS[runs[0]], linewidth=0.6, alpha=0.35, zorder=1,
            label=rf"$\hat\tau_{{dn}}$ {LABELS[runs[0]]}")  # fmt: skip
-    b.plot(pos.t, pos.tau_dn, "k", linewidth=0.6, label=r"nominal $\tau_{dn}$ (position-only run)")
-    b.plot(pos.t, pos.tau_hat, color=COLORS[runs[1]], linewidth=0.8,
+    b.plot(pos.t, pos.tau_hat, color=COLORS[runs[1]], linewidth=0.8, zorder=2,
            label=rf"$\hat\tau_{{dn}}$ {LABELS[runs[1]]}")  # fmt: skip
+    b.plot(ve.t, ve.tau_ext, color="0.45", linewidth=1.3, zorder=3, label=r"external $\tau_{ext}$")
+    b.plot(pos.t, pos.tau_dn, "k", linewidth=0.8, zorder=4,
+           label=r"nominal $\tau_{dn}$ (position-only run)")  # fmt: skip
     style_axes(b, xlabel="time [s]", ylabel="torque [N m]")
     _letter(b, "b) Disturbances acting on the servo system and their estimates")
     _error_panel(c, results, runs)
     _letter(c, "c) Estimation error")  # short: the clipping note shares the line
     fig.suptitle(
-        "Fig. 5: virtual experiments, SIMULATIONS (16384-count encoder, "
-        "0.444 N m limit, 1-sample delay)",
+        "Fig. 5: virtual experiments, SIMULATIONS\n(16384-count encoder, 0.444 N m torque "
+        "limit, 1-sample delay)",
         fontsize="medium",
     )
     bands += [(a, 2), (b, 2), (c, len(runs))]
     figures["fig5"] = fig
+    for fig in figures.values():  # every panel shows the whole run (10 s, not to 9.999 s)
+        for ax in fig.axes:
+            time_axis(ax, pd.t, pd.Ts)
     # The legend bands are measured when each figure has all its labels and titles.
     for ax, ncol in bands:
         legend_clear_of_data(ax, ncol=ncol)

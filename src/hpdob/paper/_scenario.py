@@ -11,46 +11,40 @@ from t = 4 s. External disturbance: 0.05 N m step at t = 1.5005 s plus
 
 from __future__ import annotations
 
-import math
-
-from .._signals import SmoothStep, Step
 from .._validation import check_choice
-from .._waveforms import Sine
-from ..models._servo import ServoModel
 from ..observers._runtime import DisturbanceObserver
+from ..simulation._canonical import (
+    CONTROLLER,
+    DISTURBANCE,
+    DURATION,
+    NOMINAL,
+    PLANT,
+    REFERENCE,
+    TS,
+    VIRTUAL_ACTUATOR,
+    VIRTUAL_SENSOR,
+)
 from ..simulation._controller import PD
-from ..simulation._devices import Actuator, Encoder
 from ..simulation._simulate import simulate
 
 __all__ = [
+    "CONTROLLER",
+    "DISTURBANCE",
+    "DURATION",
+    "NOMINAL",
+    "PLANT",
+    "REFERENCE",
     "RUNS",
+    "TS",
+    "VIRTUAL_ACTUATOR",
     "VIRTUAL_POSITION_CONTROLLER",
     "VIRTUAL_RUNS",
+    "VIRTUAL_SENSOR",
     "observer",
     "run",
     "scenario",
 ]
 
-#: The true plant: J = 3.06e-4 kg m^2, b = 5e-5 N m s/rad, Coulomb friction 0.01 N m.
-PLANT = ServoModel(J=3.06e-4, b=5e-5, coulomb=0.01, coulomb_velocity=0.01)
-#: The nominal model of controller and observer: J_n = 2.8e-4 kg m^2, b_n = 0.
-NOMINAL = ServoModel(J=2.8e-4, b=0.0)
-#: Sampling period [s].
-TS = 1e-3  # s
-#: Simulated time [s].
-DURATION = 10.0  # s
-#: PD controller (kp [1/s^2], kd [1/s]) with feed-forward of the reference acceleration.
-CONTROLLER = PD(kp=50.0, kd=5.0, feedforward=True)
-#: Reference [rad]: quintic step 0 -> 1 rad over 0.2-1.2 s, then 1 + 0.5 (1 - cos(pi (t - 4))).
-REFERENCE = SmoothStep(0.2, 1.2, 1.0) + Sine(-0.5, 0.5, start=4.0, phase=math.pi / 2, offset=0.5)
-#: External torque [N m]: 0.05 N m step at 1.5005 s plus 0.02 sin(4 pi (t - 2.5005)) from 2.5005 s.
-DISTURBANCE = Step(1.5005, 0.05) + Sine(0.02, 2.0, start=2.5005)
-
-#: Encoder and actuator of the virtual experiment standing in for the paper's Fig. 5 (a
-#: simulation, not hardware): 16384 counts/rev with backward-difference velocity, the
-#: EC 90 flat class's nominal torque as limit (0.444 N m), one sample of transport delay.
-VIRTUAL_SENSOR = Encoder(16384, velocity="backward-difference")
-VIRTUAL_ACTUATOR = Actuator(torque_limit=0.444, delay_samples=1)
 #: The PD of ``virtual-experiment-position``: its D term takes the observer's velocity
 #: estimate instead of the encoder's backward difference (docs/simulation.md).
 VIRTUAL_POSITION_CONTROLLER = PD(kp=50.0, kd=5.0, feedforward=True, velocity="observer")

@@ -7,8 +7,9 @@ Encoder, Actuator
     Sensor and actuator models (the controllers are in :mod:`hpdob.controllers`).
 simulate, SimulationResult, SimulationDivergedWarning
     One closed-loop run (continuous plant, sampled PD, observer inner loop).
-load_scenario
-    A TOML scenario file read into :func:`simulate`'s keyword arguments.
+load_scenario, Scenario, scenario_toml
+    A TOML scenario file read into a :class:`ServoLoop` and the run settings, and written from a
+    loop and a run.
 sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
 """
@@ -17,17 +18,20 @@ from ._controller import PD as PD  # the PD lives in hpdob.controllers; kept imp
 from ._devices import Actuator, Encoder
 from ._loop import ServoLoop
 from ._result import SimulationResult
-from ._scenario import load_scenario
+from ._scenario import Scenario, load_scenario
+from ._scenario_toml import scenario_toml
 from ._simulate import SimulationDivergedWarning, simulate
 from ._sweep import sweep
 
 __all__ = [
     "Actuator",
     "Encoder",
+    "Scenario",
     "ServoLoop",
     "SimulationDivergedWarning",
     "SimulationResult",
     "load_scenario",
+    "scenario_toml",
     "simulate",
     "sweep",
 ]

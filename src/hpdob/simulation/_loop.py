@@ -8,14 +8,22 @@ from dataclasses import dataclass, field, fields, replace
 
 from .._validation import ParameterTypeError, ParameterValueError, positive, require_instance
 from ..controllers import LOOP_SIGNALS, Controller, LinearController, controller_system
+from ..models._lti import as_servo_model, is_lti
 from ..models._plant import Plant
 from ..models._servo import ServoModel
-from ..observers._core import initial_state
-from ..observers._runtime import Observer
-from ..observers._system import LinearObserver, as_system, check_designed_on
+from ..observers import (
+    LinearObserver,
+    Observer,
+    as_system,
+    check_spec,
+    design_from_spec,
+    initial_state,
+    spec_of,
+)
+from ..observers._system import check_designed_on
 from ._devices import Actuator, Encoder
 
-__all__ = ["LOOP_KEYS", "ServoLoop", "accepts_loop", "resolve_loop"]
+__all__ = ["LOOP_KEYS", "MISSING", "ServoLoop", "accepts_loop", "loop_parts", "resolve_loop"]
 
 #: The keyword arguments that make a :class:`ServoLoop` (and that the loop functions accept
 #: instead of one).
@@ -36,10 +44,11 @@ class ServoLoop:
 
     Parameters
     ----------
-    plant : ServoModel, TwoMassServo or MujocoServo
-        The true motor (a :class:`hpdob.models.Plant`).
-    nominal : ServoModel
-        The model the controller (``J_n``) and the observer use.
+    plant : ServoModel, TwoMassServo, MujocoServo or control.TransferFunction
+        The true motor (a :class:`hpdob.models.Plant`); a continuous python-control servo
+        ``1/(J s^2 + b s)`` (``tf`` or ``ss``) is read by :meth:`ServoModel.from_lti`.
+    nominal : ServoModel or control.TransferFunction
+        The model the controller (``J_n``) and the observer use (python-control: as ``plant``).
     Ts : float
         Sampling period [s].
     controller : Controller or LinearController
@@ -49,12 +58,18 @@ class ServoLoop:
         Its inputs are wired by name: the reference and the measurement
         (:data:`hpdob.controllers.LOOP_SIGNALS`) and the observer's outputs (``tau_hat``, 0
         without an observer; ``omega_hat``; any further output an observer has).
-    observer : observer, optional
-        A runtime observer (:class:`~hpdob.DisturbanceObserver`, :class:`~hpdob.Observer`), a
-        design (:class:`~hpdob.ObserverDesign`) or a :class:`~hpdob.LinearObserver`, designed
-        on ``nominal.discretize(Ts)`` (an observer without a nominal model must have the same
-        ``Ts``). A runtime observer's current state is taken now (the loop does not change
-        the object); a design or system starts each run from ``initial_state(x0, 0)``.
+    observer : dict, design, LinearObserver or StateSpace, optional
+        A spec of a registered family (``{"type": "eso", "bandwidth": 150.0}``, see
+        :func:`hpdob.observers.register_family`), which the loop designs on
+        ``nominal.discretize(Ts)`` (and designs again when :meth:`replace` changes
+        ``nominal`` or ``Ts``); or a fixed design (:class:`~hpdob.ObserverDesign`, ...),
+        :class:`~hpdob.LinearObserver` or labelled python-control ``StateSpace``
+        (:meth:`~hpdob.LinearObserver.from_statespace`) designed on ``nominal.discretize(Ts)``
+        (one without a nominal model must have the same ``Ts``). Each run starts it from
+        ``initial_state(x0, 0)`` unless the run is given an ``observer_state``. The loop
+        holds values only: a runtime observer (:class:`~hpdob.DisturbanceObserver`, ...) is
+        replaced by its design, and its current state is kept as ``observer_state`` (the
+        run's ``observer_state`` argument is the way to start from a given state).
         None: PD only.
     sensor : Encoder, optional
         Default: the ideal state.
@@ -67,8 +82,14 @@ class ServoLoop:
         The observer as the linear system every consumer runs.
     controller_system : LinearController
         The controller as the linear system every consumer runs.
+    design : design, LinearObserver or None
+        The observer run: the design of a spec, or the fixed design/system given.
+    observer_spec : dict or None
+        The spec the loop designs from, or that of a fixed design of a registered family
+        (:func:`hpdob.observers.spec_of`); None for any other observer.
     observer_state : tuple or None
-        The runtime observer's state at construction (None: reset at the run's ``x0``).
+        The state of a runtime observer given as ``observer`` at construction (None: reset
+        at the run's ``x0``).
 
     Raises
     ------
@@ -98,9 +119,21 @@ class ServoLoop:
     actuator: Actuator | None = None
     system: LinearObserver | None = field(init=False, repr=False)
     controller_system: LinearController = field(init=False, repr=False)
+    design: object = field(init=False, repr=False)
+    observer_spec: dict | None = field(init=False, repr=False)
     observer_state: tuple | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        # python-control systems in: 1/(J s^2 + b s) as a ServoModel, an observer's StateSpace
+        # as a LinearObserver (designed on the nominal model)
+        object.__setattr__(self, "plant", as_servo_model(self.plant, "plant"))
+        object.__setattr__(self, "nominal", as_servo_model(self.nominal, "nominal"))
+        if is_lti(self.observer) and isinstance(self.nominal, ServoModel):
+            Ts = positive(self.Ts, "Ts", "a positive finite sampling period [s]")
+            system = LinearObserver.from_statespace(
+                self.observer, model=self.nominal.discretize(Ts), name="observer"
+            )
+            object.__setattr__(self, "observer", system)
         if not isinstance(self.plant, Plant):
             raise ParameterTypeError(f"plant must be {_PLANTS}, got {type(self.plant).__name__}")
         require_instance(self.nominal, ServoModel, "nominal")
@@ -108,17 +141,26 @@ class ServoLoop:
         controller = controller_system(self.controller, self.nominal, Ts)
         require_instance(self.sensor, Encoder, "sensor", optional=True)
         actuator = require_instance(self.actuator, Actuator, "actuator", optional=True)
-        system, state = None, None
-        if self.observer is not None:
-            system = as_system(self.observer, "observer")
+        observer, system, state, spec = self.observer, None, None, None
+        if isinstance(observer, dict):  # a spec: designed on this loop's nominal model
+            spec = check_spec(observer, "observer")
+            observer = design_from_spec(self.nominal.discretize(Ts), spec)
+            object.__setattr__(self, "observer", spec)
+        elif isinstance(observer, Observer):  # hold its (immutable) design and its state now
+            state = tuple(observer.state.tolist())
+            observer = getattr(observer, "design", None) or observer.system
+            object.__setattr__(self, "observer", observer)
+        if observer is not None:
+            system = as_system(observer, "observer")
             check_designed_on(system, self.nominal, Ts)
-            if isinstance(self.observer, Observer):
-                state = tuple(self.observer.state.tolist())
+            spec = spec if spec is not None else spec_of(observer)
         _check_wiring(self.controller, controller, system)
         object.__setattr__(self, "Ts", Ts)
         object.__setattr__(self, "actuator", actuator or Actuator())
         object.__setattr__(self, "system", system)
         object.__setattr__(self, "controller_system", controller)
+        object.__setattr__(self, "design", observer)
+        object.__setattr__(self, "observer_spec", spec)
         object.__setattr__(self, "observer_state", state)
 
     def replace(self, **changes) -> ServoLoop:
@@ -209,10 +251,15 @@ def _check_wiring(spec, controller: LinearController, system) -> None:
 
 
 _MISSING = object()
+#: The "not given" marker of the loop's keyword arguments (see :func:`loop_parts`).
+MISSING = _MISSING
 
 
-def resolve_loop(loop, legacy: dict, where: str) -> ServoLoop:
-    """``loop``, or a :class:`ServoLoop` built from the keyword arguments in ``legacy``."""
+def resolve_loop(loop, legacy: dict, where: str, *, plant_optional: bool = False) -> ServoLoop:
+    """``loop``, or a :class:`ServoLoop` built from the keyword arguments in ``legacy`` (the
+    one alias table of the loop functions: :data:`LOOP_KEYS`). With ``plant_optional`` (a
+    function that sets the true plant itself: the robust maps, the tuner) a missing plant is
+    the nominal model."""
     given = {k: v for k, v in legacy.items() if v is not _MISSING}
     if loop is not None:
         if not isinstance(loop, ServoLoop):
@@ -231,6 +278,8 @@ def resolve_loop(loop, legacy: dict, where: str) -> ServoLoop:
                 f"({', '.join(LOOP_KEYS)}), not both; got a loop and {', '.join(sorted(given))}"
             )
         return require_instance(loop, ServoLoop, "loop")
+    if plant_optional and "plant" not in given and "nominal" in given:
+        given["plant"] = given["nominal"]
     missing = [k for k in ("plant", "nominal", "Ts", "controller") if k not in given]
     if missing:
         raise ParameterTypeError(
@@ -240,12 +289,38 @@ def resolve_loop(loop, legacy: dict, where: str) -> ServoLoop:
     return ServoLoop(**given)
 
 
-def accepts_loop(function):
+def loop_parts(loop, legacy: dict, where: str) -> dict:
+    """The loop's parts (:data:`LOOP_KEYS`) from ``loop`` or from the keyword arguments in
+    ``legacy`` (``_MISSING`` where not given), for functions that set some parts themselves
+    and so cannot always build a :class:`ServoLoop` from the keywords (a robust map of a
+    ``PD(velocity="observer")`` whose observer is the map's). ``observer`` is the loop's
+    spec (:attr:`ServoLoop.observer_spec`) when the parts come from a loop."""
+    given = {k: v for k, v in legacy.items() if v is not _MISSING}
+    if loop is None:
+        return given
+    if not isinstance(loop, ServoLoop):
+        raise ParameterTypeError(
+            f"{where}() takes a ServoLoop as its first argument, got {type(loop).__name__}; "
+            f"pass the loop's parts as keyword arguments ({', '.join(sorted(legacy))}) or "
+            "build a ServoLoop"
+        )
+    if given:
+        raise ParameterTypeError(
+            f"{where}() takes a ServoLoop or the loop's keyword arguments "
+            f"({', '.join(sorted(legacy))}), not both; got a loop and {', '.join(sorted(given))}"
+        )
+    return {**loop.keywords(), "observer": loop.observer_spec}
+
+
+def accepts_loop(function=None, *, plant_optional: bool = False):
     """Let ``function(loop, ...)`` also be called with the loop's keyword arguments instead.
 
     ``f(plant=..., nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...,
-    **rest)`` becomes ``f(ServoLoop(...), **rest)``.
+    **rest)`` becomes ``f(ServoLoop(...), **rest)``: the one alias of every function taking a
+    loop. ``@accepts_loop(plant_optional=True)`` for functions that set the plant themselves.
     """
+    if function is None:
+        return functools.partial(accepts_loop, plant_optional=plant_optional)
 
     @functools.wraps(function)
     def wrapper(
@@ -270,6 +345,7 @@ def accepts_loop(function):
             "sensor": sensor,
             "actuator": actuator,
         }
-        return function(resolve_loop(loop, legacy, function.__name__), *args, **kwargs)
+        resolved = resolve_loop(loop, legacy, function.__name__, plant_optional=plant_optional)
+        return function(resolved, *args, **kwargs)
 
     return wrapper

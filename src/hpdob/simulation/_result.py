@@ -168,6 +168,17 @@ class SimulationResult:
     def __len__(self) -> int:
         return len(self.t)
 
+    def _repr_markdown_(self) -> str:
+        """A compact table for Jupyter: the run and its metrics."""
+        from .._repr import markdown_table
+
+        duration = len(self) * self.Ts
+        rows = [("samples", f"{len(self)} (Ts = {self.Ts:g} s, {duration:g} s)"),
+                ("status", self.message)]  # fmt: skip
+        rows += [(f"{name} [{'N m' if 'estimation' in name else 'rad'}]", value)
+                 for name, value in self.metrics().items()]  # fmt: skip
+        return markdown_table(f"SimulationResult {self.label!r}", rows)
+
     @property
     def estimation_error(self) -> np.ndarray:
         """``tau_hat - tau_dn`` [N m]."""

@@ -8,6 +8,9 @@ from __future__ import annotations
 
 import dataclasses
 import sys
+import types
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 from .._signals import Constant, Ramp, SmoothStep, Step
@@ -22,11 +25,11 @@ from ..controllers import CONTROLLER_TYPES
 from ..models import Environment
 from ..models._servo import ServoModel
 from ..models._two_mass import TwoMassServo
-from ..observers._families import FAMILIES, check_spec, design_from_spec
-from ..observers._runtime import Observer
+from ..observers import Observer, check_spec, design_from_spec, get_family
 from ._devices import Actuator, Encoder
+from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
-from ._simulate import check_run_arguments
+from ._simulate import check_run_arguments, simulate
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -34,12 +37,15 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 __all__ = [
+    "RUN_KEYS",
     "SIGNAL_TYPES",
+    "Scenario",
     "load_metric_windows",
     "load_scenario",
     "load_sweep",
     "metric_windows",
     "scenario_from_dict",
+    "scenario_of",
 ]
 
 SIGNAL_TYPES = {
@@ -227,8 +233,10 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
         kwargs["actuator"] = _build(Actuator, _table(data, "actuator"), "actuator")
     if "observer" in data:
         spec = dict(_table(data, "observer"))
-        if "poles" in spec:
-            spec["poles"] = _poles(spec["poles"], "observer.poles")
+        family = get_family(spec.get("type", "dob"), "observer.type")
+        for p in family.parameters:  # complex numbers are written as [re, im] pairs in TOML
+            if p.kind == "complex_list" and p.name in spec:
+                spec[p.name] = _poles(spec[p.name], f"observer.{p.name}")
         model = kwargs["nominal"].discretize(kwargs["Ts"])
         design = _observer(model, spec)  # validated now, with the file's key names
         kwargs["observer"] = spec if not build_observer else Observer.of(design)
@@ -237,19 +245,16 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
 
 def _observer(model, spec: dict):
     """The design ``spec`` (an ``[observer]`` table) describes, errors named ``observer.*``."""
-    kind = spec.get("type", "dob")
-    if kind in FAMILIES:
-        _, keys, required = FAMILIES[kind]
-        check_keys(spec, (*keys, "type"), "observer")
-        missing = [name for name in required if name not in spec]
-        if missing:
-            raise ParameterValueError(f"missing required key observer.{missing[0]}")
+    family = get_family(spec.get("type", "dob"), "observer.type")
+    check_keys(spec, (*family.keys, "type"), "observer")
+    missing = [name for name in family.required if name not in spec]
+    if missing:
+        raise ParameterValueError(f"missing required key observer.{missing[0]}")
     check_spec(spec, "observer")
     try:
         return design_from_spec(model, spec)
     except (ParameterTypeError, ParameterValueError) as err:
-        keys = ("type", *FAMILIES[spec.get("type", "dob")][1])
-        raise _prefixed("observer", err, keys) from None
+        raise _prefixed("observer", err, ("type", *family.keys)) from None
 
 
 #: ``[plant] type = ...`` -> the plant class (default ``"rigid"``).
@@ -314,8 +319,69 @@ def load_sweep(path) -> tuple[dict, dict]:
     return base, {**options, "metric_windows": metric_windows(data)}
 
 
-def load_scenario(path) -> dict:
-    """Read a TOML scenario file: the keyword arguments of :func:`hpdob.simulate`.
+#: The run settings of a scenario: :func:`hpdob.simulate`'s arguments besides the loop.
+RUN_KEYS = ("duration", "reference", "disturbance", "substeps", "x0", "label")
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """A scenario file read by :func:`load_scenario`: the loop and the run settings.
+
+    Attributes
+    ----------
+    loop : ServoLoop
+        Plant, nominal model, ``Ts``, controller, observer (its spec: the loop designs it on
+        the nominal model), sensor and actuator.
+    run : mapping
+        :func:`hpdob.simulate`'s other arguments the file gives: ``duration``,
+        ``reference`` and, where given, ``disturbance``, ``substeps``, ``x0``; ``label``.
+    """
+
+    loop: ServoLoop
+    run: Mapping
+
+    def simulate(self):
+        """Run it: ``simulate(self.loop, **self.run)``.
+
+        Returns
+        -------
+        SimulationResult
+        """
+        return simulate(self.loop, **self.run)
+
+    def __getitem__(self, key):
+        raise TypeError(_MOVED)
+
+    def __iter__(self):
+        raise TypeError(_MOVED)
+
+    def keys(self):
+        """Refused: a Scenario is not simulate()'s keyword arguments (see the message).
+
+        Raises
+        ------
+        TypeError
+            Always, with the call that replaces ``simulate(**load_scenario(path))``.
+        """
+        raise TypeError(_MOVED)
+
+
+_MOVED = (
+    "load_scenario returns a Scenario (a ServoLoop and the run settings; docs/changelog.md), "
+    "not simulate()'s keyword arguments: call simulate(scenario.loop, **scenario.run) or "
+    "scenario.simulate(), and read scenario.loop.plant, scenario.run['label'], ..."
+)
+
+
+def scenario_of(kwargs: dict) -> Scenario:
+    """The :class:`Scenario` of simulate()'s keyword arguments (``observer`` a spec)."""
+    loop = ServoLoop(**{k: v for k, v in kwargs.items() if k in LOOP_KEYS})
+    run = types.MappingProxyType({k: v for k, v in kwargs.items() if k in RUN_KEYS})
+    return Scenario(loop, run)
+
+
+def load_scenario(path) -> Scenario:
+    """Read a TOML scenario file: a :class:`~hpdob.ServoLoop` and the run settings.
 
     The format (``[plant]`` rigid or two-mass, ``[nominal]``, ``[controller]``,
     ``[observer]`` of any family, ``[sensor]``, ``[actuator]``, ``reference`` and
@@ -330,11 +396,12 @@ def load_scenario(path) -> dict:
 
     Returns
     -------
-    dict
-        ``plant``, ``nominal``, ``Ts``, ``controller``, ``reference``, ``duration`` and, when
-        the file gives them, ``observer`` (a reset runtime object), ``sensor``, ``actuator``,
-        ``disturbance``, ``substeps``, ``x0``; ``label`` (default: the file's stem). Pass them
-        as ``simulate(**kwargs)``.
+    Scenario
+        ``.loop``: a :class:`~hpdob.ServoLoop` (plant, nominal, ``Ts``, controller and, when
+        the file gives them, the observer's spec, which the loop designs on the nominal
+        model, sensor, actuator); ``.run``: ``duration``, ``reference`` and, when given,
+        ``disturbance``, ``substeps``, ``x0``, and ``label`` (default: the file's stem). Run
+        it with ``simulate(scenario.loop, **scenario.run)`` or ``scenario.simulate()``.
 
     Raises
     ------
@@ -347,13 +414,13 @@ def load_scenario(path) -> dict:
     Examples
     --------
     >>> from hpdob.simulation import load_scenario, simulate
-    >>> kwargs = load_scenario("examples/canonical_hpdob.toml")  # doctest: +SKIP
-    >>> result = simulate(**kwargs)                                        # doctest: +SKIP
+    >>> scenario = load_scenario("examples/canonical_hpdob.toml")  # doctest: +SKIP
+    >>> result = simulate(scenario.loop, **scenario.run)                   # doctest: +SKIP
     """
     path = Path(path)
-    kwargs = scenario_from_dict(_read_toml(path))
+    kwargs = scenario_from_dict(_read_toml(path), build_observer=False)
     kwargs.setdefault("label", path.stem)
-    return kwargs
+    return scenario_of(kwargs)
 
 
 def load_metric_windows(path) -> dict:

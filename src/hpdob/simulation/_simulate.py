@@ -165,6 +165,7 @@ def simulate(
     substeps: int | None = None,
     x0=(0.0, 0.0),
     label: str = "",
+    observer_state=None,
 ) -> SimulationResult:
     r"""Simulate the sampled-data loop: continuous plant, sampled PD, observer inner loop.
 
@@ -206,6 +207,10 @@ def simulate(
         plant starts with the load at the motor's angle and velocity).
     label : str, optional
         Name stored in the result.
+    observer_state : sequence of float, optional
+        The observer's state at the first sample (e.g. ``initial_state(design, x0, tau0)``,
+        or a runtime observer's ``.state``). Default: the loop's (converged on zero
+        disturbance at ``x0``, :meth:`ServoLoop.initial_observer_state`).
 
     Returns
     -------
@@ -238,11 +243,26 @@ def simulate(
     S = loop.plant.substeps(Ts, substeps)
     if not isinstance(label, str):
         raise ParameterTypeError(f"label must be a str, got {type(label).__name__}")
+    state = None if observer_state is None else check_observer_state(loop, observer_state)
     signals = sample_signals(reference, disturbance, Ts=Ts, n=n, substeps=S)
-    result = run_loop(loop, signals, x0, label=label)
+    result = run_loop(loop, signals, x0, label=label, observer_state=state)
     if result.diverged:
         warnings.warn(result.message, SimulationDivergedWarning, stacklevel=3)
     return result
+
+
+def check_observer_state(loop: ServoLoop, state) -> tuple:
+    """``state`` as a tuple of the loop observer's state size, finite (checked up front)."""
+    if loop.system is None:
+        raise ParameterValueError("observer_state needs a loop with an observer, got none")
+    n = loop.system.n_states
+    values = np.asarray(state, dtype=float) if not isinstance(state, (str, bytes)) else None
+    if values is None or values.shape != (n,) or not np.all(np.isfinite(values)):
+        raise ParameterValueError(
+            f"observer_state must be {n} finite floats (the state of {loop.system.name}), "
+            f"got {state!r}"
+        )
+    return tuple(values.tolist())
 
 
 class SampledSignals(NamedTuple):

@@ -24,7 +24,7 @@ from .._validation import (
     check_keys,
     require_instance,
 )
-from ..observers._families import check_spec, design_from_spec, spec_of
+from ..observers import check_spec, design_from_spec, get_family, spec_of
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import _sample_count, check_run_arguments, run_loop, sample_signals
@@ -63,6 +63,10 @@ def _observer_parts(observer):
 
 
 def _resolve_base(base, *, varies_Ts: bool = False) -> dict:
+    from ._scenario import Scenario
+
+    if isinstance(base, Scenario):  # a loop and its run settings (load_scenario)
+        base = {"loop": base.loop, **{k: v for k, v in base.run.items() if k != "label"}}
     if not isinstance(base, dict):
         raise ParameterTypeError(
             f"base must be a dict of simulate() arguments, got {type(base).__name__}"
@@ -160,20 +164,14 @@ def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoL
         changes["Ts"] = params["Ts"]
     spec = base["observer_spec"]
     if spec is not None:
-        spec = {**spec, **sub("observer.")}
-        if "observer.bandwidth" in params:
-            spec.pop("poles", None)
-        if "observer.measurement" in params:
-            # the other family's design arguments do not apply (poles differ in number)
-            other = "gain_direction" if spec["measurement"] == "position" else "velocity_bandwidth"
-            spec.pop(other, None)
-            if "poles" in spec and spec["measurement"] != base["observer_spec"].get(
-                "measurement", "state"
-            ):
-                raise ParameterValueError(
-                    "observer.measurement can vary only for an observer designed by bandwidth "
-                    f"(the number of poles differs between the families), got poles={spec['poles']}"
-                )
+        base_spec, varied = spec, sub("observer.")
+        spec = {**spec, **varied}
+        family = get_family(spec.get("type", "dob"))
+        if family.tuned in varied:  # a varied bandwidth replaces the poles
+            for key in family.replaced_by_bandwidth:
+                spec.pop(key, None)
+        if family.respec is not None:
+            spec = family.respec(spec, set(varied), base_spec)
         nominal = changes.get("nominal", loop.nominal)
         Ts = changes.get("Ts", loop.Ts)
         key = _frozen({"spec": spec, "nominal": nominal, "Ts": Ts})
@@ -393,8 +391,10 @@ def sweep(
 
     Parameters
     ----------
-    base : dict
-        What the scenarios share: ``loop`` (a :class:`~hpdob.ServoLoop`) or the loop's keyword
+    base : dict or Scenario
+        What the scenarios share: a :class:`~hpdob.simulation.Scenario` (a loop and its run
+        settings, as :func:`~hpdob.simulation.load_scenario` reads them), or a dict of
+        ``loop`` (a :class:`~hpdob.ServoLoop`) or the loop's keyword
         arguments (``plant``, ``nominal``, ``Ts``, ``controller``, ``observer``, ``sensor``,
         ``actuator``), and the keyword arguments of :func:`hpdob.simulate` (``duration``,
         ``reference``, ``disturbance``, ``substeps``, ``x0``). The observer may be a dict of

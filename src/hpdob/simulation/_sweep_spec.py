@@ -11,30 +11,51 @@ from .._validation import ParameterTypeError, ParameterValueError, as_int, as_re
 
 __all__ = [
     "DISTRIBUTIONS",
+    "LOOP_PATHS",
     "MAX_SCENARIOS",
-    "PATHS",
     "check_paths_apply",
     "expand_scenarios",
     "replaced_plant",
+    "sweep_paths",
 ]
 
 #: Most scenarios one sweep may expand to (rows and draws are held in memory): checked up front.
 MAX_SCENARIOS = 1_000_000
 
-#: Parameters a sweep can vary (dotted paths into :func:`hpdob.simulate`'s arguments).
-PATHS = (
+#: Parameters a sweep can vary besides the observer's (dotted paths into
+#: :func:`hpdob.simulate`'s arguments).
+LOOP_PATHS = (
     "plant.J", "plant.b", "plant.coulomb", "plant.coulomb_velocity",
     "plant.link_mass", "plant.link_length",
     "plant.J_motor", "plant.J_load", "plant.stiffness", "plant.damping",
     "plant.b_motor", "plant.b_load",
     "plant.environment.stiffness", "plant.environment.damping", "plant.environment.position",
     "nominal.J", "nominal.b",
-    "observer.order", "observer.bandwidth", "observer.velocity_bandwidth",
-    "observer.measurement",
     "controller.kp", "controller.kd", "controller.ki", "controller.time_constant",
     "controller.tracking_time", "controller.bandwidth", "controller.observer_bandwidth",
     "Ts", "disturbance_scale",
 )  # fmt: skip
+
+
+def observer_parameters() -> dict:
+    """``{"observer.<name>": Parameter}``: every sweepable design argument of every
+    registered family (:func:`hpdob.observers.families`; the first family to name it wins,
+    registration checks that the kinds agree)."""
+    from ..observers import families
+
+    out = {}
+    for family in families():
+        for p in family.parameters:
+            if p.sweepable:
+                out.setdefault(f"observer.{p.name}", p)
+    return out
+
+
+def sweep_paths() -> tuple:
+    """Every path a sweep can vary: the loop's and the registered families' parameters."""
+    return (*LOOP_PATHS[:14], *observer_parameters(), *LOOP_PATHS[14:])
+
+
 #: Random distributions for ``vary``: name -> meaning of its two parameters.
 DISTRIBUTIONS = {
     "uniform": "low, high",
@@ -44,9 +65,10 @@ DISTRIBUTIONS = {
 
 
 def _check_path(path, where: str) -> str:
-    if path not in PATHS:
+    paths = sweep_paths()
+    if path not in paths:
         raise ParameterValueError(
-            f"{where} path {path!r} is not a sweep parameter; valid paths: {', '.join(PATHS)}"
+            f"{where} path {path!r} is not a sweep parameter; valid paths: {', '.join(paths)}"
         )
     return path
 
@@ -57,19 +79,23 @@ def _grid_values(path: str, values) -> list:
     values = list(values)
     if not values:
         raise ParameterValueError(f"grid[{path!r}] must be a non-empty list of values, got []")
-    if path == "observer.order":
+    parameter = observer_parameters().get(path)
+    if parameter is not None and parameter.kind == "int":
         return [
-            as_int(v, f"grid[{path!r}] entry", "a non-negative integer order", minimum=0)
+            as_int(
+                v, f"grid[{path!r}] entry", f"a non-negative integer {parameter.name}", minimum=0
+            )
             for v in values
         ]
-    if path == "observer.measurement":
-        return [check_choice(v, f"grid[{path!r}] entry", ("state", "position")) for v in values]
+    if parameter is not None and parameter.kind == "choice":
+        return [check_choice(v, f"grid[{path!r}] entry", parameter.choices) for v in values]
     return [as_real(v, f"grid[{path!r}] entry", "a finite number") for v in values]
 
 
 def _draw(path: str, spec, n: int, rng: np.random.Generator) -> np.ndarray:
-    if path in ("observer.order", "observer.measurement"):
-        kind = "an integer" if path == "observer.order" else "a name"
+    parameter = observer_parameters().get(path)
+    if parameter is not None and parameter.kind in ("int", "choice"):
+        kind = "an integer" if parameter.kind == "int" else "a name"
         raise ParameterValueError(f"vary cannot draw {path!r} ({kind}): put it in grid")
     if not isinstance(spec, (tuple, list)) or len(spec) != 3 or spec[0] not in DISTRIBUTIONS:
         listed = "; ".join(f"({name!r}, {args})" for name, args in DISTRIBUTIONS.items())
@@ -168,7 +194,7 @@ def check_paths_apply(paths, loop, spec) -> None:
     take (``observer.bandwidth`` of a Kalman spec, ``observer.order`` of an ESO), or
     ``observer.velocity_bandwidth`` of an observer that measures the state. (Bad *values* are
     reported per scenario, in the ``error`` column.)"""
-    from ..observers._families import FAMILIES
+    from ..observers import get_family
 
     paths = list(paths)
     for path in paths:
@@ -208,15 +234,18 @@ def check_paths_apply(paths, loop, spec) -> None:
                 "design of a known family)"
             )
         elif kind == "observer":
-            family = spec.get("type", "dob")
-            keys = FAMILIES[family][1]
-            if name not in keys:
+            family = get_family(spec.get("type", "dob"))
+            if name not in family.keys:
                 why = (
-                    f"an observer spec of type {family!r} has no design argument {name!r} (it "
-                    f"takes {', '.join(keys)})"
+                    f"an observer spec of type {family.name!r} has no design argument {name!r} "
+                    f"(it takes {', '.join(family.keys)})"
                 )
-            state = spec.get("measurement", "state") != "position"
-            if name == "velocity_bandwidth" and state and "observer.measurement" not in paths:
-                why = "the observer measures the state (velocity_bandwidth is position-only)"
+            elif family.parameter(name).only_with is not None:
+                key, value = family.parameter(name).only_with
+                default = family.parameter(key).default
+                if spec.get(key, default) != value and f"observer.{key}" not in paths:
+                    why = f"{name} applies with {key}={value!r} only, the spec has {key}=" + repr(
+                        spec.get(key, default)
+                    )
         if why is not None:
             raise ParameterValueError(f"sweep path {path!r} does not apply to this base: {why}")

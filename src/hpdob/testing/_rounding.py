@@ -35,13 +35,13 @@ def _gamma(n: int, u: float) -> float:
     return n * u / (1.0 - n * u)
 
 
-def impulse_rows(observer, *, rtol: float = 1e-20) -> np.ndarray:
+def impulse_rows(observer, *, rtol: float = 1e-20, output: int = 0) -> np.ndarray:
     r"""Rows :math:`|H_1 F^j|`, ``j = 0, 1, ...``, until they fall below ``rtol`` of their
     peak: how a unit error in each state entry reaches the estimate ``j`` samples later.
     Shape ``(J, n_states)``."""
     system = as_system(observer)
     F = np.asarray(system.F)
-    row = np.array(system.H[0], dtype=float)
+    row = np.array(system.H[output], dtype=float)
     rows, peak = [], 0.0
     while True:
         size = float(np.abs(row).sum())
@@ -96,7 +96,9 @@ def _row_bounds(rows, operands: np.ndarray, unit: float) -> np.ndarray:
     return out
 
 
-def export_error_bound(observer, dtype: str, theta, omega, u, z, *, init=(0.0, 0.0, 0.0)):
+def export_error_bound(
+    observer, dtype: str, theta, omega, u, z, *, init=(0.0, 0.0, 0.0), output: int = 0
+):
     r"""Bound on ``|tau_hat_C - tau_hat_Python|`` at every sample of a trace [N m].
 
     Parameters
@@ -112,6 +114,9 @@ def export_error_bound(observer, dtype: str, theta, omega, u, z, *, init=(0.0, 0
         The C build's state at the start of every sample (the operands of its arithmetic).
     init : sequence of 3 floats
         ``theta0, omega0, tau0`` both observers were initialised with.
+    output : int, optional
+        Which output to bound: 0 (``tau_hat``, default) or 1 (``omega_hat`` of observers
+        that estimate the velocity).
 
     Returns
     -------
@@ -158,7 +163,7 @@ def export_error_bound(observer, dtype: str, theta, omega, u, z, *, init=(0.0, 0
     delta = _row_bounds(program.update, operands, unit)
     start = np.abs(np.asarray(init, dtype=float))[None, :]
     e0 = _row_bounds(program.reset, start, unit)[0]
-    h = impulse_rows(system)
+    h = impulse_rows(system, output=output)
     n = theta.size
     bound = np.zeros(n)
     for i in range(system.n_states):
@@ -167,5 +172,5 @@ def export_error_bound(observer, dtype: str, theta, omega, u, z, *, init=(0.0, 0
         reach = np.zeros(n)
         reach[: min(n, h.shape[0])] = h[:n, i]
         bound += reach * e0[i]
-    bound += _row_bounds(program.output[:1], operands, unit)[:, 0]
+    bound += _row_bounds(program.output[output : output + 1], operands, unit)[:, 0]
     return bound

@@ -7,6 +7,6 @@ tune, TuningResult
 """
 
 from ._result import TuningResult
-from ._tune import FAMILIES, OBJECTIVES, tune
+from ._tune import OBJECTIVES, candidate_families, tune
 
-__all__ = ["FAMILIES", "OBJECTIVES", "TuningResult", "tune"]
+__all__ = ["OBJECTIVES", "TuningResult", "candidate_families", "tune"]

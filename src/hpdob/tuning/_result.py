@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 
@@ -86,6 +87,38 @@ class TuningResult:
         """The PD the recommendation was verified with (its velocity source included)."""
         return self.recommended["_controller"]
 
+    def _repr_markdown_(self) -> str:
+        """A compact table for Jupyter: the recommendation and its figures."""
+        from .._repr import markdown_table
+
+        r = self.recommended
+        return markdown_table(f"TuningResult: {r['name']}", [
+            (r["parameter"], r["value"]), ("candidates", len(self.rows)),
+            ("accuracy abs(1 - Q)", r["accuracy"]), ("noise in the estimate [N m RMS]",
+                                                 r["tau_noise"]),
+            ("worst spectral radius", r["radius"]),
+            ("PD velocity", getattr(self.controller, "velocity", "-")),
+            ("simulated estimation error [N m RMS]", r.get("simulated_estimation")),
+        ])  # fmt: skip
+
+    def loop(self):
+        """The loop the recommendation was simulated in, at the centre of the uncertainty set.
+
+        Returns
+        -------
+        ServoLoop
+            The true plant at the centre (``J_n`` times the middle of ``J_range``, the middle of
+            ``b_range``, the Coulomb friction simulated), the nominal model, ``Ts``,
+            :attr:`controller`, :attr:`design`, the sensor and the actuator (torque limit and
+            delay): ``simulate(result.loop(), **result.scenario)`` repeats the run that ranked
+            it. The corners are ``loop.replace(plant=...)``.
+        """
+        from ..simulation._devices import Actuator
+
+        base, s = self.recommended["_base"], self.settings  # the linear figures' loop
+        actuator = Actuator(torque_limit=s["torque_limit"], delay_samples=s["delay_samples"])
+        return base.replace(plant=base.plant.replace(coulomb=s["coulomb"]), actuator=actuator)
+
     @property
     def recommendation(self) -> dict:
         """The recommended candidate's figures (JSON-ready)."""
@@ -130,6 +163,9 @@ class TuningResult:
         if r["delay_margin_samples"] >= s["max_extra_delay"]:
             margin = f"at least {margin}"
         qualified = sum(row["robust"] and row["within_noise"] for row in self.rows)
+        velocity = "the measured velocity"
+        if getattr(self.controller, "velocity", None) == "observer":  # (a PD-like controller)
+            velocity = "the observer's velocity estimate omega_hat"
         lines = [
             f"Recommended: {r['name']}, {r['parameter']} = {r['value']:.4g} {unit}".rstrip(),
             f"  searched {len(self.rows)} candidates ({', '.join(s['families'])}); "
@@ -142,6 +178,7 @@ class TuningResult:
             f"  worst spectral radius {r['radius']:.5f} (with one more sample of delay "
             f"{r['radius_margin']:.5f}); stable at every corner with up to {margin} extra "
             "samples of delay",
+            f"  the PD's derivative uses {velocity}",
             f"  simulated at the centre: RMS estimation error {r['simulated_estimation']:.3g} N m, "
             f"RMS position error {r['simulated_position']:.3g} rad",
             "  verified by nonlinear simulation at every corner:",
@@ -202,8 +239,9 @@ class TuningResult:
         from .._plotting import PAPER_WIDTH
 
         fig, ax = plt.subplots(figsize=(PAPER_WIDTH, 4.2), layout="constrained")
-        markers = {"state": "o", "position": "s", "eso": "^", "kalman": "D"}
-        colors = {0: "tab:blue", 1: "tab:red", 2: "tab:green"}
+        names = list(dict.fromkeys(r["family"] for r in self.rows))  # the searched variants
+        markers = dict(zip(names, itertools.cycle("os^DvP<>X"), strict=False))
+        colors = {0: "tab:blue", 1: "tab:red", 2: "tab:green", 3: "tab:purple", 4: "tab:brown"}
         quiet = min((r["tau_noise"] for r in self.rows if r["tau_noise"] > 0), default=1e-12)
         for family, marker in markers.items():
             for m, color in colors.items():

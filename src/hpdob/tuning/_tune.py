@@ -29,7 +29,6 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
-import warnings
 
 import numpy as np
 
@@ -42,20 +41,39 @@ from .._validation import (
     require_instance,
 )
 from ..analysis._linear_loop import MAX_DELAY_SAMPLES
-from ..controllers import PD, Controller, LinearController
+from ..controllers import PD, Controller, controller_settings, controller_system
 from ..models._servo import ServoModel
 from ..simulation._devices import Actuator, Encoder
+from ..simulation._loop import MISSING, loop_parts
+from ._blas import one_blas_thread
 from ._result import TuningResult
+from ._runs import VerificationRuns
 
-__all__ = ["FAMILIES", "OBJECTIVES", "tune"]
+__all__ = ["OBJECTIVES", "candidate_families", "tune"]
 
-#: Families the tuner searches: name -> (spec without bandwidth, orders).
-FAMILIES = {
-    "state": ({"type": "dob", "measurement": "state"}, (0, 1, 2)),
-    "position": ({"type": "dob", "measurement": "position"}, (0, 1, 2)),
-    "eso": ({"type": "eso", "form": "current"}, (0, 1, 2)),
-    "kalman": ({"type": "kalman"}, (0, 1, 2)),
-}
+
+def candidate_families() -> dict:
+    """The families the tuner searches, by name: ``{name: (family, spec, orders)}``.
+
+    Every registered family's ``variants`` (:func:`hpdob.observers.register_family`): the
+    paper's family as ``"state"`` and ``"position"``, ``"eso"`` (current form), ``"kalman"``,
+    and any family registered since.
+
+    Returns
+    -------
+    dict
+        ``{name: (Family, spec, orders)}``: the spec without the order and the tuned
+        parameter, and the orders searched.
+    """
+    from ..observers import families
+
+    return {
+        name: (family, {"type": family.name, **spec}, family.orders)
+        for family in families()
+        for name, spec in family.variants.items()
+    }
+
+
 OBJECTIVES = ("estimation", "position")
 N_BANDWIDTHS = 24
 MIN_BANDWIDTH = 5.0  # rad/s
@@ -103,8 +121,8 @@ def _scenario(nominal, Ts, disturbance_frequency, scenario):
     """The verification run: the paper's reference and disturbance shape, with the sine at the
     disturbance frequency and the amplitudes scaled by J_n (the same disturbance acceleration
     as the paper's), unless given."""
-    from .. import paper
     from ..signals import Sine, Step
+    from ..simulation import _canonical as paper  # the paper's set-up, as data
 
     if scenario is not None:
         if not isinstance(scenario, dict):
@@ -127,31 +145,29 @@ def _scenario(nominal, Ts, disturbance_frequency, scenario):
 
 
 def _candidates(model, families, sigma, notes):
-    """``[(family, order, parameter, value, design)]`` over the bandwidth grid."""
-    from ..observers._families import design_from_spec
-    from ..observers._kalman import kalman_process_noise
+    """``[(family, order, parameter, value, design)]`` over the bandwidth grid (each family's
+    tuned parameter over the values giving those bandwidths)."""
+    from ..observers import design_from_spec, tuned_value
 
     g_max = 0.4 * math.pi / model.Ts
     bandwidths = np.geomspace(MIN_BANDWIDTH, g_max, N_BANDWIDTHS)
     out = []
-    for family in families:
-        base, orders = FAMILIES[family]
-        key = "extended_order" if family == "eso" else "order"
+    variants = candidate_families()
+    for name in families:
+        family, base, orders = variants[name]
         for m in orders:
-            spec = {**base, key: m}
-            if family == "kalman":
+            spec = dict(base) if family.order is None else {**base, family.order: m}
+            if family.noise_parameter is not None:
                 if sigma == 0.0:
-                    notes.append("kalman: left out, it needs a measurement noise (no sensor)")
+                    notes.append(f"{name}: left out, it needs a measurement noise (no sensor)")
                     break
-                spec["position_noise_std"] = sigma
-                ends = [
-                    kalman_process_noise(model, bandwidth=g, position_noise_std=sigma, order=m)
-                    for g in (bandwidths[0], min(g_max, 0.45 * math.pi / model.Ts))
-                ]
-                low, high = ends
-                grid = ("process_noise_std", np.geomspace(low, high, N_BANDWIDTHS))
-            else:
-                grid = ("bandwidth", bandwidths)
+                spec[family.noise_parameter] = sigma
+            if family.tuned_from_bandwidth is None:
+                values = bandwidths
+            else:  # the tuned parameter at the grid's two ends, log-spaced between
+                low, high = (tuned_value(model, spec, float(g)) for g in bandwidths[[0, -1]])
+                values = np.geomspace(low, high, N_BANDWIDTHS)
+            grid = (family.tuned, values)
             left_out = []
             for value in grid[1]:
                 try:
@@ -159,14 +175,16 @@ def _candidates(model, families, sigma, notes):
                 except ParameterValueError as err:  # e.g. not realisable in double precision
                     left_out.append((float(value), str(err)))
                     continue
-                out.append((family, m, grid[0], float(value), design))
+                out.append((name, m, grid[0], float(value), design))
             if left_out:
                 values = [v for v, _ in left_out]
                 first = left_out[0][1] if not out else left_out[0][1].split(":")[0]
                 notes.append(
-                    f"{family} m={m}: {len(values)} of {len(grid[1])} {grid[0]} values in "
+                    f"{name} m={m}: {len(values)} of {len(grid[1])} {grid[0]} values in "
                     f"[{min(values):.4g}, {max(values):.4g}] left out ({first})"
                 )
+            if family.order is None:
+                break
     return out
 
 
@@ -187,25 +205,16 @@ def _delay_margin(base, corners, plant, delay: int) -> int:
     return MAX_EXTRA_DELAY
 
 
-def _controller_settings(controller) -> dict:
-    """The controller of the settings: the PD's ``kp, kd, velocity`` as before; another
-    controller's type name and constructor arguments."""
-    if type(controller) is PD:
-        return {"kp": controller.kp, "kd": controller.kd, "velocity": controller.velocity}
-    if dataclasses.is_dataclass(controller):
-        fields = {f.name: getattr(controller, f.name) for f in dataclasses.fields(controller)
-                  if f.init and f.name != "_"}  # fmt: skip
-        return {"type": type(controller).__name__, **fields}
-    return {"type": type(controller).__name__, "name": getattr(controller, "name", "")}
-
-
+@one_blas_thread
 def tune(
+    loop=None,
+    /,
     *,
-    nominal: ServoModel,
-    Ts: float,
-    controller: Controller | None = None,
-    sensor: Encoder | None = None,
-    actuator: Actuator | None = None,
+    nominal: ServoModel = MISSING,
+    Ts: float = MISSING,
+    controller: Controller | None = MISSING,
+    sensor: Encoder | None = MISSING,
+    actuator: Actuator | None = MISSING,
     J_range=(1.0, 1.0),
     b_range=None,
     disturbance_frequency=None,
@@ -214,11 +223,18 @@ def tune(
     noise_limit: float | None = None,
     coulomb: float | None = None,
     scenario: dict | None = None,
+    progress=None,
 ) -> TuningResult:
     r"""Recommend an observer for a motor, a sensor and an uncertainty, verified by simulation.
 
     Parameters
     ----------
+    loop : ServoLoop, optional
+        The loop to tune the observer of: its nominal model, ``Ts``, controller, sensor,
+        actuator and (unless ``coulomb`` is given) its plant's Coulomb friction; its observer
+        is what the search replaces. Instead of a loop, the keyword arguments ``nominal``,
+        ``Ts``, ``controller``, ``sensor`` and ``actuator`` are accepted (the loop functions'
+        one alias), with the defaults below.
     nominal : ServoModel
         The nominal model (``J_n``, ``b_n``) of controller and observer.
     Ts : float
@@ -244,8 +260,8 @@ def tune(
         (RMS of ``|1 - Q|`` over it), below the Nyquist frequency ``1/(2 Ts)``. Default: the band
         0.1-10 Hz (and 2 Hz for the verification scenario's sine).
     families : sequence of str, optional
-        Any of ``"state"``, ``"position"``, ``"eso"``, ``"kalman"`` (:data:`FAMILIES`). Default
-        all.
+        Any of ``"state"``, ``"position"``, ``"eso"``, ``"kalman"`` and the variants of any
+        family registered since (:func:`candidate_families`). Default all.
     objective : {"estimation", "position"}, optional
         What the simulations rank by: the RMS estimation error, or the RMS position error
         (the larger of the regulation and tracking windows). Default ``"estimation"``.
@@ -262,6 +278,10 @@ def tune(
         a sine at the disturbance frequency from 2.5 s, amplitudes scaled with ``J_n`` from the
         paper's (0.05 and 0.02 N m at ``J_n`` = 2.8e-4 kg m^2); 10 s (in whole samples). Its
         duration and signals are checked before the search.
+    progress : callable, optional
+        Called as ``progress(stage, done, total)`` while the search works (``stage`` one of
+        ``"analysis"``, ``"simulation"``, ``"verification"``; ``done`` of ``total`` steps), e.g.
+        to show progress; its return value is ignored. Default: silent.
 
     Returns
     -------
@@ -292,8 +312,22 @@ def tune(
     from ..analysis._noise import noise_gains
     from ..analysis._sensitivity import loop_margins
     from ..simulation._loop import ServoLoop
-    from ..simulation._simulate import _sample_count, sample_signals, simulate
+    from ..simulation._simulate import _sample_count, sample_signals
 
+    legacy = {"nominal": nominal, "Ts": Ts, "controller": controller, "sensor": sensor,
+              "actuator": actuator}  # fmt: skip
+    parts = loop_parts(loop, legacy, "tune")
+    missing = [k for k in ("nominal", "Ts") if k not in parts]
+    if missing:
+        raise ParameterTypeError(
+            "tune() needs a ServoLoop as first argument, or the keyword arguments nominal and "
+            f"Ts (missing: {', '.join(missing)})"
+        )
+    nominal, Ts = parts["nominal"], parts["Ts"]
+    controller, sensor = parts.get("controller"), parts.get("sensor")
+    actuator = parts.get("actuator")
+    if loop is not None and coulomb is None:
+        coulomb = getattr(loop.plant, "coulomb", None)
     nominal = require_instance(nominal, ServoModel, "nominal")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
     if not 0.4 * math.pi / Ts > MIN_BANDWIDTH:  # the grid of bandwidths, 5 rad/s .. 0.4 pi/Ts
@@ -302,13 +336,8 @@ def tune(
             f"{0.4 * math.pi / MIN_BANDWIDTH:.4g} s (the bandwidths searched run from "
             f"{MIN_BANDWIDTH:g} rad/s to 0.4 pi/Ts), got {Ts!r}"
         )
-    if controller is None:
-        controller = PD(50.0, 5.0, velocity="observer")
-    elif not isinstance(controller, (Controller, LinearController)):
-        raise ParameterTypeError(
-            "controller must be a PD, PID, FilteredPD, ADRC or another Controller (or a "
-            f"LinearController), got {type(controller).__name__}"
-        )
+    controller = PD(50.0, 5.0, velocity="observer") if controller is None else controller
+    controller_system(controller, nominal, Ts)  # refuses what is not a controller, named
     sensor = require_instance(sensor, Encoder, "sensor", optional=True)
     actuator = require_instance(actuator, Actuator, "actuator", optional=True) or Actuator()
     if actuator.delay_samples + 1 > MAX_DELAY_SAMPLES:
@@ -324,19 +353,23 @@ def tune(
             b_range, "b_range", "non-negative viscous frictions [N m s/rad]", allow_zero=True
         )
     frequencies = _frequencies(disturbance_frequency, Ts)
+    variants = candidate_families()
     if families is None:
-        families = tuple(FAMILIES)
+        families = tuple(variants)
     if isinstance(families, str) or not families:
         raise ParameterValueError(
-            f"families must be a non-empty sequence of {', '.join(map(repr, FAMILIES))}, got "
+            f"families must be a non-empty sequence of {', '.join(map(repr, variants))}, got "
             f"{families!r}"
         )
-    families = tuple(dict.fromkeys(check_choice(f, "families", FAMILIES) for f in families))
+    families = tuple(dict.fromkeys(check_choice(f, "families", variants) for f in families))
     objective = check_choice(objective, "objective", OBJECTIVES)
+    if progress is not None and not callable(progress):
+        raise ParameterTypeError(f"progress must be callable or None, got {progress!r}")
+    report = progress or (lambda stage, done, total: None)  # silent by default
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
     if coulomb is None:
-        from ..paper._scenario import NOMINAL, PLANT
+        from ..simulation._canonical import NOMINAL, PLANT
 
         # The paper scenario's Coulomb friction (the paper's model has viscous friction only;
         # hpdob's scenario adds it), at the same acceleration for any J_n.
@@ -361,7 +394,8 @@ def tune(
         return ServoModel(J_ratio * nominal.J, b)
 
     rows = []
-    for family, m, parameter, value, design in candidates:
+    for done, (family, m, parameter, value, design) in enumerate(candidates):
+        report("analysis", done, len(candidates))
         ctrl = controller
         if getattr(controller, "velocity", None) == "observer" and not design.system.has_velocity:
             ctrl = dataclasses.replace(controller, velocity="measured")
@@ -394,6 +428,7 @@ def tune(
             "robust": robust,
             "within_noise": noise_limit is None or tau_noise <= noise_limit,
             "pareto": False, "simulated": math.nan, "_design": design, "_controller": ctrl,
+            "_base": base,
         })  # fmt: skip
     if not rows:
         raise ParameterValueError("no candidate could be designed: " + "; ".join(notes[:3]))
@@ -415,37 +450,29 @@ def tune(
             "finer encoder"
         )
     # Pareto front of (accuracy, noise) among the qualified, then simulated at the centre.
-    ordered = sorted(qualified, key=lambda r: (r["accuracy"], r["tau_noise"]))
     best_noise = math.inf
-    for r in ordered:
+    for r in sorted(qualified, key=lambda r: (r["accuracy"], r["tau_noise"])):
         if r["tau_noise"] < best_noise:
             r["pareto"] = True
             best_noise = r["tau_noise"]
-    simulation = {"sensor": sensor, "actuator": actuator}
-
-    def simulate_at(r, J_ratio, b):
-        true = ServoModel(J_ratio * nominal.J, b, coulomb=coulomb)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            result = simulate(plant=true, nominal=nominal, Ts=Ts, controller=r["_controller"],
-                              observer=r["_design"], **simulation, **run)  # fmt: skip
-        metrics = result.metrics()
-        position = max(metrics["rms_position_error_regulation"],
-                       metrics["rms_position_error_tracking"])  # fmt: skip
-        return result, metrics, position
-
-    for r in qualified:
-        result, metrics, position = simulate_at(r, *centre)
+    runs = VerificationRuns(nominal=nominal, Ts=Ts, sensor=sensor, actuator=actuator,
+                            coulomb=coulomb, run=run)  # fmt: skip
+    simulate_at = runs.simulate
+    report("analysis", len(candidates), len(candidates))
+    for r, (result, metrics, position) in zip(qualified, runs.at(qualified, *centre, report),
+                                              strict=True):  # fmt: skip
         r["simulated"] = math.inf if result.diverged else (
             metrics["rms_estimation_error"] if objective == "estimation" else position)  # fmt: skip
         r["simulated_estimation"] = metrics["rms_estimation_error"]
         r["simulated_position"] = position
+    report("simulation", len(qualified), len(qualified))
     verification = None
     for r in sorted(qualified, key=lambda r: r["simulated"]):
         if not math.isfinite(r["simulated"]):
             break
         checks = []
-        for J_ratio, b in corners:
+        for done, (J_ratio, b) in enumerate(corners):
+            report("verification", done, len(corners))
             result, metrics, position = simulate_at(r, J_ratio, b)
             loop = ServoLoop(plant=plant(J_ratio, b), nominal=nominal, Ts=Ts,
                              controller=r["_controller"], observer=r["_design"],
@@ -457,6 +484,7 @@ def tune(
                 "delay_margin": loop_margins(loop).delay_margin,
             })  # fmt: skip
         if all(not c["diverged"] and c["radius"] < 1.0 for c in checks):
+            report("verification", len(corners), len(corners))
             verification = (r, checks)
             break
         notes.append(f"{r['name']} at {r['parameter']}={r['value']:.4g} failed at a corner")
@@ -474,7 +502,7 @@ def tune(
         settings={
             "nominal": {"J": nominal.J, "b": nominal.b},
             "Ts": Ts,
-            "controller": _controller_settings(controller),
+            "controller": controller_settings(controller),
             "sensor_noise_std": sigma,
             "delay_samples": actuator.delay_samples,
             "torque_limit": actuator.torque_limit,

@@ -1,0 +1,120 @@
+"""Speed of offline estimation (``estimate_disturbance``) against a minimal hand-written kernel.
+
+(a) ``hpdob.estimate_disturbance`` on a synthetic 1e7-sample log (random-walk position, random
+input; synthetic, not measured) for every family at orders 0-2, the whole call: checks, the
+compiled loop, the result's arrays (copies of the log, the backward-difference velocity, the
+time, the estimate);
+(b) a minimal hand-written numba kernel for the canonical order-1 DOb: the same arithmetic in
+the same order (the velocity by backward difference, the estimate, the update), the
+coefficients as arguments, only the estimate written. It is checked to give the same
+estimate bit for bit, then timed in the same run. Target (issue 25): (a) >= 100 M samples/s
+for every family at orders 0-2; the ratio (a)/(b) is printed for the canonical observer.
+
+    python benchmarks/bench_estimate.py            # about 20 s; --samples N to change 1e7
+
+Interleaved repeats, best of each (the machine may be shared: ratios measured in the same run
+are robust to load, absolute figures less so).
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numba
+import numpy as np
+
+from hpdob import ServoModel, design_observer, estimate_disturbance
+from hpdob.observers import design_eso, design_kalman, initial_state
+
+
+@numba.njit(nogil=True)
+def minimal(theta, u, Ts, s_init, c):
+    """The order-1 DOb written by hand, as ``Program`` orders it (no copies, no time)."""
+    c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10 = c
+    s0, s1 = s_init[0], s_init[1]
+    tau = np.empty(theta.shape[0])
+    previous = theta[0]
+    for k in range(theta.shape[0]):
+        th = theta[k]
+        om = (th - previous) / Ts
+        previous = th
+        tau[k] = s1 + c9 * th + c10 * om
+        uk = u[k]
+        n0 = s1 + c0 * s1 + c1 * th + c2 * om + c3 * uk
+        n1 = c4 * s1 + c5 * th + c6 * om + c7 * uk - s0 + c8 * s1
+        s0, s1 = n0, n1
+    return tau
+
+
+def observers(model):
+    """Every family at orders 0-2 (the order-m DOb on the state and on the position, the ESO,
+    the Kalman filter)."""
+    for m in range(3):
+        yield f"DOb m={m} (state)", design_observer(model, order=m, bandwidth=100.0)
+        yield (
+            f"DOb m={m} (position)",
+            design_observer(model, order=m, bandwidth=100.0, measurement="position"),
+        )
+        yield f"ESO m={m}", design_eso(model, bandwidth=100.0, extended_order=m)
+        yield (
+            f"Kalman m={m}",
+            design_kalman(model, order=m, position_noise_std=1e-4, process_noise_std=1.0),
+        )
+
+
+def best(function, repeat):
+    times = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        function()
+        times.append(time.perf_counter() - start)
+    return min(times)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--samples", type=float, default=1e7)
+    parser.add_argument("--repeat", type=int, default=5)
+    args = parser.parse_args()
+    n = int(args.samples)
+    Ts = 1e-3
+    model = ServoModel(2.8e-4).discretize(Ts)
+    rng = np.random.default_rng(25)  # synthetic log
+    theta = np.cumsum(rng.standard_normal(n)) * 1e-4
+    u = rng.standard_normal(n) * 0.01
+
+    canonical = design_observer(model, order=1, bandwidth=100.0)
+    program = canonical.system.program
+    c = tuple(t.coefficient for rows in (program.update, program.output) for r in rows
+              for t in r if abs(t.coefficient) != 1.0)  # fmt: skip
+    s_init = np.array(initial_state(canonical, (float(theta[0]), 0.0)))  # at rest, tau0 = 0
+    reference = minimal(theta, u, Ts, s_init, c)
+    result = estimate_disturbance(canonical, theta=theta, u=u)
+    assert np.array_equal(reference, result.tau_hat), "the minimal kernel must agree bit for bit"
+
+    designs = list(observers(model))
+    for _, design in designs:  # compile each program structure once
+        estimate_disturbance(design, theta=theta[:100], u=u[:100])
+    timings = {"minimal": [], **{name: [] for name, _ in designs}}
+    for _ in range(args.repeat):  # interleaved
+        timings["minimal"].append(best(lambda: minimal(theta, u, Ts, s_init, c), 1))
+        for name, design in designs:
+            timings[name].append(
+                best(lambda design=design: estimate_disturbance(design, theta=theta, u=u), 1)
+            )
+    t_min = min(timings["minimal"])
+    print(f"{n:.3g} samples (synthetic log), best of {args.repeat} interleaved repeats")
+    print(f"(b) minimal hand-written kernel, DOb m=1: {t_min * 1e3:7.1f} ms "
+          f"({n / t_min / 1e6:6.1f} M samples/s)")  # fmt: skip
+    print(f"{'(a) estimate_disturbance':32s} {'ms':>7s} {'M samples/s':>12s} {'vs (b)':>7s}")
+    worst = float("inf")
+    for name, _ in designs:
+        t = min(timings[name])
+        worst = min(worst, n / t / 1e6)
+        print(f"    {name:28s} {t * 1e3:7.1f} {n / t / 1e6:12.1f} {t / t_min:7.2f}")
+    print(f"slowest family: {worst:.1f} M samples/s (target >= 100)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,102 @@
+"""Issue 23's accuracy grid: identification with default settings on SYNTHETIC logs.
+
+Every log is made by ``hpdob.simulate`` (tests/synthetic_logs.py): J = 1.2e-3 kg m^2,
+b = 2e-3 N m s/rad, encoders of 1024 to 65536 counts/rev, Ts of 0.25 to 2 ms, 20 s of open-loop
+chirp, PRBS or multisine torque (bandwidth 10 Hz) or a closed-loop PD tracking run (5 Hz), Coulomb
+friction 0 to 30 % of the input's RMS, 1 % noise on the logged input. The targets: J within
+3 %, b within 10 % or 0.02 J 2 pi B (B the excitation bandwidth), Coulomb within 5 % or 2 % of
+the input's RMS. Run with
+
+    python benchmarks/bench_identify_grid.py            # the whole grid (about a minute)
+    python benchmarks/bench_identify_grid.py --quick    # 1024 and 65536 counts, 0.25 and 2 ms
+
+It prints one line per log (errors of J, b, Coulomb; ok or --, and the warnings of the
+default identification) and, for comparison, the errors of the benchmark's IDIM-LS with its
+own default settings on the same logs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import math
+import sys
+import warnings
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from synthetic_logs import synthetic_log
+
+COUNTS = (1024, 4096, 16384, 65536)
+PERIODS = (2.5e-4, 5e-4, 1e-3, 2e-3)
+KINDS = ("chirp", "prbs", "multisine", "pd")
+FRACTIONS = (0.0, 0.1, 0.3)
+
+
+def errors(fit, s) -> tuple[float, float, float, bool]:
+    """Errors of J [%], b [% of the allowance] and Coulomb [% of the allowance], and pass."""
+    e_J = 100.0 * (fit.J / s.J - 1.0)
+    b_allow = max(0.1 * s.b, 0.02 * s.J * 2 * math.pi * s.bandwidth)
+    c_allow = max(0.05 * s.coulomb, 0.02 * s.input_rms)
+    e_b = 100.0 * (fit.b - s.b) / b_allow
+    e_c = 100.0 * (fit.coulomb - s.coulomb) / c_allow
+    return e_J, e_b, e_c, abs(e_J) <= 3.0 and abs(e_b) <= 100.0 and abs(e_c) <= 100.0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="a quarter of the grid")
+    parser.add_argument("--kinds", default=",".join(KINDS))
+    args = parser.parse_args()
+    counts = (1024, 65536) if args.quick else COUNTS
+    periods = (2.5e-4, 2e-3) if args.quick else PERIODS
+    print("errors: J [%], b and Coulomb [% of their allowance]; default settings, then IDIM-LS")
+    print(f"{'log':<11}{'counts':>7}{'Ts [ms]':>8}{'c/rms':>6} | {'J':>6}{'b':>6}{'c':>6}  ok "
+          f"| {'LS J':>6}{'b':>6}{'c':>6}  ok | warnings")  # fmt: skip
+    passed = total = ls_passed = warned = 0
+    worst = [0.0, 0.0, 0.0]
+    table: dict = {}
+    for kind, n, Ts, fraction in itertools.product(
+        args.kinds.split(","), counts, periods, FRACTIONS
+    ):
+        s = synthetic_log(kind=kind, counts=n, Ts=Ts, coulomb_fraction=fraction, seed=1)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            fit = s.log.identify()
+        ls = s.log.identify(method="idim-ls", diagnostics=False)
+        warned += bool(caught)
+        e = errors(fit, s)
+        e_ls = errors(ls, s)
+        total += 1
+        passed += e[3]
+        ls_passed += e_ls[3]
+        worst = [max(w, abs(x)) for w, x in zip(worst, e[:3], strict=True)]
+        row = table.setdefault((kind, n), [0.0, 0.0, 0.0, 0, 0, 0.0, 0, 0.0])
+        row[:3] = [max(w, abs(x)) for w, x in zip(row[:3], e[:3], strict=True)]
+        row[3] += e[3]
+        row[4] += 1
+        row[5] = max(row[5], abs(e_ls[0]))
+        row[6] += e_ls[3]
+        row[7] = max(row[7], abs(100.0 * (fit.b / s.b - 1.0)))
+        names = sorted({type(w.message).__name__ for w in caught})
+        print(f"{kind:<11}{n:>7}{1e3 * Ts:>8g}{fraction:>6g} | {e[0]:>+6.2f}{e[1]:>+6.0f}"
+              f"{e[2]:>+6.0f}  {'ok' if e[3] else '--'} | {e_ls[0]:>+6.1f}{e_ls[1]:>+6.0f}"
+              f"{e_ls[2]:>+6.0f}  {'ok' if e_ls[3] else '--'} | {','.join(names)}")  # fmt: skip
+    print(
+        f"default settings: {passed}/{total} logs meet every target; worst |error| J "
+        f"{worst[0]:.2f} %, b {worst[1]:.0f} %, Coulomb {worst[2]:.0f} % of the allowance"
+    )
+    print(f"IDIM-LS with the benchmark's rules: {ls_passed}/{total}")
+    print(f"IdentificationWarnings with the default settings: {warned}/{total} logs")
+    print("\nworst over Ts and Coulomb (Markdown, for docs/real-data.md):\n")
+    print("| log | counts/rev | J [%] | b [%] | b [% of allowance] | Coulomb [% of allowance] "
+          "| within | IDIM-LS: worst J [%] | within |")  # fmt: skip
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for (kind, n), r in table.items():
+        print(f"| {kind} | {n} | {r[0]:.2f} | {r[7]:.1f} | {r[1]:.0f} | {r[2]:.0f} | "
+              f"{r[3]}/{r[4]} | {r[5]:.1f} | {r[6]}/{r[4]} |")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

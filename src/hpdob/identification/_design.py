@@ -1,0 +1,235 @@
+"""Which parameters a regression estimates (free, fixed, one offset per log or shared) and
+whether the logs can separate them; refusals say how to proceed."""
+
+from __future__ import annotations
+
+import math
+import types
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._validation import (
+    ParameterTypeError,
+    ParameterValueError,
+    as_real,
+    check_choice,
+)
+from ._regression import (
+    PARAMETERS,
+)
+
+__all__ = [
+    "FRICTION_MODELS",
+    "MAX_CONDITION",
+    "MAX_VARIANCE_INFLATION",
+    "OFFSETS",
+    "Layout",
+    "check_design",
+    "make_layout",
+    "scaled_condition",
+    "variance_inflation",
+]
+
+#: The friction models: viscous and Coulomb (default), or viscous only (Coulomb friction 0,
+#: or lumped into the offset of a log that moves one way).
+FRICTION_MODELS = ("viscous+coulomb", "viscous")
+
+#: With several logs: one offset per log (default) or one for all.
+OFFSETS = ("per-log", "shared")
+
+#: Largest condition number (columns scaled to unit norm) of an identifiable regression.
+MAX_CONDITION = 1e6
+
+#: Largest variance inflation factor 1/(1 - R^2) of J, b or coulomb: above it the column is
+#: all but a combination of the others (R^2 > 0.999) and its estimate is meaningless. Measured:
+#: 5.2 for b and coulomb on EMPS, 3.1 on two superposed sines, 3.8e4 at one constant speed.
+MAX_VARIANCE_INFLATION = 1e3
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Which parameters are estimated: the free ones of J, b, coulomb, then the offsets."""
+
+    free: tuple  # indices into (J, b, coulomb) of the estimated ones
+    fixed: Mapping  # name -> value of the fixed ones (offset included)
+    n_offsets: int  # 0 (offset fixed), 1 (shared or one log) or one per log
+    n_runs: int
+
+    def offset_column(self, run: int) -> int | None:
+        if self.n_offsets == 0:
+            return None
+        return len(self.free) + (run if self.n_offsets > 1 else 0)
+
+    @property
+    def size(self) -> int:
+        return len(self.free) + self.n_offsets
+
+    def columns(self, M: np.ndarray, run: int) -> np.ndarray:
+        """The estimated columns of run ``run`` from its rows ``[qdd, qd, sign(qd), 1]``."""
+        out = np.zeros((M.shape[0], self.size))
+        out[:, : len(self.free)] = M[:, list(self.free)]
+        column = self.offset_column(run)
+        if column is not None:
+            # the decimated constant column (its DC gain is the Chebyshev filter's, 0.989)
+            out[:, column] = M[:, 3]
+        return out
+
+    def known(self, M: np.ndarray) -> np.ndarray:
+        """The input explained by the fixed parameters on rows ``M``."""
+        values = np.array([self.fixed.get(name, 0.0) for name in PARAMETERS])
+        if self.n_offsets:
+            values[3] = 0.0
+        return M @ values
+
+    def parameters(self, estimate: np.ndarray, run: int) -> np.ndarray:
+        """``(J, b, coulomb, offset)`` of run ``run``."""
+        values = np.array([self.fixed.get(name, 0.0) for name in PARAMETERS])
+        values[list(self.free)] = estimate[: len(self.free)]
+        column = self.offset_column(run)
+        if column is not None:
+            values[3] = estimate[column]
+        return values
+
+    def transform(self) -> np.ndarray:
+        """Rows mapping the estimate to ``(J, b, coulomb, mean offset)`` (0 for fixed ones)."""
+        T = np.zeros((4, self.size))
+        for k, j in enumerate(self.free):
+            T[j, k] = 1.0
+        if self.n_offsets:
+            T[3, len(self.free) :] = 1.0 / self.n_offsets
+        return T
+
+
+def make_layout(friction, fixed, offsets, n_runs) -> Layout:
+    friction = check_choice(friction, "friction", FRICTION_MODELS)
+    offsets = check_choice(offsets, "offsets", OFFSETS)
+    if fixed is None:
+        fixed = {}
+    if not isinstance(fixed, Mapping):
+        raise ParameterTypeError(
+            f"fixed must be a mapping of parameter names to values, e.g. {{'b': 2e-3}}; got "
+            f"{type(fixed).__name__}"
+        )
+    values = {}
+    for name, value in fixed.items():
+        if name not in PARAMETERS:
+            raise ParameterValueError(
+                f"fixed has an unknown parameter {name!r}; the parameters are "
+                f"{', '.join(PARAMETERS)}"
+            )
+        values[name] = as_real(value, f"fixed[{name!r}]", "a finite number")
+    if values.get("J", 1.0) <= 0.0:
+        raise ParameterValueError(f"fixed['J'] must be a positive inertia, got {values['J']!r}")
+    if friction == "viscous":
+        if values.get("coulomb", 0.0) != 0.0:
+            raise ParameterValueError(
+                f"friction='viscous' has no Coulomb friction, but fixed['coulomb'] = "
+                f"{values['coulomb']!r}; drop one of them"
+            )
+        values["coulomb"] = 0.0
+    free = tuple(j for j, name in enumerate(PARAMETERS[:3]) if name not in values)
+    n_offsets = 0 if "offset" in values else (1 if offsets == "shared" or n_runs == 1 else n_runs)
+    if not free and not n_offsets:
+        raise ParameterValueError("every parameter is fixed: nothing is left to identify")
+    return Layout(free, types.MappingProxyType(values), n_offsets, n_runs)
+
+
+def variance_inflation(columns: np.ndarray) -> np.ndarray:
+    """Variance inflation factor of each column given the others and a constant.
+
+    ``1 / (1 - R^2)`` of the column's regression on the other columns and a constant: the
+    diagonal of the inverse correlation matrix (inf for a constant or collinear column).
+    """
+    centred = columns - columns.mean(axis=0)
+    scale = np.linalg.norm(centred, axis=0)
+    if np.any(scale == 0.0):
+        return np.where(scale == 0.0, math.inf, 1.0)
+    correlation = (centred / scale).T @ (centred / scale)
+    try:
+        return np.diag(np.linalg.inv(correlation))
+    except np.linalg.LinAlgError:
+        return np.full(columns.shape[1], math.inf)
+
+
+def scaled_condition(X: np.ndarray) -> float:
+    """Condition number of ``X`` with its columns scaled to unit norm (inf if singular)."""
+    norms = np.linalg.norm(X, axis=0)
+    if np.any(norms == 0.0):
+        return math.inf
+    singular = np.linalg.svd(X / norms, compute_uv=False)
+    return singular[0] / singular[-1] if singular[-1] > 0 else math.inf
+
+
+def directions(run) -> float:
+    """+1 or -1 if the log moves one way in every regression row, else 0."""
+    direction = np.sign(run.regression.velocity[run.regression.index])
+    for sign in (1.0, -1.0):
+        if np.all(direction == sign):
+            return sign
+    return 0.0
+
+
+LUMP_HINT = (
+    "friction='viscous' lumps the Coulomb friction into the offset (offset + coulomb for "
+    "motion one way), fixed={'coulomb': value} uses a known Coulomb friction"
+)
+
+
+def check_design(runs, layout: Layout, X: np.ndarray) -> None:
+    """Refuse a regression that cannot separate the parameters, saying how to proceed."""
+    coulomb_free = 2 in layout.free
+    if coulomb_free and layout.n_offsets:
+        ways = [directions(run) for run in runs]
+        word = {1.0: "positive", -1.0: "negative"}
+        if len(runs) == 1 and ways[0]:
+            raise ParameterValueError(
+                f"theta moves in one direction only (the velocity is {word[ways[0]]} in every "
+                "regression row): coulomb and offset cannot be told apart; "
+                f"{LUMP_HINT}, or log a run that moves both ways"
+            )
+        if all(ways) and (layout.n_offsets > 1 or len(set(ways)) == 1):
+            listed = ", ".join(f"{run.name} {word[w]}" for run, w in zip(runs, ways, strict=True))
+            shared = (
+                "; offsets='shared' separates them with logs that move in opposite directions"
+                if len(set(ways)) == 2
+                else ""
+            )
+            raise ParameterValueError(
+                f"every log moves in one direction only ({listed}): coulomb and the "
+                f"offset{'s' if layout.n_offsets > 1 else ''} cannot be told apart{shared}; "
+                f"{LUMP_HINT}"
+            )
+    base = list(layout.free)
+    if len(base) >= 2:
+        inflation = variance_inflation(X[:, : len(base)])
+        names = [PARAMETERS[j] for j in base]
+        collinear = [names[k] for k in np.flatnonzero(inflation > MAX_VARIANCE_INFLATION)]
+        if collinear:
+            hint = (
+                "the speed is nearly the same in every row: log motion at several speeds, or "
+                "fix one of them (friction='viscous' or fixed={...})"
+                if {"b", "coulomb"} <= set(collinear)
+                else "log a run with more varied motion"
+            )
+            values = inflation[inflation > MAX_VARIANCE_INFLATION]
+            raise ParameterValueError(
+                f"{' and '.join(collinear)} cannot be told apart in this log (variance inflation "
+                f"{', '.join(f'{v:.3g}' for v in values)}, limit {MAX_VARIANCE_INFLATION:g}): "
+                f"{hint}"
+            )
+    norms = np.linalg.norm(X, axis=0)
+    _, singular, vt = np.linalg.svd(X / np.where(norms > 0, norms, 1.0), full_matrices=False)
+    condition = singular[0] / singular[-1] if singular[-1] > 0 else math.inf
+    if condition > MAX_CONDITION:
+        names = [PARAMETERS[j] for j in layout.free] + (
+            ["offset"] if layout.n_offsets == 1 else [f"offset of {r.name}" for r in runs]
+        )[: layout.n_offsets]
+        weakest = names[int(np.argmax(np.abs(vt[-1])))]
+        raise ParameterValueError(
+            f"the log does not excite the model: the observation matrix has condition number "
+            f"{condition:.3g} (limit {MAX_CONDITION:g}); {weakest} is the least identifiable "
+            "parameter. Log a run with more varied motion (accelerations and constant speeds "
+            "in both directions)"
+        )

@@ -1,0 +1,195 @@
+r"""The offline estimation loop, generated from the observer's program and compiled by numba.
+
+:func:`offline_kernel` writes the program's rows as straight-line code (as
+:func:`hpdob.export_c` prints them), with the state in local variables and the coefficients
+read once into locals, and compiles it with numba. The code depends only on the program's
+structure (:func:`~hpdob.observers._program.program_structure`: which operand each term reads,
+which terms are unit terms) and on where the velocity comes from, so it is generated and
+compiled once per structure and process, and reused for every design of that structure. Per
+sample it evaluates exactly the sums of :func:`hpdob.simulation._kernel.program_row`, term by
+term left to right (numba does not reassociate or fuse floating-point operations unless asked
+to), so it reproduces the runtime object and the closed-loop kernel bit for bit.
+
+The generated source is saved as a small module under ``~/.cache/hpdob`` (or
+``NUMBA_CACHE_DIR``) so that numba caches its machine code on disk like the package's own
+kernels: only the first process to run a structure compiles it. This module imports numba; it is
+imported on the first offline estimation only.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.util
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from ..observers._program import program_coefficients, program_structure
+from ._checks import immutable
+
+__all__ = ["VELOCITY_DERIVED", "VELOCITY_GIVEN", "VELOCITY_NONE", "offline_kernel", "run"]
+
+#: Where the observer's second measured signal comes from: none (position-only observer), the
+#: log's velocity, or the backward difference of the position computed in the loop.
+VELOCITY_NONE, VELOCITY_GIVEN, VELOCITY_DERIVED = 0, 1, 2
+
+
+def _row(shape, operands, coefficient) -> str:
+    """One row summed left to right, every term ``c * x`` with its signed coefficient, as
+    :func:`~hpdob.simulation._kernel.program_row` computes it (``1.0 * x`` is exact, so a unit
+    term is written ``x`` or ``-x`` without changing a bit)."""
+    if not shape:
+        return "0.0"
+    parts = []
+    for operand, unit in shape:
+        x = operands[operand]
+        if unit:
+            parts.append(("+" if unit > 0 else "-", x))
+        else:
+            parts.append(("+", f"{next(coefficient)} * {x}"))
+    sign, first = parts[0]
+    return ("-" if sign == "-" else "") + first + "".join(f" {s} {x}" for s, x in parts[1:])
+
+
+def kernel_source(structure: tuple, n: int, velocity: int) -> str:
+    """Source of ``run(c, s_init, theta_in, omega_in, u_in, t_in, theta, omega, u, tau_hat,
+    omega_hat, t, Ts)`` for a program of ``structure`` with ``n`` states; ``velocity`` is one of
+    the ``VELOCITY_*`` modes.
+
+    The loop copies the inputs ``*_in`` into non-empty ``theta``, ``omega`` (or writes the
+    backward difference there), ``u`` and ``t`` while it reads them (one pass over the log
+    instead of a copy and a run; an empty output is not written: the input is shared); with an
+    empty ``t_in`` it fills ``t`` with ``k * Ts`` (what ``np.arange(n) * Ts`` gives).
+    """
+    update, output, _ = structure
+    p = 1 if velocity == VELOCITY_NONE else 2
+    state = [f"s{i}" for i in range(n)]
+    operands = [*state, "v0", "v1", "uk"] if p == 2 else [*state, "v0", "uk"]
+    count = sum(1 for rows in (update, output) for r in rows for _, unit in r if not unit)
+    names = [f"c{i}" for i in range(count)]
+    coefficient = iter(names)
+    update_rows = [_row(r, operands, coefficient) for r in update]
+    output_rows = [_row(r, operands, coefficient) for r in output]
+    lines = ["def run(c, s_init, theta_in, omega_in, u_in, t_in, theta, omega, u, tau_hat, "
+             "omega_hat, t, Ts):"]  # fmt: skip
+    lines += [f"    {name} = c[{i}]" for i, name in enumerate(names)]
+    lines += [f"    s{i} = s_init[{i}]" for i in range(n)]
+    lines += [f"    write_{x} = {x}.shape[0] > 0" for x in ("theta", "omega", "u", "t")]
+    lines.append("    copy_time = t_in.shape[0] > 0")
+    if velocity == VELOCITY_DERIVED:
+        lines.append("    previous = theta_in[0] if theta_in.shape[0] > 0 else 0.0")
+    lines.append("    for k in range(theta_in.shape[0]):")
+    lines += ["        if write_t:", "            t[k] = t_in[k] if copy_time else k * Ts"]
+    lines.append("        v0 = theta_in[k]")
+    lines += ["        if write_theta:", "            theta[k] = v0"]
+    if velocity == VELOCITY_GIVEN:
+        lines += [
+            "        v1 = omega_in[k]",
+            "        if write_omega:",
+            "            omega[k] = v1",
+        ]
+    elif velocity == VELOCITY_DERIVED:  # 0 at k = 0: (theta[0] - theta[0]) / Ts
+        lines += ["        v1 = (v0 - previous) / Ts", "        previous = v0",
+                  "        omega[k] = v1"]  # fmt: skip
+    lines.append(f"        tau_hat[k] = {output_rows[0]}")
+    if len(output_rows) > 1:
+        lines.append(f"        omega_hat[k] = {output_rows[1]}")
+    lines += ["        uk = u_in[k]", "        if write_u:", "            u[k] = uk"]
+    lines += [f"        n{i} = {row}" for i, row in enumerate(update_rows)]
+    lines += [f"        s{i} = n{i}" for i in range(n)]
+    return "\n".join(lines) + "\n"
+
+
+def _cache_directory() -> Path:
+    """Where generated loops are kept as modules, for numba's on-disk cache: under
+    ``NUMBA_CACHE_DIR`` if set, else ``~/.cache/hpdob``."""
+    root = os.environ.get("NUMBA_CACHE_DIR") or Path.home() / ".cache"
+    return Path(root) / "hpdob" / "estimate-loops"
+
+
+def _module_function(source: str):
+    """``run`` of ``source`` saved as a module named by its hash (written atomically, so
+    concurrent processes agree), so that numba caches its machine code like that of the
+    package's own kernels; None if the cache directory cannot be written."""
+    name = "hpdob_estimate_" + hashlib.sha256(source.encode()).hexdigest()[:20]
+    try:
+        directory = _cache_directory()
+        path = directory / f"{name}.py"
+        if not path.is_file() or path.read_text(encoding="utf-8") != source:
+            directory.mkdir(parents=True, exist_ok=True)
+            handle, temporary = tempfile.mkstemp(dir=directory, suffix=".tmp")
+            with os.fdopen(handle, "w", encoding="utf-8") as f:
+                f.write(source)
+            os.replace(temporary, path)
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module  # numba's cache refers to the function's module by name
+        spec.loader.exec_module(module)
+    except OSError:
+        return None
+    return numba.njit(nogil=True, cache=True)(module.run)
+
+
+@functools.lru_cache(maxsize=64)
+def offline_kernel(structure: tuple, n: int, velocity: int):
+    """The compiled loop for ``structure``: generated once per process, its machine code cached
+    on disk by numba where the cache directory is writable (else compiled once per process)."""
+    source = kernel_source(structure, n, velocity)
+    kernel = _module_function(source)
+    if kernel is None:
+        namespace: dict = {}
+        exec(compile(source, "<hpdob offline observer>", "exec"), namespace)  # generated above
+        kernel = numba.njit(nogil=True)(namespace["run"])
+    return kernel
+
+
+def run(system, s_init, theta, omega, u, t, velocity: int):
+    """Run ``system`` over the samples (finite float64 vectors of one length; ``omega`` None
+    unless ``velocity`` is ``VELOCITY_GIVEN``, ``t`` None for ``k Ts``).
+
+    Returns
+    -------
+    tuple
+        Arrays ``(theta, omega, u, tau_hat, omega_hat, t)``: the inputs, copied unless they are
+        immutable (:func:`~hpdob.identification._checks.immutable`: then shared; for
+        ``VELOCITY_DERIVED`` ``omega`` is the backward difference of ``theta``, 0 at the
+        first sample; None for ``VELOCITY_NONE``), the outputs (``omega_hat`` None where the
+        observer has none) and the time (``t`` or a copy, or ``k Ts``).
+    """
+    program = system.program
+    kernel = offline_kernel(program_structure(program), system.n_states, velocity)
+    coefficients = np.array(program_coefficients(program)[: _count(program)], dtype=np.float64)
+    n = theta.shape[0]
+    empty = np.empty(0)
+
+    def new(given):  # a new output unless the input can be shared
+        return empty if given is not None and immutable(given) else np.empty(n)
+
+    out = {
+        "theta": new(theta),
+        "omega": empty if velocity == VELOCITY_NONE else new(omega),
+        "u": new(u),
+        "tau_hat": np.empty(n),
+        "omega_hat": np.empty(n) if system.has_velocity else empty,
+        "t": new(t),
+    }
+    kernel(coefficients, np.asarray(s_init, dtype=np.float64), theta,
+           empty if omega is None else omega, u, empty if t is None else t, *out.values(),
+           float(system.Ts))  # fmt: skip
+    given = {"theta": theta, "omega": omega, "u": u, "tau_hat": None, "omega_hat": None, "t": t}
+    return tuple(
+        given[name] if array is empty and given[name] is not None
+        else None if array is empty else array
+        for name, array in out.items()
+    )  # fmt: skip
+
+
+def _count(program) -> int:
+    """Number of non-unit coefficients of the update and output rows (the reset's follow)."""
+    return sum(1 for rows in (program.update, program.output) for terms in rows for t in terms
+               if abs(t.coefficient) != 1.0)  # fmt: skip

@@ -1,0 +1,160 @@
+"""The estimate of a set of regressions: least squares, then the instrumental-variable
+iteration with instruments from the simulated loop or the input-driven model."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._validation import (
+    ParameterValueError,
+)
+from ._design import MAX_CONDITION, Layout, check_design, scaled_condition
+from ._loop import FeedbackLoop, simulate_loop
+from ._regression import (
+    instrument_rows,
+)
+
+__all__ = [
+    "INPUT_LOOP_FRACTION",
+    "MAX_LOOP_MISMATCH",
+    "Solution",
+    "estimate_iv",
+    "input_loop",
+    "relative_error",
+    "simulable",
+    "solve",
+]
+
+#: The correction that keeps the input-driven simulation of ``"idim-iv-input"`` from drifting
+#: has this bandwidth, as a fraction of the decimation filter's cut-off: its noise enters the
+#: instruments' acceleration (1/20)^2 as strongly as the measured position's at the band edge.
+INPUT_LOOP_FRACTION = 0.05
+
+#: ... and by more than this [%] with the IDIM-LS estimate, the loop cannot be the one that
+#: produced the log (EMPS: 0.001 %; the synthetic PD logs of the tests: 0.1-4 %).
+MAX_LOOP_MISMATCH = 50.0
+
+
+def relative_error(measured: np.ndarray, simulated: np.ndarray) -> float:
+    scale = float(np.linalg.norm(measured))
+    error = float(np.linalg.norm(measured - simulated))
+    return 100.0 * error / scale if scale > 0 else (0.0 if error == 0 else math.inf)
+
+
+def simulable(parameters: np.ndarray, iteration: int, name: str = "") -> np.ndarray:
+    """``parameters`` with negative friction set to 0, so that the loop can be simulated.
+
+    ``iteration`` (1 for the IDIM-LS estimate) names the estimate in the error for ``J <= 0``.
+    """
+    if parameters[0] <= 0.0:
+        source = "the IDIM-LS estimate" if iteration == 1 else f"IV iteration {iteration - 1}"
+        raise ParameterValueError(
+            f"IDIM-IV cannot simulate the loop{name}: {source} has J = {parameters[0]:.6g} <= 0; "
+            "the regression is dominated by noise: lower cutoff or raise decimation (or leave "
+            "the filters to method='auto')"
+        )
+    return np.array(
+        [parameters[0], max(parameters[1], 0.0), max(parameters[2], 0.0), parameters[3]]
+    )
+
+
+def estimate_iv(X: np.ndarray, y: np.ndarray, Z: np.ndarray):
+    """IV estimate ``(Z^T X)^-1 Z^T y`` (least squares for ``Z = X``) and its covariance."""
+    theta = np.linalg.lstsq(X, y, rcond=None)[0] if Z is X else np.linalg.solve(Z.T @ X, Z.T @ y)
+    error = y - X @ theta
+    sigma2 = float(error @ error) / (y.size - X.shape[1])
+    A = np.linalg.inv(Z.T @ X)
+    covariance = sigma2 * A @ (Z.T @ Z) @ A.T
+    return theta, covariance
+
+
+def input_loop(theta: np.ndarray, u: np.ndarray, J: float, settings) -> FeedbackLoop:
+    """The loop of ``"idim-iv-input"``: the logged input drives the model, and a slow PD
+    (bandwidth :data:`INPUT_LOOP_FRACTION` x the decimation cut-off, gains from ``J``) pulls it
+    towards the low-passed measured position so that it cannot drift away (an open-loop
+    simulation integrates every error of the offset and friction)."""
+    from scipy import signal
+
+    omega = 2.0 * math.pi * INPUT_LOOP_FRACTION * settings.decimation_cutoff
+    sos = signal.butter(2, omega / (2 * math.pi), fs=1.0 / settings.Ts, output="sos")
+    slow = signal.sosfiltfilt(sos, theta)
+    return FeedbackLoop(
+        slow,
+        kp=J * omega**2,
+        kd=2.0 * J * omega,
+        reference_velocity=np.gradient(slow, settings.Ts),
+        feedforward=u,
+        velocity_filter=None,
+    )
+
+
+@dataclass
+class Solution:
+    estimate: np.ndarray
+    covariance: np.ndarray
+    X: np.ndarray
+    y: np.ndarray  # the input minus what the fixed parameters explain
+    iterations: int
+    converged: bool
+
+
+def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tolerance):
+    """The estimate of one set of regressions: least squares, then the IV iteration."""
+    X = np.vstack([layout.columns(run.regression.X, i) for i, run in enumerate(runs)])
+    y = np.concatenate([run.regression.y - layout.known(run.regression.X) for run in runs])
+    check_design(runs, layout, X)
+    estimate, covariance = estimate_iv(X, y, X)
+    if method == "idim-ls":
+        return Solution(estimate, covariance, X, y, 0, True)
+    converged = False
+    for iteration in range(1, max_iterations + 1):
+        blocks = []
+        for i, run in enumerate(runs):
+            name = f" of {run.name}" if len(runs) > 1 else ""
+            parameters = simulable(layout.parameters(estimate, i), iteration, name)
+            through_loop = run.loop is not None and method == "idim-iv"
+            loop = (
+                run.loop
+                if through_loop
+                else input_loop(run.theta, run.u, parameters[0], run.settings)
+            )
+            simulated, _ = simulate_loop(
+                loop, parameters, Ts=run.Ts, theta0=run.theta[0],
+                velocity0=float(run.regression.velocity[0]),
+            )  # fmt: skip
+            if through_loop and iteration == 1:
+                mismatch = relative_error(run.theta, simulated)
+                if mismatch > MAX_LOOP_MISMATCH:
+                    raise ParameterValueError(
+                        f"loop{name} does not describe the controller that produced the log: "
+                        f"simulated with the IDIM-LS estimate it differs from the logged position "
+                        f"by {mismatch:.3g} % (eq. 11; limit {MAX_LOOP_MISMATCH:g} %); check its "
+                        "reference, gains, velocity filter and units"
+                    )
+            Z = instrument_rows(simulated, run.regression, run.settings)
+            if own_sign:
+                # sign(velocity) is its own instrument: noise changes it only near rest, and
+                # the simulated one jumps with every stick event (IV then does not converge)
+                Z[:, 2] = run.regression.X[:, 2]
+            blocks.append(layout.columns(Z, i))
+        Z = np.vstack(blocks)
+        try:
+            if scaled_condition(Z) > MAX_CONDITION:
+                raise np.linalg.LinAlgError
+            new, covariance = estimate_iv(X, y, Z)
+        except np.linalg.LinAlgError:
+            J, b, c, _ = layout.parameters(estimate, 0)
+            raise ParameterValueError(
+                "IDIM-IV: the instruments from the simulated loop are singular (the loop "
+                f"simulated with J = {J:.6g}, b = {b:.6g}, coulomb = {c:.6g} barely moves or "
+                "never reverses); check the loop's reference, gains and units"
+            ) from None
+        change = np.abs(new - estimate)
+        estimate = new
+        if np.all(change <= tolerance * np.sqrt(np.diag(covariance))):
+            converged = True
+            break
+    return Solution(estimate, covariance, X, y, iteration, converged)

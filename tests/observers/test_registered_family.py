@@ -1,0 +1,270 @@
+"""A family defined only here, registered at run time, works in every layer that designs
+observers by name -- with no edit under src/ (issue 20, section 1).
+
+The family: the paper's order-m DOb followed by a first-order low-pass of its estimate,
+``tau_f[k+1] = a tau_f[k] + (1 - a) tau_hat[k]`` with ``a = exp(-filter_bandwidth Ts)``,
+built from the DOb's F, G, H, E, N by hand (as tests/test_protocol.py does for one design).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from hpdob import (
+    PD,
+    Encoder,
+    LinearObserver,
+    ServoModel,
+    compare_observers,
+    design_observer,
+    estimation_response,
+    robust_stability_map,
+    simulate,
+    sweep,
+    tune,
+)
+from hpdob.cli import main
+from hpdob.observers import (
+    Family,
+    Observer,
+    Parameter,
+    design_from_spec,
+    families,
+    get_family,
+    register_family,
+    spec_of,
+    unregister_family,
+)
+from hpdob.simulation import load_scenario
+
+TS = 1e-3
+NOMINAL = ServoModel(2.8e-4)
+MODEL = NOMINAL.discretize(TS)
+
+
+@dataclass(frozen=True, eq=False)
+class FilteredDesign:
+    model: object
+    order: int
+    bandwidth: float
+    filter_bandwidth: float
+    system: LinearObserver
+
+
+def design_filtered(model, *, order: int = 0, bandwidth: float, filter_bandwidth: float):
+    """The DOb of ``order`` at ``bandwidth`` [rad/s], its estimate low-pass filtered."""
+    if not filter_bandwidth > 0:
+        raise ValueError(f"filter_bandwidth must be positive [rad/s], got {filter_bandwidth!r}")
+    dob = design_observer(model, order=order, bandwidth=bandwidth).system
+    a = math.exp(-filter_bandwidth * model.Ts)
+    n = dob.F.shape[0]
+    F = np.block([[dob.F, np.zeros((n, 1))], [(1 - a) * dob.H, np.array([[a]])]])
+    G = np.vstack([dob.G, (1 - a) * dob.E])
+    H = np.hstack([np.zeros((1, n)), [[1.0]]])
+    N = np.vstack([dob.N, [0.0, 0.0, 1.0]])  # converged on tau0: the filter holds tau0 too
+    system = LinearObserver(
+        F=F, G=G, H=H, E=np.zeros((1, 3)), N=N, Ts=model.Ts, model=model, name=f"DOb m={order} + LP"
+    )
+    return FilteredDesign(model, order, bandwidth, filter_bandwidth, system)
+
+
+FILTERED = Family(
+    name="dob_lp",
+    design=design_filtered,
+    parameters=(
+        Parameter("order", "int", "truncation order of the DOb"),
+        Parameter("bandwidth", "float", "DOb bandwidth [rad/s]"),
+        Parameter("filter_bandwidth", "float", "low-pass bandwidth [rad/s]"),
+    ),
+    required=("bandwidth", "filter_bandwidth"),
+    order="order",
+    tuned="bandwidth",
+    designs=(FilteredDesign,),
+    spec_of=lambda d: {
+        "order": d.order,
+        "bandwidth": d.bandwidth,
+        "filter_bandwidth": d.filter_bandwidth,
+    },
+    label=lambda spec: f"DOb m={spec.get('order', 0)} + LP",
+    title="a DOb followed by a first-order low-pass (defined in a test)",
+    variants={"filtered": {"filter_bandwidth": 2000.0}},
+    orders=(0, 1),
+    compared={"DOb + LP": {"order": 0, "filter_bandwidth": 2000.0}},
+)
+
+
+@pytest.fixture
+def registered():
+    register_family(FILTERED)
+    yield FILTERED
+    unregister_family("dob_lp")
+
+
+def test_registration_is_undone_by_the_fixture():
+    assert "dob_lp" not in [f.name for f in families()]
+
+
+def test_spec_round_trip_and_runtime(registered):
+    design = design_from_spec(
+        MODEL, {"type": "dob_lp", "bandwidth": 150.0, "filter_bandwidth": 300.0}
+    )
+    spec = spec_of(design)
+    assert spec == {"type": "dob_lp", "order": 0, "bandwidth": 150.0, "filter_bandwidth": 300.0}
+    again = design_from_spec(MODEL, spec)
+    np.testing.assert_array_equal(again.system.F, design.system.F)
+    assert type(Observer.of(design)) is Observer
+    # Q is the DOb's times the low-pass (an independent check of the construction)
+    dob = design_observer(MODEL, order=0, bandwidth=150.0)
+    f = np.array([1.0, 20.0])
+    z = np.exp(1j * 2 * np.pi * f * TS)
+    a = math.exp(-300.0 * TS)
+    np.testing.assert_allclose(
+        estimation_response(design, f), estimation_response(dob, f) * (1 - a) / (z - a), rtol=1e-9
+    )
+
+
+def test_register_refuses_a_taken_name_and_clashing_kinds(registered):
+    with pytest.raises(ValueError, match="'dob_lp' is already registered"):
+        register_family(FILTERED)
+    clash = Family("clash", design_filtered, (Parameter("order", "float"), Parameter("bandwidth")))
+    with pytest.raises(ValueError, match="parameter 'order' is a 'float'"):
+        register_family(clash)
+    assert get_family("dob_lp") is FILTERED
+
+
+def test_hpdob_design_and_export_c_cli(registered, capsys, tmp_path):
+    argv = [
+        "design",
+        "--type",
+        "dob_lp",
+        "--order",
+        "1",
+        "--bandwidth",
+        "150",
+        "--filter-bandwidth",
+        "300",
+        "--json",
+    ]
+    assert main(argv) == 0
+    summary = json.loads(capsys.readouterr().out)
+    expected = design_filtered(MODEL, order=1, bandwidth=150.0, filter_bandwidth=300.0)
+    np.testing.assert_array_equal(np.array(summary["F"]), expected.system.F)
+    options = ["--type", "dob_lp", "--bandwidth", "150", "--filter-bandwidth", "300"]
+    assert main(["export-c", *options, "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
+    assert sorted(p.suffix for p in tmp_path.iterdir()) == [".c", ".h"]
+    # an option of another family is refused with the generic message
+    assert (
+        main(["design", "--type", "dob_lp", "--filter-bandwidth", "300", "--form", "current"]) == 2
+    )
+    assert "--form applies to --type eso only, not --type dob_lp" in capsys.readouterr().err
+    # and its own option is refused for the built-in families
+    assert main(["design", "--filter-bandwidth", "300"]) == 2
+    assert "--filter-bandwidth applies to --type dob_lp only" in capsys.readouterr().err
+
+
+def test_toml_scenario(registered, tmp_path):
+    path = tmp_path / "filtered.toml"
+    path.write_text(
+        "Ts = 1e-3\nduration = 0.5\n[plant]\nJ = 3.06e-4\nb = 5e-5\n[nominal]\nJ = 2.8e-4\n"
+        "[controller]\nkp = 50.0\nkd = 5.0\n"
+        '[observer]\ntype = "dob_lp"\norder = 1\nbandwidth = 150.0\nfilter_bandwidth = 300.0\n'
+        '[[reference]]\ntype = "step"\ntime = 0.1\namplitude = 1.0\n'
+        '[[disturbance]]\ntype = "step"\ntime = 0.2\namplitude = 0.05\n'
+    )
+    scenario = load_scenario(path)
+    assert scenario.loop.system.name == "DOb m=1 + LP"
+    assert scenario.loop.observer_spec["filter_bandwidth"] == 300.0
+    result = scenario.simulate()
+    fixed = design_filtered(MODEL, order=1, bandwidth=150.0, filter_bandwidth=300.0)
+    direct = simulate(scenario.loop.replace(observer=fixed), **scenario.run)
+    np.testing.assert_array_equal(result.tau_hat, direct.tau_hat)
+    assert abs(result.tau_hat[-1] - result.tau_dn[-1]) < 1e-3  # converged on the step
+    bad = path.read_text().replace("filter_bandwidth = 300.0", "filter_width = 300.0")
+    path.write_text(bad)
+    with pytest.raises(ValueError, match=r"observer\.filter_width"):
+        load_scenario(path)
+
+
+def test_sweep_over_its_parameters(registered):
+    from hpdob.signals import Step
+
+    base = {
+        "plant": ServoModel(3.06e-4, 5e-5),
+        "nominal": NOMINAL,
+        "Ts": TS,
+        "controller": PD(50, 5),
+        "duration": 0.5,
+        "reference": Step(0.1, 1.0),
+        "disturbance": Step(0.2, 0.05),
+        "observer": {"type": "dob_lp", "bandwidth": 150.0, "filter_bandwidth": 300.0},
+    }
+    grid = {"observer.order": [0, 1], "observer.filter_bandwidth": [100.0, 1000.0]}
+    table = sweep(base, grid=grid)
+    assert len(table) == 4
+    assert (table["error"] == "").all() and table["stable"].all()
+    assert table["rms_estimation_error"].nunique() == 4  # each scenario designed its observer
+    # the scenario order=1, filter_bandwidth=1000 is what the direct design gives
+    direct = simulate(
+        **{k: v for k, v in base.items() if k != "observer"},
+        observer=design_filtered(MODEL, order=1, bandwidth=150.0, filter_bandwidth=1000.0),
+    )
+    row = table[(table["observer.order"] == 1) & (table["observer.filter_bandwidth"] == 1000.0)]
+    assert row["rms_estimation_error"].item() == direct.metrics()["rms_estimation_error"]
+    # a path of another family does not apply to this spec
+    with pytest.raises(ValueError, match="type 'dob_lp' has no design argument 'form'"):
+        sweep(base, grid={"observer.form": ["current"]})
+
+
+def test_robust_map(registered):
+    smap = robust_stability_map(
+        J_ratio=[0.5, 1.0, 2.0],
+        bandwidth=[50.0, 100.0],
+        observer={"type": "dob_lp", "order": 0, "filter_bandwidth": 2000.0},
+        nominal=NOMINAL,
+        Ts=TS,
+        controller=PD(50, 5),
+    )
+    assert smap.stable.all()
+    assert smap._setting.name == "DOb m=0 + LP"
+    with pytest.raises(ValueError, match="must not give bandwidth"):
+        robust_stability_map(
+            J_ratio=[0.5, 1.0],
+            bandwidth=[50.0],
+            observer={"type": "dob_lp", "bandwidth": 1.0, "filter_bandwidth": 2000.0},
+            nominal=NOMINAL,
+            Ts=TS,
+            controller=PD(50, 5),
+        )
+
+
+def test_compare_observers_default_candidates(registered):
+    table = compare_observers(sensors=("ideal",), duration=0.5)
+    names = [row["observer"] for row in table.rows]
+    assert names[-1] == "DOb + LP" and names[:2] == ["DOb", "HPDOb"]
+    row = table.rows[-1]
+    assert row["family"] == "dob_lp" and row["tuned"] == "bandwidth"
+    assert row["tuning"] == "matched"
+    assert math.isclose(row["noise_gain"], table.noise_gain, rel_tol=1e-3)
+
+
+def test_tune_candidates(registered):
+    from hpdob.signals import Step
+
+    result = tune(
+        nominal=NOMINAL,
+        Ts=TS,
+        sensor=Encoder(16384),
+        families=["filtered"],
+        J_range=(0.9, 1.1),
+        scenario={"reference": Step(0.1, 1.0), "duration": 0.3},
+    )
+    families_seen = {row["family"] for row in result.rows}
+    assert families_seen == {"filtered"}
+    assert {row["order"] for row in result.rows} == {0, 1}
+    assert isinstance(result.design, FilteredDesign)

@@ -1,0 +1,94 @@
+"""Long traces in and out (issue 25): the column-wise CSV writer gives the bytes of the csv
+module with repr, Parquet logs are read row group by row group into arrays held once, and long
+traces are drawn as their envelope."""
+
+from __future__ import annotations
+
+import csv
+
+import numpy as np
+import pytest
+
+from hpdob._plotting import envelope
+from hpdob._table import columns_to_csv
+
+
+def csv_module_text(columns: dict, path) -> bytes:
+    """The reference: the csv module's default dialect, every value ``repr(float(v))``."""
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
+        writer.writerow(list(columns))
+        writer.writerows(
+            [repr(float(v)) for v in row] for row in zip(*columns.values(), strict=True)
+        )
+    return path.read_bytes()
+
+
+def test_column_wise_csv_is_byte_for_byte_the_csv_modules(tmp_path):
+    pytest.importorskip("pyarrow")
+    rng = np.random.default_rng(7)
+    n = 70_001  # several chunks and a partial one
+    bits = rng.integers(0, 2**64, size=n, dtype=np.uint64).view(np.float64)  # every kind
+    special = np.array([0.0, -0.0, 1.0, -1.0, 0.1, 1e-5, 1e-4, 9.999e-5, 1e15, 1e16, 1e17,
+                        123456789012345678.0, 1234567890123456.7, 5e-324, 2.2250738585072014e-308,
+                        1.7976931348623157e308, np.nan, -np.nan, np.inf, -np.inf, 2.0**60,
+                        1e22, 1e100, 1e-100, 0.5, 100.0, 12.5])  # fmt: skip
+    noise = rng.standard_normal(n) * 10.0 ** rng.integers(-30, 30, n)
+    columns = {
+        "t": np.arange(n) * 1e-3,
+        "bits": np.where(np.isfinite(bits), bits, 0.0),
+        "special": np.resize(special, n),
+        "noise": noise,
+        "walk": np.cumsum(rng.standard_normal(n)) * 1e-4,
+    }
+    got = columns_to_csv(columns, tmp_path / "fast.csv").read_bytes()
+    assert got == csv_module_text(columns, tmp_path / "reference.csv")
+
+
+def test_short_and_mixed_tables_keep_the_csv_module(tmp_path):
+    columns = {"name": ["a", "b"], "flag": [True, False], "count": [1, 2], "x": [0.5, 1e-7]}
+    text = columns_to_csv(columns, tmp_path / "table.csv").read_bytes().decode()
+    assert text == "name,flag,count,x\r\na,true,1,0.5\r\nb,false,2,1e-07\r\n"
+
+
+def test_parquet_log_is_read_by_row_groups_and_held_once(tmp_path):
+    pa = pytest.importorskip("pyarrow")
+    pq = pytest.importorskip("pyarrow.parquet")
+    from hpdob.identification import read_log
+
+    n = 5000
+    t = np.arange(n) * 1e-3
+    theta = np.sin(t)
+    u = np.arange(n, dtype=np.int32)  # an integer column is read as float
+    path = tmp_path / "log.parquet"
+    pq.write_table(pa.table({"t": t, "q": theta, "u": u}), path, row_group_size=1024)
+    assert pq.ParquetFile(path).num_row_groups == 5
+    log = read_log(path, time="t", position="q", input="u")
+    assert np.array_equal(log.t, t) and np.array_equal(log.theta, theta)
+    assert np.array_equal(log.u, u.astype(float)) and log.u.dtype == np.float64
+    assert not log.theta.flags.writeable and log.theta.base is None  # no other copy exists
+    doubled = read_log(path, time="t", position="q", input="u", input_gain=2.0)
+    assert np.array_equal(doubled.u, 2.0 * u)
+    with_null = tmp_path / "null.parquet"
+    pq.write_table(pa.table({"t": t, "q": pa.array([0.0, None] + [1.0] * (n - 2)), "u": u}),
+                   with_null, row_group_size=1024)  # fmt: skip
+    with pytest.raises(ValueError, match=r"position column 'q' has a non-finite sample nan at "
+                                         r"index 1"):  # fmt: skip
+        read_log(with_null, time="t", position="q", input="u")
+
+
+def test_envelope_keeps_short_traces_and_the_extremes_of_long_ones():
+    t = np.arange(1000) * 1e-3
+    y = np.sin(40 * t)
+    same_t, same_y = envelope(t, y)
+    assert same_t is t and same_y is y
+    rng = np.random.default_rng(3)
+    t = np.arange(1_000_003) * 1e-3
+    y = rng.standard_normal(t.size)
+    et, ey = envelope(t, y, samples=2000)
+    assert ey.size == 2 * 1000 + 1_000_003 - 1000 * 1000  # two per run and the remainder
+    assert np.all(np.diff(et) >= 0)  # in time order
+    runs = y[:1_000_000].reshape(1000, 1000)
+    assert np.array_equal(np.sort(ey[:2000].reshape(1000, 2), axis=1),
+                          np.column_stack([runs.min(axis=1), runs.max(axis=1)]))  # fmt: skip
+    assert np.array_equal(ey, y[np.searchsorted(t, et)])  # points of the trace itself

@@ -1,0 +1,151 @@
+"""One loop description (issue 20, section 3): a ServoLoop holds values only -- a spec that
+designs itself on the nominal model, or a fixed design -- and the initial observer state is
+an argument of the run."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from hpdob import PD, DisturbanceObserver, ServoLoop, ServoModel, design_observer, simulate
+from hpdob.observers import design_eso, initial_state
+from hpdob.signals import SmoothStep, Step
+
+TS = 1e-3
+PLANT, NOMINAL = ServoModel(3.06e-4, 5e-5), ServoModel(2.8e-4)
+RUN = {"duration": 1.0, "reference": SmoothStep(0.1, 0.5, 1.0), "disturbance": Step(0.6, 0.05)}
+
+
+def loop(observer):
+    return ServoLoop(plant=PLANT, nominal=NOMINAL, Ts=TS, controller=PD(50, 5),
+                     observer=observer)  # fmt: skip
+
+
+def test_a_spec_designs_itself_on_the_nominal_model_and_again_on_replace():
+    spec = {"type": "eso", "bandwidth": 150.0, "extended_order": 1}
+    servo = loop(spec)
+    assert servo.observer == spec and servo.observer is not spec  # a copy
+    expected = design_eso(NOMINAL.discretize(TS), bandwidth=150.0, extended_order=1)
+    np.testing.assert_array_equal(servo.system.F, expected.system.F)
+    assert servo.observer_spec == spec
+    moved = servo.replace(nominal=ServoModel(3e-4, 1e-4), Ts=2e-3)
+    assert (moved.design.model.J, moved.design.model.b, moved.design.Ts) == (3e-4, 1e-4, 2e-3)
+    result = simulate(servo, **RUN)
+    assert np.array_equal(result.tau_hat, simulate(loop(expected), **RUN).tau_hat)
+
+
+def test_a_bad_spec_is_named():
+    with pytest.raises(ValueError, match=r"observer\.bogus"):
+        loop({"order": 1, "bandwidth": 100.0, "bogus": 1})
+    with pytest.raises(ValueError, match=r"observer\.type must be one of"):
+        loop({"type": "nope"})
+
+
+def test_a_runtime_observer_is_held_as_its_design_and_its_state():
+    model = NOMINAL.discretize(TS)
+    runtime = DisturbanceObserver(model, order=1, bandwidth=100.0)
+    runtime.reset(x0=(0.0, 0.0), tau0=0.02)
+    servo = loop(runtime)
+    assert servo.observer is runtime.design  # a value, not the mutable object
+    assert servo.observer_state == tuple(runtime.state.tolist())
+    runtime.reset(x0=(0.0, 0.0), tau0=0.0)  # changing the object does not change the loop
+    assert servo.observer_state != tuple(runtime.state.tolist())
+
+
+def test_the_initial_observer_state_is_an_argument_of_the_run():
+    design = design_observer(NOMINAL.discretize(TS), order=1, bandwidth=100.0)
+    state = initial_state(design, x0=(0.0, 0.0), tau0=0.02)
+    runtime = DisturbanceObserver(NOMINAL.discretize(TS), order=1, bandwidth=100.0)
+    runtime.reset(x0=(0.0, 0.0), tau0=0.02)
+    by_argument = simulate(loop(design), **RUN, observer_state=state)
+    by_object = simulate(loop(runtime), **RUN)
+    assert np.array_equal(by_argument.tau_hat, by_object.tau_hat)
+    assert by_argument.tau_hat[0] == pytest.approx(0.02)
+    assert simulate(loop(design), **RUN).tau_hat[0] == 0.0
+    with pytest.raises(ValueError, match=r"observer_state must be 2 finite floats"):
+        simulate(loop(design), **RUN, observer_state=(0.0, 1.0, 2.0))
+    with pytest.raises(ValueError, match=r"observer_state needs a loop with an observer"):
+        simulate(loop(None), **RUN, observer_state=state)
+
+
+# -- the functions that take a loop ------------------------------------------------------------
+def test_robust_map_of_a_loop_equals_the_keyword_form():
+    from hpdob import robust_stability_map
+
+    grid = {"J_ratio": [0.5, 1.0, 2.0], "bandwidth": [50.0, 200.0]}
+    servo = loop({"order": 1, "bandwidth": 100.0})  # the map replaces the bandwidth
+    by_loop = robust_stability_map(servo, **grid)
+    by_keywords = robust_stability_map(**grid, order=1, nominal=NOMINAL, Ts=TS,
+                                       controller=PD(50, 5))  # fmt: skip
+    assert np.array_equal(by_loop.spectral_radius, by_keywords.spectral_radius)
+    eso = robust_stability_map(loop({"type": "eso", "bandwidth": 80.0, "extended_order": 1}),
+                               **grid)  # fmt: skip
+    assert eso.observer == {"type": "eso", "extended_order": 1} and eso.order == 1
+    with pytest.raises(TypeError, match=r"takes a ServoLoop or the loop's keyword arguments"):
+        robust_stability_map(servo, **grid, nominal=NOMINAL)
+    with pytest.raises(ValueError, match=r"needs order, observer .* or a loop whose observer"):
+        robust_stability_map(loop(None), **grid)
+
+
+def test_compare_observers_in_a_loop():
+    from hpdob import compare_observers, paper
+
+    candidates = {"HPDOb": {"order": 1}, "ESO": {"type": "eso"}}
+    parts = {k: v for k, v in paper.scenario().items() if k in ("plant", "nominal", "controller")}
+    paper_loop = ServoLoop(**parts, Ts=paper.TS)
+    default = compare_observers(sensors=("ideal",), candidates=candidates, duration=0.5)
+    same = compare_observers(paper_loop, sensors=("ideal",), candidates=candidates, duration=0.5)
+    assert same.rows == default.rows
+    heavy = ServoLoop(plant=ServoModel(3.06e-3, 5e-4, coulomb=0.1), nominal=ServoModel(2.8e-3),
+                      Ts=TS, controller=PD(50, 5, feedforward=True))  # fmt: skip
+    table = compare_observers(heavy, sensors=("ideal",), candidates=candidates, duration=0.5)
+    assert all(r["tuning"] == "matched" and not r["diverged"] for r in table.rows)
+    # the disturbance scales with J_n (the same acceleration, ten times the torque), and so
+    # does the estimation error, roughly
+    ratio = [b["rms_estimation_error"] / a["rms_estimation_error"]
+             for a, b in zip(default.rows, table.rows, strict=True)]  # fmt: skip
+    assert all(5 < r < 50 for r in ratio), ratio
+
+
+def test_tune_of_a_loop_equals_the_keyword_form():
+    from hpdob import Encoder, tune
+
+    run = {"J_range": (0.9, 1.1), "families": ["state"], "coulomb": 0.0,
+           "scenario": {"reference": Step(0.1, 1.0), "duration": 0.3}}  # fmt: skip
+    servo = ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=PD(50, 5),
+                      sensor=Encoder(16384))  # fmt: skip
+    by_loop = tune(servo, **run)
+    by_keywords = tune(nominal=NOMINAL, Ts=TS, controller=PD(50, 5), sensor=Encoder(16384),
+                       **run)  # fmt: skip
+    keys = ("family", "order", "parameter", "value", "accuracy", "tau_noise")
+    assert [by_loop.recommended[k] for k in keys] == [by_keywords.recommended[k] for k in keys]
+    assert len(by_loop.rows) == len(by_keywords.rows)
+
+
+def test_sweep_of_a_scenario_file(tmp_path):
+    from pathlib import Path
+
+    from hpdob import sweep
+    from hpdob.simulation import load_scenario
+
+    example = Path(__file__).parent.parent / "examples" / "canonical_hpdob.toml"
+    path = tmp_path / "short.toml"
+    path.write_text(example.read_text().replace("duration = 10.0", "duration = 1.0"))
+    scenario = load_scenario(path)
+    table = sweep(scenario, grid={"observer.bandwidth": [100.0, 150.0]}, progress=False)
+    assert (table["error"] == "").all()
+    direct = scenario.simulate()
+    assert table["rms_estimation_error"][0] == direct.metrics()["rms_estimation_error"]
+
+
+def test_hpdob_compare_for_another_motor(tmp_path, capsys):
+    import json
+
+    from hpdob.cli import main
+
+    out = tmp_path / "cmp"
+    code = main(["compare", "--J-n", "2.8e-3", "--sensor", "ideal", "--no-plot",
+                 "--out", str(out)])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    rows = json.loads((out / "comparison.json").read_text())["rows"]
+    assert all(not r["diverged"] for r in rows)
