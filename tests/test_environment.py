@@ -172,17 +172,17 @@ value = -0.05
     path = tmp_path / "wall.toml"
     path.write_text(text)
     scenario = load_scenario(path)
-    assert scenario["plant"].environment == Environment(10.0, damping=0.02, position=0.01)
+    assert scenario.loop.plant.environment == Environment(10.0, damping=0.02, position=0.01)
     bad = tmp_path / "bad.toml"
     bad.write_text(text.replace("stiffness = 10.0", "stiffness = -10.0"))
     with pytest.raises(ParameterValueError, match=r"^plant\.environment\.stiffness must be"):
         load_scenario(bad)
-    loop = _open_loop(scenario["plant"])
+    loop = _open_loop(scenario.loop.plant)
     base = {"loop": loop, "reference": _zero, "disturbance": _push(0.05), "duration": 1.0}
     table = sweep(base, grid={"plant.environment.stiffness": [10.0, 5.0]})
     assert len(table) == 2
     for k_e in (10.0, 5.0):
-        direct = simulate(loop.replace(plant=scenario["plant"].replace(
+        direct = simulate(loop.replace(plant=scenario.loop.plant.replace(
             environment=Environment(k_e, damping=0.02, position=0.01))), reference=_zero,
             disturbance=_push(0.05), duration=1.0)  # fmt: skip
         assert direct.theta[-1] == pytest.approx(0.01 + 0.05 / k_e, rel=1e-6)

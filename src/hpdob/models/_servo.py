@@ -69,7 +69,7 @@ class ServoModel(Plant):
     _: KW_ONLY
     coulomb: float = 0.0
     coulomb_velocity: float = 0.01
-    environment: Environment | None = None
+    environment: Environment | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         J = positive(self.J, "J", "a positive finite inertia [kg m^2]")
@@ -246,7 +246,7 @@ class ServoModel(Plant):
         --------
         >>> from hpdob import ServoModel
         >>> ServoModel(2.8e-4).replace(b=1e-4)
-        ServoModel(J=0.00028, b=0.0001, coulomb=0.0, coulomb_velocity=0.01, environment=None)
+        ServoModel(J=0.00028, b=0.0001, coulomb=0.0, coulomb_velocity=0.01)
         """
         return replace_parameters(self, changes)
 

@@ -92,7 +92,7 @@ class TwoMassServo(Plant):
     b_load: float = 0.0
     coulomb: float = 0.0
     coulomb_velocity: float = 0.01
-    environment: Environment | None = None
+    environment: Environment | None = field(default=None, repr=False)
 
     state_names = ("theta", "omega", "theta_load", "omega_load")
 
