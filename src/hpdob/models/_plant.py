@@ -198,7 +198,13 @@ class PlantSession(ABC):
 
     @abstractmethod
     def motor(self) -> tuple[float, float]:
-        """The motor's angle [rad] and velocity [rad/s] now."""
+        """The motor's angle [rad] and velocity [rad/s] now.
+
+        Returns
+        -------
+        tuple of float
+            ``(theta, omega)``.
+        """
 
     @abstractmethod
     def acceleration(self, applied: float, tau: float) -> float:

@@ -371,6 +371,11 @@ class Scenario:
     def keys(self):
         """Refused: a Scenario is not simulate()'s keyword arguments (see the message).
 
+        Returns
+        -------
+        None
+            Never: it always raises.
+
         Raises
         ------
         TypeError
