@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_interrupts import start_paused
 
 from hpdob import paper
 from hpdob.cli import main
-from test_interrupts import start_paused
 
 POSIX = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 
