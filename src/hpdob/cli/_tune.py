@@ -9,6 +9,7 @@ from typing import ClassVar
 
 from ._errors import CLIError
 from ._options import add_nominal_arguments, finite, output_path, reject_plant_arguments
+from ._progress import ProgressLine, show_progress
 from ._ranges import check_uncertainty_ranges
 
 __all__ = ["register"]
@@ -98,7 +99,7 @@ def _run(args: argparse.Namespace) -> int:
         sensor = Encoder(args.counts_per_rev or 2**31, noise_std=args.noise_std)
     check_uncertainty_ranges(args.J_range, args.b_range, J_n=args.J_n, b_n=args.b_n)
     families = None if args.families is None else [f.strip() for f in args.families.split(",")]
-    show = sys.stderr.isatty() if args.progress is None else args.progress
+    show = show_progress(args.progress)
     result = tune(
         nominal=ServoModel(args.J_n, args.b_n),
         Ts=args.Ts,
@@ -144,7 +145,8 @@ def _run(args: argparse.Namespace) -> int:
 
 
 class _Progress:
-    """``tune``'s progress on one line of a terminal: the stage and its share done."""
+    """``tune``'s progress on one line of a terminal: the stage, its share done and (from the
+    stage's elapsed time) an estimate of its time left; a line per stage."""
 
     NAMES: ClassVar[dict] = {
         "analysis": "analysing candidates",
@@ -152,10 +154,16 @@ class _Progress:
         "verification": "verifying at the corners",
     }
 
-    def __init__(self, stream):
-        self.stream = stream
+    def __init__(self, stream, clock=None):
+        self.stream, self.clock = stream, clock
+        self.stage, self.line, self.last = None, None, (0, 0)
 
     def __call__(self, stage: str, done: int, total: int) -> None:
-        end = "\n" if stage == "verification" and done == total else ""
-        self.stream.write(f"\r\x1b[Ktune: {self.NAMES[stage]} {done}/{total}{end}")
-        self.stream.flush()
+        if stage != self.stage:  # a new stage: its own clock and line
+            if self.line is not None and self.last[0] < self.last[1]:
+                self.stream.write("\n")
+            kwargs = {} if self.clock is None else {"clock": self.clock}
+            self.line = ProgressLine(f"tune: {self.NAMES[stage]}", self.stream, **kwargs)
+            self.stage = stage
+        self.last = (done, total)
+        self.line(done, total)
