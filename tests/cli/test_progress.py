@@ -151,3 +151,40 @@ def test_simulate_notice_leaves_the_results_bit_for_bit(capsys, tmp_path, monkey
     for name in ("metrics.json", "HPDOb-100.csv"):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
     assert json.loads((tmp_path / "b" / "metrics.json").read_text())
+
+
+def test_sweep_bar_covers_a_million_scenarios_with_time_left(monkeypatch):
+    # The sweep's tqdm bar (issue 16) counts scenarios against the total and shows
+    # elapsed<remaining; its line at a chosen elapsed time is formatted, not timed.
+    from hpdob.simulation import _sweep
+
+    stream = io.StringIO()
+    monkeypatch.setattr(_sweep.sys, "stderr", stream)
+    update, close = _sweep._progress_callback(True, 10**6)
+    bar = update.__self__
+    update(250_000)
+    line = bar.format_meter(**{**bar.format_dict, "elapsed": 30.0})
+    close()
+    assert "250000/1000000" in line and "00:30<01:30" in line, line
+    assert "hpdob sweep" in stream.getvalue()
+
+
+def _small_sweep(tmp_path):
+    text = (EXAMPLES / "sweep_bandwidth.toml").read_text()
+    text = text.replace("duration = 10.0", "duration = 0.2").replace("n = 20", "n = 1")
+    text = text.replace('"observer.order" = [0, 1, 2]', '"observer.order" = [1]')
+    spec = tmp_path / "sweep.toml"
+    spec.write_text(text)
+    return spec
+
+
+def test_cli_sweep_progress_flag(capsys, tmp_path):
+    spec = _small_sweep(tmp_path)
+    assert main(["sweep", str(spec), "--out", str(tmp_path / "a.csv"), "--workers", "1",
+                 "--progress"]) == 0  # fmt: skip
+    out, err = capsys.readouterr()
+    assert "hpdob sweep" in err and "4/4" in err and "4/4" not in out
+    assert main(["sweep", str(spec), "--out", str(tmp_path / "b.csv"), "--workers", "1",
+                 "--no-progress"]) == 0  # fmt: skip
+    assert "4/4" not in capsys.readouterr().err
+    assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
