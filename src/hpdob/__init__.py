@@ -31,6 +31,8 @@ Encoder, Actuator, simulate, SimulationResult
     Sampled-data closed-loop simulation (continuous plant, sampled PD, DOb inner loop).
 TwoMassServo
     Motor and load coupled by a torsional spring and damper (a resonant drive), as ``plant=``.
+Environment
+    A unilateral spring-damper contact the axis (or the load) presses against.
 MujocoServo
     A servo (optionally with a pendulum link) simulated by MuJoCo, as ``plant=`` of
     ``simulate`` and ``sweep``; MuJoCo is imported only when a model is built.
@@ -93,6 +95,7 @@ _LAZY = {
     "identify": ".identification",
     "read_log": ".identification",
     "DiscreteServoModel": ".models",
+    "Environment": ".models",
     "MujocoServo": ".models",
     "ServoModel": ".models",
     "TwoMassServo": ".models",
@@ -161,6 +164,7 @@ __all__ = [
     "DiscreteServoModel",
     "DisturbanceObserver",
     "Encoder",
+    "Environment",
     "EstimationResult",
     "ExtendedStateObserver",
     "FilteredPD",

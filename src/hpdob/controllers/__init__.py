@@ -10,10 +10,14 @@ Controller, controller_system
 PD, FilteredPD, PID, ADRC
     The paper's PD, PD with a filtered derivative, PID with back-calculation anti-windup,
     and linear ADRC (state feedback on its own extended state observer).
+ForceControl, ImpedanceControl
+    Force control without a force sensor: explicit force and impedance control on the
+    reaction-torque estimate ``tau_reac`` (issue 21).
 """
 
 from ._adrc import ADRC
 from ._base import Controller, controller_system
+from ._force import ForceControl, ImpedanceControl
 from ._pd import PD, FilteredPD
 from ._pid import PID
 from ._program import ControllerProgram
@@ -21,6 +25,8 @@ from ._settings import controller_settings
 from ._system import LOOP_SIGNALS, LinearController, ProgramBuilder
 
 #: The controller types of scenario files (``[controller] type = "pid"``).
+#: (ForceControl and ImpedanceControl are not among them yet: a scenario file cannot describe
+#: the reaction-torque observer they read.)
 CONTROLLER_TYPES = {"pd": PD, "pid": PID, "filtered-pd": FilteredPD, "adrc": ADRC}
 
 __all__ = [
@@ -32,6 +38,8 @@ __all__ = [
     "Controller",
     "ControllerProgram",
     "FilteredPD",
+    "ForceControl",
+    "ImpedanceControl",
     "LinearController",
     "ProgramBuilder",
     "controller_settings",

@@ -25,6 +25,8 @@ from ..observers._system import UNITS, LinearObserver, as_system
 from ._c_fixed import design_for, render_fixed
 from ._c_guard import guard_header, guard_helpers, guarded_init, guarded_output, guarded_update
 from ._c_names import _check_directory, _check_prefix
+from ._c_outputs import reaction_declaration, reaction_definition, reaction_steps
+from ._c_outputs import signature as _signature
 from ._controller_c import render_controller
 from ._fixed import FixedPointDesign
 
@@ -79,13 +81,6 @@ def _unused(names: list[str], body: str) -> list[str]:
     return [f"    (void){n};" for n in names if not re.search(rf"\b{n}\b", body)]
 
 
-def _signature(system: LinearObserver, dtype: str, *, with_u: bool) -> str:
-    names = [f"{dtype} {m}" for m in system.measures]
-    if with_u:
-        names.append(f"{dtype} u")
-    return ", ".join(names)
-
-
 def _paper_form(system: LinearObserver) -> bool:
     """Whether ``system`` is the paper's auxiliary-variable observer (order m, measuring the
     state): the comments then cite its equations."""
@@ -123,6 +118,7 @@ def _header(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
     ]
     if system.has_velocity:
         steps.insert(2, (f"omega_hat = {prefix}_velocity(&s, {args});", "velocity [rad/s]"))
+    steps[2:2] = reaction_steps(system, prefix, args)
     step_width = max(len(code) for code, _ in steps) + 2
     loop = "\n".join(f" *   {code:<{step_width}}{note}" for code, note in steps)
     order = ""
@@ -141,6 +137,7 @@ def _header(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
             f"{dtype} {prefix}_velocity({const}{prefix}_state *s, "
             f"{_signature(system, dtype, with_u=False)});\n"
         )
+    velocity_decl += reaction_declaration(system, prefix, dtype, const, meas_doc)
     guard_fields = guard_doc = guard_define = ""
     if guard:
         guard_fields, guard_doc, guard_define = guard_header(prefix, dtype, len(system.outputs))
@@ -265,6 +262,7 @@ def _source(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
 {output_body(1)}
 }}
 """
+    velocity += reaction_definition(system, prefix, dtype, const, output_body)
     helpers = guard_helpers(prefix, dtype, n) if guard else ""
     constants = "\n".join(_constants(system, dtype, init + est + upd + velocity))
     recursion = (

@@ -190,7 +190,7 @@ def identify(
         If IDIM-IV does not converge in ``max_iterations`` or its loop simulation differs
         from the logged position by more than 10 %; with ``diagnostics``, if the identified
         model simulated on the log (through its loop, or open loop from its input) fits its
-        velocity, or through a loop its position, by less than 80 % (MATLAB ``compare``), or
+        velocity, or through a loop its position, by less than 90 % (MATLAB ``compare``), or
         if a parameter moves by more than its standard deviation when the filters' bandwidth
         is doubled or halved. The message says what to try; the result keeps them
         (``warnings``).

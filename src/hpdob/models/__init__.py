@@ -6,10 +6,16 @@ ServoModel, DiscreteServoModel
     Rigid single-axis servo (eq. 1) and its exact zero-order-hold discretisation (eqs. 4-8).
 TwoMassServo, DiscreteTwoMassServo
     Motor and load coupled by a torsional spring and damper, and its exact ZOH discretisation.
+Environment
+    A unilateral spring-damper contact the rigid servo or a two-mass load presses against.
+InContact
+    A plant bonded to its environment: the linear model of the loop in contact.
 MujocoServo
     A servo (optionally with a pendulum link) simulated by MuJoCo, usable as ``plant=``.
 """
 
+from ._contact import InContact
+from ._environment import Environment
 from ._mujoco import MujocoServo
 from ._plant import ExactSubsteps, Plant, PlantSession
 from ._servo import DiscreteServoModel, ServoModel
@@ -18,7 +24,9 @@ from ._two_mass import DiscreteTwoMassServo, TwoMassServo
 __all__ = [
     "DiscreteServoModel",
     "DiscreteTwoMassServo",
+    "Environment",
     "ExactSubsteps",
+    "InContact",
     "MujocoServo",
     "Plant",
     "PlantSession",

@@ -105,6 +105,12 @@ class ExactSubsteps:
         specialised ones hold the state in registers and require its shape (2 states, shared
         external torque; 4 states, external torque on the load; motor velocity at index 1),
         ``"generic"`` (default) runs any state size.
+    environment : Environment or None
+        A unilateral contact (:class:`~hpdob.Environment`) on the state entries
+        ``contact_index`` (angle) and ``contact_index + 1`` (velocity), its torque acting
+        where the external torque does (``D``). Default None.
+    contact_index : int
+        Index of the contacting angle in the state (0: the rigid servo, 2: a two-mass load).
 
     Raises
     ------
@@ -125,6 +131,8 @@ class ExactSubsteps:
     coulomb_velocity: float
     velocity_index: int = 1
     path: str = "generic"
+    environment: object = None
+    contact_index: int = 0
 
     def __post_init__(self):
         if self.path not in SUBSTEP_PATHS:
@@ -157,8 +165,8 @@ class ExactSubsteps:
         substeps : int
             Sub-steps per sample.
         **structure
-            ``shared``, ``internal``, ``J_motor`` and optionally ``path`` and
-            ``velocity_index`` (see the attributes).
+            ``shared``, ``internal``, ``J_motor`` and optionally ``path``,
+            ``velocity_index`` and ``contact_index`` (see the attributes).
 
         Returns
         -------
@@ -169,7 +177,8 @@ class ExactSubsteps:
         full, half = plant.discretize(h), plant.discretize(h / 2)
         return cls(A_h=full.A, B_h=full.B, D_h=full.D, A_half=half.A, B_half=half.B,
                    D_half=half.D, coulomb=plant.coulomb,
-                   coulomb_velocity=plant.coulomb_velocity, **structure)  # fmt: skip
+                   coulomb_velocity=plant.coulomb_velocity,
+                   environment=getattr(plant, "environment", None), **structure)  # fmt: skip
 
 
 def replace_parameters(plant, changes: dict):
@@ -189,7 +198,13 @@ class PlantSession(ABC):
 
     @abstractmethod
     def motor(self) -> tuple[float, float]:
-        """The motor's angle [rad] and velocity [rad/s] now."""
+        """The motor's angle [rad] and velocity [rad/s] now.
+
+        Returns
+        -------
+        tuple of float
+            ``(theta, omega)``.
+        """
 
     @abstractmethod
     def acceleration(self, applied: float, tau: float) -> float:

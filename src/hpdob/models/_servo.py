@@ -8,6 +8,7 @@ from dataclasses import KW_ONLY, dataclass, field
 import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive, readonly
+from ._environment import Environment, check_environment
 from ._plant import ExactSubsteps, Plant, coulomb_substeps, replace_parameters
 
 __all__ = ["DiscreteServoModel", "ServoModel"]
@@ -37,6 +38,10 @@ class ServoModel(Plant):
     coulomb_velocity : float, optional
         Velocity scale of the ``tanh`` smoothing of Coulomb friction [rad/s], positive.
         Default 0.01.
+    environment : Environment, optional
+        A unilateral contact the axis presses against (:class:`~hpdob.Environment`, or a dict
+        of its arguments); simulated only (the linear model of ``discretize`` leaves it out).
+        Default None.
 
     Raises
     ------
@@ -64,6 +69,7 @@ class ServoModel(Plant):
     _: KW_ONLY
     coulomb: float = 0.0
     coulomb_velocity: float = 0.01
+    environment: Environment | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         J = positive(self.J, "J", "a positive finite inertia [kg m^2]")
@@ -78,6 +84,7 @@ class ServoModel(Plant):
         object.__setattr__(self, "b", b)
         object.__setattr__(self, "coulomb", coulomb)
         object.__setattr__(self, "coulomb_velocity", velocity)
+        object.__setattr__(self, "environment", check_environment(self.environment))
 
     @classmethod
     def from_lti(cls, sys, *, torque_gain: float = 1.0, name: str = "sys", **friction):
@@ -215,7 +222,8 @@ class ServoModel(Plant):
             The ZOH matrices over ``h = Ts/substeps`` and ``h/2``, and the friction data.
         """
         return ExactSubsteps.of(self, Ts, substeps, shared=True, path="rigid",
-                                internal=np.array([0.0, self.b]), J_motor=self.J)  # fmt: skip
+                                internal=np.array([0.0, self.b]), J_motor=self.J,
+                                contact_index=0)  # fmt: skip
 
     def replace(self, **changes) -> ServoModel:
         """Return a copy with some parameters changed (validated like the constructor).
@@ -223,7 +231,7 @@ class ServoModel(Plant):
         Parameters
         ----------
         **changes
-            New values of ``J``, ``b``, ``coulomb`` or ``coulomb_velocity``.
+            New values of ``J``, ``b``, ``coulomb``, ``coulomb_velocity`` or ``environment``.
 
         Returns
         -------

@@ -8,6 +8,7 @@ from dataclasses import KW_ONLY, dataclass, field
 import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive, readonly
+from ._environment import Environment, check_environment
 from ._plant import ExactSubsteps, Plant, coulomb_substeps, replace_parameters
 
 __all__ = ["DiscreteTwoMassServo", "TwoMassServo"]
@@ -51,6 +52,9 @@ class TwoMassServo(Plant):
         Coulomb friction level of the motor [N m], non-negative. Default 0.
     coulomb_velocity : float, optional
         Velocity scale of the ``tanh`` smoothing of the Coulomb friction [rad/s]. Default 0.01.
+    environment : Environment, optional
+        A unilateral contact the load presses against (:class:`~hpdob.Environment`, or a dict
+        of its arguments); simulated only. Default None.
 
     Raises
     ------
@@ -88,6 +92,7 @@ class TwoMassServo(Plant):
     b_load: float = 0.0
     coulomb: float = 0.0
     coulomb_velocity: float = 0.01
+    environment: Environment | None = field(default=None, repr=False)
 
     state_names = ("theta", "omega", "theta_load", "omega_load")
 
@@ -104,6 +109,7 @@ class TwoMassServo(Plant):
         }
         for name, (check, what) in checks.items():
             object.__setattr__(self, name, check(getattr(self, name), name, what))
+        object.__setattr__(self, "environment", check_environment(self.environment))
         A = self.A_C
         if not np.all(np.isfinite(A)):
             raise ParameterValueError(
@@ -257,7 +263,7 @@ class TwoMassServo(Plant):
         k, c = self.stiffness, self.damping
         return ExactSubsteps.of(self, Ts, substeps, shared=False, path="two-mass",
                                 internal=np.array([k, c + self.b_motor, -k, -c]),
-                                J_motor=self.J_motor)  # fmt: skip
+                                J_motor=self.J_motor, contact_index=2)  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)

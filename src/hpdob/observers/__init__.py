@@ -27,6 +27,7 @@ from ._core import estimate, initial_state, outputs, update
 from ._eso import ESODesign, ExtendedStateObserver, design_eso
 from ._kalman import KalmanDesign, KalmanDisturbanceObserver, design_kalman, kalman_process_noise
 from ._position import PositionObserverDesign
+from ._reaction import reaction_torque_observer
 from ._registry import (
     Family,
     Parameter,
@@ -84,6 +85,7 @@ __all__ = [
     "initial_state",
     "kalman_process_noise",
     "outputs",
+    "reaction_torque_observer",
     "register_family",
     "spec_label",
     "spec_of",

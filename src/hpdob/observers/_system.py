@@ -62,9 +62,11 @@ __all__ = [
 #: ``"position"`` (angle only).
 MEASUREMENTS = {"state": ("theta", "omega"), "position": ("theta",)}
 #: Output sets an observer may have: the estimate, optionally followed by a velocity estimate.
-OUTPUTS = (("tau_hat",), ("tau_hat", "omega_hat"))
+OUTPUTS = (("tau_hat",), ("tau_hat", "omega_hat"), ("tau_hat", "tau_reac"),
+           ("tau_hat", "omega_hat", "tau_reac"))  # fmt: skip
 #: Units of the signals, for messages and generated code.
-UNITS = {"theta": "rad", "omega": "rad/s", "u": "N m", "tau_hat": "N m", "omega_hat": "rad/s"}
+UNITS = {"theta": "rad", "omega": "rad/s", "u": "N m", "tau_hat": "N m", "omega_hat": "rad/s",
+         "tau_reac": "N m"}  # fmt: skip
 
 
 class _Designed:
@@ -146,8 +148,10 @@ class LinearObserver:
         Sampling period [s].
     measures : {("theta", "omega"), ("theta",)}
         Measured signals, in the order of the first columns of ``G`` and ``E``.
-    outputs : {("tau_hat",), ("tau_hat", "omega_hat")}, optional
-        Output signals. Default ``("tau_hat",)``.
+    outputs : tuple of str, optional
+        Output signals: ``("tau_hat",)`` (default), ``("tau_hat", "omega_hat")``, or either
+        followed by ``"tau_reac"``, a reaction-torque estimate [N m]
+        (:func:`hpdob.observers.reaction_torque_observer`).
     model : DiscreteServoModel, optional
         The nominal model the observer was designed on; loops check it against their nominal
         model and ``Ts``. None: only ``Ts`` is checked.
@@ -299,7 +303,7 @@ class LinearObserver:
     @property
     def has_velocity(self) -> bool:
         """Whether the observer outputs a velocity estimate ``omega_hat``."""
-        return len(self.outputs) == 2
+        return "omega_hat" in self.outputs
 
     # -- derived ---------------------------------------------------------------------------
     @functools.cached_property

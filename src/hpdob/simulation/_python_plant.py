@@ -22,7 +22,7 @@ _EMPTY = np.zeros((1, 1))
 #: The plant record of a plant advanced from Python: the kernel stops after step 5.
 _PYTHON_PLANT = LinearPlantRecord(
     False, PATH_GENERIC, 1, _EMPTY, _EMPTY[0], _EMPTY[0], _EMPTY, _EMPTY[0], _EMPTY[0], True,
-    np.zeros(2), 1.0, 0.0, 1.0,
+    np.zeros(2), 1.0, 0.0, 1.0, False, 0, 1.0, 0.0, 0.0,
 )  # fmt: skip
 
 

@@ -75,6 +75,7 @@ class ObserverRecord(NamedTuple):
     p: int  # measured signals (1 or 2)
     q: int  # outputs: tau_hat first, then others by name (wired to controller inputs)
     velocity_row: int  # the row of omega_hat (recorded), -1 without one
+    reaction_row: int  # the row of tau_reac (recorded), -1 without one
     update_pointer: np.ndarray
     update_coefficient: np.ndarray
     update_operand: np.ndarray
@@ -102,6 +103,9 @@ class Outputs(NamedTuple):
     tau_dn: np.ndarray
     omega_hat: np.ndarray
     states: np.ndarray  # (n, nx) full plant state, or (0, nx) when not recorded
+    tau_contact: np.ndarray  # the environment's contact torque at t_k [N m] (0 without one)
+    in_contact: np.ndarray  # 1.0 where the environment pushes at t_k, else 0.0
+    tau_reac: np.ndarray  # the observer's reaction-torque estimate (0 without one) [N m]
 
 
 class Work(NamedTuple):
@@ -143,3 +147,8 @@ class LinearPlantRecord(NamedTuple):
     J_motor: float
     coulomb: float
     coulomb_velocity: float
+    contact: bool  # a unilateral environment on x[contact_index], x[contact_index + 1]
+    contact_index: int
+    contact_stiffness: float  # k_e [N m/rad]
+    contact_damping: float  # c_e [N m s/rad]
+    contact_position: float  # theta_e [rad]

@@ -40,8 +40,9 @@ COLUMNS = {
     "tau_ext": "N m",
 }
 #: Optional columns, present when the run has them: the observer's velocity estimate and the
-#: load side of a two-mass plant.
-OPTIONAL_COLUMNS = {"omega_hat": "rad/s", "theta_load": "rad", "omega_load": "rad/s"}
+#: load side of a two-mass plant, the contact torque of an environment and its in-contact flag.
+OPTIONAL_COLUMNS = {"omega_hat": "rad/s", "theta_load": "rad", "omega_load": "rad/s",
+                    "tau_contact": "N m", "in_contact": "1", "tau_reac": "N m"}  # fmt: skip
 
 
 def json_ready(value):
@@ -112,6 +113,12 @@ class SimulationResult:
     theta_load, omega_load : ndarray or None
         Load angle [rad] and velocity [rad/s] of a :class:`~hpdob.TwoMassServo` (else None);
         ``theta`` and ``omega`` are the motor's.
+    tau_contact, in_contact : ndarray or None
+        Ground truth of a plant with an :class:`~hpdob.Environment` (else None): the contact
+        torque at ``t`` [N m] and 1.0 where the environment pushes at ``t`` (else 0.0).
+    tau_reac : ndarray or None
+        The observer's reaction-torque estimate [N m] (an observer with a ``tau_reac`` output,
+        :func:`hpdob.observers.reaction_torque_observer`; else None).
     Ts : float
         Sampling period [s].
     label : str
@@ -141,6 +148,9 @@ class SimulationResult:
     omega_hat: np.ndarray | None = None
     theta_load: np.ndarray | None = None
     omega_load: np.ndarray | None = None
+    tau_contact: np.ndarray | None = None
+    in_contact: np.ndarray | None = None
+    tau_reac: np.ndarray | None = None
 
     def __post_init__(self):
         n = len(self.t)
@@ -236,8 +246,8 @@ class SimulationResult:
         pathlib.Path
             ``path``. Columns: ``t`` [s], ``theta``, ``omega``, ``theta_measured``,
             ``omega_measured``, ``r``, ``r_dot``, ``r_ddot``, ``u``, ``tau_hat``, ``tau_dn``,
-            ``tau_ext`` (SI units), then ``omega_hat``, ``theta_load``, ``omega_load`` where
-            the run has them.
+            ``tau_ext`` (SI units), then ``omega_hat``, ``theta_load``, ``omega_load``,
+            ``tau_contact``, ``in_contact``, ``tau_reac`` where the run has them.
         """
         return columns_to_csv(self._columns(), path)
 

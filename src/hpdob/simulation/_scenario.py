@@ -22,6 +22,7 @@ from .._validation import (
 )
 from .._waveforms import Chirp, Noise, Sine
 from ..controllers import CONTROLLER_TYPES
+from ..models import Environment
 from ..models._servo import ServoModel
 from ..models._two_mass import TwoMassServo
 from ..observers import Observer, check_spec, design_from_spec, get_family
@@ -267,6 +268,13 @@ def _plant(table: dict):
         raise ParameterValueError(
             f"plant.type must be one of {', '.join(repr(k) for k in PLANT_TYPES)}; got {kind!r}"
         )
+    if "environment" in fields:  # [plant.environment]: errors named plant.environment.*
+        contact = fields["environment"]
+        if not isinstance(contact, dict):
+            raise ParameterTypeError(
+                f"plant.environment must be a table (stiffness, damping, position), got {contact!r}"
+            )
+        fields["environment"] = _build(Environment, contact, "plant.environment")
     return _build(PLANT_TYPES[kind], fields, "plant")
 
 
@@ -362,6 +370,11 @@ class Scenario:
 
     def keys(self):
         """Refused: a Scenario is not simulate()'s keyword arguments (see the message).
+
+        Returns
+        -------
+        None
+            Never: it always raises.
 
         Raises
         ------

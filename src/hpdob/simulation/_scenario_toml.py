@@ -135,6 +135,7 @@ def scenario_toml(loop: ServoLoop, *, reference, duration: float, disturbance=No
     J = 0.00028
     ...
     [observer]
+    type = "dob"
     order = 1
     gain_direction = [1.0, 1.0]
     bandwidth = 100.0

@@ -313,13 +313,21 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
 def _observer_record(system) -> ObserverRecord:
     if system is None:
         empty_i, empty_f = np.zeros(1, dtype=np.int64), np.zeros(0)
-        return ObserverRecord(False, 0, 1, 1, -1, empty_i, empty_f, empty_i[:0], empty_i,
+        return ObserverRecord(False, 0, 1, 1, -1, -1, empty_i, empty_f, empty_i[:0], empty_i,
                               empty_f, empty_i[:0])  # fmt: skip
     update, output, _ = system.kernel_arrays
     outputs = system.outputs
     velocity = outputs.index("omega_hat") if "omega_hat" in outputs else -1
+    reaction = outputs.index("tau_reac") if "tau_reac" in outputs else -1
     return ObserverRecord(
-        True, system.n_states, len(system.measures), len(outputs), velocity, *update, *output
+        True,
+        system.n_states,
+        len(system.measures),
+        len(outputs),
+        velocity,
+        reaction,
+        *update,
+        *output,
     )
 
 
@@ -377,6 +385,9 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     out = Outputs(
         *(np.zeros(n) for _ in range(8)),
         np.zeros((n if nx > 2 else 0, nx)),
+        np.zeros(n),
+        np.zeros(n),
+        np.zeros(n),
     )
     state = observer_state if observer_state is not None else loop.initial_observer_state(x0)
     s = np.array(state if state is not None else (), dtype=float)
@@ -385,11 +396,15 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
                 np.zeros(ctl.n + ctl.p + 1 + ctl.q), np.zeros(5 + records["obs"].q),
                 np.zeros(1), x, x.copy(), np.zeros(1))  # fmt: skip
     sampler = plant.sampler(Ts, S)
+    environment = getattr(plant, "environment", None)
     if isinstance(sampler, ExactSubsteps):
+        wall = sampler.environment
         record = LinearPlantRecord(
             True, sampler.path_index, sampler.velocity_index, sampler.A_h, sampler.B_h, sampler.D_h,
             sampler.A_half, sampler.B_half, sampler.D_half, sampler.shared, sampler.internal,
-            sampler.J_motor, sampler.coulomb, sampler.coulomb_velocity,
+            sampler.J_motor, sampler.coulomb, sampler.coulomb_velocity, wall is not None,
+            sampler.contact_index, *((wall.stiffness, wall.damping, wall.position)
+                                     if wall is not None else (1.0, 0.0, 0.0)),
         )  # fmt: skip
         done = _kernel.run_samples(
             0, n, S, Ts, record, **records, out=out, work=work, limit=DIVERGENCE_LIMIT
@@ -413,6 +428,11 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     extra = {}
     if system is not None and system.has_velocity:
         extra["omega_hat"] = out.omega_hat[keep]
+    if system is not None and "tau_reac" in system.outputs:
+        extra["tau_reac"] = out.tau_reac[keep]
+    if environment is not None:
+        extra["tau_contact"] = out.tau_contact[keep]
+        extra["in_contact"] = out.in_contact[keep]
     names = plant.state_names
     for name in ("theta_load", "omega_load"):
         if name in names and out.states.shape[0]:

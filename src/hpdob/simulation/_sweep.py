@@ -30,7 +30,7 @@ from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import _sample_count, check_run_arguments, run_loop, sample_signals
 from ._sweep_dask import SweepIncomplete, _Incomplete, _run_dask
-from ._sweep_spec import check_paths_apply, expand_scenarios
+from ._sweep_spec import check_paths_apply, expand_scenarios, replaced_plant
 
 __all__ = ["SweepIncomplete", "sweep"]
 
@@ -157,7 +157,7 @@ def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoL
     loop: ServoLoop = base["loop"]
     changes = {}
     if sub("plant."):
-        changes["plant"] = loop.plant.replace(**sub("plant."))
+        changes["plant"] = replaced_plant(loop.plant, sub("plant."))
     if sub("nominal."):
         changes["nominal"] = loop.nominal.replace(**sub("nominal."))
     if sub("controller."):

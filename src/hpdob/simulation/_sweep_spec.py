@@ -15,6 +15,7 @@ __all__ = [
     "MAX_SCENARIOS",
     "check_paths_apply",
     "expand_scenarios",
+    "replaced_plant",
     "sweep_paths",
 ]
 
@@ -28,6 +29,7 @@ LOOP_PATHS = (
     "plant.link_mass", "plant.link_length",
     "plant.J_motor", "plant.J_load", "plant.stiffness", "plant.damping",
     "plant.b_motor", "plant.b_load",
+    "plant.environment.stiffness", "plant.environment.damping", "plant.environment.position",
     "nominal.J", "nominal.b",
     "controller.kp", "controller.kd", "controller.ki", "controller.time_constant",
     "controller.tracking_time", "controller.bandwidth", "controller.observer_bandwidth",
@@ -165,6 +167,17 @@ def expand_scenarios(grid=None, vary=None, n=None, seed=0) -> list[dict]:
     return scenarios
 
 
+def replaced_plant(plant, changes: dict):
+    """``plant.replace(**changes)``, with ``environment.*`` keys applied to its environment
+    (:func:`check_paths_apply` made sure the base plant has one)."""
+    changes = dict(changes)
+    contact = {key[len("environment.") :]: changes.pop(key) for key in list(changes)
+               if key.startswith("environment.")}  # fmt: skip
+    if contact:
+        changes["environment"] = plant.environment.replace(**contact)
+    return plant.replace(**changes)
+
+
 def _replaceable(model) -> set:
     """The parameters ``model.replace`` accepts (a MujocoServo says; dataclasses by fields)."""
     import dataclasses
@@ -190,7 +203,14 @@ def check_paths_apply(paths, loop, spec) -> None:
         if kind in ("plant", "nominal"):
             model = loop.plant if kind == "plant" else loop.nominal
             valid = _replaceable(model)
-            if name not in valid:
+            if name.startswith("environment."):
+                if getattr(model, "environment", None) is None:
+                    why = (
+                        f"the {kind} ({type(model).__name__}) has no environment to vary (give "
+                        f"the base plant one: environment=Environment(...) or "
+                        f"[plant.environment])"
+                    )
+            elif name not in valid:
                 why = (
                     f"a {type(model).__name__} has no parameter {name!r} (it has "
                     f"{', '.join(sorted(valid))})"

@@ -1,0 +1,84 @@
+"""Issue 21's steady-state targets for force control without a force sensor, measured.
+
+The paper's motor (J = 3.06e-4 kg m^2, b = 5e-5 N m s/rad, Coulomb 0.01 N m), its nominal
+model (J_n = 2.8e-4, b_n = 0), a 16384-count encoder with backward-difference velocity, one
+sample of delay and the 0.444 N m torque limit; the HPDOb (order 1, 100 rad/s) as the DOb and,
+sharing it, the RTOB minus the viscous friction beyond b_n (the friction model known);
+ForceControl(kf = 1000, kv = 40). For a stiff (10 N m/rad) and a soft (0.1 N m/rad) wall at
+0 rad and a 0.05 N m step of tau_ref at 0.1 s, it prints the steady-state contact torque as a
+ratio to tau_ref (the reference of the same run), the worst error over the last second, the
+time after which the error stays within 1 %, and the impact peak. Then an impedance run
+(M_d = J_n, D_d = 0.02, K_d = 0.1) against the soft wall with r = 0.5 rad: the rest angle as a
+ratio to the target static deflection K_d r / (K_d + k_e).
+
+    PYTHONPATH=src python benchmarks/bench_force_control.py     # a few seconds
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hpdob import Environment, ServoLoop, design_observer, paper, simulate
+from hpdob.controllers import ForceControl, ImpedanceControl
+from hpdob.observers import reaction_torque_observer
+
+TAU_REF = 0.05
+
+
+def loop(k_e, controller, order=1, bandwidth=100.0):
+    model = paper.NOMINAL.discretize(paper.TS)
+    dob = design_observer(model, order=order, bandwidth=bandwidth)
+    observer = reaction_torque_observer(dob, viscous=paper.PLANT.b - paper.NOMINAL.b)
+    return ServoLoop(plant=paper.PLANT.replace(environment=Environment(k_e)),
+                     nominal=paper.NOMINAL, Ts=paper.TS, observer=observer,
+                     controller=controller, sensor=paper.VIRTUAL_SENSOR,
+                     actuator=paper.VIRTUAL_ACTUATOR)  # fmt: skip
+
+
+def main() -> None:
+    print(f"{'wall [N m/rad]':>15}{'tau_env/tau_ref':>17}{'worst last 1 s':>16}"
+          f"{'within 1 % after [s]':>22}{'peak [N m]':>12}")  # fmt: skip
+    for k_e, duration in ((10.0, 3.0), (0.1, 60.0)):
+        result = simulate(loop(k_e, ForceControl(1000.0, kv=40.0)), duration=duration,
+                          reference=lambda t: (np.where(t >= 0.1, TAU_REF, 0.0), 0 * t, 0 * t),
+                          x0=(-0.01, 0.0))  # fmt: skip
+        error = np.abs(result.tau_contact - TAU_REF) / TAU_REF
+        outside = np.nonzero(error > 0.01)[0]
+        settled = result.t[outside[-1] + 1] if outside.size else 0.0
+        worst = np.max(error[-1000:])
+        print(f"{k_e:>15g}{result.tau_contact[-1] / TAU_REF:>17.6f}{worst:>15.3%}"
+              f"{settled:>22.3f}{result.tau_contact.max():>12.4f}")  # fmt: skip
+    k_e, K_d, r = 0.1, 0.1, 0.5
+    controller = ImpedanceControl(M_d=paper.NOMINAL.J, D_d=0.02, K_d=K_d)
+    result = simulate(loop(k_e, controller), duration=60.0, x0=(-0.01, 0.0),
+                      reference=lambda t: (np.full_like(t, r), 0 * t, 0 * t))  # fmt: skip
+    target = K_d * r / (K_d + k_e)
+    print(
+        f"impedance on the soft wall: theta/target = {result.theta[-1] / target:.6f} "
+        f"(target {target:g} rad, reached {result.theta[-1]:.6f} rad after 60 s)"
+    )
+
+    print(
+        "tracking tau_ref = 0.05 + 0.02 sin(2 pi 2 t) N m on the stiff wall, RMS over 1-3 s "
+        "(RTOB = the DOb, equal bandwidth 100 rad/s):"
+    )
+    print(
+        f"{'observer':>10}{'RMS tau_reac - tau_env [N m]':>30}{'RMS tau_env - tau_ref [N m]':>30}"
+    )
+    for name, order in (("DOb", 0), ("HPDOb", 1)):
+
+        def reference(t):
+            on = t >= 0.1
+            return np.where(on, TAU_REF + 0.02 * np.sin(2 * np.pi * 2 * t), 0.0), 0 * t, 0 * t
+
+        result = simulate(loop(10.0, ForceControl(1000.0, kv=40.0), order=order),
+                          reference=reference, duration=3.0, x0=(-0.01, 0.0))  # fmt: skip
+        window = result.t >= 1.0
+        estimate = result.tau_reac[window] - result.tau_contact[window]
+        tracking = result.tau_contact[window] - result.r[window]
+        print(f"{name:>10}{np.sqrt(np.mean(estimate**2)):>30.3e}"
+              f"{np.sqrt(np.mean(tracking**2)):>30.3e}")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
