@@ -188,3 +188,24 @@ def test_cli_sweep_progress_flag(capsys, tmp_path):
                  "--no-progress"]) == 0  # fmt: skip
     assert "4/4" not in capsys.readouterr().err
     assert (tmp_path / "a.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+
+
+def test_a_line_left_open_is_ended_once():
+    # tune --delay 999 that finds no stable candidate used to print its error after the
+    # progress line, on the same line; the commands now end an open line first.
+    stream = io.StringIO()
+    line = ProgressLine("map", stream, clock=Clock())
+    line(0, 10)
+    line.end()
+    line.end()
+    assert stream.getvalue() == "\r\x1b[Kmap 0/10 (0%)\n"
+    done = io.StringIO()
+    line = ProgressLine("map", done, clock=Clock())
+    line(10, 10)
+    line.end()  # already ended by the last count
+    assert done.getvalue() == "\r\x1b[Kmap 10/10 (100%)\n"
+    stream = io.StringIO()
+    show = cli_tune._Progress(stream, clock=Clock())
+    show("analysis", 3, 72)
+    show.end()
+    assert stream.getvalue() == "\r\x1b[Ktune: analysing candidates 3/72 (4%), about 0 s left\n"

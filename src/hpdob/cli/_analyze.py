@@ -514,17 +514,22 @@ def _stability(args, files) -> list[str]:
     written, summary = [], {"loop": _describe(args), "maps": []}
     show = show_progress(args.progress)
     for m in args.orders:
-        smap = robust_stability_map(
-            **grid,
-            bandwidth=bandwidths,
-            order=m,
-            nominal=ServoModel(args.J_n, args.b_n),
-            Ts=args.Ts,
-            controller=loop["controller"],
-            delay_samples=args.delay,
-            measurement=args.measurement,
-            progress=ProgressLine(f"analyze stability: order {m}") if show else None,
-        )
+        line = ProgressLine(f"analyze stability: order {m}") if show else None
+        try:
+            smap = robust_stability_map(
+                **grid,
+                bandwidth=bandwidths,
+                order=m,
+                nominal=ServoModel(args.J_n, args.b_n),
+                Ts=args.Ts,
+                controller=loop["controller"],
+                delay_samples=args.delay,
+                measurement=args.measurement,
+                progress=line,
+            )
+        finally:  # an error or interrupt message starts on its own line
+            if line is not None:
+                line.end()
         stem = f"stability_{args.parameter}_m{m}" + (f"_delay{args.delay}" if args.delay else "")
         if args.measurement == "position":
             stem += "_position"

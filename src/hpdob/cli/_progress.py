@@ -37,6 +37,7 @@ class ProgressLine:
         self.stream = sys.stderr if stream is None else stream
         self.clock = clock
         self.start = clock()
+        self.open = False  # a line written but not yet ended
 
     def __call__(self, done: int, total: int) -> None:
         now = self.clock()
@@ -48,6 +49,14 @@ class ProgressLine:
         if 0 < done < total:
             left = (now - self.start) * (total - done) / done
             line += f", about {format_seconds(left)} left"
-        end = "\n" if done >= total else ""
-        self.stream.write(f"\r\x1b[K{line}{end}")
+        self.open = done < total
+        self.stream.write(f"\r\x1b[K{line}{'' if self.open else chr(10)}")
         self.stream.flush()
+
+    def end(self) -> None:
+        """End a line left open (the work failed or was interrupted), so that the next
+        message starts on its own line."""
+        if self.open:
+            self.stream.write("\n")
+            self.stream.flush()
+            self.open = False

@@ -99,22 +99,26 @@ def _run(args: argparse.Namespace) -> int:
         sensor = Encoder(args.counts_per_rev or 2**31, noise_std=args.noise_std)
     check_uncertainty_ranges(args.J_range, args.b_range, J_n=args.J_n, b_n=args.b_n)
     families = None if args.families is None else [f.strip() for f in args.families.split(",")]
-    show = show_progress(args.progress)
-    result = tune(
-        nominal=ServoModel(args.J_n, args.b_n),
-        Ts=args.Ts,
-        controller=PD(args.kp, args.kd, velocity="observer"),
-        sensor=sensor,
-        actuator=Actuator(torque_limit=args.torque_limit, delay_samples=args.delay),
-        J_range=args.J_range,
-        b_range=args.b_range,
-        disturbance_frequency=args.frequency,
-        families=families,
-        objective=args.objective,
-        noise_limit=args.noise_limit,
-        coulomb=args.coulomb,
-        progress=_Progress(sys.stderr) if show else None,
-    )
+    progress = _Progress(sys.stderr) if show_progress(args.progress) else None
+    try:
+        result = tune(
+            nominal=ServoModel(args.J_n, args.b_n),
+            Ts=args.Ts,
+            controller=PD(args.kp, args.kd, velocity="observer"),
+            sensor=sensor,
+            actuator=Actuator(torque_limit=args.torque_limit, delay_samples=args.delay),
+            J_range=args.J_range,
+            b_range=args.b_range,
+            disturbance_frequency=args.frequency,
+            families=families,
+            objective=args.objective,
+            noise_limit=args.noise_limit,
+            coulomb=args.coulomb,
+            progress=progress,
+        )
+    finally:  # an error or interrupt message starts on its own line
+        if progress is not None:
+            progress.end()
     loop = result.loop()
     scenario = scenario_toml(
         loop, label="tuned", **result.scenario,
@@ -156,14 +160,17 @@ class _Progress:
 
     def __init__(self, stream, clock=None):
         self.stream, self.clock = stream, clock
-        self.stage, self.line, self.last = None, None, (0, 0)
+        self.stage, self.line = None, None
 
     def __call__(self, stage: str, done: int, total: int) -> None:
         if stage != self.stage:  # a new stage: its own clock and line
-            if self.line is not None and self.last[0] < self.last[1]:
-                self.stream.write("\n")
+            self.end()
             kwargs = {} if self.clock is None else {"clock": self.clock}
             self.line = ProgressLine(f"tune: {self.NAMES[stage]}", self.stream, **kwargs)
             self.stage = stage
-        self.last = (done, total)
         self.line(done, total)
+
+    def end(self) -> None:
+        """End the current stage's line if it is left open."""
+        if self.line is not None:
+            self.line.end()
