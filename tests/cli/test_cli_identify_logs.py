@@ -136,3 +136,13 @@ def test_tune_ranges_that_look_like_the_other_kind_are_refused(capsys):
     assert code == 2 and "look like absolute inertias" in err and "--J-range 1,1.25" in err
     code, err = error("--J-n", "2.8e-4", "--b-n", "5e-5", "--b-range", "0.5,2")
     assert code == 2 and "look like ratios" in err and "--b-range 2.5e-05,0.0001" in err
+
+
+def test_library_messages_name_the_commands_options(tmp_path, capsys):
+    """identify()'s keyword spellings become the command's options (issue 26, section 5)."""
+    a = synthetic_log(kind="chirp+prbs", counts=4096, Ts=5e-4, coulomb=0.03, seed=0)
+    fit = write_csv(tmp_path / "fit.csv", t=a.log.t, q=a.log.theta, u=a.log.u)
+    message = _error(capsys, fit, *COLUMNS, "--fix", "J=-1")
+    assert "--fix J" in message and "fixed[" not in message
+    message = _error(capsys, fit, *COLUMNS, "--decimation", "100000")
+    assert "--decimation" in message

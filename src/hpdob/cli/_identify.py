@@ -8,8 +8,10 @@ torque units are ``--loop-kp/--loop-kd``.
 from __future__ import annotations
 
 import argparse
+import re
 from pathlib import Path
 
+from .._validation import ParameterTypeError, ParameterValueError
 from ._design import _integer, _number_list
 from ._errors import CLIError
 from ._logs import add_log_arguments, log_from_args, logs_from_args
@@ -241,6 +243,30 @@ def _stem(log) -> str:
     return Path(log.source.split(" run ")[0]).stem
 
 
+#: identify()'s keyword spellings in its messages and hints, and the options that set them.
+_CLI_WORDS = [
+    (re.compile(r"fixed\[['\"](\w+)['\"]\]"), r"--fix \1"),
+    (re.compile(r"\bmethod='([\w-]+)'"), r"--method \1"),
+    (re.compile(r"\bfriction='([\w+-]+)'"), r"--friction \1"),
+    (re.compile(r"\boffsets='(\w+)'"), r"--offsets \1"),
+    (re.compile(r"\bfixed=\{[^}]*\}"), "--fix NAME=VALUE"),
+    (re.compile(r"\bloop="), "the loop options (--kp/--kd with --J-n, or --loop-kp/--loop-kd)"),
+    (re.compile(r"\bmin_speed\b"), "--min-speed"),
+    (re.compile(r"(?<![-\w])decimation\b(?= ?[=<>]| must)"), "--decimation"),
+    (re.compile(r"(?<![-\w])cutoff\b(?= ?[=<>]| must)"), "--cutoff"),
+    (re.compile(r"(?<![-\w])border\b(?= ?[=<>]| must)"), "--border"),
+    (re.compile(r"(?<![-\w])bandwidth=(?=\d)"), "--bandwidth "),
+]
+
+
+def cli_words(text: str) -> str:
+    """``text`` (a message or hint of :func:`hpdob.identification.identify`) with its keyword
+    spellings replaced by the command's options (``fixed['J']`` -> ``--fix J``, ...)."""
+    for pattern, replacement in _CLI_WORDS:
+        text = pattern.sub(replacement, text)
+    return text
+
+
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
@@ -254,14 +280,17 @@ def _run(args: argparse.Namespace) -> int:
     check_output(args.out or Path("hpdob-results") / f"identify-{_stem(logs[0])}")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", IdentificationWarning)
-        result = identify(
-            logs if len(logs) > 1 else logs[0], method=args.method,
-            loop=loops if len(logs) > 1 else loops[0], bandwidth=args.bandwidth,
-            cutoff=args.cutoff, order=args.order, decimation=args.decimation,
-            border=args.border, min_speed=args.min_speed, friction=args.friction,
-            fixed=dict(args.fix) or None, offsets=args.offsets,
-            diagnostics=not args.no_diagnostics, axis=args.axis or logs[0].axis,
-        )  # fmt: skip
+        try:
+            result = identify(
+                logs if len(logs) > 1 else logs[0], method=args.method,
+                loop=loops if len(logs) > 1 else loops[0], bandwidth=args.bandwidth,
+                cutoff=args.cutoff, order=args.order, decimation=args.decimation,
+                border=args.border, min_speed=args.min_speed, friction=args.friction,
+                fixed=dict(args.fix) or None, offsets=args.offsets,
+                diagnostics=not args.no_diagnostics, axis=args.axis or logs[0].axis,
+            )  # fmt: skip
+        except (ParameterTypeError, ParameterValueError) as err:
+            raise CLIError(cli_words(str(err))) from None
     first = logs[0]
     out = args.out or Path("hpdob-results") / f"identify-{_stem(first)}"
     report = result.to_dict()
@@ -298,7 +327,7 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s")
     if loop_source is not None:
         print(f"loop reference velocity: {loop_source}")
-    print(result.summary())
+    print(cli_words(result.summary()))
     if args.emps:
         p = EMPS_PUBLISHED
         print(

@@ -132,9 +132,11 @@ class ArmLoop:
         The arm that is simulated.
     Ts : float
         Sampling period [s].
-    controller : PD, sequence of PD, or ComputedTorque
-        One :class:`~hpdob.PD` for every joint, one per joint, or computed-torque control on a
-        nominal model (:class:`ComputedTorque`, without per-joint observers).
+    controller : controller, sequence of controllers, or ComputedTorque
+        One controller of the protocol (:class:`~hpdob.PD`, :class:`~hpdob.PID`,
+        :class:`~hpdob.FilteredPD`, :class:`~hpdob.ADRC`, a :class:`~hpdob.LinearController`)
+        for every joint, one per joint, or computed-torque control on a nominal model
+        (:class:`ComputedTorque`, without per-joint observers).
     observers : optional
         Per-joint disturbance observers: None (none), one entry for every joint or a list of
         one per joint (None for a joint without). An entry is an observer spec
