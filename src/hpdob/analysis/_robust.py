@@ -374,6 +374,7 @@ def robust_stability_map(
     sensor: Encoder | None = MISSING,
     measurement: str = "state",
     observer: dict | None = None,
+    progress=None,
 ) -> StabilityMap:
     r"""Closed-loop stability over a grid of model errors and observer bandwidths.
 
@@ -425,6 +426,11 @@ def robust_stability_map(
         :func:`hpdob.observers.kalman_process_noise`). What the map sets is refused in the spec
         (``bandwidth``, ``poles``, a Kalman ``process_noise_std``), and ``measurement`` and
         ``gain_direction`` go in the spec, not beside it.
+    progress : callable, optional
+        Called as ``progress(done, total)`` with the grid points computed so far: once with
+        ``done = 0`` before the first and then after each row of the grid (``total`` = values x
+        bandwidths). Counts only: a display with the time left (``hpdob analyze stability
+        --progress``) keeps its own clock. Default: silent.
 
     Returns
     -------
@@ -468,6 +474,11 @@ def robust_stability_map(
         )
     nominal, Ts, controller = parts["nominal"], parts["Ts"], parts["controller"]
     sensor = parts.get("sensor")
+    if progress is not None and not callable(progress):
+        raise ParameterTypeError(
+            f"progress must be a callable progress(done, total) or None, got {progress!r} of "
+            f"type {type(progress).__name__}"
+        )
     if loop is not None:
         if delay_samples is None:
             delay_samples = loop.actuator.delay_samples
@@ -528,10 +539,14 @@ def robust_stability_map(
     # Validate every plant before computing (ServoModel checks finiteness of J and b).
     check_plants(values, ratio_grid, ratios, frictions, nominal, Ts)
     rho = np.empty((values.size, bandwidths.size))
+    if progress is not None:
+        progress(0, rho.size)
     for i, v in enumerate(values):
         J_r, b_r = (float(v), float(frictions)) if ratio_grid else (float(ratios), float(v))
         for j, design in enumerate(designs):
             rho[i, j] = setting.radius(design, J_r, b_r)
+        if progress is not None:
+            progress((i + 1) * bandwidths.size, rho.size)
     for array in (values, bandwidths, rho):
         array.setflags(write=False)
     return StabilityMap(

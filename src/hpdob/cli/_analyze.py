@@ -288,6 +288,13 @@ def register(subparsers) -> None:
         help="observer bandwidth [rad/s] of your design: a star marks it at the loop's true "
         "plant (--J/--J-n or --b) on each map (default: no mark)",
     )
+    stab.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="grid points done and time left on stderr, per order (default: when stderr is "
+        "a terminal)",
+    )
     for p in (bode, noise, tradeoff, stab):
         p.set_defaults(handler=_run)
 
@@ -490,6 +497,7 @@ def _tradeoff(args, files) -> list[str]:
 def _stability(args, files) -> list[str]:
     from ..analysis._robust import robust_stability_map
     from ..models._servo import ServoModel
+    from ._progress import ProgressLine, show_progress
 
     loop = _loop(args)
     J_ratio = args.J / args.J_n
@@ -504,17 +512,24 @@ def _stability(args, files) -> list[str]:
         else {"J_ratio": J_ratio, "b": values}
     )
     written, summary = [], {"loop": _describe(args), "maps": []}
+    show = show_progress(args.progress)
     for m in args.orders:
-        smap = robust_stability_map(
-            **grid,
-            bandwidth=bandwidths,
-            order=m,
-            nominal=ServoModel(args.J_n, args.b_n),
-            Ts=args.Ts,
-            controller=loop["controller"],
-            delay_samples=args.delay,
-            measurement=args.measurement,
-        )
+        line = ProgressLine(f"analyze stability: order {m}") if show else None
+        try:
+            smap = robust_stability_map(
+                **grid,
+                bandwidth=bandwidths,
+                order=m,
+                nominal=ServoModel(args.J_n, args.b_n),
+                Ts=args.Ts,
+                controller=loop["controller"],
+                delay_samples=args.delay,
+                measurement=args.measurement,
+                progress=line,
+            )
+        finally:  # an error or interrupt message starts on its own line
+            if line is not None:
+                line.end()
         stem = f"stability_{args.parameter}_m{m}" + (f"_delay{args.delay}" if args.delay else "")
         if args.measurement == "position":
             stem += "_position"

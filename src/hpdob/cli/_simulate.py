@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from ._options import output_path
@@ -149,6 +150,7 @@ def _run(args: argparse.Namespace) -> int:
     # The label names the output files: never a path (e.g. "../escaped") nor a hidden name.
     stem = check_file_stem(kwargs.get("label") or args.scenario.stem, "label")
     check_output(out)  # before the run, not after it
+    _announce_size(kwargs)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SimulationDivergedWarning)  # reported below instead
         result = simulate(**kwargs)
@@ -169,3 +171,30 @@ def _run(args: argparse.Namespace) -> int:
         print(f"warning: {result.message}")
         return 1
     return 0
+
+
+#: Plant steps above which ``hpdob simulate`` says on stderr how big the run is before it.
+NOTICE_PLANT_STEPS = 10**7
+
+
+def _announce_size(kwargs) -> None:
+    """One line on stderr before a long run: its plant steps against the per-run limit.
+
+    The run itself is one call of the kernel (its results are bit for bit those of
+    ``simulate``), so the size is stated up front instead of a progress bar.
+    """
+    from ..simulation._simulate import MAX_PLANT_STEPS, _sample_count
+
+    try:
+        n = _sample_count(kwargs["Ts"], kwargs["duration"])
+        substeps = kwargs["plant"].substeps(kwargs["Ts"], kwargs.get("substeps"))
+    except (TypeError, ValueError):
+        return  # simulate() reports it with its own message
+    steps = n * substeps
+    if NOTICE_PLANT_STEPS < steps <= MAX_PLANT_STEPS:
+        print(
+            f"hpdob simulate: a long run of {n} samples x {substeps} substeps = {steps:.3g} "
+            f"plant steps (the limit per run is {MAX_PLANT_STEPS:.0e}); it shows no progress",
+            file=sys.stderr,
+            flush=True,
+        )

@@ -46,6 +46,12 @@ def register(subparsers) -> None:
         metavar="N",
         help="number of local worker threads (default: all cores)",
     )
+    parser.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="a progress bar with the time left on stderr (default: when stderr is a terminal)",
+    )
     parser.set_defaults(handler=_run)
 
 
@@ -64,7 +70,11 @@ def _run(args: argparse.Namespace) -> int:
     base, options = load_sweep(args.spec)
     start = time.perf_counter()
     try:
-        rows = sweep(base, **options, scheduler=args.scheduler or args.workers)
+        rows = sweep(
+            base,
+            **{**options, "progress": args.progress},
+            scheduler=args.scheduler or args.workers,
+        )
     except SweepIncomplete as failure:  # keep the finished rows; say what is missing
         if len(failure.rows):
             _write(failure.rows, args.out)

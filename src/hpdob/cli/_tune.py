@@ -9,6 +9,7 @@ from typing import ClassVar
 
 from ._errors import CLIError
 from ._options import add_nominal_arguments, finite, output_path, reject_plant_arguments
+from ._progress import ProgressLine, show_progress
 from ._ranges import check_uncertainty_ranges
 
 __all__ = ["register"]
@@ -98,22 +99,26 @@ def _run(args: argparse.Namespace) -> int:
         sensor = Encoder(args.counts_per_rev or 2**31, noise_std=args.noise_std)
     check_uncertainty_ranges(args.J_range, args.b_range, J_n=args.J_n, b_n=args.b_n)
     families = None if args.families is None else [f.strip() for f in args.families.split(",")]
-    show = sys.stderr.isatty() if args.progress is None else args.progress
-    result = tune(
-        nominal=ServoModel(args.J_n, args.b_n),
-        Ts=args.Ts,
-        controller=PD(args.kp, args.kd, velocity="observer"),
-        sensor=sensor,
-        actuator=Actuator(torque_limit=args.torque_limit, delay_samples=args.delay),
-        J_range=args.J_range,
-        b_range=args.b_range,
-        disturbance_frequency=args.frequency,
-        families=families,
-        objective=args.objective,
-        noise_limit=args.noise_limit,
-        coulomb=args.coulomb,
-        progress=_Progress(sys.stderr) if show else None,
-    )
+    progress = _Progress(sys.stderr) if show_progress(args.progress) else None
+    try:
+        result = tune(
+            nominal=ServoModel(args.J_n, args.b_n),
+            Ts=args.Ts,
+            controller=PD(args.kp, args.kd, velocity="observer"),
+            sensor=sensor,
+            actuator=Actuator(torque_limit=args.torque_limit, delay_samples=args.delay),
+            J_range=args.J_range,
+            b_range=args.b_range,
+            disturbance_frequency=args.frequency,
+            families=families,
+            objective=args.objective,
+            noise_limit=args.noise_limit,
+            coulomb=args.coulomb,
+            progress=progress,
+        )
+    finally:  # an error or interrupt message starts on its own line
+        if progress is not None:
+            progress.end()
     loop = result.loop()
     scenario = scenario_toml(
         loop, label="tuned", **result.scenario,
@@ -144,7 +149,8 @@ def _run(args: argparse.Namespace) -> int:
 
 
 class _Progress:
-    """``tune``'s progress on one line of a terminal: the stage and its share done."""
+    """``tune``'s progress on one line of a terminal: the stage, its share done and (from the
+    stage's elapsed time) an estimate of its time left; a line per stage."""
 
     NAMES: ClassVar[dict] = {
         "analysis": "analysing candidates",
@@ -152,10 +158,19 @@ class _Progress:
         "verification": "verifying at the corners",
     }
 
-    def __init__(self, stream):
-        self.stream = stream
+    def __init__(self, stream, clock=None):
+        self.stream, self.clock = stream, clock
+        self.stage, self.line = None, None
 
     def __call__(self, stage: str, done: int, total: int) -> None:
-        end = "\n" if stage == "verification" and done == total else ""
-        self.stream.write(f"\r\x1b[Ktune: {self.NAMES[stage]} {done}/{total}{end}")
-        self.stream.flush()
+        if stage != self.stage:  # a new stage: its own clock and line
+            self.end()
+            kwargs = {} if self.clock is None else {"clock": self.clock}
+            self.line = ProgressLine(f"tune: {self.NAMES[stage]}", self.stream, **kwargs)
+            self.stage = stage
+        self.line(done, total)
+
+    def end(self) -> None:
+        """End the current stage's line if it is left open."""
+        if self.line is not None:
+            self.line.end()

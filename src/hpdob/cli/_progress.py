@@ -1,0 +1,62 @@
+"""One-line progress with an estimate of the time left, on stderr (docs/reliability.md).
+
+The library calls back with counts only (``progress(done, total)``); the clock lives here,
+in the command layer, so no algorithm reads the wall clock.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+
+def show_progress(flag) -> bool:
+    """``--progress/--no-progress``, or (not given) whether stderr is a terminal."""
+    return sys.stderr.isatty() if flag is None else bool(flag)
+
+
+def format_seconds(seconds: float) -> str:
+    """``"42 s"``, ``"3 min 05 s"``, ``"2 h 07 min"``: a time left, rounded to the second."""
+    s = max(0, round(seconds))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
+
+
+class ProgressLine:
+    """``label done/total (p%), about T left`` rewritten in place; a newline when done.
+
+    The time left is the elapsed time scaled by the share still to do (items of equal cost);
+    ``clock`` is injectable so that tests check the lines, not the speed.
+    """
+
+    def __init__(self, label: str, stream=None, clock=time.monotonic):
+        self.label = label
+        self.stream = sys.stderr if stream is None else stream
+        self.clock = clock
+        self.start = clock()
+        self.open = False  # a line written but not yet ended
+
+    def __call__(self, done: int, total: int) -> None:
+        now = self.clock()
+        if done == 0:
+            self.start = now
+        line = f"{self.label} {done}/{total}"
+        if total > 0:
+            line += f" ({100 * done // total}%)"
+        if 0 < done < total:
+            left = (now - self.start) * (total - done) / done
+            line += f", about {format_seconds(left)} left"
+        self.open = done < total
+        self.stream.write(f"\r\x1b[K{line}{'' if self.open else chr(10)}")
+        self.stream.flush()
+
+    def end(self) -> None:
+        """End a line left open (the work failed or was interrupted), so that the next
+        message starts on its own line."""
+        if self.open:
+            self.stream.write("\n")
+            self.stream.flush()
+            self.open = False
