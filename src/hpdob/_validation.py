@@ -30,6 +30,7 @@ __all__ = [
     "positive",
     "readonly",
     "require_instance",
+    "shaped_matrix",
 ]
 
 
@@ -266,6 +267,21 @@ def readonly(array: np.ndarray) -> np.ndarray:
     """Mark ``array`` read-only and return it (immutable results hold read-only arrays)."""
     array.setflags(write=False)
     return array
+
+
+def shaped_matrix(value, name: str, shape: tuple, *, empty: bool = False) -> np.ndarray:
+    """A finite real matrix of ``shape`` as a new read-only array (a 1-D row or column is
+    reshaped; with ``empty``, an empty value for a shape with a zero dimension too)."""
+    array = numeric_array(value, name, f"a real matrix of shape {shape}", dtype=float)
+    if (empty and array.size == 0 and 0 in shape) or (
+        array.ndim == 1 and len(shape) == 2 and 1 in shape
+    ):
+        array = array.reshape(shape)
+    if array.shape != shape:
+        raise ParameterValueError(f"{name} must have shape {shape}, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ParameterValueError(f"{name} must have finite entries, got {_show(array)}")
+    return readonly(array)
 
 
 def as_grid(

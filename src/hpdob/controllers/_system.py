@@ -40,7 +40,7 @@ from .._validation import (
     _show,
     numeric_array,
     positive,
-    readonly,
+    shaped_matrix,
 )
 from ..observers import Term
 from ._program import RESET_OPERANDS, ControllerProgram, compile_python
@@ -56,17 +56,6 @@ __all__ = ["LOOP_SIGNALS", "LinearController", "ProgramBuilder"]
 LOOP_SIGNALS = ("r", "r_dot", "r_ddot", "theta", "omega")
 _NAME = re.compile(r"[a-z][a-z0-9_]*\Z")
 _EPS = np.finfo(float).eps
-
-
-def _matrix(value, name: str, shape: tuple) -> np.ndarray:
-    array = numeric_array(value, name, f"a real matrix of shape {shape}", dtype=float)
-    if (array.size == 0 and 0 in shape) or (array.ndim == 1 and len(shape) == 2 and 1 in shape):
-        array = array.reshape(shape)
-    if array.shape != shape:
-        raise ParameterValueError(f"{name} must have shape {shape}, got shape {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise ParameterValueError(f"{name} must have finite entries, got {_show(array)}")
-    return readonly(array)
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,11 +140,11 @@ class LinearController:
         if F.size and (F.ndim != 2 or F.shape[0] != F.shape[1]):
             raise ParameterValueError(f"F must be a square matrix, got shape {F.shape}")
         p = len(inputs)
-        F = _matrix(F, "F", (n, n))
-        G = _matrix(self.G, "G", (n, p + 1))
-        H = _matrix(self.H, "H", (1, n))
-        E = _matrix(self.E, "E", (1, p))
-        N = _matrix(self.N, "N", (n, 3))
+        F = shaped_matrix(F, "F", (n, n), empty=True)
+        G = shaped_matrix(self.G, "G", (n, p + 1), empty=True)
+        H = shaped_matrix(self.H, "H", (1, n), empty=True)
+        E = shaped_matrix(self.E, "E", (1, p), empty=True)
+        N = shaped_matrix(self.N, "N", (n, 3), empty=True)
         Ts = positive(self.Ts, "Ts", "a positive finite sampling period [s]")
         if not isinstance(self.name, str):
             raise ParameterTypeError(f"name must be a str, got {type(self.name).__name__}")

@@ -40,7 +40,7 @@ from .._validation import (
     _show,
     numeric_array,
     positive,
-    readonly,
+    shaped_matrix,
 )
 from ._error_dynamics import ErrorDynamics
 from ._program import RESET_OPERANDS, Program, Term, check_program, compile_python
@@ -103,17 +103,6 @@ class _Designed:
             ("poles", getattr(self, "poles", None)), ("states", system.n_states),
             ("measures", ", ".join(system.measures)), ("outputs", ", ".join(system.outputs)),
         ])  # fmt: skip
-
-
-def _matrix(value, name: str, shape: tuple) -> np.ndarray:
-    array = numeric_array(value, name, f"a real matrix of shape {shape}", dtype=float)
-    if array.ndim == 1 and len(shape) == 2 and 1 in shape:
-        array = array.reshape(shape)
-    if array.shape != shape:
-        raise ParameterValueError(f"{name} must have shape {shape}, got shape {array.shape}")
-    if not np.all(np.isfinite(array)):
-        raise ParameterValueError(f"{name} must have finite entries, got {_show(array)}")
-    return readonly(array)
 
 
 @dataclass(frozen=True, eq=False)
@@ -224,11 +213,11 @@ class LinearObserver:
         if F.ndim != 2 or F.shape[0] != F.shape[1] or F.shape[0] == 0:
             raise ParameterValueError(f"F must be a non-empty square matrix, got shape {F.shape}")
         n, p, q = F.shape[0], len(measures), len(outputs)
-        F = _matrix(F, "F", (n, n))
-        G = _matrix(self.G, "G", (n, p + 1))
-        H = _matrix(self.H, "H", (q, n))
-        E = _matrix(self.E, "E", (q, p + 1))
-        N = _matrix(self.N, "N", (n, 3))
+        F = shaped_matrix(F, "F", (n, n))
+        G = shaped_matrix(self.G, "G", (n, p + 1))
+        H = shaped_matrix(self.H, "H", (q, n))
+        E = shaped_matrix(self.E, "E", (q, p + 1))
+        N = shaped_matrix(self.N, "N", (n, 3))
         if np.any(E[:, -1] != 0.0):
             raise ParameterValueError(
                 "E's last column (feed-through from u) must be zero: the estimate of sample k "
