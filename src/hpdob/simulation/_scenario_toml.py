@@ -94,7 +94,7 @@ def scenario_toml(loop: ServoLoop, *, reference, duration: float, disturbance=No
     Parameters
     ----------
     loop : ServoLoop
-        A rigid or two-mass plant, and an observer of a known family (order-m, ESO, Kalman)
+        A rigid or two-mass plant, and an observer of a known family (any registered one)
         or none.
     reference, disturbance : Signal
         Sums of the signal types of scenario files (``docs/simulation.md``); ``disturbance``
@@ -171,7 +171,7 @@ def scenario_toml(loop: ServoLoop, *, reference, duration: float, disturbance=No
         spec = loop.observer_spec  # the spec given, or that of a design of a registered family
         if spec is None:
             raise ParameterTypeError(
-                "loop.observer must be of a known family (order-m DOb, ESO, Kalman) to be "
+                "loop.observer must be of a known family (hpdob.observers.families()) to be "
                 f"written to a scenario file, got {type(loop.observer).__name__}"
             )
         lines += _table("observer", spec)
