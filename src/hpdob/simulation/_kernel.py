@@ -53,9 +53,6 @@ advanced from Python (MuJoCo) calls :func:`run_samples` for one sample at a time
 stops after step 5 and leaves steps 6-7 to the plant
 (``hpdob.simulation._python_plant``).
 
-:func:`run_observer` runs an observer alone over a logged run (offline estimation) with the
-same program rows (:func:`program_row`) as steps 2 and 4.
-
 The step is written once, inline in the loop: a per-sample call of a numba function taking
 the run's records costs more than the step itself (their arrays are reference-counted at every
 call boundary).
@@ -66,11 +63,10 @@ from __future__ import annotations
 import math
 
 import numba
-import numpy as np
 
 from ._records import PATH_RIGID, PATH_TWO_MASS, SENSOR_ENCODER_EXACT, SENSOR_IDEAL
 
-__all__ = ["ground_truth", "program_row", "run_observer", "run_samples"]
+__all__ = ["ground_truth", "program_row", "run_samples"]
 
 _jit = numba.njit(cache=True, nogil=True)
 
@@ -326,32 +322,3 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
             if not abs(x[i]) <= limit:
                 return k + 1
     return k_stop
-
-
-@_jit
-def run_observer(up_ptr, up_c, up_i, out_ptr, out_c, out_i, measurements, u, s0, q):
-    """An observer alone over a log: its outputs ``(n, q)`` at every sample.
-
-    Per sample: the outputs from the state and the measurement (output rows), then the update
-    with the measurement and ``u[k]`` (update rows) -- the same program rows as the closed
-    loop's steps 2 and 4, in the same order.
-    """
-    n_samples, p = measurements.shape
-    n = s0.shape[0]
-    s = s0.copy()
-    s_new = s0.copy()
-    w = np.zeros(n + p + 1)
-    y = np.zeros((n_samples, q))
-    for k in range(n_samples):
-        for i in range(n):
-            w[i] = s[i]
-        for j in range(p):
-            w[n + j] = measurements[k, j]
-        for row in range(q):
-            y[k, row] = program_row(out_ptr, out_c, out_i, w, row)
-        w[n + p] = u[k]
-        for i in range(n):
-            s_new[i] = program_row(up_ptr, up_c, up_i, w, i)
-        for i in range(n):
-            s[i] = s_new[i]
-    return y
