@@ -213,10 +213,7 @@ class Comparison:
         str or os.PathLike
             ``path``, as given.
         """
-        from .._files import atomic_path
-
-        with atomic_path(path) as temporary:
-            columns_to_csv(self._columns(), temporary)
+        columns_to_csv(self._columns(), path)  # atomic itself: no temporary of a temporary
         return path
 
     def to_dict(self) -> dict:
