@@ -3,7 +3,7 @@
 Run with ``python benchmarks/reliability_audit.py --part second [--verbose]`` (or everything
 with no ``--part``). The outcomes are classified as in reliability_audit.py. The signal, dask
 and stale-temporary findings of issue 27 need subprocesses or a cluster and are tested in
-tests/test_reliability_second_audit.py and tests/cli/test_interrupts.py instead.
+tests/cli/test_reliability_second_audit.py and tests/cli/test_interrupts.py instead.
 """
 
 from __future__ import annotations
