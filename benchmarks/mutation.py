@@ -117,6 +117,9 @@ TARGETS = {
             "tests/simulation/test_simulate.py",
             "tests/models/test_two_mass.py",
             "tests/models/test_plant.py",
+            # the contact force (rigid and two-mass load) and the force loop (issue 21)
+            "tests/models/test_environment.py",
+            "tests/controllers/test_force.py",
         ),
     ),
     "identification.regression": Target(

@@ -173,3 +173,14 @@ def test_bad_matrices_are_named(change, error, pattern):
               "Ts": TS, "model": MODEL, **change}  # fmt: skip
     with pytest.raises(error, match=pattern):
         LinearObserver(**kwargs)
+
+
+@pytest.mark.parametrize("design_Ts", [5e-4, 2e-3])
+def test_a_design_at_another_sampling_period_is_refused_by_the_loop(design_Ts):
+    """The loop runs the observer at its own Ts: a design on nominal.discretize(Ts') with
+    Ts' != Ts is refused, faster or slower (a mutation check of ``model.Ts == Ts``)."""
+    nominal = ServoModel(2.8e-4)
+    design = design_observer(nominal.discretize(design_Ts), order=1, bandwidth=100.0)
+    with pytest.raises(ValueError, match=r"must be designed on nominal\.discretize\(Ts\)"):
+        ServoLoop(plant=nominal, nominal=nominal, Ts=1e-3, controller=PD(50.0, 5.0),
+                  observer=design)  # fmt: skip
