@@ -9,7 +9,9 @@ ForceControl(kf = 1000, kv = 40). For a stiff (10 N m/rad) and a soft (0.1 N m/r
 ratio to tau_ref (the reference of the same run), the worst error over the last second, the
 time after which the error stays within 1 %, and the impact peak. Then an impedance run
 (M_d = J_n, D_d = 0.02, K_d = 0.1) against the soft wall with r = 0.5 rad: the rest angle as a
-ratio to the target static deflection K_d r / (K_d + k_e).
+ratio to the target static deflection K_d r / (K_d + k_e). The two walls are run twice: with
+the viscous friction model only, and with the Coulomb term too (``friction=PLANT``: c tanh(w/v)
+with w the measured velocity low-passed at 100 rad/s).
 
     PYTHONPATH=src python benchmarks/bench_force_control.py     # a few seconds
 """
@@ -25,10 +27,13 @@ from hpdob.observers import reaction_torque_observer
 TAU_REF = 0.05
 
 
-def loop(k_e, controller, order=1, bandwidth=100.0):
+def loop(k_e, controller, order=1, bandwidth=100.0, coulomb=False):
     model = paper.NOMINAL.discretize(paper.TS)
     dob = design_observer(model, order=order, bandwidth=bandwidth)
-    observer = reaction_torque_observer(dob, viscous=paper.PLANT.b - paper.NOMINAL.b)
+    if coulomb:  # the whole friction model known: viscous + c tanh(w/v), w low-passed
+        observer = reaction_torque_observer(dob, friction=paper.PLANT, velocity_filter=100.0)
+    else:
+        observer = reaction_torque_observer(dob, viscous=paper.PLANT.b - paper.NOMINAL.b)
     return ServoLoop(plant=paper.PLANT.replace(environment=Environment(k_e)),
                      nominal=paper.NOMINAL, Ts=paper.TS, observer=observer,
                      controller=controller, sensor=paper.VIRTUAL_SENSOR,
@@ -38,8 +43,12 @@ def loop(k_e, controller, order=1, bandwidth=100.0):
 def main() -> None:
     print(f"{'wall [N m/rad]':>15}{'tau_env/tau_ref':>17}{'worst last 1 s':>16}"
           f"{'within 1 % after [s]':>22}{'peak [N m]':>12}")  # fmt: skip
-    for k_e, duration in ((10.0, 3.0), (0.1, 60.0)):
-        result = simulate(loop(k_e, ForceControl(1000.0, kv=40.0)), duration=duration,
+    for k_e, duration, coulomb in ((10.0, 3.0, False), (0.1, 60.0, False), (10.0, 3.0, True),
+                                   (0.1, 60.0, True)):  # fmt: skip
+        if coulomb and k_e == 10.0:
+            print("with the Coulomb term (friction=PLANT, velocity_filter=100 rad/s):")
+        result = simulate(loop(k_e, ForceControl(1000.0, kv=40.0), coulomb=coulomb),
+                          duration=duration,
                           reference=lambda t: (np.where(t >= 0.1, TAU_REF, 0.0), 0 * t, 0 * t),
                           x0=(-0.01, 0.0))  # fmt: skip
         error = np.abs(result.tau_contact - TAU_REF) / TAU_REF

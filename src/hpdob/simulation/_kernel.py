@@ -11,7 +11,8 @@ Per sample ``k`` (``t_k = k Ts``) the loop runs, for every plant:
    exact velocity);
 2. estimate: the observer's outputs :math:`\hat\tau_k (, \hat\omega_k) = H s_k + E v_k`
    (0 without observer), from its program (:class:`hpdob.observers.Program`), in exactly the
-   operation order of the Python observer and the exported C;
+   operation order of the Python observer and the exported C; then an RTOB's Coulomb term
+   (``LinearObserver.coulomb``) is subtracted from ``tau_reac``;
 3. control: the controller's signal rows in order (:class:`hpdob.controllers.ControllerProgram`),
    from its state and its inputs wired by name (reference, measurement, observer outputs); the
    last signal is the command :math:`u_k` (the PD:
@@ -64,11 +65,15 @@ import math
 
 import numba
 
+from ..observers import coulomb_torque as _coulomb_torque
 from ._records import PATH_RIGID, PATH_TWO_MASS, SENSOR_ENCODER_EXACT, SENSOR_IDEAL
 
 __all__ = ["ground_truth", "program_row", "run_samples"]
 
 _jit = numba.njit(cache=True, nogil=True)
+
+#: The RTOB's Coulomb term, compiled from its one definition (``hpdob.observers._friction``).
+coulomb_torque = _jit(_coulomb_torque)
 
 
 @_jit
@@ -117,6 +122,7 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
     out_ptr, out_c, out_i = obs.output_pointer, obs.output_coefficient, obs.output_operand
     n, p, q = obs.n, obs.p, obs.q
     has_observer, velocity_row, reaction_row = obs.present, obs.velocity_row, obs.reaction_row
+    c_source, c_n, v_n = obs.coulomb_source, obs.coulomb, obs.coulomb_velocity
     J_n, b_n = ctl.J_n, ctl.b_n
     nc, pc, qc, source = ctl.n, ctl.p, ctl.q, ctl.source
     sig_ptr, sig_c, sig_i = ctl.signal_pointer, ctl.signal_coefficient, ctl.signal_operand
@@ -172,6 +178,9 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
             if q > 1:
                 for j in range(1, q):
                     sv[5 + j] = program_row(out_ptr, out_c, out_i, w, j)
+                if c_source > 0:  # the RTOB's Coulomb term, after the linear rows
+                    speed = omm if c_source == 1 else sv[5 + velocity_row]
+                    sv[5 + reaction_row] = sv[5 + reaction_row] - coulomb_torque(c_n, v_n, speed)
                 if velocity_row > 0:
                     omega_hat[k] = sv[5 + velocity_row]
                 if reaction_row > 0:

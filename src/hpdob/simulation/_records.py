@@ -76,6 +76,9 @@ class ObserverRecord(NamedTuple):
     q: int  # outputs: tau_hat first, then others by name (wired to controller inputs)
     velocity_row: int  # the row of omega_hat (recorded), -1 without one
     reaction_row: int  # the row of tau_reac (recorded), -1 without one
+    coulomb_source: int  # the Coulomb term's velocity: 0 none, 1 measured omega, 2 omega_hat
+    coulomb: float  # its c_n [N m]
+    coulomb_velocity: float  # its v_n [rad/s]
     update_pointer: np.ndarray
     update_coefficient: np.ndarray
     update_operand: np.ndarray

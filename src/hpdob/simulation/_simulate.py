@@ -313,12 +313,14 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
 def _observer_record(system) -> ObserverRecord:
     if system is None:
         empty_i, empty_f = np.zeros(1, dtype=np.int64), np.zeros(0)
-        return ObserverRecord(False, 0, 1, 1, -1, -1, empty_i, empty_f, empty_i[:0], empty_i,
-                              empty_f, empty_i[:0])  # fmt: skip
+        return ObserverRecord(False, 0, 1, 1, -1, -1, 0, 0.0, 1.0, empty_i, empty_f, empty_i[:0],
+                              empty_i, empty_f, empty_i[:0])  # fmt: skip
     update, output, _ = system.kernel_arrays
     outputs = system.outputs
     velocity = outputs.index("omega_hat") if "omega_hat" in outputs else -1
     reaction = outputs.index("tau_reac") if "tau_reac" in outputs else -1
+    term = system.coulomb  # the RTOB's Coulomb term, subtracted after the linear outputs
+    source = 0 if term is None else (1 if term.velocity == "omega" else 2)
     return ObserverRecord(
         True,
         system.n_states,
@@ -326,6 +328,9 @@ def _observer_record(system) -> ObserverRecord:
         len(outputs),
         velocity,
         reaction,
+        source,
+        0.0 if term is None else term.c,
+        1.0 if term is None else term.v,
         *update,
         *output,
     )
