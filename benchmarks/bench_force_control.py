@@ -11,7 +11,8 @@ time after which the error stays within 1 %, and the impact peak. Then an impeda
 (M_d = J_n, D_d = 0.02, K_d = 0.1) against the soft wall with r = 0.5 rad: the rest angle as a
 ratio to the target static deflection K_d r / (K_d + k_e). The two walls are run twice: with
 the viscous friction model only, and with the Coulomb term too (``friction=PLANT``: c tanh(w/v)
-with w the measured velocity low-passed at 100 rad/s).
+with w the measured velocity low-passed at 100 rad/s). Then a position-to-force switching run
+on the stiff wall (PositionForceSwitch): first contact, switching time, impact peak.
 
     PYTHONPATH=src python benchmarks/bench_force_control.py     # a few seconds
 """
@@ -20,8 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from hpdob import Environment, ServoLoop, design_observer, paper, simulate
-from hpdob.controllers import ForceControl, ImpedanceControl
+from hpdob import PD, Environment, ServoLoop, design_observer, paper, simulate
+from hpdob.controllers import ForceControl, ImpedanceControl, PositionForceSwitch
 from hpdob.observers import reaction_torque_observer
 
 TAU_REF = 0.05
@@ -57,6 +58,7 @@ def main() -> None:
         worst = np.max(error[-1000:])
         print(f"{k_e:>15g}{result.tau_contact[-1] / TAU_REF:>17.6f}{worst:>15.3%}"
               f"{settled:>22.3f}{result.tau_contact.max():>12.4f}")  # fmt: skip
+    switching()
     k_e, K_d, r = 0.1, 0.1, 0.5
     controller = ImpedanceControl(M_d=paper.NOMINAL.J, D_d=0.02, K_d=K_d)
     result = simulate(loop(k_e, controller), duration=60.0, x0=(-0.01, 0.0),
@@ -87,6 +89,25 @@ def main() -> None:
         tracking = result.tau_contact[window] - result.r[window]
         print(f"{name:>10}{np.sqrt(np.mean(estimate**2)):>30.3e}"
               f"{np.sqrt(np.mean(tracking**2)):>30.3e}")  # fmt: skip
+
+
+def switching() -> None:
+    """PositionForceSwitch: a PD(400, 40) ramp at 0.1 rad/s from -0.02 rad toward the stiff
+    wall at 0, force control (kf 1000, kv 40, tau_ref 0.05 N m) from tau_reac >= 0.02 N m."""
+    spec = PositionForceSwitch(PD(400.0, 40.0), ForceControl(1000.0, kv=40.0), tau_ref=TAU_REF,
+                               threshold=0.02)  # fmt: skip
+    result = simulate(loop(10.0, spec, coulomb=True), duration=1.5, x0=(-0.02, 0.0),
+                      reference=lambda t: (-0.02 + 0.1 * t, 0.1 + 0 * t, 0 * t))  # fmt: skip
+    m = result.contact_metrics(TAU_REF)
+    switched = result.t[np.argmax(result.tau_reac >= 0.02)]
+    error = np.abs(result.tau_contact - TAU_REF) / TAU_REF
+    settled = result.t[np.nonzero(error > 0.01)[0][-1] + 1]
+    print(
+        f"switching on the stiff wall: first contact {m['first_contact']:.3f} s, switch "
+        f"{switched:.3f} s, impact peak {m['impact_peak']:.4f} N m (overshoot "
+        f"{m['overshoot_ratio']:.1%} of tau_ref), within 1 % from {settled:.3f} s, "
+        f"tau_env/tau_ref at 1.5 s {result.tau_contact[-1] / TAU_REF:.6f}"
+    )
 
 
 if __name__ == "__main__":

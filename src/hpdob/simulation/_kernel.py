@@ -15,7 +15,8 @@ Per sample ``k`` (``t_k = k Ts``) the loop runs, for every plant:
    (``LinearObserver.coulomb``) is subtracted from ``tau_reac``;
 3. control: the controller's signal rows in order (:class:`hpdob.controllers.ControllerProgram`),
    from its state and its inputs wired by name (reference, measurement, observer outputs); the
-   last signal is the command :math:`u_k` (the PD:
+   last signal is the command :math:`u_k` (or, for a controller with a latching
+   :class:`~hpdob.controllers.Switch` that is on, its ``after`` signal plus ``offset``; the PD:
    :math:`J_n(k_p(r_k-\theta_{m,k}) + k_d(\dot r_k-\omega_{m,k}) + \ddot r_k) + \hat\tau_k`),
    clipped to the actuator limit;
 4. observer update :math:`s_{k+1} = F s_k + G [v_k, u_k]` and controller update
@@ -128,6 +129,8 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
     sig_ptr, sig_c, sig_i = ctl.signal_pointer, ctl.signal_coefficient, ctl.signal_operand
     cup_ptr, cup_c, cup_i = ctl.update_pointer, ctl.update_coefficient, ctl.update_operand
     first = nc + pc + 1  # operand index of the controller's first signal
+    latch, trigger, threshold = ctl.switch_latch, ctl.switch_trigger, ctl.switch_threshold
+    after, offset = ctl.switch_after, ctl.switch_offset
     mode, resolution = sen.mode, sen.resolution
     torque_limit, delay = act.torque_limit, act.delay
     A_h, B_h, D_h = plant.A_h, plant.B_h, plant.D_h
@@ -200,6 +203,11 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
         for j in range(qc):
             cw[first + j] = program_row(sig_ptr, sig_c, sig_i, cw, j)
         uk = cw[first + qc - 1]
+        on = False
+        if latch >= 0:  # a latching switch (hpdob.controllers.Switch), after the signal rows
+            on = c_s[latch] != 0.0 or cw[trigger] >= threshold
+            if on:
+                uk = cw[first + after] + offset
         if uk > torque_limit:
             uk = torque_limit
         elif uk < -torque_limit:
@@ -216,6 +224,8 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
             cw[nc + pc] = uk
             for i in range(nc):
                 c_new[i] = program_row(cup_ptr, cup_c, cup_i, cw, i)
+            if latch >= 0:
+                c_new[latch] = 1.0 if on else 0.0
             for i in range(nc):
                 c_s[i] = c_new[i]
         # 5. actuator delay

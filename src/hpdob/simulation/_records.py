@@ -55,6 +55,11 @@ class ControllerRecord(NamedTuple):
     update_pointer: np.ndarray
     update_coefficient: np.ndarray
     update_operand: np.ndarray
+    switch_latch: int  # the Switch's latch state, -1 without a switch
+    switch_trigger: int  # its trigger's operand index in [c, v]
+    switch_threshold: float
+    switch_after: int  # the signal that is the command once switched
+    switch_offset: float  # [N m]
 
 
 class SensorRecord(NamedTuple):

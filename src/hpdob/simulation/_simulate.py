@@ -340,11 +340,17 @@ def _controller_record(loop) -> ControllerRecord:
     controller = loop.controller_system
     sources = controller_sources(loop.system)
     signals, update, _ = controller.kernel_arrays
+    switch = controller.program.switch
+    switching = (
+        (-1, 0, 0.0, 0, 0.0)
+        if switch is None
+        else (switch.latch, switch.trigger, switch.threshold, switch.after, switch.offset)
+    )
     return ControllerRecord(
         loop.nominal.J, loop.nominal.b, controller.n_states, len(controller.inputs),
         len(controller.program.signals),
         np.array([sources.index(name) for name in controller.inputs], dtype=np.int64),
-        *signals, *update,
+        *signals, *update, *switching,
     )  # fmt: skip
 
 
