@@ -12,7 +12,8 @@ time after which the error stays within 1 %, and the impact peak. Then an impeda
 ratio to the target static deflection K_d r / (K_d + k_e). The two walls are run twice: with
 the viscous friction model only, and with the Coulomb term too (``friction=PLANT``: c tanh(w/v)
 with w the measured velocity low-passed at 100 rad/s). Then a position-to-force switching run
-on the stiff wall (PositionForceSwitch): first contact, switching time, impact peak.
+on the stiff wall (PositionForceSwitch): first contact, switching time, impact peak; and the
+MuJoCo wall (MujocoServo(..., wall=0.0)): the RTOB against MuJoCo's contact torque.
 
     PYTHONPATH=src python benchmarks/bench_force_control.py     # a few seconds
 """
@@ -59,6 +60,7 @@ def main() -> None:
         print(f"{k_e:>15g}{result.tau_contact[-1] / TAU_REF:>17.6f}{worst:>15.3%}"
               f"{settled:>22.3f}{result.tau_contact.max():>12.4f}")  # fmt: skip
     switching()
+    mujoco_wall()
     k_e, K_d, r = 0.1, 0.1, 0.5
     controller = ImpedanceControl(M_d=paper.NOMINAL.J, D_d=0.02, K_d=K_d)
     result = simulate(loop(k_e, controller), duration=60.0, x0=(-0.01, 0.0),
@@ -107,6 +109,39 @@ def switching() -> None:
         f"{switched:.3f} s, impact peak {m['impact_peak']:.4f} N m (overshoot "
         f"{m['overshoot_ratio']:.1%} of tau_ref), within 1 % from {settled:.3f} s, "
         f"tau_env/tau_ref at 1.5 s {result.tau_contact[-1] / TAU_REF:.6f}"
+    )
+
+
+def mujoco_wall() -> None:
+    """The MuJoCo wall: a 0.1 m link on the paper's motor (MuJoCo friction loss 0.005 N m)
+    pressing a wall at 0 rad, the same loop (RTOB minus the viscous friction), a 0.05 N m step;
+    the RTOB's error against MuJoCo's contact torque (contact forces through the contact
+    Jacobian) over the last 0.5 s of 2 s, as a ratio to the contact torque."""
+    try:
+        from hpdob import MujocoServo
+
+        servo = MujocoServo(paper.PLANT.J, paper.PLANT.b, coulomb=0.005, link_length=0.1,
+                            wall=0.0)  # fmt: skip
+    except ImportError:
+        print("MuJoCo wall: skipped (pip install 'hpdob[mujoco]')")
+        return
+    dob = design_observer(paper.NOMINAL.discretize(paper.TS), order=1, bandwidth=100.0)
+    observer = reaction_torque_observer(dob, viscous=paper.PLANT.b - paper.NOMINAL.b)
+    mj_loop = ServoLoop(plant=servo, nominal=paper.NOMINAL, Ts=paper.TS, observer=observer,
+                        controller=ForceControl(1000.0, kv=40.0), sensor=paper.VIRTUAL_SENSOR,
+                        actuator=paper.VIRTUAL_ACTUATOR)  # fmt: skip
+    result = simulate(
+        mj_loop,
+        duration=2.0,
+        x0=(-0.01, 0.0),
+        reference=lambda t: (np.where(t >= 0.1, TAU_REF, 0.0), 0 * t, 0 * t),
+    )
+    tail = slice(-500, None)
+    error = np.abs(result.tau_reac[tail] - result.tau_contact[tail]) / result.tau_contact[tail]
+    print(
+        f"MuJoCo wall: |tau_reac - tau_contact| / tau_contact over the last 0.5 s: "
+        f"max {np.max(error):.2e} (target 1e-2); tau_contact/tau_ref at 2 s "
+        f"{result.tau_contact[-1] / TAU_REF:.6f}"
     )
 
 

@@ -441,7 +441,7 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
         extra["omega_hat"] = out.omega_hat[keep]
     if system is not None and "tau_reac" in system.outputs:
         extra["tau_reac"] = out.tau_reac[keep]
-    if environment is not None:
+    if environment is not None or getattr(plant, "contact_geom", None) is not None:
         extra["tau_contact"] = out.tau_contact[keep]
         extra["in_contact"] = out.in_contact[keep]
     names = plant.state_names
