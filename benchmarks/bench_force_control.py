@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hpdob import PD, Environment, ServoLoop, design_observer, paper, simulate
+from hpdob import Environment, ServoLoop, design_observer, paper, simulate
 from hpdob.controllers import ForceControl, ImpedanceControl, PositionForceSwitch
 from hpdob.observers import reaction_torque_observer
 
@@ -96,8 +96,7 @@ def main() -> None:
 def switching() -> None:
     """PositionForceSwitch: a PD(400, 40) ramp at 0.1 rad/s from -0.02 rad toward the stiff
     wall at 0, force control (kf 1000, kv 40, tau_ref 0.05 N m) from tau_reac >= 0.02 N m."""
-    spec = PositionForceSwitch(PD(400.0, 40.0), ForceControl(1000.0, kv=40.0), tau_ref=TAU_REF,
-                               threshold=0.02)  # fmt: skip
+    spec = PositionForceSwitch(400.0, 40.0, 1000.0, kv=40.0, tau_ref=TAU_REF, threshold=0.02)
     result = simulate(loop(10.0, spec, coulomb=True), duration=1.5, x0=(-0.02, 0.0),
                       reference=lambda t: (-0.02 + 0.1 * t, 0.1 + 0 * t, 0 * t))  # fmt: skip
     m = result.contact_metrics(TAU_REF)

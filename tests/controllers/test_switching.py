@@ -10,7 +10,6 @@ import pytest
 from hpdob import (
     PD,
     Environment,
-    ParameterTypeError,
     ParameterValueError,
     ServoLoop,
     closed_loop_poles,
@@ -31,8 +30,7 @@ LIMIT = paper.VIRTUAL_ACTUATOR.torque_limit
 
 
 def _spec(threshold=THRESHOLD):
-    return PositionForceSwitch(PD(400.0, 40.0), ForceControl(1000.0, kv=40.0), tau_ref=TAU_REF,
-                               threshold=threshold)  # fmt: skip
+    return PositionForceSwitch(400.0, 40.0, 1000.0, kv=40.0, tau_ref=TAU_REF, threshold=threshold)
 
 
 def _loop(spec=None, plant=None):
@@ -144,11 +142,13 @@ def test_bad_inputs(tmp_path):
     with pytest.raises(ParameterValueError, match=r"^threshold must be a positive"):
         _spec(threshold=0.0)
     with pytest.raises(ParameterValueError, match=r"^tau_ref must be a finite"):
-        PositionForceSwitch(PD(1.0, 1.0), ForceControl(1.0), tau_ref=np.nan, threshold=0.01)
-    with pytest.raises(ParameterTypeError, match=r"^position must be a PD"):
-        PositionForceSwitch(ForceControl(1.0), ForceControl(1.0), tau_ref=0.0, threshold=0.01)
-    with pytest.raises(ParameterTypeError, match=r"^force must be a ForceControl"):
-        PositionForceSwitch(PD(1.0, 1.0), PD(1.0, 1.0), tau_ref=0.0, threshold=0.01)
+        PositionForceSwitch(1.0, 1.0, 1.0, tau_ref=np.nan, threshold=0.01)
+    with pytest.raises(ParameterValueError, match=r"^kf must be a positive"):
+        PositionForceSwitch(1.0, 1.0, 0.0, tau_ref=0.0, threshold=0.01)
+    with pytest.raises(ParameterValueError, match=r"^kp must be a non-negative"):
+        PositionForceSwitch(-1.0, 1.0, 1.0, tau_ref=0.0, threshold=0.01)
+    spec = _spec()
+    assert spec.position == PD(400.0, 40.0) and spec.force == ForceControl(1000.0, kv=40.0)
     with pytest.raises(ParameterValueError, match=r"has a latching switch, which export_c"):
         export_c(_spec().design(NOMINAL, TS), tmp_path)
     assert not list(tmp_path.iterdir())

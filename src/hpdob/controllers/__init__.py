@@ -28,10 +28,12 @@ from ._settings import controller_settings
 from ._switching import PositionForceSwitch
 from ._system import LOOP_SIGNALS, LinearController, ProgramBuilder
 
-#: The controller types of scenario files (``[controller] type = "pid"``).
-#: (ForceControl and ImpedanceControl are not among them yet: a scenario file cannot describe
-#: the reaction-torque observer they read.)
-CONTROLLER_TYPES = {"pd": PD, "pid": PID, "filtered-pd": FilteredPD, "adrc": ADRC}
+#: The controller types of scenario files (``[controller] type = "pid"``). The last three read
+#: the reaction-torque estimate ``tau_reac``: a servo scenario gives them a
+#: ``[reaction_observer]`` (docs/force-control.md).
+CONTROLLER_TYPES = {"pd": PD, "pid": PID, "filtered-pd": FilteredPD, "adrc": ADRC,
+                    "force": ForceControl, "impedance": ImpedanceControl,
+                    "position-force": PositionForceSwitch}  # fmt: skip
 
 __all__ = [
     "ADRC",

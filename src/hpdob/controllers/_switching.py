@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import KW_ONLY, dataclass
 
-from .._validation import ParameterTypeError, as_real, positive
+from .._validation import as_real, positive
 from ._base import Controller
 from ._force import ForceControl
 from ._pd import PD
@@ -42,28 +42,31 @@ class PositionForceSwitch(Controller):
 
     Parameters
     ----------
-    position : PD
-        The free-space controller (``feedforward`` and ``velocity`` as in :class:`~hpdob.PD`).
-    force : ForceControl
-        The contact controller (``kf``, ``kv``).
+    kp, kd : float
+        The PD's gains [1/s^2], [1/s], non-negative (:class:`~hpdob.PD`).
+    kf : float
+        Force gain :math:`K_f` [rad/(s^2 N m)], positive (:class:`ForceControl`).
+    kv : float, optional
+        Velocity damping :math:`K_v` [1/s] of the force law, non-negative. Default 0.
     tau_ref : float
         Force reference [N m] after the switch, finite.
     threshold : float
         :math:`\tau_{th}` [N m], positive: the switch trips when ``tau_reac >= threshold``.
+    feedforward, velocity : optional
+        The PD's (:class:`~hpdob.PD`): include :math:`\ddot r` (default True), and the
+        velocity its derivative term reads, ``"measured"`` (default) or ``"observer"``.
 
     Raises
     ------
-    ParameterTypeError
-        If ``position`` is not a PD or ``force`` not a ForceControl.
-    ParameterValueError
-        For a non-finite ``tau_ref`` or a non-positive ``threshold``.
+    ParameterTypeError, ParameterValueError
+        Naming the parameter: a gain the PD or the force law refuses, a non-finite
+        ``tau_ref``, a non-positive ``threshold``.
 
     Examples
     --------
-    >>> from hpdob import PD, ServoModel
-    >>> from hpdob.controllers import ForceControl, PositionForceSwitch
-    >>> spec = PositionForceSwitch(PD(400.0, 40.0), ForceControl(1000.0, kv=40.0),
-    ...                            tau_ref=0.05, threshold=0.01)
+    >>> from hpdob import ServoModel
+    >>> from hpdob.controllers import PositionForceSwitch
+    >>> spec = PositionForceSwitch(400.0, 40.0, 1000.0, kv=40.0, tau_ref=0.05, threshold=0.01)
     >>> c = spec.design(ServoModel(2.8e-4), 1e-3)
     >>> c.inputs, c.n_states
     (('r', 'r_dot', 'r_ddot', 'theta', 'omega', 'tau_hat', 'tau_reac'), 1)
@@ -74,19 +77,21 @@ class PositionForceSwitch(Controller):
     0.0084
     """
 
-    position: PD
-    force: ForceControl
+    kp: float
+    kd: float
+    kf: float
+    kv: float = 0.0
     _: KW_ONLY
     tau_ref: float
     threshold: float
+    feedforward: bool = True
+    velocity: str = "measured"
 
     def __post_init__(self):
-        if not isinstance(self.position, PD):
-            raise ParameterTypeError(f"position must be a PD, got {type(self.position).__name__}")
-        if not isinstance(self.force, ForceControl):
-            raise ParameterTypeError(
-                f"force must be a ForceControl, got {type(self.force).__name__}"
-            )
+        pd = PD(self.kp, self.kd, feedforward=self.feedforward, velocity=self.velocity)
+        force = ForceControl(self.kf, kv=self.kv)
+        for name, value in (("kp", pd.kp), ("kd", pd.kd), ("kf", force.kf), ("kv", force.kv)):
+            object.__setattr__(self, name, value)
         object.__setattr__(
             self, "tau_ref", as_real(self.tau_ref, "tau_ref", "a finite force reference [N m]")
         )
@@ -95,6 +100,17 @@ class PositionForceSwitch(Controller):
             "threshold",
             positive(self.threshold, "threshold", "a positive finite switching torque [N m]"),
         )
+
+    @property
+    def position(self) -> PD:
+        """The free-space controller, :class:`~hpdob.PD` (``kp``, ``kd``, ``feedforward``,
+        ``velocity``)."""
+        return PD(self.kp, self.kd, feedforward=self.feedforward, velocity=self.velocity)
+
+    @property
+    def force(self) -> ForceControl:
+        """The contact controller, :class:`ForceControl` (``kf``, ``kv``)."""
+        return ForceControl(self.kf, kv=self.kv)
 
     def design(self, nominal, Ts: float) -> LinearController:
         """The switching controller: one latch state, the position mode's matrices.
