@@ -59,6 +59,7 @@ def main() -> None:
         worst = np.max(error[-1000:])
         print(f"{k_e:>15g}{result.tau_contact[-1] / TAU_REF:>17.6f}{worst:>15.3%}"
               f"{settled:>22.3f}{result.tau_contact.max():>12.4f}")  # fmt: skip
+    coulomb_price()
     switching()
     mujoco_wall()
     k_e, K_d, r = 0.1, 0.1, 0.5
@@ -91,6 +92,23 @@ def main() -> None:
         tracking = result.tau_contact[window] - result.r[window]
         print(f"{name:>10}{np.sqrt(np.mean(estimate**2)):>30.3e}"
               f"{np.sqrt(np.mean(tracking**2)):>30.3e}")  # fmt: skip
+
+
+def coulomb_price() -> None:
+    """The Coulomb term's cost on the stiff wall: RMS of tau_reac - tau_env over 0.2-1 s of the
+    force step, the viscous model alone against viscous + Coulomb (velocity low-passed)."""
+    for coulomb in (False, True):
+        result = simulate(
+            loop(10.0, ForceControl(1000.0, kv=40.0), coulomb=coulomb),
+            duration=1.0,
+            x0=(-0.01, 0.0),
+            reference=lambda t: (np.where(t >= 0.1, TAU_REF, 0.0), 0 * t, 0 * t),
+        )
+        window = result.t >= 0.2
+        error = result.tau_reac[window] - result.tau_contact[window]
+        model = "viscous + Coulomb" if coulomb else "viscous"
+        print(f"stiff wall, RTOB friction model {model}: RMS tau_reac - tau_env over 0.2-1 s "
+              f"{np.sqrt(np.mean(error**2)):.2e} N m")  # fmt: skip
 
 
 def switching() -> None:
