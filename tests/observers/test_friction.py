@@ -148,3 +148,23 @@ def test_bad_inputs_are_refused():
     both = reaction_torque_observer(dob, coulomb=0.01)
     with pytest.raises(ParameterValueError, match=r"has a Coulomb term \(tanh\)"):
         fixed_point_design(both, counts_per_rev=16384, omega_max=100.0, u_max=1.0, tau_max=1.0)
+
+
+def test_friction_model_from_identify():
+    """The friction model from identify (issue 21: "from identify results"): an analytic, noise
+    free motion of the paper's motor (u = J a + b omega + c sign(omega)) identified, and
+    ``friction=fit.model()`` subtracts b - b_n and c with the fit's velocity scale."""
+    from hpdob import identify
+
+    t = np.arange(20000) * TS
+    w1, w2 = 2 * np.pi * 0.5, 2 * np.pi * 3.0
+    q = 0.3 * np.sin(w1 * t) + 0.05 * np.sin(w2 * t + 0.3)
+    qd = 0.3 * w1 * np.cos(w1 * t) + 0.05 * w2 * np.cos(w2 * t + 0.3)
+    qdd = -0.3 * w1**2 * np.sin(w1 * t) - 0.05 * w2**2 * np.sin(w2 * t + 0.3)
+    u = PLANT.J * qdd + PLANT.b * qd + PLANT.coulomb * np.sign(qd)
+    fit = identify(t, q, u, method="idim-ls", diagnostics=False)
+    dob = design_observer(MODEL, order=1, bandwidth=100.0)
+    both = reaction_torque_observer(dob, friction=fit.model())
+    assert both.coulomb.c == fit.coulomb == pytest.approx(PLANT.coulomb, rel=1e-3)
+    assert both.coulomb.v == fit.model().coulomb_velocity
+    assert dob.system.E[0, 1] - both.E[1, 1] == pytest.approx(PLANT.b - paper.NOMINAL.b, rel=1e-2)
