@@ -346,3 +346,16 @@ def test_scenarios_that_share_a_design_design_it_once(monkeypatch):
     assert rows["stable"].all()
     # one check up front, then one design per chunk (one worker: 8 chunks of 13 scenarios)
     assert len(calls) == 1 + 8
+
+
+def test_sweep_of_a_force_scenario_keeps_its_reaction_observer():
+    """A scenario with a [reaction_observer] (a fixed composition, read by the force
+    controller's tau_reac input) sweeps over the wall's stiffness; each row is the run."""
+    from hpdob.simulation import load_scenario
+
+    path = Path(__file__).resolve().parents[2] / "examples" / "force_step_stiff_wall.toml"
+    scenario = load_scenario(path)
+    rows = sweep(scenario, grid={"plant.environment.stiffness": [1.0, 10.0]}, progress=False)
+    assert rows["stable"].all()
+    direct = scenario.simulate().metrics()["rms_estimation_error"]
+    assert rows["rms_estimation_error"].iloc[1] == direct
