@@ -118,13 +118,16 @@ def switching() -> None:
     result = simulate(loop(10.0, spec, coulomb=True), duration=1.5, x0=(-0.02, 0.0),
                       reference=lambda t: (-0.02 + 0.1 * t, 0.1 + 0 * t, 0 * t))  # fmt: skip
     m = result.contact_metrics(TAU_REF)
-    switched = result.t[np.argmax(result.tau_reac >= 0.02)]
+    k = int(np.argmax(result.tau_reac >= 0.02))
+    switched = result.t[k]
+    jump = result.u[k] - result.u[k - 1]  # not bumpless: the command's step at the switch
     error = np.abs(result.tau_contact - TAU_REF) / TAU_REF
     settled = result.t[np.nonzero(error > 0.01)[0][-1] + 1]
     print(
         f"switching on the stiff wall: first contact {m['first_contact']:.3f} s, switch "
-        f"{switched:.3f} s, impact peak {m['impact_peak']:.4f} N m (overshoot "
-        f"{m['overshoot_ratio']:.1%} of tau_ref), within 1 % from {settled:.3f} s, "
+        f"{switched:.3f} s (command jump {jump:+.4f} N m), impact peak "
+        f"{m['impact_peak']:.4f} N m (overshoot {m['overshoot_ratio']:.1%} of tau_ref), "
+        f"within 1 % from {settled:.3f} s, "
         f"tau_env/tau_ref at 1.5 s {result.tau_contact[-1] / TAU_REF:.6f}"
     )
 
