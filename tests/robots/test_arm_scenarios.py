@@ -123,3 +123,24 @@ def test_per_joint_lists_of_the_wrong_length_in_a_panda_scenario(replace, messag
     err = capsys.readouterr().err.strip()
     assert message in err and "\n" not in err
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("name", ["panda_joint_observers.toml", "two_link_observers.toml"])
+def test_load_scenario_reads_the_arm_examples(name, tmp_path):
+    """hpdob.simulation.load_scenario selects the arm's loop from the registered plant type:
+    an ArmScenario whose run is simulate_arm's on load_arm_scenario's loop, bit for bit."""
+    import numpy as np
+
+    from hpdob.robots import ArmScenario
+    from hpdob.simulation import load_scenario
+
+    path = shortened(name, tmp_path)
+    scenario = load_scenario(path)
+    assert isinstance(scenario, ArmScenario) and isinstance(scenario.loop, ArmLoop)
+    loop, run = load_arm_scenario(path)
+    assert scenario.metrics_start == run.pop("metrics_start")
+    assert scenario.run["label"] == run["label"]
+    by_hand = simulate_arm(loop, **run)
+    np.testing.assert_array_equal(scenario.simulate().q, by_hand.q)
+    with pytest.raises(TypeError, match="not simulate"):
+        dict(scenario)  # a Scenario, not keyword arguments
