@@ -144,3 +144,11 @@ def test_load_scenario_reads_the_arm_examples(name, tmp_path):
     np.testing.assert_array_equal(scenario.simulate().q, by_hand.q)
     with pytest.raises(TypeError, match="not simulate"):
         dict(scenario)  # a Scenario, not keyword arguments
+
+
+def test_load_arm_scenario_refuses_a_single_axis_file():
+    from hpdob import ParameterValueError
+
+    message = r"not an N-joint scenario: \[plant\] type must be one of 'two-link-arm', 'mujoco-arm'"
+    with pytest.raises(ParameterValueError, match=message):
+        load_arm_scenario(EXAMPLES / "canonical_hpdob.toml")

@@ -285,11 +285,13 @@ def load_arm_scenario(path) -> tuple[ArmLoop, dict]:
     ParameterTypeError, ParameterValueError
         A key or value is wrong (named), or the file cannot be read.
     """
-    from ..simulation._scenario import _read_toml, plant_type_of
+    from ..simulation._scenario import _read_toml
 
     path = Path(path)
     data = _read_toml(path)
-    if plant_type_of(data) is None or plant_type_of(data).scenario is not _scenario:
+    plant = data.get("plant")
+    kind = get_plant_type(plant.get("type", "rigid")) if isinstance(plant, dict) else None
+    if kind is None or kind.scenario is not _scenario:
         raise ParameterValueError(
             f"{path} is not an N-joint scenario: [plant] type must be one of "
             f"{', '.join(map(repr, _arm_types()))}"
