@@ -10,8 +10,9 @@ computed-torque peer, the external-force estimates, and the loop's speed.
    torque on the nominal model (without the payload). 1b: the nominal model's masses and
    inertias 20 % low instead (no payload).
 2. External force: a 10 N step at the flange, robot at rest and in motion: the momentum
-   observer (K_o = 50 1/s) and the per-joint observers' estimates of J^T F after 5/K_o; the
-   false force with no contact during the fast trajectory.
+   observer (K_o = 50 1/s) and the per-joint observers' estimates of J^T F after 5/K_o (at rest
+   also against the step error of each observer's own 1 - Q, and the HPDOb at 55 and 60 rad/s);
+   the false force with no contact during the fast trajectory.
 3. Speed: the 7-joint loop (DOb per joint) against real time, MuJoCo Euler and RK4.
 
     pip install 'hpdob[mujoco]' && python benchmarks/bench_robots.py [--short]
