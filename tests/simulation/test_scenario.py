@@ -52,6 +52,8 @@ def test_position_only_example_is_the_built_in_run():
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
 def test_examples_run_from_the_command_line(path, tmp_path, capsys):
+    if 'type = "mujoco"' in path.read_text():
+        pytest.importorskip("mujoco")  # the optional extra
     code = main(["simulate", str(path), "--out", str(tmp_path)])
     out = capsys.readouterr().out
     assert code == 0
@@ -61,7 +63,7 @@ def test_examples_run_from_the_command_line(path, tmp_path, capsys):
     assert (tmp_path / f"{label}.png").stat().st_size > 10_000
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     contact = set()  # against a wall: the impact too (docs/force-control.md)
-    if "[plant.environment]" in path.read_text():
+    if "[plant.environment]" in path.read_text() or re.search(r"^wall = ", path.read_text(), re.M):
         contact = {f"contact_{name}" for name in ("first_contact", "impact_peak", "overshoot",
                                                    "overshoot_ratio")}  # fmt: skip
     assert set(metrics[label]) == {
@@ -97,6 +99,24 @@ def test_force_scenario_is_the_loop_built_in_python():
     np.testing.assert_array_equal(from_file.tau_reac, built.tau_reac)
     np.testing.assert_array_equal(from_file.tau_contact, built.tau_contact)
     assert abs(from_file.tau_contact[-1] - 0.05) < 0.01 * 0.05
+
+
+def test_mujoco_wall_scenario_and_no_environment_on_mujoco():
+    """[plant] type = "mujoco" with wall = 0.0: the RTOB against MuJoCo's contact torque; an
+    [plant.environment] on that plant is refused in one line naming the key."""
+    pytest.importorskip("mujoco")
+    path = ROOT / "examples" / "mujoco_wall.toml"
+    result = load_scenario(path).simulate()
+    assert result.in_contact[-100:].all()
+    tail = slice(-100, None)
+    assert np.max(np.abs(result.tau_reac[tail] / result.tau_contact[tail] - 1.0)) < 1e-3
+    data = tomllib.loads(path.read_text())
+    data["plant"]["environment"] = {"stiffness": 10.0}
+    with pytest.raises(ParameterValueError,
+                       match=r"^plant.environment: a MuJoCo plant cannot carry an Environment; "
+                             r"give it a wall the link presses \(plant.wall \[rad\] with "
+                             r"plant.link_length\)$"):  # fmt: skip
+        scenario_from_dict(data)
 
 
 def test_force_scenarios_refuse_bad_inputs():

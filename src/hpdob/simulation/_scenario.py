@@ -326,7 +326,8 @@ def _with_environment(fields: dict, key: str) -> dict:
 
 
 #: The keys of ``[plant] type = "mujoco"`` (a :class:`~hpdob.MujocoServo` built from them).
-MUJOCO_SERVO_KEYS = ("J", "b", "coulomb", "link_mass", "link_length", "timestep", "integrator")
+MUJOCO_SERVO_KEYS = ("J", "b", "coulomb", "link_mass", "link_length", "timestep", "integrator",
+                     "wall")  # fmt: skip
 
 
 def _rigid(fields: dict, key: str, base) -> ServoModel:
@@ -338,6 +339,11 @@ def _two_mass(fields: dict, key: str, base) -> TwoMassServo:
 
 
 def _mujoco_servo(fields: dict, key: str, base) -> MujocoServo:
+    if "environment" in fields:  # MuJoCo's own contact instead: a wall the link presses
+        raise ParameterValueError(
+            f"{key}.environment: a MuJoCo plant cannot carry an Environment; give it a wall "
+            f"the link presses ({key}.wall [rad] with {key}.link_length)"
+        )
     return _build(MujocoServo, fields, key, allowed=MUJOCO_SERVO_KEYS, required=("J",))
 
 
