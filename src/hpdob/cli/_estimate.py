@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._design import add_observer_arguments, design_on
+from ._design import add_observer_arguments, design_on, observer_spec_of_args
 from ._errors import CLIError
 from ._logs import add_log_arguments, log_from_args
 from ._options import finite, output_path
@@ -113,10 +113,19 @@ def _run(args: argparse.Namespace) -> int:
     from .._files import check_output, staged_outputs
     from ..identification import estimate_disturbance
 
-    log = log_from_args(args)
-    out = args.out or Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
-    check_output(out)  # before the estimate, not after it
+    # Every option and the output location are checked before the log is read: a log may
+    # take minutes to read (up to 256 MiB), and a missing --J-n must not wait for it.
     nominal, origin = _nominal(args)
+    observer_spec_of_args(args)  # the observer options (their values need the log's Ts)
+    out = args.out
+    if out is None and args.log is not None:  # the default is named after the log file
+        out = Path("hpdob-results") / f"estimate-{Path(args.log).stem}"
+    if out is not None:
+        check_output(out)
+    log = log_from_args(args)
+    if out is None:  # --emps: its name is the shipped file's
+        out = Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
+        check_output(out)
     design = design_on(args, nominal.discretize(log.Ts))
     result = estimate_disturbance(design, theta=log.theta, u=log.u, t=log.t)
     # t increases strictly: the samples with t >= the cut are a slice (a view, not a copy)
