@@ -21,7 +21,7 @@ from ._result import SimulationResult
 from ._scenario import Scenario, load_scenario
 from ._scenario_toml import scenario_toml
 from ._simulate import SimulationDivergedWarning, simulate
-from ._sweep import sweep
+from ._sweep import SweepIncomplete, sweep
 
 __all__ = [
     "Actuator",
@@ -30,6 +30,7 @@ __all__ = [
     "ServoLoop",
     "SimulationDivergedWarning",
     "SimulationResult",
+    "SweepIncomplete",
     "load_scenario",
     "scenario_toml",
     "simulate",
