@@ -85,8 +85,13 @@ def test_analyze_stability_progress_on_stderr_only(capsys, tmp_path):
               "--bandwidths", "50,100", "--dpi", "30")  # fmt: skip
     code, out, err = run(capsys, *common, "--out", str(tmp_path / "p"), "--progress")
     assert code == 0
-    assert "analyze stability: order 0 6/6 (100%)\n" in err
-    assert "analyze stability: order 1 0/6 (0%)" in err
+    # one line for both maps: done/total (and the time left) count every requested order
+    frames = err.split("\r\x1b[K")[1:]
+    assert frames[0] == "analyze stability: order 0, 0/12 (0%)"
+    assert "analyze stability: order 0, 6/12 (50%)" in frames[3]
+    assert "analyze stability: order 1, 6/12 (50%)" in frames[4]
+    assert frames[-1] == "analyze stability: order 1, 12/12 (100%)\n"
+    assert err.count("\n") == 1 and all("left" in f for f in frames[1:-1] if "0/12" not in f)
     assert "analyze stability" not in out
     code, _, quiet = run(capsys, *common, "--out", str(tmp_path / "q"), "--no-progress")
     assert code == 0 and "analyze stability:" not in quiet
@@ -95,6 +100,29 @@ def test_analyze_stability_progress_on_stderr_only(capsys, tmp_path):
     assert code == 0 and "analyze stability:" not in default
     for name in ("stability.json", "stability_J_ratio_m1.csv"):
         assert (tmp_path / "p" / name).read_bytes() == (tmp_path / "q" / name).read_bytes()
+
+
+def test_stability_time_left_covers_every_requested_order():
+    # issue 27: the time left used to cover the current order's map only
+    from hpdob.cli._analyze import _overall
+
+    stream, clock = io.StringIO(), Clock()
+    line = ProgressLine("analyze stability:", stream, clock=clock)
+    first, second = _overall(line, 0, 2, 0), _overall(line, 1, 2, 1)
+    first(0, 100)
+    clock.now += 10.0
+    first(50, 100)  # 50 of 200 points in 10 s: 150 more take 30 s (not 10 s: order 0's rest)
+    first(100, 100)
+    second(0, 100)
+    clock.now += 10.0
+    second(100, 100)
+    assert stream.getvalue().split("\r\x1b[K")[1:] == [
+        "analyze stability: order 0, 0/200 (0%)",
+        "analyze stability: order 0, 50/200 (25%), about 30 s left",
+        "analyze stability: order 0, 100/200 (50%), about 10 s left",
+        "analyze stability: order 1, 100/200 (50%), about 10 s left",
+        "analyze stability: order 1, 200/200 (100%)\n",
+    ]
 
 
 def test_tune_progress_has_time_left_per_stage():

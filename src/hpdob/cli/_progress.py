@@ -39,11 +39,11 @@ class ProgressLine:
         self.start = clock()
         self.open = False  # a line written but not yet ended
 
-    def __call__(self, done: int, total: int) -> None:
+    def __call__(self, done: int, total: int, *, detail: str = "") -> None:
         now = self.clock()
         if done == 0:
             self.start = now
-        line = f"{self.label} {done}/{total}"
+        line = f"{self.label}{' ' + detail if detail else ''} {done}/{total}"
         if total > 0:
             line += f" ({100 * done // total}%)"
         if 0 < done < total:
