@@ -158,14 +158,36 @@ def _canonical(duration):
 def test_simulate_states_a_long_run_before_it(capsys):
     # 2000 s at 1 ms with the canonical plant's 8 sub-steps: 1.6e7 plant steps, announced
     # (not run: the notice is computed from the arguments alone).
-    cli_simulate._announce_size(_canonical(2000.0))
+    cli_simulate._check_size(_canonical(2000.0))
     err = capsys.readouterr().err
     assert err == (
         "hpdob simulate: a long run of 2000000 samples x 8 substeps = 1.6e+07 plant steps "
-        "(the limit per run is 1e+08); it shows no progress\n"
+        "(the limits per run are 2000000 samples and 1e+08 plant steps); it shows no progress\n"
     )
-    cli_simulate._announce_size(_canonical(10.0))  # 8e4 plant steps: nothing to say
+    cli_simulate._check_size(_canonical(10.0))  # 8e4 plant steps: nothing to say
     assert capsys.readouterr().err == ""
+
+
+def test_simulate_refuses_a_run_beyond_its_sample_limit(capsys, tmp_path):
+    # issue 27: a run up to 1e8 plant steps (1e8 samples: a 17 GB CSV, half an hour) showed
+    # no progress; the command now stops at 2e6 samples, about a minute, before any work
+    from hpdob.cli import CLIError
+
+    with pytest.raises(
+        CLIError,
+        match=r"^a run of 2000001 samples \(duration 2000\.001 s at "
+        r"Ts = 0\.001 s\) is beyond hpdob simulate's limit of 2000000 samples",
+    ):
+        cli_simulate._check_size(_canonical(2000.001))
+    scenario = tmp_path / "long.toml"
+    text = (EXAMPLES / "canonical_hpdob.toml").read_text()
+    scenario.write_text(text.replace("duration = 10.0", "duration = 1e5"))
+    assert "duration = 1e5" in scenario.read_text()
+    code = main(["simulate", str(scenario), "--out", str(tmp_path / "o"), "--no-plot"])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "a run of 100000000 samples" in err and "limit of 2000000 samples" in err
+    assert not (tmp_path / "o").exists()
 
 
 def test_simulate_notice_leaves_the_results_bit_for_bit(capsys, tmp_path, monkeypatch):

@@ -150,7 +150,7 @@ def _run(args: argparse.Namespace) -> int:
     # The label names the output files: never a path (e.g. "../escaped") nor a hidden name.
     stem = check_file_stem(kwargs.get("label") or args.scenario.stem, "label")
     check_output(out)  # before the run, not after it
-    _announce_size(kwargs)
+    _check_size(kwargs)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SimulationDivergedWarning)  # reported below instead
         result = simulate(**kwargs)
@@ -176,25 +176,40 @@ def _run(args: argparse.Namespace) -> int:
 #: Plant steps above which ``hpdob simulate`` says on stderr how big the run is before it.
 NOTICE_PLANT_STEPS = 10**7
 
+#: Samples per run of ``hpdob simulate`` (the library's simulate() has no such limit, only
+#: its 1e8 plant steps): every sample is a row of <label>.csv, about 175 bytes, so this bounds
+#: the command to about a minute and 350 MB (docs/reliability.md: 2e6 samples took 28 s).
+MAX_SAMPLES = 2_000_000
 
-def _announce_size(kwargs) -> None:
-    """One line on stderr before a long run: its plant steps against the per-run limit.
+
+def _check_size(kwargs) -> None:
+    """Refuse a run beyond :data:`MAX_SAMPLES`, and state the size of a long one before it.
 
     The run itself is one call of the kernel (its results are bit for bit those of
-    ``simulate``), so the size is stated up front instead of a progress bar.
+    ``simulate``), so it shows no progress: it is bounded instead, and announced.
     """
     from ..simulation._simulate import MAX_PLANT_STEPS, _sample_count
+    from ._errors import CLIError
 
     try:
         n = _sample_count(kwargs["Ts"], kwargs["duration"])
         substeps = kwargs["plant"].substeps(kwargs["Ts"], kwargs.get("substeps"))
     except (TypeError, ValueError):
         return  # simulate() reports it with its own message
+    if n > MAX_SAMPLES:
+        raise CLIError(
+            f"a run of {n} samples (duration {kwargs['duration']:.12g} s at Ts = "
+            f"{kwargs['Ts']:.12g} s) is beyond hpdob simulate's limit of {MAX_SAMPLES} samples "
+            "per run (each sample is a row of the CSV it writes: the limit keeps a run to "
+            "about a minute); shorten duration, raise Ts, or call hpdob.simulate() from Python "
+            f"(no CSV; its limit is {MAX_PLANT_STEPS:.0e} plant steps)"
+        )
     steps = n * substeps
     if NOTICE_PLANT_STEPS < steps <= MAX_PLANT_STEPS:
         print(
             f"hpdob simulate: a long run of {n} samples x {substeps} substeps = {steps:.3g} "
-            f"plant steps (the limit per run is {MAX_PLANT_STEPS:.0e}); it shows no progress",
+            f"plant steps (the limits per run are {MAX_SAMPLES} samples and "
+            f"{MAX_PLANT_STEPS:.0e} plant steps); it shows no progress",
             file=sys.stderr,
             flush=True,
         )
