@@ -259,3 +259,56 @@ def test_a_line_left_open_is_ended_once():
     show("analysis", 3, 72)
     show.end()
     assert stream.getvalue() == "\r\x1b[Ktune: analysing candidates 3/72 (4%), about 0 s left\n"
+
+
+def test_read_log_reports_the_bytes_read(tmp_path, monkeypatch):
+    # issue 27: `hpdob estimate` on a log under the 256 MiB cap read it with no progress
+    import hpdob.identification._readers as readers
+    from hpdob import read_log
+
+    monkeypatch.setattr(readers, "PROGRESS_STEP", 1000)  # a report every 1000 characters
+    path = tmp_path / "log.csv"
+    rows = [
+        f"{k * 1e-3!r},{float(np.sin(k * 1e-3))!r},{float(np.cos(k * 1e-3))!r}" for k in range(2000)
+    ]
+    path.write_text("t,q,u\n" + "\n".join(rows) + "\n")
+    calls = []
+    log = read_log(path, time="t", position="q", input="u", progress=lambda *c: calls.append(c))
+    size = path.stat().st_size
+    assert calls[0] == (0, size) and calls[-1] == (size, size)
+    done = [d for d, _ in calls]
+    assert done == sorted(done) and len(calls) >= size // 1000 and {t for _, t in calls} == {size}
+    plain = read_log(path, time="t", position="q", input="u")
+    assert np.array_equal(log.theta, plain.theta) and np.array_equal(log.u, plain.u)
+    with pytest.raises(ParameterTypeError, match=r"^progress must be a callable"):
+        read_log(path, time="t", position="q", input="u", progress="yes")
+
+
+def test_estimate_progress_reading_and_estimating_on_stderr_only(capsys, tmp_path, monkeypatch):
+    import hpdob.identification._readers as readers
+
+    monkeypatch.setattr(readers, "PROGRESS_STEP", 4096)
+    path = tmp_path / "log.csv"
+    rows = [f"{k * 1e-3!r},{float(1e-3 * np.sin(k * 1e-2))!r},{float(0.01 * np.cos(k * 1e-2))!r}"
+            for k in range(3000)]  # fmt: skip
+    path.write_text("t,q,u\n" + "\n".join(rows) + "\n")
+    common = ["estimate", str(path), "--time", "t", "--position", "q", "--input", "u",
+              "--J-n", "2.8e-4", "--no-plot"]  # fmt: skip
+    code, out, err = run(capsys, *common, "--out", str(tmp_path / "p"), "--progress")
+    assert code == 0, err
+    frames = err.split("\r\x1b[K")[1:]
+    mib = path.stat().st_size / 2**20
+    assert frames[0] == f"hpdob estimate: reading log.csv 0.0/{mib:.1f} MiB (0%)"
+    assert frames[1].startswith("hpdob estimate: reading log.csv ") and "left" in frames[1]
+    assert f"hpdob estimate: reading log.csv {mib:.1f}/{mib:.1f} MiB (100%)\n" in frames
+    assert frames[-2:] == [
+        "hpdob estimate: estimating 0/3000 samples (0%)",
+        "hpdob estimate: estimating 3000/3000 samples (100%)\n",
+    ]
+    assert "hpdob estimate:" not in out
+    code, _, quiet = run(capsys, *common, "--out", str(tmp_path / "q"), "--no-progress")
+    assert code == 0 and quiet == ""
+    code, _, default = run(capsys, *common, "--out", str(tmp_path / "d"))  # not a terminal
+    assert code == 0 and default == ""
+    for name in ("estimate.csv", "estimate.json"):
+        assert (tmp_path / "p" / name).read_bytes() == (tmp_path / "q" / name).read_bytes()
