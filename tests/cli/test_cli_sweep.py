@@ -31,7 +31,6 @@ pytestmark = [
     pytest.mark.timeout(180),
 ]
 
-SRC = Path(__file__).resolve().parents[2] / "src"
 SPEC = """\
 label = "s"
 Ts = 1e-3
@@ -63,8 +62,8 @@ TOTAL = 24
 
 
 def environment(**extra) -> dict:
-    path = os.pathsep.join(filter(None, [str(SRC), os.environ.get("PYTHONPATH")]))
-    return {**os.environ, "PYTHONPATH": path, "PYTHONUNBUFFERED": "1", **extra}
+    """The test's environment (its PYTHONPATH, as the other subprocess tests) and ``extra``."""
+    return {**os.environ, "PYTHONUNBUFFERED": "1", **extra}
 
 
 def wait_for(path: Path, *processes) -> None:
