@@ -162,8 +162,11 @@ def test_simulate_states_a_long_run_before_it(capsys):
     err = capsys.readouterr().err
     assert err == (
         "hpdob simulate: a long run of 2000000 samples x 8 substeps = 1.6e+07 plant steps "
-        "(the limits per run are 2000000 samples and 1e+08 plant steps); it shows no progress\n"
+        "(the limits per run are 2000000 samples and 1e+08 plant steps); --progress shows how "
+        "far it is\n"
     )
+    cli_simulate._check_size(_canonical(2000.0), showing=True)  # the progress says it all
+    assert capsys.readouterr().err == ""
     cli_simulate._check_size(_canonical(10.0))  # 8e4 plant steps: nothing to say
     assert capsys.readouterr().err == ""
 
@@ -311,4 +314,29 @@ def test_estimate_progress_reading_and_estimating_on_stderr_only(capsys, tmp_pat
     code, _, default = run(capsys, *common, "--out", str(tmp_path / "d"))  # not a terminal
     assert code == 0 and default == ""
     for name in ("estimate.csv", "estimate.json"):
+        assert (tmp_path / "p" / name).read_bytes() == (tmp_path / "q" / name).read_bytes()
+
+
+def test_simulate_progress_on_stderr_only_and_the_same_files(capsys, tmp_path, monkeypatch):
+    # issue 27: `hpdob simulate` showed no progress; the kernel now runs in chunks (the same
+    # bits, tests/simulation/test_simulate.py) and reports the samples done with the time left
+    import hpdob.simulation._simulate as module
+
+    monkeypatch.setattr(module, "PROGRESS_PLANT_STEPS", 8 * 2500)  # 2500 samples a chunk
+    scenario = str(EXAMPLES / "canonical_hpdob.toml")
+    code, out, err = run(capsys, "simulate", scenario, "--out", str(tmp_path / "p"),
+                         "--no-plot", "--progress")  # fmt: skip
+    assert code == 0, err
+    frames = err.split("\r\x1b[K")[1:]
+    assert frames[0] == "hpdob simulate: 0/10000 samples (0%)"
+    assert frames[1].startswith("hpdob simulate: 2500/10000 samples (25%), about ")
+    assert frames[4] == "hpdob simulate: 10000/10000 samples (100%)\n"
+    assert frames[5:] == [
+        "hpdob simulate: writing HPDOb-100.csv 0/10000 rows (0%)",
+        "hpdob simulate: writing HPDOb-100.csv 10000/10000 rows (100%)\n",
+    ]
+    assert "hpdob simulate:" not in out
+    code, _, quiet = run(capsys, "simulate", scenario, "--out", str(tmp_path / "q"), "--no-plot")
+    assert code == 0 and quiet == ""  # not a terminal: no progress, one call of the kernel
+    for name in ("metrics.json", "HPDOb-100.csv"):
         assert (tmp_path / "p" / name).read_bytes() == (tmp_path / "q" / name).read_bytes()
