@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -171,13 +172,12 @@ def test_bad_identification_file(tmp_path, capsys):
         (("--J-n", 2.8e-4, "--out", "a_file/out"), "a_file"),
     ],
 )
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="POSIX FIFOs")
 def test_options_are_checked_before_the_log_is_read(tmp_path, capsys, monkeypatch, extra, needle):
     """Issue 27: a missing --J-n (or another bad option, or an output location that cannot be
     written) was reported only after the whole log was read (up to 256 MiB: minutes). The log
     reader here is a FIFO nobody writes to, and read_log is replaced by a trap: an error that
     reaches it would hang or fail differently."""
-    import os
-
     import hpdob.identification as identification
 
     def trap(*args, **kwargs):
