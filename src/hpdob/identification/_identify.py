@@ -37,7 +37,7 @@ from .._validation import (
     positive,
 )
 from ._checks import DEFAULT_TIME_TOLERANCE, check_axis
-from ._design import FRICTION_MODELS, OFFSETS, make_layout
+from ._design import FRICTION_MODELS, OFFSETS, directions, make_layout
 from ._log import Log
 from ._regression import (
     PARAMETERS,
@@ -64,6 +64,20 @@ class IdentificationWarning(RuntimeWarning):
     depend on the filter settings. The message says what to try."""
 
 
+def simulated_parameters(parameters: np.ndarray, run, layout) -> np.ndarray:
+    """The parameters to simulate ``run`` with: as identified, but on a log that moves one way
+    with the Coulomb friction lumped into the offset (``friction="viscous"``), the lumped term
+    as Coulomb friction. Both read the same while the axis moves; at its rests the log stays
+    put, which a constant offset would not let it do."""
+    if "coulomb" not in layout.fixed or layout.fixed["coulomb"] != 0.0 or 2 in layout.free:
+        return parameters
+    way, _ = directions(run)
+    J, b, _, offset = parameters
+    if way == 0.0 or way * offset <= 0.0:
+        return parameters
+    return np.array([J, b, way * offset, 0.0])
+
+
 def identify(
     t,
     theta=None,
@@ -76,7 +90,7 @@ def identify(
     order: int = 4,
     decimation: int | None = None,
     border: int | None = None,
-    min_speed: float = 0.0,
+    min_speed: float | None = None,
     zoh: bool | None = None,
     friction: str = "viscous+coulomb",
     fixed: Mapping | None = None,
@@ -137,7 +151,11 @@ def identify(
         Samples dropped at each end (filter transients). Default ``max(50, 5 decimation)``.
     min_speed : float, optional
         Drop rows where the filtered speed falls below this [rad/s or m/s] (stick phases,
-        where ``sign`` does not describe friction). Default 0: keep all, as the benchmark.
+        where ``sign`` does not describe friction); 0 keeps every row. Default with
+        ``"auto"``: drop the log's *rests*, stretches where the filtered speed stays below
+        2 % of its largest value for longer than the decimation filter's main lobe (holds
+        between step responses or moves; brief reversals are kept; see Notes); with the
+        other methods 0, as the benchmark.
     zoh : bool, optional
         Align the input with the second difference of the position, ``(u_(k-1) + u_k)/2``:
         exact for an input held over each sample (the ZOH of :math:`1/s^2` is
@@ -269,7 +287,10 @@ def identify(
         if per_run[i][0] <= 0.0 or not (diagnostics or (i == 0 and run.loop is not None)):
             fits.append(None)
             continue
-        fit = simulate_fit(per_run[i], run.t, run.theta, run.u, run.loop, run.settings)
+        fit = simulate_fit(
+            simulated_parameters(per_run[i], run, layout), run.t, run.theta, run.u, run.loop,
+            run.settings,
+        )  # fmt: skip
         fits.append(fit)
         if i == 0 and run.loop is not None:
             simulation = {
@@ -315,6 +336,7 @@ def identify(
         warnings.warn(message, IdentificationWarning, stacklevel=2)
     T = layout.transform()
     covariance = T @ solution.covariance @ T.T
+    covariance_iid = T @ solution.covariance_iid @ T.T
     offsets_values = tuple(float(p[3]) for p in per_run)
     offset_std = []
     for i in range(len(runs)):
@@ -349,6 +371,7 @@ def identify(
         coulomb=float(estimate4[2]),
         offset=float(estimate4[3]),
         covariance=covariance,
+        covariance_iid=covariance_iid,
         t=t_rows,
         u=u_rows,
         u_model=u_model,

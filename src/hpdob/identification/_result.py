@@ -69,10 +69,19 @@ class Identification:
         input (a constant load, or a bias of the torque/force measurement).
     J_std, b_std, coulomb_std, offset_std : float
         Standard deviations, square roots of the diagonal of ``covariance``.
+    std_iid : dict
+        The textbook standard deviations, from ``covariance_iid``.
     covariance : ndarray, shape (4, 4)
-        :math:`\hat\sigma^2 (Z^T X)^{-1} Z^T Z (X^T Z)^{-1}` with
-        :math:`\hat\sigma^2 = \lVert y - X\hat\theta\rVert^2 / (N - 4)`; for least squares
-        (:math:`Z = X`) it is the usual :math:`\hat\sigma^2 (X^T X)^{-1}`.
+        :math:`A \hat S A^T`, :math:`A = (Z^T X)^{-1}` (:math:`Z = X` for least squares),
+        with :math:`\hat S` the batch-means covariance of the scores :math:`z_k e_k` over 20
+        contiguous batches of each log's rows: it holds for the decimated residual, which is
+        correlated over neighbouring rows (Bester, Conley and Hansen 2011; docs/real-data.md).
+        0 for fixed parameters.
+    covariance_iid : ndarray, shape (4, 4)
+        The textbook :math:`\hat\sigma^2 (Z^T X)^{-1} Z^T Z (X^T Z)^{-1}`,
+        :math:`\hat\sigma^2 = \lVert y - X\hat\theta\rVert^2 / (N - 4)`, right for a white
+        residual only; for least squares it is :math:`\hat\sigma^2 (X^T X)^{-1}`, the EMPS
+        benchmark's (compare its published standard deviations with :attr:`std_iid`).
     t : ndarray
         Time [s] of each regression row (the decimated samples used).
     u : ndarray
@@ -145,6 +154,7 @@ class Identification:
     fits: tuple = ()
     sensitivity: Mapping | None = None
     warnings: tuple = ()
+    covariance_iid: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         if not self.offsets:
@@ -153,7 +163,10 @@ class Identification:
         if self.run is None:
             object.__setattr__(self, "run", np.zeros(np.shape(self.t), dtype=int))
         object.__setattr__(self, "run", readonly(np.array(self.run, dtype=int)))
-        for name in ("covariance", "t", "u", "u_model", "t_log", "theta_log", "theta_simulated"):
+        if self.covariance_iid is None:
+            object.__setattr__(self, "covariance_iid", self.covariance)
+        for name in ("covariance", "covariance_iid", "t", "u", "u_model", "t_log", "theta_log",
+                     "theta_simulated"):  # fmt: skip
             value = getattr(self, name)
             if value is not None:
                 object.__setattr__(self, name, readonly(np.array(value, dtype=float)))
@@ -171,6 +184,11 @@ class Identification:
     def std(self) -> dict[str, float]:
         """Standard deviation of each parameter (same keys as :attr:`parameters`)."""
         return dict(zip(PARAMETERS, np.sqrt(np.diag(self.covariance)).tolist(), strict=True))
+
+    @property
+    def std_iid(self) -> dict[str, float]:
+        """The textbook standard deviations (white residual; see ``covariance_iid``)."""
+        return dict(zip(PARAMETERS, np.sqrt(np.diag(self.covariance_iid)).tolist(), strict=True))
 
     @property
     def J_std(self) -> float:
@@ -369,7 +387,7 @@ class Identification:
         -------
         dict
             JSON-ready (non-finite values as None): ``method``, ``axis``, ``parameters``,
-            ``std``, ``units``, ``covariance``, ``relative_error_percent``,
+            ``std``, ``std_iid``, ``units``, ``covariance``, ``relative_error_percent``,
             ``residual_std``, ``rows``, ``n_samples``, ``condition_number``, ``max_speed``,
             ``iterations``, ``converged``, ``simulation``, ``offsets``, ``offsets_std``,
             ``fits``, ``sensitivity``, ``warnings`` and ``settings``.
@@ -382,6 +400,7 @@ class Identification:
                 "std": self.std,
                 "units": {name: self.units[name] for name in PARAMETERS},
                 "covariance": self.covariance,
+                "std_iid": self.std_iid,
                 "relative_error_percent": self.relative_error,
                 "residual_std": self.residual_std,
                 "rows": int(self.t.size),
