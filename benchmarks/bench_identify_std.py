@@ -11,9 +11,9 @@ spread / std of 1 is honest; below 1 the std is pessimistic, above 1 optimistic.
     python benchmarks/bench_identify_std.py --seeds 8   # quicker, noisier
 
 Only logs whose motion changes with the seed say anything here: on a chirp, a PD run or the
-torque pulses the motion is the same for every seed, so the quantisation error, the largest part of the
-residual, repeats, and the spread over seeds shows the input noise alone (a repeated error is
-a bias, which no standard deviation describes).
+torque pulses the motion is the same for every seed, so the quantisation error, the largest
+part of the residual, repeats, and the spread over seeds shows the input noise alone (a
+repeated error is a bias, which no standard deviation describes).
 """
 
 from __future__ import annotations

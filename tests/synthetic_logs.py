@@ -31,7 +31,7 @@ TORQUE = 0.1
 STEP_PERIOD, PULSE = 1.0, 0.1
 #: The kinds of log: open loop, closed-loop tracking, and step responses.
 KINDS = ("chirp+prbs", "chirp", "prbs", "multisine", "pd")
-STEP_KINDS = ("steps", "steps-both", "pulses", "pulses-one-way")
+STEP_KINDS = ("steps", "steps-down", "steps-both", "pulses", "pulses-one-way")
 
 
 @dataclass(frozen=True)
@@ -101,11 +101,13 @@ def synthetic_log(
         r_ddot = np.pi**2 * np.cos(np.pi * t) + 4.8 * np.pi**2 * np.cos(4 * np.pi * t)
         bandwidth = 5.0
         rms = J * math.sqrt(np.mean(r_ddot**2))  # the input's RMS without friction
-    elif kind in ("steps", "steps-both"):
+    elif kind in ("steps", "steps-down", "steps-both"):
         omega = 2 * np.pi * 5.0
         controller = PD(omega**2, 2 * omega)
         move = np.floor(t / STEP_PERIOD)
-        r = move + 1.0 if kind == "steps" else np.where(move % 2 == 0, 1.0, 0.0)
+        r = {"steps": move + 1.0, "steps-down": -(move + 1.0)}.get(
+            kind, np.where(move % 2 == 0, 1.0, 0.0)
+        )
         r_dot, r_ddot = np.zeros_like(t), np.zeros_like(t)
         bandwidth = 5.0
         rms = None  # measured below: the input's RMS
@@ -139,7 +141,7 @@ def synthetic_log(
     u_rms = math.sqrt(np.mean(result.u**2))
     logged = result.u + input_noise * u_rms * rng.standard_normal(result.u.size)
     loop = None
-    if kind in ("pd", "steps", "steps-both"):
+    if kind in ("pd", "steps", "steps-down", "steps-both"):
         loop = FeedbackLoop.from_pd(
             controller, J_n=J, reference=r, reference_velocity=r_dot, reference_acceleration=r_ddot
         )

@@ -64,6 +64,16 @@ class IdentificationWarning(RuntimeWarning):
     depend on the filter settings. The message says what to try."""
 
 
+def in_band(signals, settings) -> list:
+    """``signals`` low-passed to the band the regression uses: a Butterworth filter (order of
+    ``settings``) at the decimation filter's cut-off, forward and backward."""
+    from scipy import signal
+
+    sos = signal.butter(settings.order, settings.decimation_cutoff, fs=1.0 / settings.Ts,
+                        output="sos")  # fmt: skip
+    return [signal.sosfiltfilt(sos, x) for x in signals]
+
+
 def simulated_parameters(parameters: np.ndarray, run, layout) -> np.ndarray:
     """The parameters to simulate ``run`` with: as identified, but on a log that moves one way
     with the Coulomb friction lumped into the offset (``friction="viscous"``), the lumped term
@@ -296,6 +306,10 @@ def identify(
             simulation = {
                 "position_error_percent": relative_error(run.theta, fit.theta_simulated),
                 "input_error_percent": relative_error(run.u, fit.u_simulated),
+                "input_error_band_percent": relative_error(
+                    *in_band((run.u, fit.u_simulated), run.settings)
+                ),
+                "band_hz": run.settings.decimation_cutoff,
             }
             traces = (run.t, run.theta, fit.theta_simulated)
             if (
@@ -354,6 +368,8 @@ def identify(
         method=method, adaptive=adaptive, n_rows=int(u_rows.size),
         time_tolerance=float(time_tolerance), friction=friction,
         fixed=dict(layout.fixed), offsets=offsets if len(runs) > 1 else "per-log",
+        rest_rows=int(sum(run.regression.rest_rows for run in runs)),
+        rest_speed=float(max(run.regression.rest_speed for run in runs)),
     )  # fmt: skip
     if len(runs) > 1:
         record["logs"] = [
