@@ -252,7 +252,7 @@ def identify(
     M = 95.1 kg, Fv = 203 N s/m, Fc = 20.4 N
     >>> fit = hpdob.identify(log.t, log.theta, log.u, axis="linear")   # the defaults
     >>> print(f"{fit.method}: M = {fit.J:.1f} kg, Fv = {fit.b:.0f} N s/m, Fc = {fit.coulomb:.1f} N")
-    idim-iv-input: M = 94.5 kg, Fv = 208 N s/m, Fc = 20.0 N
+    idim-iv-input: M = 94.9 kg, Fv = 198 N s/m, Fc = 21.0 N
     """
     method = check_choice(method, "method", METHODS)
     adaptive = method == "auto"
