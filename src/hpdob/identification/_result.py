@@ -405,7 +405,8 @@ class Identification:
                 listed = ", ".join(f"{name} {move:+.2g}" for name, move in moves.items()
                                    if not name.startswith("offset"))  # fmt: skip
                 lines.append(
-                    f"  filters' bandwidth {which}: moves in standard deviations: {listed}"
+                    f"  filters' bandwidth {which}: moves in standard deviations: {listed} (a "
+                    "change of bias; a warning needs 2 % of J or 25 % of b or Coulomb too)"
                 )
         for message in self.warnings:
             lines.append(f"  warning: {message}")
