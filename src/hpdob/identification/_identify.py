@@ -38,7 +38,7 @@ from .._validation import (
 )
 from ._checks import DEFAULT_TIME_TOLERANCE, check_axis
 from ._design import FRICTION_MODELS, OFFSETS, directions, make_layout
-from ._log import Log
+from ._log import Log, register_identify
 from ._regression import (
     PARAMETERS,
 )
@@ -415,3 +415,6 @@ def identify(
         else None,
         warnings=tuple(caught),
     )
+
+
+register_identify(identify)
