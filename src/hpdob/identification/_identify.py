@@ -205,8 +205,11 @@ def identify(
     ParameterValueError
         If the log cannot identify the model: signals of different lengths, a non-finite
         sample, time not increasing or not uniform, too few samples for the filters, no
-        motion, constant input, motion in one direction only (the message says how to lump
-        Coulomb friction and offset), an ill-conditioned regression;
+        motion, constant input, motion in one direction only (the message names the calls
+        that identify that log: ``friction="viscous"``, ``fixed={"coulomb": ...}``, or a log
+        that moves the other way with ``offsets="shared"``), a log that rests most of the
+        time (the message counts the rest rows and names the ``bandwidth`` that works), an
+        ill-conditioned regression;
         or if a setting is out of range, or ``loop`` does not match the log (length, or a
         simulation with the IDIM-LS estimate more than 50 % off the logged position).
     ParameterTypeError
@@ -233,7 +236,15 @@ def identify(
     ``[fs/250, fs/6]``: faster motion drowns in the differentiated noise, and a wider band
     only adds noise. Instrumental variables then remove what bias the noise still causes,
     and ``sign(velocity)`` is its own instrument (noise changes it only near rest, and a
-    simulated one jumps with every stick event).
+    simulated one jumps with every stick event). The rows of the log's rests (holds between
+    steps or moves, stick events: the speed below 2 % of its largest for more than one
+    decimated row) are dropped, with half the decimation filter's main lobe around them: at
+    rest the friction is static, which ``c sign(velocity)`` does not describe.
+
+    The standard deviations allow for the residual's correlation over neighbouring rows
+    (batch means over 20 contiguous batches per log; ``std_iid`` of the result are the
+    textbook ones); a Monte Carlo over seeds matches them to the estimates' spread within a
+    factor 1.4 (docs/real-data.md).
 
     References
     ----------
@@ -241,6 +252,8 @@ def identify(
     Nonlinear System Identification Benchmarks, 2019 (eqs. 1, 2, 9, 10, 11; section 3).
     A. Janot, P.-O. Vandanjon, M. Gautier, "A generic instrumental variable approach for
     industrial robot identification", IEEE Trans. Control Systems Technology 22(1), 2014.
+    M. S. Bester, T. G. Conley, C. B. Hansen, "Inference with dependent data using cluster
+    covariance estimators", Journal of Econometrics 165(2), 2011.
 
     Examples
     --------
