@@ -1,0 +1,205 @@
+"""The force loop in contact analysed (issue 21 section 4): the stability map over environment
+stiffness x observer bandwidth and over J_n/J, its verdict against simulation of the
+unilateral wall at every grid point, against the simulated linear loop's growth rate, and
+against the ideal-observer limit."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from hpdob import (
+    Actuator,
+    Encoder,
+    Environment,
+    ParameterTypeError,
+    ParameterValueError,
+    ServoLoop,
+    SimulationDivergedWarning,
+    paper,
+    simulate,
+)
+from hpdob.analysis import ContactStabilityMap, contact_stability_map
+from hpdob.controllers import ForceControl, LinearController, controller_system
+from hpdob.observers import design_observer, reaction_torque_observer
+
+TS = paper.TS
+PLANT = paper.PLANT.replace(coulomb=0.0)  # the linear analysis leaves Coulomb friction out
+NOMINAL = paper.NOMINAL
+TAU_REF = 0.05  # N m
+#: The encoder's backward-difference velocity without its quantisation (2^52 counts: a count is
+#: 1.4e-15 rad), so that a stable loop settles to round-off and the verdict is not blurred.
+FINE_ENCODER = Encoder(2**52, velocity="backward-difference")
+#: Points whose spectral radius is within this of 1 are excluded from the verdict check
+#: (settling or growth too slow to tell in a 5 s run); none of the grids below has one.
+BOUNDARY_BAND = 1e-3
+
+
+def _loop(k_e=10.0, *, order=1, nominal=NOMINAL, sensor=FINE_ENCODER, Ts=TS, delay=1):
+    dob = design_observer(nominal.discretize(Ts), order=order, bandwidth=100.0)
+    return ServoLoop(plant=PLANT.replace(environment=Environment(k_e)), nominal=nominal, Ts=Ts,
+                     controller=ForceControl(1000.0, kv=40.0),
+                     observer=reaction_torque_observer(dob, viscous=PLANT.b - nominal.b),
+                     sensor=sensor,
+                     actuator=Actuator(torque_limit=0.444, delay_samples=delay))  # fmt: skip
+
+
+def _step(t):
+    return np.where(t >= 0.01, TAU_REF, 0.0), 0 * t, 0 * t
+
+
+def _settles(loop, duration=5.0) -> tuple[bool, float]:
+    """Run the unilateral wall from rest at the wall: ``(settled, worst relative error)`` over
+    the last 0.5 s; settled means within 1e-3 of tau_ref and in contact throughout."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SimulationDivergedWarning)
+        result = simulate(loop, reference=_step, duration=duration)
+    tail = slice(-500, None)
+    error = float(np.max(np.abs(result.tau_contact[tail] - TAU_REF)) / TAU_REF)
+    if not np.isfinite(error):
+        error = np.inf
+    return bool(error < 1e-3 and result.in_contact[tail].all()), error
+
+
+@pytest.mark.parametrize("order", [0, 1])
+def test_verdict_agrees_with_simulation_at_every_grid_point(order):
+    """Issue 21 target: the analysis' stability verdict agrees with simulation at every point of
+    a 5 x 5 stiffness x bandwidth grid (0.1-1000 N m/rad, 25-400 rad/s): the unilateral wall
+    (contact lost and regained), the paper's motor without Coulomb friction, torque limit and
+    one sample of delay, ForceControl(1000, kv=40). Margins: the stable runs settle within
+    2e-4 of tau_ref (check: 1e-3), the unstable ones stay off it by more than 50 %."""
+    cmap = contact_stability_map(_loop(order=order), stiffness=np.geomspace(0.1, 1000.0, 5),
+                                 bandwidth=np.geomspace(25.0, 400.0, 5),
+                                 observer={"order": order}, viscous=PLANT.b)  # fmt: skip
+    assert cmap.stable.any() and not cmap.stable.all()  # both verdicts are exercised
+    checked = 0
+    for i, k_e in enumerate(cmap.values):
+        for j, g in enumerate(cmap.bandwidths):
+            rho = cmap.spectral_radius[i, j]
+            if abs(rho - 1.0) < BOUNDARY_BAND:
+                continue
+            settled, error = _settles(cmap.loop_at(k_e, g))
+            assert settled == (rho < 1.0), (k_e, g, rho, error)
+            assert error < 2e-4 if rho < 1.0 else error > 0.5, (k_e, g, rho, error)
+            checked += 1
+    assert checked == 25
+
+
+def test_radius_is_the_growth_rate_of_the_simulated_linear_loop():
+    """An independent implementation of the recurrence (the compiled kernel on the bonded,
+    linear plant): the per-sample growth of the simulated response is the map's spectral
+    radius, on both sides of the boundary."""
+    cmap = contact_stability_map(_loop(), stiffness=[10.0, 1000.0], bandwidth=[100.0],
+                                 observer={"order": 1})  # fmt: skip
+    for k_e, n0, n1, theta0 in ((10.0, 400, 1000, 1.0), (1000.0, 150, 350, 1e-6)):
+        rho = cmap.radius_at(k_e, 100.0)
+        loop = cmap.loop_at(k_e, 100.0, bonded=True).replace(actuator=Actuator(delay_samples=1))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", SimulationDivergedWarning)
+            result = simulate(
+                loop, reference=lambda t: (0 * t, 0 * t, 0 * t), duration=1.0, x0=(theta0, 0.0)
+            )  # linear: any scale, far above a count
+        envelope = [np.max(np.abs(result.theta[n - 100 : n])) for n in (n0, n1)]
+        measured = (envelope[1] / envelope[0]) ** (1.0 / (n1 - n0))
+        assert not np.isnan(result.theta[:n1]).any()
+        assert measured == pytest.approx(rho, abs=1e-3), k_e  # envelope: 5e-4 measured
+
+
+def test_nominal_ratio_boundary_verified_on_both_sides():
+    """Over-estimated J_n destabilises the force loop: the RTOB then reads (J - J_n) a as a
+    negative inertia. The refined boundary at 100 rad/s, checked by the unilateral simulation
+    5 % on each side: settles below it, does not above; the under-estimated side is stable
+    down to J_n/J = 0.1."""
+    cmap = contact_stability_map(_loop(), nominal_ratio=np.geomspace(0.1, 10.0, 9),
+                                 bandwidth=[100.0], observer={"order": 1},
+                                 viscous=PLANT.b)  # fmt: skip
+    (edge,) = cmap.boundary()
+    assert edge["kind"] == "upper" and 3.0 < edge["nominal_ratio"] < 6.0
+    assert cmap.radius_at(edge["nominal_ratio"], 100.0) == pytest.approx(1.0, abs=1e-9)
+    assert cmap.stable[cmap.values < edge["nominal_ratio"], 0].all()
+    below, above = (cmap.loop_at(edge["nominal_ratio"] * f, 100.0) for f in (0.95, 1.05))
+    np.testing.assert_allclose(below.nominal.J, 0.95 * edge["nominal_ratio"] * PLANT.J)
+    assert _settles(below)[0]
+    assert not _settles(above)[0]
+
+
+def test_nominal_ratio_boundary_tends_to_the_ideal_observer_limit():
+    """With an ideal DOb (theta_ddot = a_ref) the RTOB reads tau_env + (J - J_n) theta_ddot, so
+    (1 + K_f (J - J_n)) theta_ddot + K_v omega + K_f k_e theta = K_f tau_ref: stable iff
+    J_n/J < 1 + 1/(K_f J) = 4.268 for the paper's motor and K_f = 1000. A fast observer at a
+    short period (Ts = 0.1 ms, 3000 rad/s, no delay) comes within 1 % of it."""
+    Ts = 1e-4
+    cmap = contact_stability_map(_loop(1.0, order=0, Ts=Ts, delay=0, sensor=None),
+                                 nominal_ratio=np.geomspace(1.0, 10.0, 11), bandwidth=[3000.0],
+                                 observer={"order": 0})  # fmt: skip
+    (edge,) = cmap.boundary()
+    limit = 1.0 + 1.0 / (1000.0 * PLANT.J)
+    assert edge["nominal_ratio"] == pytest.approx(limit, rel=0.01)
+
+
+def test_map_matches_closed_loop_poles_of_the_bonded_loop():
+    from hpdob import closed_loop_poles
+
+    cmap = contact_stability_map(_loop(), stiffness=[1.0, 100.0], bandwidth=[50.0, 200.0],
+                                 observer={"order": 1}, reaction={"order": 0},
+                                 viscous=1e-5)  # fmt: skip
+    for i, k_e in enumerate(cmap.values):
+        for j, g in enumerate(cmap.bandwidths):
+            loop = cmap.loop_at(k_e, g, bonded=True).replace(actuator=Actuator(delay_samples=1))
+            assert loop.system.n_states == 3  # DOb order 1 + its own RTOB of order 0
+            rho = np.max(np.abs(closed_loop_poles(loop)))
+            assert cmap.spectral_radius[i, j] == pytest.approx(rho, rel=1e-12)
+
+
+def test_table_and_plot(tmp_path):
+    pytest.importorskip("pandas")
+    cmap = contact_stability_map(_loop(), stiffness=[1.0, 10.0, 1000.0],
+                                 bandwidth=[50.0, 100.0], observer={"order": 1})  # fmt: skip
+    assert isinstance(cmap, ContactStabilityMap)
+    frame = cmap.to_pandas()
+    assert list(frame.columns) == ["stiffness", "bandwidth_rad_s", "nominal_ratio",
+                                   "delay_samples", "spectral_radius", "stable"]  # fmt: skip
+    assert len(frame) == 6 and frame["stable"].tolist() == cmap.stable.ravel().tolist()
+    assert frame["nominal_ratio"].iloc[0] == pytest.approx(NOMINAL.J / PLANT.J)
+    path = cmap.to_csv(tmp_path / "map.csv")
+    assert path.read_text().splitlines()[0].startswith("stiffness,bandwidth_rad_s")
+    fig = cmap.plot(mark=(100.0, 10.0))
+    ax = fig.axes[0]
+    assert "[N m/rad]" in ax.get_ylabel() and "[rad/s]" in ax.get_xlabel()
+    assert ax.get_legend() is not None
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    assert not cmap.spectral_radius.flags.writeable
+
+
+def test_bad_inputs():
+    loop = _loop()
+    grid = {"bandwidth": [100.0], "observer": {"order": 1}}
+    with pytest.raises(ParameterValueError, match=r"^give a grid for exactly one of .* got both"):
+        contact_stability_map(loop, stiffness=[1.0], nominal_ratio=[1.0], **grid)
+    with pytest.raises(ParameterValueError, match=r"got neither$"):
+        contact_stability_map(loop, **grid)
+    with pytest.raises(ParameterValueError, match=r"^stiffness must be positive contact"):
+        contact_stability_map(loop, stiffness=[-1.0, 1.0], **grid)
+    with pytest.raises(ParameterValueError, match=r"^bandwidth must be strictly increasing"):
+        contact_stability_map(loop, stiffness=[1.0], bandwidth=[100.0, 50.0],
+                              observer={"order": 1})  # fmt: skip
+    with pytest.raises(ParameterValueError, match=r"^loop.plant must be a ServoModel or Two"):
+        contact_stability_map(loop.replace(plant=PLANT), stiffness=[1.0], **grid)
+    with pytest.raises(ParameterTypeError, match=r"^observer must be a dict"):
+        contact_stability_map(loop, stiffness=[1.0], bandwidth=[100.0], observer=1)
+    with pytest.raises(ParameterValueError, match=r"^reaction must not give bandwidth"):
+        contact_stability_map(loop, stiffness=[1.0], reaction={"order": 0, "bandwidth": 5.0},
+                              **grid)  # fmt: skip
+    fixed = controller_system(ForceControl(1000.0), NOMINAL, TS)
+    assert isinstance(fixed, LinearController)
+    with pytest.raises(ParameterTypeError, match=r"^nominal_ratio needs loop.controller"):
+        contact_stability_map(loop.replace(controller=fixed), nominal_ratio=[1.0], **grid)
+    with pytest.raises(ParameterTypeError, match=r"^loop must be"):
+        contact_stability_map("loop", stiffness=[1.0], **grid)
+    cmap = contact_stability_map(loop, stiffness=[1.0], **grid)
+    with pytest.raises(ParameterValueError, match=r"^bandwidth must be a positive"):
+        cmap.radius_at(1.0, -5.0)
