@@ -203,3 +203,39 @@ def test_bad_inputs():
     cmap = contact_stability_map(loop, stiffness=[1.0], **grid)
     with pytest.raises(ParameterValueError, match=r"^bandwidth must be a positive"):
         cmap.radius_at(1.0, -5.0)
+
+
+@pytest.mark.parametrize("order", [0, 1])
+@pytest.mark.parametrize("parameter", ["stiffness", "nominal_ratio"])
+def test_every_boundary_is_verified_on_both_sides(order, parameter):
+    """The boundaries docs/force-control.md tabulates (25, 100 and 400 rad/s here), each
+    checked by the unilateral simulation 10 % on either side: settles below, not above."""
+    grid = {"stiffness": np.geomspace(1.0, 1000.0, 31),
+            "nominal_ratio": np.geomspace(0.1, 20.0, 31)}[parameter]  # fmt: skip
+    cmap = contact_stability_map(_loop(order=order), bandwidth=[25.0, 100.0, 400.0],
+                                 observer={"order": order}, viscous=PLANT.b,
+                                 **{parameter: grid})  # fmt: skip
+    edges = cmap.boundary()
+    assert [e["bandwidth"] for e in edges] == [25.0, 100.0, 400.0]  # one upper edge each
+    for edge in edges:
+        assert edge["kind"] == "upper"
+        for factor, stable in ((0.9, True), (1.1, False)):
+            value = edge[parameter] * factor
+            assert abs(cmap.radius_at(value, edge["bandwidth"]) - 1.0) >= BOUNDARY_BAND
+            assert _settles(cmap.loop_at(value, edge["bandwidth"]))[0] == stable, (edge, factor)
+
+
+def test_contact_boundary_is_set_by_the_delay():
+    """docs/force-control.md: the first stiffness boundary hardly moves with the force gain (a
+    boundary set by K_f k_e would move 8x from kf = 250 to 2000; measured 156-174 N m/rad,
+    DOb), and without the sample of delay it is 4x higher (714 N m/rad measured)."""
+
+    def edge(kf, delay):
+        loop = _loop(order=0, delay=delay).replace(controller=ForceControl(kf, kv=40.0))
+        cmap = contact_stability_map(loop, stiffness=np.geomspace(1.0, 3000.0, 31),
+                                     bandwidth=[100.0], observer={"order": 0})  # fmt: skip
+        return cmap.boundary()[0]["stiffness"]
+
+    low, high = edge(250.0, 1), edge(2000.0, 1)
+    assert 0.8 < high / low < 1.25
+    assert edge(1000.0, 0) > 3.0 * edge(1000.0, 1)

@@ -108,8 +108,8 @@ class _ContactSetting:
 
     @property
     def name(self) -> str:
-        reaction = "shared" if self.reaction is None else spec_label(self.reaction)
-        return f"DOb {spec_label(self.observer)}, RTOB {reaction}"
+        reaction = "the DOb itself" if self.reaction is None else spec_label(self.reaction)
+        return f"{spec_label(self.observer)}; RTOB: {reaction}"
 
 
 @dataclass(frozen=True, eq=False)
