@@ -168,7 +168,12 @@ def test_table_and_plot(tmp_path):
     fig = cmap.plot(mark=(100.0, 10.0))
     ax = fig.axes[0]
     assert "[N m/rad]" in ax.get_ylabel() and "[rad/s]" in ax.get_xlabel()
-    assert ax.get_legend() is not None
+    fig.draw_without_rendering()
+    legend, frame = ax.get_legend().get_window_extent(), fig.bbox
+    assert legend.y0 >= ax.get_window_extent().y1 - 0.5  # above the map, off the data
+    title = ax.title.get_window_extent()
+    assert frame.x0 - 0.5 <= title.x0 and title.x1 <= frame.x1 + 0.5
+    assert title.y1 <= frame.y1 + 0.5 and title.y0 >= legend.y1 - 0.5
     import matplotlib.pyplot as plt
 
     plt.close(fig)
@@ -239,3 +244,13 @@ def test_contact_boundary_is_set_by_the_delay():
     low, high = edge(250.0, 1), edge(2000.0, 1)
     assert 0.8 < high / low < 1.25
     assert edge(1000.0, 0) > 3.0 * edge(1000.0, 1)
+
+
+def test_progress_counts_the_grid_points():
+    calls = []
+    contact_stability_map(_loop(), nominal_ratio=[0.5, 1.0, 2.0], bandwidth=[50.0, 100.0],
+                          observer={"order": 1}, progress=lambda *a: calls.append(a))  # fmt: skip
+    assert calls == [(0, 6), (2, 6), (4, 6), (6, 6)]
+    with pytest.raises(ParameterTypeError, match=r"^progress must be a callable"):
+        contact_stability_map(_loop(), stiffness=[1.0], bandwidth=[100.0],
+                              observer={"order": 1}, progress=3)  # fmt: skip
