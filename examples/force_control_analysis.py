@@ -107,6 +107,7 @@ def nominal_ratio(out: Path) -> None:
         edges[order] = {e["bandwidth"]: e["nominal_ratio"] for e in edge}
     for g in BANDWIDTHS:
         print(f"| {g:g} | {edges[0][g]:.3f} | {edges[1][g]:.3f} |")
+    rtob_table()
 
     print("\n| J_n/J | order | -3 dB [Hz] | peak | at [Hz] | slowest poles | zeros |")
     print("|---:|---|---:|---:|---:|---|---|")
@@ -135,6 +136,22 @@ def nominal_ratio(out: Path) -> None:
     ax.set_ylim(1e-2, 20.0)
     ax.legend(loc="lower left", fontsize="small", ncols=2, frameon=False)
     save(fig, out, "force_nominal_ratio.png")
+
+
+def rtob_table() -> None:
+    """The boundary when only the RTOB's nominal inertia is wrong (a separate RTOB of the
+    DOb's order and bandwidth; DOb and controller on the nominal model)."""
+    print("\n| bandwidth [rad/s] | " + " | ".join(f"{NAMES[m]}: RTOB's J_n/J" for m in (0, 1))
+          + " |\n|---:|---:|---:|")  # fmt: skip
+    edges = {}
+    for order in (0, 1):
+        edge = contact_stability_map(loop(order), nominal_ratio=np.geomspace(0.01, 20.0, 31),
+                                     bandwidth=BANDWIDTHS, observer={"order": order},
+                                     reaction={"order": order}, nominal_of="reaction",
+                                     viscous=DELTA_B).boundary()  # fmt: skip
+        edges[order] = {e["bandwidth"]: e["nominal_ratio"] for e in edge}
+    for g in BANDWIDTHS:
+        print(f"| {g:g} | {edges[0][g]:.3f} | {edges[1][g]:.3f} |")
 
 
 def tracking(out: Path) -> None:

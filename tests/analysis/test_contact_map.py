@@ -254,3 +254,57 @@ def test_progress_counts_the_grid_points():
     with pytest.raises(ParameterTypeError, match=r"^progress must be a callable"):
         contact_stability_map(_loop(), stiffness=[1.0], bandwidth=[100.0],
                               observer={"order": 1}, progress=3)  # fmt: skip
+
+
+def test_the_rtobs_own_nominal_inertia():
+    """nominal_of="reaction": only the RTOB's J_n varies (DOb and controller stay on the
+    nominal model). Its boundary at 100 rad/s, verified by simulation 10 % on either side, lies
+    below the whole loop's (4.41 against 4.66 measured for the DOb): the RTOB alone reading
+    (J - J_n,R) a as a negative inertia, the DOb keeping its margin. The point's loop holds
+    exactly that composition."""
+    loop = _loop(order=0)
+    grid = {"nominal_ratio": np.geomspace(0.1, 20.0, 31), "bandwidth": [100.0],
+            "observer": {"order": 0}, "reaction": {"order": 0}, "viscous": PLANT.b}  # fmt: skip
+    alone = contact_stability_map(loop, nominal_of="reaction", **grid)
+    whole = contact_stability_map(loop, **grid)
+    assert alone.nominal_of == "reaction" and "RTOB" in alone.plot().axes[0].get_ylabel()
+    (edge,) = alone.boundary()
+    (edge_whole,) = whole.boundary()
+    assert 3.0 < edge["nominal_ratio"] < 0.98 * edge_whole["nominal_ratio"]
+    ratio = 0.9 * edge["nominal_ratio"]
+    point = alone.loop_at(ratio, 100.0)
+    assert point.nominal is loop.nominal
+    varied = NOMINAL.replace(J=ratio * PLANT.J).discretize(TS)
+    expected = reaction_torque_observer(
+        design_observer(NOMINAL.discretize(TS), order=0, bandwidth=100.0),
+        design_observer(varied, order=0, bandwidth=100.0),
+        viscous=PLANT.b,
+    )
+    np.testing.assert_allclose(point.system.G, expected.G, rtol=1e-12)
+    np.testing.assert_allclose(point.system.H, expected.H, rtol=1e-12)
+    assert _settles(point)[0]
+    assert not _settles(alone.loop_at(1.1 * edge["nominal_ratio"], 100.0))[0]
+
+
+def test_the_rtobs_own_nominal_inertia_has_the_ideal_limit_too():
+    """Ideal DOb: theta_ddot = a_ref whatever its J_n, the RTOB reads tau_env +
+    (J - J_n,R) theta_ddot: the same limit J_n,R/J < 1 + 1/(K_f J), within 1 % at 0.1 ms."""
+    Ts = 1e-4
+    cmap = contact_stability_map(_loop(1.0, order=0, Ts=Ts, delay=0, sensor=None),
+                                 nominal_ratio=np.geomspace(1.0, 10.0, 11), bandwidth=[3000.0],
+                                 observer={"order": 0}, reaction={"order": 0},
+                                 nominal_of="reaction")  # fmt: skip
+    (edge,) = cmap.boundary()
+    assert edge["nominal_ratio"] == pytest.approx(1.0 + 1.0 / (1000.0 * PLANT.J), rel=0.01)
+
+
+def test_nominal_of_bad_inputs():
+    loop = _loop()
+    grid = {"bandwidth": [100.0], "observer": {"order": 1}}
+    with pytest.raises(ParameterValueError, match=r"^nominal_of='reaction' .* got reaction=None"):
+        contact_stability_map(loop, nominal_ratio=[1.0], nominal_of="reaction", **grid)
+    with pytest.raises(ParameterValueError, match=r"got a stiffness grid$"):
+        contact_stability_map(loop, stiffness=[1.0], nominal_of="reaction",
+                              reaction={"order": 0}, **grid)  # fmt: skip
+    with pytest.raises(ValueError, match=r"^nominal_of must be one of"):
+        contact_stability_map(loop, nominal_ratio=[1.0], nominal_of="rtob", **grid)

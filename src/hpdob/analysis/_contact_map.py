@@ -19,6 +19,7 @@ from .._validation import (
     ParameterTypeError,
     ParameterValueError,
     as_grid,
+    check_choice,
     nonnegative,
     positive,
     require_instance,
@@ -46,6 +47,9 @@ _UNITS = {
     "stiffness": "environment stiffness k_e [N m/rad]",
     "nominal_ratio": "nominal/true inertia J_n/J [-]",
 }
+_RTOB_UNITS = "the RTOB's nominal/true inertia J_n/J [-]"
+#: What a ``nominal_ratio`` grid varies: the nominal model of the whole loop, or the RTOB's.
+NOMINAL_OF = ("loop", "reaction")
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,50 +60,44 @@ class _ContactSetting:
     observer: dict
     reaction: dict | None
     viscous: float
+    nominal_of: str = "loop"  # what a nominal_ratio grid varies: "loop" or "reaction"
 
     @property
     def Ts(self) -> float:
         return self.loop.Ts
 
-    def nominal(self, nominal_ratio: float | None) -> ServoModel:
-        if nominal_ratio is None:
-            return self.loop.nominal
-        return self.loop.nominal.replace(J=nominal_ratio * self.loop.plant.J)
+    def parts(self, parameter: str, value: float):
+        """``(plant, nominal of controller and DOb, nominal of the RTOB)`` at one point."""
+        plant, nominal = self.loop.plant, self.loop.nominal
+        if parameter == "stiffness":
+            wall = plant.environment
+            plant = plant.replace(
+                environment=Environment(value, damping=wall.damping, position=wall.position)
+            )
+            return plant, nominal, nominal
+        varied = nominal.replace(J=value * plant.J)
+        return plant, (nominal if self.nominal_of == "reaction" else varied), varied
 
-    def plant(self, stiffness: float | None):
-        plant = self.loop.plant
-        if stiffness is None:
-            return plant
-        wall = plant.environment
-        return plant.replace(
-            environment=Environment(stiffness, damping=wall.damping, position=wall.position)
-        )
-
-    def observer_at(self, nominal: ServoModel, bandwidth: float):
-        model = nominal.discretize(self.Ts)
-        dob = design_at_bandwidth(model, self.observer, bandwidth)
+    def observer_at(self, nominal: ServoModel, reaction_nominal: ServoModel, bandwidth: float):
+        dob = design_at_bandwidth(nominal.discretize(self.Ts), self.observer, bandwidth)
         rtob = None if self.reaction is None else design_at_bandwidth(
-            model, self.reaction, bandwidth, "reaction")  # fmt: skip
+            reaction_nominal.discretize(self.Ts), self.reaction, bandwidth, "reaction")  # fmt: skip
         return reaction_torque_observer(dob, rtob, viscous=self.viscous)
 
     def loop_at(self, parameter: str, value: float, bandwidth: float, *, bonded: bool):
-        stiffness = value if parameter == "stiffness" else None
-        ratio = value if parameter == "nominal_ratio" else None
-        nominal = self.nominal(ratio)
-        plant = self.plant(stiffness)
+        plant, nominal, reaction_nominal = self.parts(parameter, value)
         return self.loop.replace(
             plant=InContact(plant) if bonded else plant,
             nominal=nominal,
-            observer=self.observer_at(nominal, bandwidth),
+            observer=self.observer_at(nominal, reaction_nominal, bandwidth),
         )
 
     def radius(self, parameter: str, value: float, bandwidth: float) -> float:
-        stiffness = value if parameter == "stiffness" else None
-        nominal = self.nominal(value if parameter == "nominal_ratio" else None)
+        plant, nominal, reaction_nominal = self.parts(parameter, value)
         spec = LoopSpec(
-            plant=InContact(self.plant(stiffness)).discretize(self.Ts),
+            plant=InContact(plant).discretize(self.Ts),
             controller=controller_system(self.loop.controller, nominal, self.Ts),
-            system=self.observer_at(nominal, bandwidth),
+            system=self.observer_at(nominal, reaction_nominal, bandwidth),
             backward_difference=self.loop.sensor is not None
             and self.loop.sensor.velocity == "backward-difference",
             delay=self.loop.actuator.delay_samples,
@@ -123,7 +121,8 @@ class ContactStabilityMap:
     ----------
     parameter : str
         ``"stiffness"`` (environment stiffness :math:`k_e` [N m/rad]) or ``"nominal_ratio"``
-        (:math:`J_n/J`, the nominal inertia of DOb, RTOB and controller over the true one).
+        (:math:`J_n/J`: the nominal inertia over the true one, of DOb, RTOB and controller or
+        of the RTOB alone, see ``nominal_of``).
     values : ndarray
         Its grid (strictly increasing).
     bandwidths : ndarray
@@ -140,6 +139,9 @@ class ContactStabilityMap:
         The DOb's family spec but the bandwidth.
     reaction : dict or None
         The RTOB's family spec but the bandwidth; None: the RTOB is the DOb itself.
+    nominal_of : str
+        ``"loop"`` (a ``nominal_ratio`` grid varies the nominal model of DOb, RTOB and
+        controller) or ``"reaction"`` (of the RTOB alone).
     """
 
     parameter: str
@@ -152,6 +154,7 @@ class ContactStabilityMap:
     observer: dict = field(repr=False)
     reaction: dict | None = field(repr=False)
     _setting: _ContactSetting = field(repr=False, compare=False)
+    nominal_of: str = "loop"
 
     @property
     def stable(self) -> np.ndarray:
@@ -316,7 +319,7 @@ class ContactStabilityMap:
             values=self.values,
             radius=self.spectral_radius,
             Ts=self._setting.Ts,
-            ylabel=_UNITS[self.parameter],
+            ylabel=_UNITS[self.parameter] if self.nominal_of == "loop" else _RTOB_UNITS,
             title="\n".join(
                 [self._setting.name, self._setting.loop.controller_system.name, ", ".join(fixed)]
             ),
@@ -359,6 +362,7 @@ def contact_stability_map(
     nominal_ratio=None,
     reaction: dict | None = None,
     viscous: float = 0.0,
+    nominal_of: str = "loop",
     progress=None,
 ) -> ContactStabilityMap:
     r"""Stability of the force loop in contact over stiffness or :math:`J_n/J`, and bandwidth.
@@ -395,6 +399,10 @@ def contact_stability_map(
     viscous : float, optional
         :math:`\Delta b` [N m s/rad] the RTOB subtracts (as in
         :func:`~hpdob.observers.reaction_torque_observer`). Default 0.
+    nominal_of : {"loop", "reaction"}, optional
+        What a ``nominal_ratio`` grid varies: ``"loop"`` (default), the nominal model of DOb,
+        RTOB and controller; ``"reaction"``, the RTOB's alone (needs ``reaction``; DOb and
+        controller stay on ``loop.nominal``).
     progress : callable, optional
         Called as ``progress(done, total)``: with ``done = 0`` first, then after each row.
 
@@ -439,6 +447,13 @@ def contact_stability_map(
         )
     parameter = "stiffness" if stiffness is not None else "nominal_ratio"
     _check_loop(loop, parameter)
+    nominal_of = check_choice(nominal_of, "nominal_of", NOMINAL_OF)
+    if nominal_of == "reaction" and (parameter != "nominal_ratio" or reaction is None):
+        raise ParameterValueError(
+            "nominal_of='reaction' varies the RTOB's own nominal inertia: it needs a "
+            "nominal_ratio grid and a separate reaction observer spec, got "
+            + ("a stiffness grid" if parameter != "nominal_ratio" else "reaction=None")
+        )
     if progress is not None and not callable(progress):
         raise ParameterTypeError(
             f"progress must be a callable progress(done, total) or None, got {progress!r}"
@@ -477,6 +492,7 @@ def contact_stability_map(
         observer=dict(observer),
         reaction=None if reaction is None else dict(reaction),
         viscous=nonnegative(viscous, "viscous", "a non-negative viscous friction [N m s/rad]"),
+        nominal_of=nominal_of,
     )
     # every design of the first row (and its plant) before the grid: a bad spec fails first
     setting.radius(parameter, float(values[0]), float(bandwidths[0]))
@@ -502,6 +518,7 @@ def contact_stability_map(
         observer=dict(observer),
         reaction=None if reaction is None else dict(reaction),
         _setting=setting,
+        nominal_of=nominal_of,
     )
 
 
