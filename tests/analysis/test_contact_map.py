@@ -330,3 +330,28 @@ def test_beyond_the_grid_the_bonded_simulation_still_agrees():
         warnings.simplefilter("ignore", SimulationDivergedWarning)
         fine = simulate(cmap.loop_at(6000.0, 100.0), reference=_step, duration=5.0, substeps=64)
     assert np.max(np.abs(fine.tau_contact[-500:] - TAU_REF)) > 0.5 * TAU_REF
+
+
+def test_coulomb_friction_is_outside_the_verdict():
+    """docs/force-control.md, 'Coulomb friction and the verdict': the map is the Coulomb-free
+    loop's. On the paper's motor (Coulomb 0.01 N m smoothed over 0.01 rad/s) the 1000 N m/rad
+    wall settles although the map says unstable: near rest the friction is a c/v = 1 N m s/rad
+    damper (with it as viscous friction the map says stable). That damper holds only below
+    0.01 rad/s: with kf = 1e4 at 400 rad/s the b + c/v map says stable at 300 N m/rad and the
+    paper's motor does not settle. Neither linear model decides the paper's motor in general."""
+    coulomb = paper.PLANT
+    damped = coulomb.replace(b=coulomb.b + coulomb.coulomb / coulomb.coulomb_velocity, coulomb=0.0)
+
+    def loop(plant, kf):
+        return _loop(order=1).replace(plant=plant.replace(environment=Environment(10.0)),
+                                      controller=ForceControl(kf, kv=40.0))  # fmt: skip
+
+    # kf, k_e, g, stable (Coulomb-free map), stable (b + c/v map), the paper's motor settles
+    cases = ((1000.0, 1000.0, 100.0, False, True, True), (1e4, 300.0, 400.0, False, True, False))
+    for kf, k_e, g, free_stable, damped_stable, settles in cases:
+        grid = {"stiffness": [k_e], "bandwidth": [g], "observer": {"order": 1}}
+        assert bool(contact_stability_map(loop(coulomb, kf), **grid).stable[0, 0]) == free_stable
+        assert bool(contact_stability_map(loop(damped, kf), **grid).stable[0, 0]) == damped_stable
+        point = contact_stability_map(loop(coulomb, kf), **grid).loop_at(k_e, g)
+        assert point.plant.coulomb == 0.01
+        assert _settles(point)[0] == settles, (kf, k_e, g)
