@@ -56,7 +56,7 @@ def test_agrees_with_reference_loop_noise_delay_saturation():
         actuator=Actuator(torque_limit=0.055, delay_samples=2),
     )
     obs = paper.observer("DOb-100")
-    result = simulate(**kwargs, observer=obs, substeps=4)
+    result = simulate(**kwargs, observer=obs.design, substeps=4)
     assert np.max(np.abs(result.u)) == pytest.approx(0.055)  # the limit is active
     expected = reference_loop(**kwargs, observer=obs, substeps=4)
     assert_traces_close(result, expected, rtol=1e-12)
@@ -144,7 +144,7 @@ def test_constant_disturbance_nominal_plant(order):
         Ts=1e-3,
         duration=6.0,
         controller=PD(100.0, 20.0),
-        observer=obs,
+        observer=obs.design,
         reference=Constant(0.5),
         disturbance=Step(0.5005, 0.03),
     )
@@ -176,7 +176,7 @@ def test_ramp_disturbance_steady_errors():
             Ts=Ts,
             duration=2.0,
             controller=PD(50, 5),
-            observer=obs,
+            observer=obs.design,
             reference=Constant(0.0),
             disturbance=Ramp(0.0, slope),
         )
@@ -214,7 +214,8 @@ def test_observer_is_not_modified_and_state_is_used(paper_model):
         Ts=1e-3,
         duration=0.1,
         controller=PD(50, 5),
-        observer=obs,
+        observer=obs.design,
+        observer_state=obs.state,  # a loop holds the design, the run starts at this state
         reference=Constant(0.0),
         disturbance=Constant(0.02),
     )
@@ -305,7 +306,7 @@ def test_divergence_is_reported_not_raised():
             Ts=1e-3,
             duration=10.0,
             controller=PD(50, 5),
-            observer=obs,
+            observer=obs.design,
             reference=Step(0.0, 1.0),
         )
     assert res.diverged
@@ -362,7 +363,7 @@ def test_observer_on_the_wrong_model():
     kwargs = paper.scenario()
     obs = DisturbanceObserver(ServoModel(3.06e-4).discretize(1e-3), order=1, bandwidth=100.0)
     with pytest.raises(ValueError, match=r"observer must be designed on nominal.discretize\(Ts\)"):
-        simulate(**kwargs, observer=obs)
-    obs2 = paper.observer("HPDOb-100")
+        simulate(**kwargs, observer=obs.design)
+    obs2 = paper.observer("HPDOb-100").design
     with pytest.raises(ValueError, match=r"Ts=0.001 but nominal .* Ts=0.0005"):
         simulate(**{**kwargs, "Ts": 5e-4}, observer=obs2)

@@ -13,7 +13,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hpdob import DisturbanceObserver, ServoModel, SimulationDivergedWarning, paper, simulate, sweep
+from hpdob import (
+    DisturbanceObserver,
+    ServoModel,
+    SimulationDivergedWarning,
+    design_observer,
+    paper,
+    simulate,
+    sweep,
+)
 
 METRICS = [
     "rms_estimation_error",
@@ -43,7 +51,7 @@ def test_rows_equal_single_simulations():
         obs = DisturbanceObserver(
             kwargs["nominal"].discretize(1e-3), order=int(row["observer.order"]), bandwidth=100.0
         )
-        kwargs["observer"] = obs
+        kwargs["observer"] = obs.design
         result = simulate(**kwargs)
         for name, value in result.metrics().items():
             assert row[name] == value, name  # the same engine: bit for bit
@@ -305,7 +313,7 @@ def test_metric_windows():
     )
     kwargs = {**base(2.0)}
     spec = kwargs.pop("observer")
-    kwargs["observer"] = DisturbanceObserver(kwargs["nominal"].discretize(kwargs["Ts"]), **spec)
+    kwargs["observer"] = design_observer(kwargs["nominal"].discretize(kwargs["Ts"]), **spec)
     expected = simulate(**kwargs).metrics(tracking=(0.5, 1.0))
     assert rows.loc[0, "rms_position_error_tracking"] == expected["rms_position_error_tracking"]
     assert rows.loc[0, "rms_position_error_regulation"] == expected["rms_position_error_regulation"]

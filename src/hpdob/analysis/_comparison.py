@@ -20,6 +20,7 @@ import numpy as np
 
 from .._table import columns_to_csv, columns_to_pandas
 from .._validation import ParameterTypeError, ParameterValueError, check_choice, positive
+from ..simulation._loop import MISSING, loop_parts
 
 __all__ = ["Comparison", "compare_observers", "default_candidates"]
 
@@ -373,6 +374,12 @@ def compare_observers(
     loop=None,
     /,
     *,
+    plant=MISSING,
+    nominal=MISSING,
+    Ts=MISSING,
+    controller=MISSING,
+    sensor=MISSING,
+    actuator=MISSING,
     sensors=SENSORS,
     noise_gain: float = DEFAULT_NOISE_GAIN,
     candidates=None,
@@ -401,6 +408,11 @@ def compare_observers(
         (the paper's acceleration), over the paper's 10 s in whole samples. Default: the
         paper's loop (:func:`hpdob.paper.scenario`) with the virtual experiment's encoder and
         actuator.
+    plant, nominal, Ts, controller, sensor, actuator : optional
+        Instead of a loop, its parts (the loop functions' one alias rule,
+        :data:`hpdob.simulation.LOOP_KEYS`; the observer is the comparison's): ``plant``,
+        ``nominal``, ``Ts`` and ``controller`` together, ``sensor`` and ``actuator``
+        optional.
     sensors : sequence of {"ideal", "encoder"}, optional
         Default both.
     noise_gain : float, optional
@@ -444,6 +456,17 @@ def compare_observers(
     from ._noise import noise_gains
     from ._sensitivity import loop_margins
 
+    legacy = {"plant": plant, "nominal": nominal, "Ts": Ts, "controller": controller,
+              "sensor": sensor, "actuator": actuator}  # fmt: skip
+    parts = loop_parts(loop, legacy, "compare_observers")
+    if loop is None and parts:  # the loop of the parts given (the observer is the comparison's)
+        missing = [k for k in ("plant", "nominal", "Ts", "controller") if k not in parts]
+        if missing:
+            raise ParameterTypeError(
+                "compare_observers() needs a ServoLoop as first argument, or the keyword "
+                f"arguments plant, nominal, Ts and controller (missing: {', '.join(missing)})"
+            )
+        loop = ServoLoop(**parts)
     if isinstance(sensors, str):
         sensors = (sensors,)
     if not isinstance(sensors, (tuple, list)):

@@ -389,9 +389,9 @@ def robust_stability_map(
     loop : ServoLoop, optional
         The loop: its ``nominal``, ``Ts``, ``controller``, ``sensor``, its actuator's delay and
         (unless ``order`` or ``observer`` is given) its observer's family spec; its plant is
-        replaced at every grid point. Instead of a loop, its keyword arguments ``nominal``,
-        ``Ts``, ``controller`` and ``sensor`` are accepted (the loop functions' one alias,
-        the parts of a :class:`~hpdob.ServoLoop`).
+        replaced at every grid point. Instead of a loop, its parts ``nominal``, ``Ts``,
+        ``controller``, ``sensor`` and (the family spec) ``observer`` as keyword arguments
+        (the loop functions' one alias rule, :data:`hpdob.simulation.LOOP_KEYS`).
     J_ratio : float or array_like, optional
         True/nominal inertia ratio(s) ``J / J_n``, positive; a grid must be strictly
         increasing. Default 1.

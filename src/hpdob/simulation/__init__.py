@@ -1,8 +1,9 @@
 """The sampled-data loop and its simulation: sensor, actuator, simulate, sweep.
 
-ServoLoop
+ServoLoop, LOOP_KEYS
     The closed loop as a value (plant, nominal model, Ts, controller, observer, sensor,
-    actuator): the first argument of simulation and analysis.
+    actuator): the first argument of simulation and analysis; its parts as keyword arguments
+    instead (the one alias rule).
 Encoder, Actuator
     Sensor and actuator models (the controllers are in :mod:`hpdob.controllers`).
 simulate, SimulationResult, SimulationDivergedWarning
@@ -16,7 +17,7 @@ sweep
 
 from ._controller import PD as PD  # the PD lives in hpdob.controllers; kept importable here
 from ._devices import Actuator, Encoder
-from ._loop import ServoLoop
+from ._loop import LOOP_KEYS, ServoLoop
 from ._result import SimulationResult
 from ._scenario import Scenario, load_scenario
 from ._scenario_toml import scenario_toml
@@ -24,6 +25,7 @@ from ._simulate import SimulationDivergedWarning, simulate
 from ._sweep import sweep
 
 __all__ = [
+    "LOOP_KEYS",
     "Actuator",
     "Encoder",
     "Scenario",
