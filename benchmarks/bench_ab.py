@@ -2,10 +2,11 @@
 
 The other checkout's ``src/hpdob`` is copied to a temporary directory as the package
 ``hpdob_ref`` (its modules import each other relatively), so both run side by side on the
-same machine state: each case is timed alternately, best of N, and the ratio this/other
-printed. For changes that must not slow the hot paths (issue 20: "no benchmark regresses by
-more than 5 %"); a busy machine scatters single figures by +-10 % and more, the ratio of
-interleaved bests less. Cases (every one the same call in both checkouts):
+same machine state: each case is timed alternately (which goes first alternating too), best
+of N, and the ratio this/other printed. For changes that must not slow the hot paths
+(issue 20: "no benchmark regresses by more than 5 %"); a busy machine scatters single
+figures by +-10 % and more, the ratio of interleaved bests less. Cases (every one the same
+call in both checkouts):
 
 ``PD``, ``HPDOb-100`` (any canonical run name)
     ``paper.run(name)``: the canonical 10 s run, 8 sub-steps per sample.
@@ -89,10 +90,12 @@ def main() -> None:
         for name in args.cases:
             runs = {"this": case("hpdob", name), "other": case("hpdob_ref", name)}
             best = dict.fromkeys(runs, float("inf"))
-            for _ in range(args.tune_repeat if name == "tune" else args.repeat):
-                for key, run in runs.items():
+            for i in range(args.tune_repeat if name == "tune" else args.repeat):
+                # alternate which goes first: the second of a pair finds the first's freed
+                # memory and warm caches
+                for key in ("this", "other") if i % 2 == 0 else ("other", "this"):
                     start = time.perf_counter()
-                    run()
+                    runs[key]()
                     best[key] = min(best[key], time.perf_counter() - start)
             ratio = best["this"] / best["other"]
             print(f"{name:<12}{best['this'] * 1e3:>11.2f}{best['other'] * 1e3:>12.2f}{ratio:>8.3f}",
