@@ -165,3 +165,26 @@ def test_hpdob_compare_for_another_motor(tmp_path, capsys):
     assert code == 0, capsys.readouterr().err
     rows = json.loads((out / "comparison.json").read_text())["rows"]
     assert all(not r["diverged"] for r in rows)
+
+
+def test_hpdob_simulate_starts_the_files_observer_at_its_x0(tmp_path):
+    """``hpdob simulate`` passes the ``[observer]`` table's design (a value) to the loop, so a
+    file's non-zero ``x0`` starts the observer converged there, as ``load_scenario`` does (a
+    runtime observer built from the file started at rest at 0 and gave a transient)."""
+    import json
+
+    from hpdob.cli import main
+    from hpdob.simulation import load_scenario
+
+    path = tmp_path / "x0.toml"
+    path.write_text(
+        "Ts = 1e-3\nduration = 0.3\nx0 = [0.5, 2.0]\n[plant]\nJ = 3.06e-4\nb = 5e-5\n"
+        "[nominal]\nJ = 2.8e-4\n[controller]\nkp = 50.0\nkd = 5.0\n"
+        '[observer]\norder = 1\nbandwidth = 100.0\n[[reference]]\ntype = "step"\ntime = 0.0\n'
+        "amplitude = 0.5\n"
+    )
+    assert main(["simulate", str(path), "--no-plot", "--out", str(tmp_path / "out")]) == 0
+    got = json.loads((tmp_path / "out" / "metrics.json").read_text())["x0"]
+    expected = load_scenario(path).simulate()
+    assert got["rms_estimation_error"] == expected.metrics()["rms_estimation_error"]
+    assert abs(expected.tau_hat[0]) < 1e-12  # converged at x0 on zero disturbance
