@@ -32,7 +32,7 @@ from ._result import SimulationResult
 from ._scenario import Scenario, load_scenario
 from ._scenario_toml import scenario_toml
 from ._simulate import SimulationDivergedWarning, simulate
-from ._sweep import sweep
+from ._sweep import SweepIncomplete, sweep
 
 __all__ = [
     "LOOP_KEYS",
@@ -43,6 +43,7 @@ __all__ = [
     "ServoLoop",
     "SimulationDivergedWarning",
     "SimulationResult",
+    "SweepIncomplete",
     "get_plant_type",
     "load_scenario",
     "plant_types",
