@@ -385,9 +385,9 @@ def _loops():
     base = paper.scenario()
     base.pop("duration")
     nominal = base["nominal"]
-    yield "canonical HPDOb", {**base, "observer": paper.observer("HPDOb-100")}, 4
+    yield "canonical HPDOb", {**base, "observer": paper.observer("HPDOb-100").design}, 4
     yield "encoder noise, delay, saturation", {
-        **base, "observer": paper.observer("DOb-100"),
+        **base, "observer": paper.observer("DOb-100").design,
         "sensor": Encoder(4096, noise_std=1e-4, seed=5),
         "actuator": Actuator(torque_limit=0.055, delay_samples=3),
     }, 4  # fmt: skip
@@ -396,12 +396,12 @@ def _loops():
     yield "position-only observer", {**base, "observer": position, "sensor": Encoder(4096)}, 8
     drive = TwoMassServo(2.8e-4, 5.6e-4, 30.0, 0.004, b_motor=1e-5, b_load=2e-5,
                          environment=Environment(10.0, damping=0.02, position=0.5))  # fmt: skip
-    yield "two-mass drive against a wall", {**base, "plant": drive,
-                                            "observer": paper.observer("HPDOb-100")}, 8  # fmt: skip
+    wall = {**base, "plant": drive, "observer": paper.observer("HPDOb-100").design}
+    yield "two-mass drive against a wall", wall, 8
     unstable = {"plant": ServoModel(3e-5), "nominal": ServoModel(3e-4), "Ts": 1e-3,
                 "controller": PD(50, 5), "reference": Step(0.0, 1.0),
-                "observer": DisturbanceObserver(ServoModel(3e-4).discretize(1e-3), order=1,
-                                                bandwidth=900.0)}  # fmt: skip
+                "observer": design_observer(ServoModel(3e-4).discretize(1e-3), order=1,
+                                            bandwidth=900.0)}  # fmt: skip
     yield "a run that diverges mid-chunk", unstable, 1
 
 
@@ -436,7 +436,7 @@ def test_progress_must_be_callable():
     from hpdob import ParameterTypeError
 
     with pytest.raises(ParameterTypeError, match=r"^progress must be a callable"):
-        simulate(**paper.scenario(), observer=paper.observer("DOb-100"), progress=True)
+        simulate(**paper.scenario(), observer=paper.observer("DOb-100").design, progress=True)
 
 
 def test_a_mujoco_run_with_progress_equals_one_without(monkeypatch):
@@ -445,7 +445,7 @@ def test_a_mujoco_run_with_progress_equals_one_without(monkeypatch):
     import hpdob.simulation._simulate as module
     from hpdob import MujocoServo
 
-    kwargs = {**paper.scenario(), "observer": paper.observer("HPDOb-100"), "duration": 0.5,
+    kwargs = {**paper.scenario(), "observer": paper.observer("HPDOb-100").design, "duration": 0.5,
               "plant": MujocoServo(3.06e-4, 5e-5, coulomb=0.01, link_mass=0.01,
                                    link_length=0.05)}  # fmt: skip
     whole = simulate(**kwargs, substeps=4)
