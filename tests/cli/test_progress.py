@@ -304,9 +304,11 @@ def test_estimate_progress_reading_and_estimating_on_stderr_only(capsys, tmp_pat
     assert frames[0] == f"hpdob estimate: reading log.csv 0.0/{mib:.1f} MiB (0%)"
     assert frames[1].startswith("hpdob estimate: reading log.csv ") and "left" in frames[1]
     assert f"hpdob estimate: reading log.csv {mib:.1f}/{mib:.1f} MiB (100%)\n" in frames
-    assert frames[-2:] == [
+    assert frames[-4:] == [
         "hpdob estimate: estimating 0/3000 samples (0%)",
         "hpdob estimate: estimating 3000/3000 samples (100%)\n",
+        "hpdob estimate: writing estimate.csv 0/3000 rows (0%)",  # one chunk (rel4, item 3)
+        "hpdob estimate: writing estimate.csv 3000/3000 rows (100%)\n",
     ]
     assert "hpdob estimate:" not in out
     code, _, quiet = run(capsys, *common, "--out", str(tmp_path / "q"), "--no-progress")
@@ -401,3 +403,26 @@ def test_cli_identify_progress_on_stderr_only(capsys, tmp_path):
         str(tmp_path / "a"), "")  # fmt: skip
     for name in ("identification.json", "identification.csv"):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+
+
+def test_simulate_writing_stage_counts_the_chunks(capsys, tmp_path, monkeypatch):
+    # issue 27 (rel4, item 3): the CSV is formatted in chunks; the line counts their rows
+    from hpdob import _csv_floats
+
+    monkeypatch.setattr(_csv_floats, "CHUNK", 4000)  # 10000 rows: chunks of 4000, 4000, 2000
+    scenario = str(EXAMPLES / "canonical_hpdob.toml")
+    assert main(["simulate", scenario, "--out", str(tmp_path / "a"), "--no-plot",
+                 "--progress"]) == 0  # fmt: skip
+    frames = capsys.readouterr().err.split("\r\x1b[K")[1:]
+    writing = [f for f in frames if "writing" in f]
+    # (the time left of the middle lines is the real clock's: only their counts are checked)
+    assert [f.split(", about")[0] for f in writing] == [
+        "hpdob simulate: writing HPDOb-100.csv 0/10000 rows (0%)",
+        "hpdob simulate: writing HPDOb-100.csv 4000/10000 rows (40%)",
+        "hpdob simulate: writing HPDOb-100.csv 8000/10000 rows (80%)",
+        "hpdob simulate: writing HPDOb-100.csv 10000/10000 rows (100%)\n",
+    ]
+    assert main(["simulate", scenario, "--out", str(tmp_path / "b"), "--no-plot"]) == 0
+    capsys.readouterr()
+    name = "HPDOb-100.csv"
+    assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
