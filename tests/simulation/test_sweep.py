@@ -242,8 +242,13 @@ def test_an_interrupted_dask_sweep_cancels_its_tasks(cluster):
     def tasks(dask_scheduler):
         return len(dask_scheduler.tasks)
 
-    with pytest.raises(KeyboardInterrupt):  # the traceback keeps the futures referenced
+    from hpdob.simulation import SweepInterrupted
+
+    with pytest.raises(SweepInterrupted) as caught:  # a KeyboardInterrupt
         sweep(base(10.0), grid=grid, scheduler=client, progress=interrupt)
+    # issue 27 (rel4): the chunk back before the interrupt is kept, not lost
+    assert len(caught.value.rows) == 64 and len(caught.value.missing) == 4000 - 64
+    del caught  # the traceback keeps the futures referenced
     deadline = time.monotonic() + 20
     while client.run_on_scheduler(tasks):
         assert time.monotonic() < deadline, "chunks still on the scheduler after the interrupt"
