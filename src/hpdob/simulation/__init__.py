@@ -32,7 +32,7 @@ from ._result import SimulationResult
 from ._scenario import Scenario, load_scenario
 from ._scenario_toml import scenario_toml
 from ._simulate import SimulationDivergedWarning, simulate
-from ._sweep import SweepIncomplete, sweep
+from ._sweep import SweepIncomplete, SweepInterrupted, sweep
 
 __all__ = [
     "LOOP_KEYS",
@@ -44,6 +44,7 @@ __all__ = [
     "SimulationDivergedWarning",
     "SimulationResult",
     "SweepIncomplete",
+    "SweepInterrupted",
     "get_plant_type",
     "load_scenario",
     "plant_types",
