@@ -124,7 +124,12 @@ TARGETS = {
     ),
     "observers.response": Target(
         "src/hpdob/observers/_response.py",
-        ("tests/observers/test_statespace.py", "tests/observers/test_system.py"),
+        # test_position.py: the factored response with zeros (position-only designs)
+        (
+            "tests/observers/test_statespace.py",
+            "tests/observers/test_system.py",
+            "tests/observers/test_position.py",
+        ),
     ),
     "observers.reaction": Target(
         "src/hpdob/observers/_reaction.py",
