@@ -34,3 +34,11 @@ def test_a_tiny_inertia_designs_as_the_unit_inertia_scaled():
     tiny = design_observer(ServoModel(1e-300, 0.0).discretize(Ts), order=1, bandwidth=300.0)
     np.testing.assert_allclose(tiny.k, unit.k, rtol=1e-13)
     np.testing.assert_allclose(tiny.gains, unit.gains * 1e-300, rtol=1e-13)
+
+
+def test_everything_but_the_model_is_keyword_only():
+    """design_observer(model, *, order, ...): a positional order is refused (the project's
+    keyword-only rule), so design_observer(model, 1, 2) cannot be read as order and poles."""
+    model = ServoModel(2.8e-4, 5e-5).discretize(1e-3)
+    with pytest.raises(TypeError, match="positional argument"):
+        design_observer(model, 1, bandwidth=300.0)
