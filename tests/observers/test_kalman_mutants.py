@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hpdob import ServoModel, design_observer
+from hpdob import ServoModel, design_observer, estimation_response
 from hpdob.observers import design_eso, design_kalman, kalman_process_noise
 
 MODEL = ServoModel(2.8e-4, 1e-5).discretize(1e-3)
@@ -40,3 +40,16 @@ def test_design_reprs_name_the_parameters_not_the_matrices(design):
     arrays are attributes, not part of the repr (as the notebook table, test_notebook_repr)."""
     text = repr(design)
     assert "array(" not in text and "\n" not in text, text
+
+
+@pytest.mark.parametrize(("order", "bandwidth"), [(0, 0.5), (3, 10.0), (4, 3.0), (4, 10.0)])
+def test_process_noise_reaches_low_bandwidths_at_every_order(order, bandwidth):
+    """The search centres its bracket on q ~ r J / Ts^2 (g Ts)^(m + 2): at a bandwidth far
+    below the sampling rate the (g Ts)^(m + 2) factor spans many decades, and the design at the
+    q found has the asked bandwidth (the -3 dB point of |Q|) to 1 %."""
+    model = ServoModel(2.8e-4).discretize(1e-3)
+    q = kalman_process_noise(model, order=order, bandwidth=bandwidth, position_noise_std=1e-4)
+    design = design_kalman(model, order=order, position_noise_std=1e-4, process_noise_std=q)
+    w = np.geomspace(bandwidth / 1.01, bandwidth * 1.01, 3)
+    gain = np.abs(estimation_response(design, w / (2 * np.pi)))
+    assert gain[0] > 1 / np.sqrt(2) > gain[-1], gain
