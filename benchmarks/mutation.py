@@ -112,7 +112,9 @@ TARGETS = {
         ("tests/observers/test_runtime.py", "tests/observers/test_core.py"),
     ),
     "observers.realised": Target(
-        "src/hpdob/observers/_realised.py", ("tests/observers/test_realised.py",)
+        # test_synthesis.py: the state-measuring order-m designs check their realised poles too
+        "src/hpdob/observers/_realised.py",
+        ("tests/observers/test_realised.py", "tests/observers/test_synthesis.py"),
     ),
     "observers.error_dynamics": Target(
         "src/hpdob/observers/_error_dynamics.py",
