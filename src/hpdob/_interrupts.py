@@ -29,6 +29,7 @@ import time
 __all__ = [
     "EXIT_CODES",
     "Interrupted",
+    "acknowledge",
     "check",
     "checkpoint",
     "handling_signals",
@@ -48,11 +49,16 @@ EXIT_CODES = {int(s): 128 + int(s) for s in SIGNALS}
 
 
 class Interrupted(KeyboardInterrupt):
-    """Raised by the handler of :func:`handling_signals`; ``signum`` is the signal."""
+    """Raised by the handler of :func:`handling_signals`; ``signum`` is the signal.
 
-    def __init__(self, signum: int = signal.SIGINT):
+    ``detail`` (re-raised by a command that kept finished work) is appended to the one line
+    ``hpdob <command>: interrupted`` the command line prints, e.g. where that work went.
+    """
+
+    def __init__(self, signum: int = signal.SIGINT, detail: str = ""):
         super().__init__(signum)
         self.signum = int(signum)
+        self.detail = detail
 
     @property
     def name(self) -> str:
@@ -73,6 +79,13 @@ def check() -> None:
     """Raise :class:`Interrupted` if a signal was received (even if its exception was lost)."""
     if _received:
         raise Interrupted(_received[0])
+
+
+def acknowledge() -> None:
+    """Forget the signals received so far: the caller has handled them and writes what it
+    keeps (e.g. an interrupted sweep's finished rows), which :func:`check` would otherwise
+    refuse to commit. A signal received after this call interrupts that writing as usual."""
+    _received.clear()
 
 
 def _handler(signum, frame):
@@ -195,19 +208,28 @@ def checkpoint(name: str) -> None:
 
     The hook pauses at ``name`` for a signal if ``HPDOB_TEST_PAUSE=<name>:<file>`` asks for
     it (unset in normal use: then this is one dictionary look-up). The file is created when
-    the checkpoint is reached; the process then waits up to 60 s for the signal the test
-    sends, and goes on if none comes.
+    the checkpoint is first reached (a process pauses at a checkpoint once); the process then
+    waits up to 60 s for the signal the test sends, and goes on if none comes or as soon as
+    the test removes the file (so that a test can act elsewhere, e.g. stop a dask scheduler,
+    while the command waits at a known point).
     """
     check()
     spec = os.environ.get("HPDOB_TEST_PAUSE")
     if not spec:
         return
     wanted, _, path = spec.partition(":")
-    if wanted != name or not path:
+    if wanted != name or not path or name in _paused:
         return
+    _paused.add(name)
     with open(path, "w", encoding="utf-8") as flag:
         flag.write(f"{os.getpid()} {name}\n")
     deadline = time.monotonic() + 60.0
     while time.monotonic() < deadline:
         time.sleep(0.01)  # a signal's handler runs here and raises
         check()
+        if not os.path.exists(path):  # the test removed the file: go on
+            return
+
+
+#: Checkpoints this process has paused at: it pauses at each at most once.
+_paused: set[str] = set()

@@ -104,14 +104,84 @@ seed = 0
 
 
 def test_ctrl_c_stops_a_local_sweep(tmp_path):
-    # Interrupted once its first chunk is back (the sweep waits there for the signal).
+    # Interrupted once its first chunk (64 scenarios of 2000) is back: the sweep waits there
+    # for the signal, and ends at once, keeping that chunk (issue 27, rel4 item 1).
     (tmp_path / "spec.toml").write_text(SWEEP)
     argv = ["sweep", "spec.toml", "--out", "rows.csv", "--workers", "2"]
     process = start_paused(argv, "sweep-chunk", tmp_path, cwd=tmp_path)
     process.send_signal(signal.SIGINT)
     _, err = process.communicate(timeout=120)
-    assert (process.returncode, err) == (130, "hpdob sweep: interrupted\n")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["spec.toml", "sweep-chunk.reached"]
+    assert process.returncode == 130
+    kept = check_kept_line(err, "", "rows.partial.csv", "rows.csv", 2000, tmp_path)
+    assert len(kept) == 64
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "rows.partial.csv", "spec.toml", "sweep-chunk.reached"]  # fmt: skip
+
+
+def check_kept_line(err: str, name: str, partial: str, out: str, total: int, cwd: Path) -> set:
+    """Check the one line of a sweep interrupted by signal ``name`` ("" for SIGINT, else e.g.
+    " (SIGTERM)") and return the scenarios of the partial file; with those the line says are
+    missing, they are every scenario once. Which chunk finishes first is up to the threads."""
+    import re
+
+    import pandas as pd
+
+    pattern = (
+        rf"hpdob sweep: interrupted{re.escape(name)}; wrote the (\d+) finished rows to "
+        rf"{re.escape(partial)} \({re.escape(out)} was not written\); missing: scenarios "
+        rf"([-\d, ]+); to run only those and write {re.escape(out)}: hpdob sweep spec.toml "
+        rf"--out {re.escape(out)} --resume\n"
+    )
+    match = re.fullmatch(pattern, err)
+    assert match, err
+    missing = set()
+    for span in match[2].split(", "):
+        first, _, last = span.partition("-")
+        missing.update(range(int(first), int(last or first) + 1))
+    path = cwd / partial
+    rows = pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
+    kept = set(rows["scenario"])
+    assert len(kept) == len(rows) == int(match[1]) and not kept & missing
+    assert kept | missing == set(range(total))
+    return kept
+
+
+SMALL_SWEEP = SWEEP.replace("duration = 10.0", "duration = 0.5").replace("n = 2000", "n = 40")
+
+
+@pytest.mark.parametrize(
+    ("signum", "code", "name", "suffix"),
+    [(signal.SIGINT, 130, "", ".csv"), (signal.SIGTERM, 143, " (SIGTERM)", ".parquet")],
+)  # fmt: skip
+def test_an_interrupted_local_sweep_resumes_to_the_same_bytes(tmp_path, signum, code, name,
+                                                              suffix):  # fmt: skip
+    # issue 27, rel4 item 1: a local sweep interrupted by a signal keeps its finished rows
+    # (before: nothing), and --resume writes the file a run from scratch writes, byte for byte.
+    from hpdob.cli import main
+
+    (tmp_path / "spec.toml").write_text(SMALL_SWEEP)
+    reference = tmp_path / "reference"
+    reference.mkdir()
+    spec, expected = tmp_path / "spec.toml", reference / f"rows{suffix}"
+    assert main(["sweep", str(spec), "--out", str(expected), "--workers", "2"]) == 0
+    argv = ["sweep", "spec.toml", "--out", f"rows{suffix}", "--workers", "2"]
+    process = start_paused(argv, "sweep-chunk", tmp_path, cwd=tmp_path)
+    process.send_signal(signum)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == code
+    # 40 scenarios on 2 workers: chunks of 3; the first chunk is back at the checkpoint
+    kept = check_kept_line(err, name, f"rows.partial{suffix}", f"rows{suffix}", 40, tmp_path)
+    assert len(kept) == 3
+    assert not (tmp_path / f"rows{suffix}").exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporaries
+    resumed = subprocess.run(
+        [sys.executable, "-m", "hpdob", "sweep", "spec.toml", "--out", f"rows{suffix}",
+         "--resume", "--workers", "2"], cwd=tmp_path, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert (resumed.returncode, resumed.stderr) == (0, "")
+    assert ", 3 of them from rows.partial" in resumed.stdout
+    assert (tmp_path / f"rows{suffix}").read_bytes() == expected.read_bytes()
+    assert not (tmp_path / f"rows.partial{suffix}").exists()
 
 
 def test_ctrl_c_during_reproduce_leaves_the_previous_outputs(tmp_path):
@@ -159,3 +229,86 @@ def test_ctrl_c_in_compare_tune_estimate(capsys, tmp_path, monkeypatch, command,
     assert [p.name for p in out.iterdir()] == [marker] and (out / marker).read_text() == (
         "previous\n"
     )
+
+
+# -- issue 27, item 5: a signal at any moment of start-up ------------------------------------
+def console_script() -> list[str]:
+    """The program pip's wrapper for the ``hpdob`` console script runs (its template: ``re``
+    and ``sys`` imported, then the entry point of pyproject.toml called)."""
+    import tomllib
+
+    pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
+    entry = tomllib.loads(pyproject.read_text())["project"]["scripts"]["hpdob"]
+    module, _, function = entry.partition(":")
+    code = (
+        f"import re\nimport sys\nfrom {module} import {function}\nif __name__ == '__main__':\n"
+        f"    sys.argv[0] = re.sub(r'(-script\\.pyw|\\.exe)?$', '', sys.argv[0])\n"
+        f"    sys.exit({function}())\n"
+    )
+    return [sys.executable, "-c", code]
+
+
+ENTRIES = {"python -m hpdob": [sys.executable, "-m", "hpdob"], "console script": console_script()}
+
+
+def start_at(entry: str, argv, checkpoint: str, tmp_path: Path):
+    """Start the ``hpdob`` command by ``entry`` and return it once it waits at ``checkpoint``
+    (and the checkpoint's file: remove it to let the command go on)."""
+    flag = tmp_path / f"{checkpoint}.reached"
+    flag.unlink(missing_ok=True)
+    env = {**os.environ, "HPDOB_TEST_PAUSE": f"{checkpoint}:{flag}", "PYTHONUNBUFFERED": "1"}
+    process = subprocess.Popen(
+        [*ENTRIES[entry], *map(str, argv)], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    while not flag.exists():
+        if process.poll() is not None:
+            raise AssertionError(f"exited before {checkpoint}: {process.communicate()}")
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            process.wait(0.02)
+    return process, flag
+
+
+@pytest.mark.parametrize("entry", ENTRIES)
+@pytest.mark.parametrize(
+    ("signum", "code", "line"),
+    [(signal.SIGINT, 130, "hpdob: interrupted\n"),
+     (signal.SIGTERM, 143, "hpdob: interrupted (SIGTERM)\n")],
+)  # fmt: skip
+def test_a_signal_before_the_imports_is_one_line(tmp_path, entry, signum, code, line):
+    # The entry point's first statement installs the handler; the checkpoint is right after
+    # it, before the command modules, argparse and numpy are imported (they used to import
+    # first: a KeyboardInterrupt traceback, exit -2).
+    process, _ = start_at(entry, ["design"], "entry", tmp_path)
+    process.send_signal(signum)
+    out, err = process.communicate(timeout=60)
+    assert (process.returncode, out, err) == (code, "", line)
+
+
+def test_ctrl_c_at_any_moment_after_the_entry_is_clean(tmp_path):
+    # Every moment from the entry point on: imports, parsing, the design, printing, the exit.
+    # The delays only spread the moments; whatever moment each signal hits, the outcome
+    # must be clean: exit 130 (or -2: killed by SIGINT once Python's exit restored the
+    # default action, which a shell reports as 130) with at most one line and no traceback,
+    # or, if the command ended before the signal came, its normal output and exit 0.
+    done = subprocess.run(
+        [*ENTRIES["python -m hpdob"], "design"], cwd=tmp_path, capture_output=True, text=True,
+        check=True, timeout=60,
+    )  # fmt: skip
+    lines = {"", "hpdob: interrupted\n", "hpdob design: interrupted\n"}
+    outcomes = []
+    for i, delay in enumerate([0, 0.002, 0.01, 0.03, 0.1, 0.3, 0.6, 1.0, 1.5, 2.5]):
+        entry = list(ENTRIES)[i % 2]
+        process, flag = start_at(entry, ["design"], "entry", tmp_path)
+        flag.unlink()  # go on
+        time.sleep(delay)  # spreads the moments; nothing below depends on it
+        with contextlib.suppress(ProcessLookupError):
+            process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+        outcomes.append(process.returncode)
+        if process.returncode == 0:
+            assert (out, err) == (done.stdout, ""), (entry, delay)
+        else:
+            assert process.returncode in (130, -signal.SIGINT), (entry, delay, err)
+            assert err in lines, (entry, delay, err)
+    assert any(code != 0 for code in outcomes)  # the signals did arrive during the run

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from pathlib import Path
@@ -94,7 +95,7 @@ def test_idim_ls_is_the_benchmark_script(emps_ls):
     error = y - X @ beta
     std = np.sqrt(error @ error / (y.size - 4) * np.diag(np.linalg.inv(X.T @ X)))
     np.testing.assert_allclose(list(emps_ls.parameters.values()), beta, rtol=1e-8)
-    np.testing.assert_allclose(list(emps_ls.std.values()), std, rtol=1e-8)
+    np.testing.assert_allclose(list(emps_ls.std_iid.values()), std, rtol=1e-8)
     np.testing.assert_allclose(emps_ls.u, y, rtol=1e-8, atol=1e-9)
     assert emps_ls.relative_error == pytest.approx(100 * np.linalg.norm(error) / np.linalg.norm(y))
 
@@ -104,9 +105,10 @@ def test_emps_idim_ls_meets_the_published_values(emps_ls):
     for name in ("J", "b", "coulomb"):
         assert getattr(emps_ls, name) == pytest.approx(EMPS_PUBLISHED[name], rel=0.02)
     assert abs(emps_ls.offset - EMPS_PUBLISHED["offset"]) < 0.5
-    # standard deviations, relative error 4.0834 % and condition number 25.9883 (same source)
+    # standard deviations (the textbook ones, as published), relative error 4.0834 % and
+    # condition number 25.9883 (same source)
     for name, std in EMPS_PUBLISHED_STD.items():
-        assert emps_ls.std[name] == pytest.approx(std, rel=0.05)
+        assert emps_ls.std_iid[name] == pytest.approx(std, rel=0.05)
     assert emps_ls.relative_error == pytest.approx(4.0834, abs=0.2)
     assert emps_ls.condition_number == pytest.approx(25.9883, rel=0.01)
 
@@ -380,7 +382,7 @@ def test_example_prints_the_tables_of_the_docs(tmp_path, capsys):
     assert (tmp_path / "emps_identification.png").is_file()
     docs = (ROOT / "docs" / "real-data.md").read_text().replace("−", "-")
     tables = [line for line in out.splitlines() if line.startswith("|")]
-    assert len(tables) == 7 + 7 + 6  # the three tables of the page
+    assert len(tables) == 8 + 7 + 6  # the three tables of the page
     for line in tables:
         assert line in docs, line
 
@@ -390,3 +392,27 @@ def test_idim_iv_with_a_loop_that_is_not_the_logs_is_refused():
     resting = FeedbackLoop(np.zeros(t.size), kp=0.0, kd=0.0)  # not the loop that moved the axis
     with pytest.raises(ParameterValueError, match=r"loop does not describe the controller.* %"):
         identify(t, q, u, method="idim-iv", loop=resting)
+
+
+def test_progress_reports_each_stage_from_zero_to_its_total_and_changes_nothing():
+    # issue 27 (rel4, item 2): counts only, in stage order; the estimate is the same bits
+    from hpdob.identification import emps
+
+    log = emps()
+    calls = []
+    quiet = identify(log.t, log.theta, log.u, axis="linear")
+    shown = identify(log.t, log.theta, log.u, axis="linear",
+                     progress=lambda *call: calls.append(call))  # fmt: skip
+    assert (shown.J, shown.b, shown.coulomb, shown.offset) == (
+        quiet.J, quiet.b, quiet.coulomb, quiet.offset)  # fmt: skip
+    stages = list(dict.fromkeys(stage for stage, _, _ in calls))
+    assert stages == ["filtering", "iterating", "simulating", "sensitivity"]
+    for stage in stages:
+        counts = [(done, total) for s, done, total in calls if s == stage]
+        assert counts[0][0] == 0 and counts[-1][0] == counts[-1][1] > 0, (stage, counts)
+        assert all(a[0] <= b[0] for a, b in itertools.pairwise(counts)), (stage, counts)
+    iterations = [(d, t) for s, d, t in calls if s == "iterating"]
+    # the iterations used, of at most max_iterations (20), then the stage closed there
+    assert iterations[0] == (0, 20) and iterations[-1] == (quiet.iterations, quiet.iterations)
+    with pytest.raises(TypeError, match=r"^progress must be a callable .* got 'yes'"):
+        identify(log.t, log.theta, log.u, progress="yes")

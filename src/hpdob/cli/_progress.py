@@ -32,18 +32,26 @@ class ProgressLine:
     ``clock`` is injectable so that tests check the lines, not the speed.
     """
 
-    def __init__(self, label: str, stream=None, clock=time.monotonic):
+    def __init__(self, label: str, stream=None, clock=time.monotonic, *, unit: str = "",
+                 scale: float = 1.0):  # fmt: skip
         self.label = label
+        self.unit, self.scale = unit, scale  # counts shown as done/scale, e.g. bytes as MiB
         self.stream = sys.stderr if stream is None else stream
         self.clock = clock
         self.start = clock()
         self.open = False  # a line written but not yet ended
 
-    def __call__(self, done: int, total: int) -> None:
+    def __call__(self, done: int, total: int, *, detail: str = "") -> None:
         now = self.clock()
         if done == 0:
             self.start = now
-        line = f"{self.label} {done}/{total}"
+        if self.scale == 1.0:
+            counts = f"{done}/{total}"
+        else:
+            counts = f"{done / self.scale:.1f}/{total / self.scale:.1f}"
+        line = f"{self.label}{' ' + detail if detail else ''} {counts}"
+        if self.unit:
+            line += f" {self.unit}"
         if total > 0:
             line += f" ({100 * done // total}%)"
         if 0 < done < total:
@@ -60,3 +68,26 @@ class ProgressLine:
             self.stream.write("\n")
             self.stream.flush()
             self.open = False
+
+
+class StagedProgress:
+    """Progress of work in named stages (``progress(stage, done, total)`` of the library):
+    a :class:`ProgressLine` per stage, with its own clock, so each stage's time left is
+    estimated from that stage alone. ``names`` maps a stage to its words on the line."""
+
+    def __init__(self, prefix: str, names: dict, stream=None, clock=time.monotonic):
+        self.prefix, self.names, self.stream, self.clock = prefix, names, stream, clock
+        self.stage, self.line = None, None
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if stage != self.stage:  # a new stage: its own clock and line
+            self.end()
+            label = f"{self.prefix} {self.names.get(stage, stage)}"
+            self.line = ProgressLine(label, self.stream, self.clock)
+            self.stage = stage
+        self.line(done, total)
+
+    def end(self) -> None:
+        """End the current stage's line if it is left open."""
+        if self.line is not None:
+            self.line.end()

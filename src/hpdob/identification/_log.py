@@ -30,6 +30,16 @@ from ._readers import read_columns, scalar
 
 __all__ = ["MIN_LOG_SAMPLES", "Log", "read_log", "read_logs"]
 
+# ``identify`` is registered here by ``_identify`` when the package is imported: the data class
+# does not import the algorithm that takes it (no import cycle between the two modules).
+_IDENTIFY: list = []
+
+
+def register_identify(function) -> None:
+    """Make ``function`` the implementation of :meth:`Log.identify` (``_identify`` calls it)."""
+    _IDENTIFY[:] = [function]
+
+
 #: Fewest samples a :class:`Log` may hold (identification needs far more; see identify()).
 MIN_LOG_SAMPLES = 10
 
@@ -197,9 +207,7 @@ class Log:
         ...     for k in EMPS_PUBLISHED)   # within one published standard deviation
         True
         """
-        from ._identify import identify
-
-        return identify(self, **options)
+        return _IDENTIFY[0](self, **options)
 
     def slice(self, start: float | None = None, stop: float | None = None) -> Log:
         """The samples with ``start <= t < stop`` [s] as a new log (e.g. to identify on one
@@ -279,6 +287,7 @@ def read_log(
     axis: str | None = None,
     time_tolerance: float = DEFAULT_TIME_TOLERANCE,
     columns: Mapping | None = None,
+    progress=None,
 ) -> Log:
     """Read a logged run from a CSV, Parquet or MATLAB ``.mat`` file by column names.
 
@@ -311,6 +320,11 @@ def read_log(
     columns : mapping, optional
         Further columns to read, ``{name: column}`` (e.g. ``{"reference_velocity":
         "rdot"}``); the log's ``columns`` holds them.
+    progress : callable, optional
+        Called as ``progress(done, total)`` with the bytes of the file read so far and its
+        size: every MiB of a CSV file (counted in characters, the bytes of an ASCII file),
+        at the start and the end of a Parquet or MAT file. It sees counts only; a display
+        with the time left is the caller's (``hpdob estimate --progress``).
 
     Returns
     -------
@@ -338,7 +352,7 @@ def read_log(
     """
     logs = _read(path, time=time, position=position, input=input, input_gain=input_gain,
                  reference=reference, Ts=Ts, axis=axis, time_tolerance=time_tolerance,
-                 run=None, columns=columns)  # fmt: skip
+                 run=None, columns=columns, progress=progress)  # fmt: skip
     return logs[0]
 
 
@@ -355,6 +369,7 @@ def read_logs(
     axis: str | None = None,
     time_tolerance: float = DEFAULT_TIME_TOLERANCE,
     columns: Mapping | None = None,
+    progress=None,
 ) -> list[Log]:
     r"""Read several runs from one file: a column ``run`` tells which run each row belongs to.
 
@@ -366,8 +381,8 @@ def read_logs(
         Column of the run each row belongs to (numbers; rows of one run need not be
         contiguous but keep their order). Each run's time must increase uniformly; it may
         restart from 0.
-    time, position, input, input_gain, reference, Ts, axis, time_tolerance, columns
-        As :func:`read_log`.
+    time, position, input, input_gain, reference, Ts, axis, time_tolerance, columns, progress
+        As :func:`read_log` (``progress`` counts the bytes of the whole file).
 
     Returns
     -------
@@ -396,12 +411,16 @@ def read_logs(
     """
     return _read(path, time=time, position=position, input=input, input_gain=input_gain,
                  reference=reference, Ts=Ts, axis=axis, time_tolerance=time_tolerance,
-                 run=_name(run, "run"), columns=columns)  # fmt: skip
+                 run=_name(run, "run"), columns=columns, progress=progress)  # fmt: skip
 
 
 def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_tolerance, run,
-          columns):  # fmt: skip
+          columns, progress=None):  # fmt: skip
     """The logs of a file: one, or one per value of the ``run`` column."""
+    if progress is not None and not callable(progress):
+        raise ParameterTypeError(
+            f"progress must be a callable progress(done, total), got {progress!r}"
+        )
     if not isinstance(path, (str, os.PathLike)):
         raise ParameterTypeError(
             f"path must be a file path (str or os.PathLike), got {path!r} of type "
@@ -439,7 +458,7 @@ def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_
             f"column, the sampling period as Ts=...; got time={time!r} and Ts={Ts!r}"
         )
     axis = check_axis(axis)
-    data = read_columns(path, wanted)
+    data = read_columns(path, wanted, progress)
     if "input_gain" in wanted:
         input_gain = scalar(data.pop("input_gain"), "input_gain", wanted.pop("input_gain"), path)
     gain = as_real(input_gain, "input_gain", "a finite non-zero gain")

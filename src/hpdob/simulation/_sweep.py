@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import signal
 import sys
 import threading
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
@@ -29,10 +30,10 @@ from ..observers import check_spec, design_from_spec, get_family, spec_of
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import _sample_count, check_run_arguments, run_loop, sample_signals
-from ._sweep_dask import SweepIncomplete, _Incomplete, _run_dask
+from ._sweep_dask import SweepIncomplete, SweepInterrupted, _Incomplete, _run_dask, resumed_rows
 from ._sweep_spec import check_paths_apply, expand_scenarios, replaced_plant
 
-__all__ = ["SweepIncomplete", "sweep"]
+__all__ = ["SweepIncomplete", "SweepInterrupted", "sweep"]
 
 
 #: Keys of a sweep's ``base``: a ``loop`` (or the loop's keyword arguments) and the run's.
@@ -242,13 +243,14 @@ def run_chunk(base: dict, chunk: list, stop: threading.Event | None = None) -> l
     for index, params in chunk:
         if stop is not None and stop.is_set():
             raise SweepCancelled
+        if stop is None:  # on a dask worker: a test hook only (hpdob._interrupts)
+            checkpoint("sweep-scenario")
         rows.append({"scenario": index, **run_scenario(base, params, cache)})
     return rows
 
 
-def _chunks(scenarios: list, workers: int) -> list:
+def _chunks(indexed: list, workers: int) -> list:
     """Split ``[(index, params)]`` into chunks: ~8 per worker, 1-64 scenarios each."""
-    indexed = list(enumerate(scenarios))
     size = max(1, min(64, math.ceil(len(indexed) / (8 * max(workers, 1)))))
     return [indexed[i : i + size] for i in range(0, len(indexed), size)]
 
@@ -282,15 +284,15 @@ def _progress_callback(progress, total: int):
     return bar.update, bar.close
 
 
-def _run_local(base, chunks, workers, update) -> list:
-    """Run the chunks on ``workers`` threads (the kernel releases the GIL).
+def _run_local(base, chunks, workers, update, rows) -> list:
+    """Run the chunks on ``workers`` threads (the kernel releases the GIL), appending the
+    finished rows to ``rows`` (the caller keeps them if an interrupt ends the run).
 
     Chunks are submitted lazily, at most two per worker in flight, so that an interrupt
     (KeyboardInterrupt in the main thread) or a failure leaves little to cancel: pending
     chunks are cancelled, running ones stop before their next scenario, and the call returns
     (re-raising) without waiting for the rest of the sweep.
     """
-    rows = []
     stop = threading.Event()
     pending = iter(chunks)
     pool = ThreadPoolExecutor(max_workers=workers)
@@ -304,7 +306,7 @@ def _run_local(base, chunks, workers, update) -> list:
             done, running = wait(running, return_when=FIRST_COMPLETED)
             for future in done:
                 chunk_rows = future.result()
-                rows.extend(chunk_rows)
+                rows.extend(chunk_rows)  # one call: an interrupt cannot split a chunk
                 update(len(chunk_rows))
                 checkpoint("sweep-chunk")  # a test hook (hpdob._interrupts); no-op otherwise
                 chunk = next(pending, None)
@@ -358,6 +360,7 @@ def sweep(
     metric_windows=None,
     scheduler=None,
     progress=None,
+    resume=None,
 ):
     """Run many closed-loop scenarios and return one row of parameters and metrics each.
 
@@ -407,6 +410,13 @@ def sweep(
     progress : None, bool or callable, optional
         None: a progress bar on a terminal (stderr), silent otherwise. True/False force it on
         or off; a callable is called as ``progress(done, total)``.
+    resume : pandas.DataFrame, optional
+        Rows of an earlier run of the same sweep (same base, grid, vary, n and seed) that did
+        not finish: the ``rows`` of a :class:`SweepIncomplete`, or the partial file ``hpdob
+        sweep`` writes, read back. Only the scenarios missing from it run (``progress`` counts
+        those), and the result holds every row, equal to a run from scratch: a row depends
+        only on its scenario. Its columns and the parameters of every row are checked
+        against this sweep first.
 
     Returns
     -------
@@ -418,10 +428,19 @@ def sweep(
 
     Raises
     ------
+    SweepIncomplete
+        When a dask cluster fails part-way (the scheduler lost, a task's workers killed
+        repeatedly): it carries the finished rows (those of ``resume`` included) and the
+        numbers of the missing scenarios; pass its ``rows`` as ``resume`` to complete them.
+    SweepInterrupted
+        When Ctrl-C (a ``KeyboardInterrupt``; under ``hpdob`` also SIGTERM and SIGHUP) ends
+        the sweep, local or on dask: a ``KeyboardInterrupt`` itself, carrying the finished
+        rows and the missing scenarios in the same way.
     ValueError, TypeError
         For a bad ``base``, an unknown path (the valid ones are listed), a bad distribution,
-        or a bad scheduler. Bad *values* in a scenario (e.g. a negative inertia drawn from a
-        normal distribution) do not raise: that row gets ``stable=False`` and the message.
+        a bad scheduler, or ``resume`` rows of another sweep. Bad *values* in a scenario (e.g.
+        a negative inertia drawn from a normal distribution) do not raise: that row gets
+        ``stable=False`` and the message.
 
     Examples
     --------
@@ -451,7 +470,6 @@ def sweep(
     sample_signals(
         resolved["reference"], resolved["disturbance"], Ts=resolved["loop"].Ts, n=2, substeps=1
     )
-    update, close = _progress_callback(progress, len(scenarios))
     columns = [
         "scenario",
         *(list(grid or {}) + sorted(vary or {})),
@@ -459,21 +477,32 @@ def sweep(
         "stable",
         "error",
     ]
+    finished = [] if resume is None else resumed_rows(resume, scenarios, columns)
+    done = {row["scenario"] for row in finished}
+    todo = [(i, params) for i, params in enumerate(scenarios) if i not in done]
+    update, close = _progress_callback(progress, len(todo))
+
+    def kept(new):
+        """The finished rows so far, in scenario order, and the numbers of the others."""
+        rows = sorted(finished + new, key=lambda row: row["scenario"])
+        done = {row["scenario"] for row in rows}
+        missing = [i for i in range(len(scenarios)) if i not in done]
+        return pd.DataFrame(rows, columns=columns), missing
+
+    rows: list = []  # filled chunk by chunk: what finished survives an interrupt
     try:
-        if mode == "local":
-            rows = _run_local(resolved, _chunks(scenarios, workers), workers, update)
+        if not todo:
+            pass
+        elif mode == "local":
+            _run_local(resolved, _chunks(todo, workers), workers, update, rows)
         else:
-            rows = _run_dask(
-                resolved, scenarios, scheduler, update, run_chunk=run_chunk, chunks_of=_chunks
+            _run_dask(
+                resolved, todo, scheduler, update, rows, run_chunk=run_chunk, chunks_of=_chunks
             )
     except _Incomplete as failure:  # keep what finished: the caller decides what to write
-        failure.rows.sort(key=lambda row: row["scenario"])
-        done = {row["scenario"] for row in failure.rows}
-        missing = [i for i in range(len(scenarios)) if i not in done]
-        raise SweepIncomplete(
-            pd.DataFrame(failure.rows, columns=columns), missing, failure.__cause__
-        ) from None
+        raise SweepIncomplete(*kept(failure.rows), failure.__cause__) from None
+    except KeyboardInterrupt as err:  # Ctrl-C (hpdob: SIGTERM, SIGHUP): keep what finished
+        raise SweepInterrupted(*kept(rows), getattr(err, "signum", int(signal.SIGINT))) from err
     finally:
         close()
-    rows.sort(key=lambda row: row["scenario"])
-    return pd.DataFrame(rows, columns=columns)
+    return kept(rows)[0]
