@@ -178,7 +178,11 @@ TARGETS = {
     ),
     "identification.regression": Target(
         "src/hpdob/identification/_regression.py",
-        ("tests/identification/test_identify.py", "tests/identification/test_identify_defaults.py"),
+        (
+            "tests/identification/test_regression.py",
+            "tests/identification/test_identify.py",
+            "tests/identification/test_identify_defaults.py",
+        ),
         "not example_prints and not plot_labels and not result_exports",
     ),
 }
