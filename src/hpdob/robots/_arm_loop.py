@@ -26,6 +26,7 @@ from ..models import ServoModel
 from ..observers import as_system, initial_state
 from ..simulation import Actuator, Encoder
 from ._controllers import controller_types, joint_controller
+from ._errors import qualified
 
 __all__ = ["ArmLoop", "JointSines", "per_joint"]
 
@@ -266,7 +267,8 @@ class ArmLoop:
                 from ..observers._families import design_from_spec
 
             model = ServoModel(J_n, b_n).discretize(self.Ts)
-            return as_system(design_from_spec(model, entry, where), where)
+            with qualified(where, tuple(entry)):  # "order must be ..." -> "observers[0].order ..."
+                return as_system(design_from_spec(model, entry, where), where)
         system = as_system(entry, where)
         if not math.isclose(system.Ts, self.Ts, rel_tol=1e-12):
             raise ParameterValueError(
