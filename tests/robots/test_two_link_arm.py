@@ -184,8 +184,20 @@ def test_result_exports_and_plots():
 
     matplotlib.use("Agg")
     fig = res.plot()
-    assert fig.axes[2].get_xlabel() == "time [s]"
-    assert "[N m]" in fig.axes[1].get_ylabel()
+    # one row per joint (error, command, disturbance), the time axis on the last row
+    assert len(fig.axes) == 3 * len(res.joint_names) == 6
+    assert [ax.get_xlabel() for ax in fig.axes[-3:]] == ["time [s]"] * 3
+    assert "[N m]" in fig.axes[1].get_ylabel() and "elbow" in fig.axes[3].get_ylabel()
+    truth, estimate = fig.axes[5].get_lines()  # the estimate drawn over the truth, unlike it
+    assert truth.get_linewidth() > estimate.get_linewidth() and estimate.get_linestyle() == "--"
+    assert not any(ax.get_legend() for ax in fig.axes) and len(fig.legends) == 1  # off the data
+    plt_close(fig)
+
+
+def plt_close(fig):
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
 
 
 @pytest.mark.parametrize(
