@@ -257,3 +257,14 @@ def test_false_force_in_motion_with_the_encoder(false_force):
     4.6 N RMS): the per-joint estimates difference the noisy velocity once more."""
     for name in ("DOb", "HPDOb"):
         assert false_force["encoder", f"momentum/{name}"] < 0.7 * false_force["encoder", name]
+
+
+def test_momentum_observer_refuses_a_gain_too_high_for_ts_as_a_value_error(at_rest):
+    from hpdob import ParameterValueError
+
+    arm, _, res = at_rest
+    with pytest.raises(ParameterValueError, match=r"gain must be .* gain \* Ts < 1 .*got 1000.0"):
+        momentum_observer(arm, res, gain=1000.0)  # 1000 1/s * 1 ms = 1
+    with pytest.raises(ParameterValueError, match="model must be an arm model with the run's 7"):
+        momentum_observer(TwoLinkArm(m=(1, 1), l=(1, 1), lc=(0.5, 0.5), I=(0.1, 0.1)), res,
+                          gain=K_O)  # fmt: skip

@@ -186,3 +186,13 @@ def test_the_panda_model_ships_its_license_and_notice():
     assert {"data/panda.xml", "data/LICENSE-APACHE-2.0.txt", "data/NOTICE-franka_ros.txt"} <= set(
         shipped["hpdob.robots"]
     )
+
+
+def test_panda_default_integrator_is_the_documented_euler():
+    import mujoco
+
+    _, model, _ = panda().compile()
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+    assert '``"Euler"``' in panda.__doc__ and 'RK4"``)' not in panda.__doc__
+    _, model, _ = panda(integrator="RK4").compile()
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4

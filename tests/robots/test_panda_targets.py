@@ -141,6 +141,8 @@ def test_computed_torque_suffers_from_the_unknown_payload_at_the_wrist(runs):
 
 
 def test_observers_with_computed_torque_are_refused():
-    with pytest.raises(ParameterValueError, match="observers must be None with controller"):
+    message = (r"observers must be None with controller=ComputedTorque: a per-joint observer's "
+               r"nominal model \(eq. 3 per joint: J_n qdd = u - b_n qd - tau_dn\)")  # fmt: skip
+    with pytest.raises(ParameterValueError, match=message):
         ArmLoop(panda(), TS, ComputedTorque(panda(), 1.0, 1.0), observers={"order": 0,
                 "bandwidth": 50.0})  # fmt: skip

@@ -194,6 +194,21 @@ def test_result_exports_and_plots():
     plt_close(fig)
 
 
+def test_a_numpy_array_of_observer_specs_is_a_list_of_them():
+    """np.array([spec, spec]) is one spec per joint (not one object for every joint), and an
+    array of the wrong length is refused by its length."""
+    spec = {"order": 1, "bandwidth": 100.0}
+    runs = [simulate_arm(ArmLoop(ARM, 1e-3, PD(400.0, 40.0), observers=specs), duration=0.05,
+                         reference=JointSines((0.0, 0.0)), tau0="gravity")
+            for specs in (np.array([spec, spec]), [spec, spec])]  # fmt: skip
+    np.testing.assert_array_equal(runs[0].tau_hat, runs[1].tau_hat)
+    with pytest.raises(ParameterValueError, match=r"observers must have one entry per joint \(2\)"
+                       r", got 3"):  # fmt: skip
+        ArmLoop(ARM, 1e-3, PD(400.0, 40.0), observers=np.array([spec] * 3))
+    with pytest.raises(ParameterValueError, match=r"controller must have one entry per joint"):
+        ArmLoop(ARM, 1e-3, np.array([PD(1.0, 1.0)] * 3, dtype=object))
+
+
 def plt_close(fig):
     import matplotlib.pyplot as plt
 
