@@ -225,6 +225,8 @@ def test_errors_inside_a_table_name_the_table(tmp_path):
         (("observer", 1, "bandwidth"), -1.0, "observer[1].bandwidth must be"),
         (("plant",), {"type": "two-link-arm", "l": [0.5, 0.4], "lc": [0.2, 0.2],
                       "I": [0.02, 0.01]}, "missing required key plant.m"),
+        (("nominal",), {"type": "mujoco-arm", "model": "panda", "end_effector": "hand"},
+         "nominal.end_effector must be the Panda's site 'flange'"),
     ]  # fmt: skip
     for key, value, message in cases:
         with pytest.raises(ParameterValueError) as info:

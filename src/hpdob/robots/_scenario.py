@@ -115,6 +115,11 @@ def _mujoco_arm_model(fields, where, base):
     if "model" in fields:
         if fields["model"] != "panda":
             raise ParameterValueError(f'{where}.model must be "panda", got {fields["model"]!r}')
+        if fields.get("end_effector", "flange") != "flange":
+            raise ParameterValueError(
+                f"{where}.end_effector must be the Panda's site 'flange' (or left out), got "
+                f"{fields['end_effector']!r}"
+            )
         return panda(**options)
     if not isinstance(fields["path"], str):
         raise ParameterTypeError(
