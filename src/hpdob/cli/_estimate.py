@@ -9,10 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ._design import add_observer_arguments, design_on
+from ._design import add_observer_arguments, design_on, observer_spec_of_args
 from ._errors import CLIError
 from ._logs import add_log_arguments, log_from_args
 from ._options import finite, output_path
+from ._progress import ProgressLine, show_progress
 
 __all__ = ["register"]
 
@@ -49,6 +50,13 @@ def register(subparsers) -> None:
         help="output directory (default: hpdob-results/estimate-<log name>)",
     )
     parser.add_argument("--no-plot", action="store_true", help="skip the figure")
+    parser.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="reading and estimating progress with the time left on stderr (default: when "
+        "stderr is a terminal)",
+    )
     parser.set_defaults(handler=_run)
 
 
@@ -113,12 +121,38 @@ def _run(args: argparse.Namespace) -> int:
     from .._files import check_output, staged_outputs
     from ..identification import estimate_disturbance
 
-    log = log_from_args(args)
-    out = args.out or Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
-    check_output(out)  # before the estimate, not after it
+    # Every option and the output location are checked before the log is read: a log may
+    # take minutes to read (up to 256 MiB), and a missing --J-n must not wait for it.
     nominal, origin = _nominal(args)
+    observer_spec_of_args(args)  # the observer options (their values need the log's Ts)
+    out = args.out
+    if out is None and args.log is not None:  # the default is named after the log file
+        out = Path("hpdob-results") / f"estimate-{Path(args.log).stem}"
+    if out is not None:
+        check_output(out)
+    show = show_progress(args.progress)
+    name = "EMPS" if args.log is None else Path(args.log).name
+    reading = ProgressLine(f"hpdob estimate: reading {name}", unit="MiB", scale=2**20)
+    try:
+        log = log_from_args(args, progress=reading if show else None)
+    finally:  # an error or interrupt message starts on its own line
+        reading.end()
+    if out is None:  # --emps: its name is the shipped file's
+        out = Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
+        check_output(out)
     design = design_on(args, nominal.discretize(log.Ts))
-    result = estimate_disturbance(design, theta=log.theta, u=log.u, t=log.t)
+    # One call of the compiled loop (well under a second for a log at the 256 MiB limit, once
+    # compiled): a stage, not a bar.
+    estimating = ProgressLine("hpdob estimate: estimating", unit="samples")
+    if show:
+        estimating(0, len(log))
+    try:
+        result = estimate_disturbance(design, theta=log.theta, u=log.u, t=log.t)
+    except BaseException:  # the message starts on its own line
+        estimating.end()
+        raise
+    if show:
+        estimating(len(log), len(log))
     # t increases strictly: the samples with t >= the cut are a slice (a view, not a copy)
     cut = np.searchsorted(result.t, result.t[0] + 0.1 * (result.t[-1] - result.t[0]))
     tail = result.tau_hat[cut:]

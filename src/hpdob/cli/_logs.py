@@ -109,8 +109,9 @@ def _require_columns(args) -> None:
         )
 
 
-def log_from_args(args: argparse.Namespace, columns=None):
-    """The :class:`~hpdob.identification.Log` that ``add_log_arguments`` options describe."""
+def log_from_args(args: argparse.Namespace, columns=None, progress=None):
+    """The :class:`~hpdob.identification.Log` that ``add_log_arguments`` options describe
+    (``progress(done, total)``: bytes read, see :func:`~hpdob.identification.read_log`)."""
     from ..identification import emps, read_log
 
     roles = [r for r in ("time", "position", "input", "reference") if hasattr(args, r)]
@@ -133,4 +134,5 @@ def log_from_args(args: argparse.Namespace, columns=None):
         Ts=args.Ts,
         axis=args.axis,
         columns=columns,
+        progress=progress,
     )
