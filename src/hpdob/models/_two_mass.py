@@ -9,7 +9,7 @@ import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive, readonly
 from ._environment import Environment, check_environment
-from ._plant import ExactSubsteps, Plant, coulomb_substeps, replace_parameters
+from ._plant import ExactSubsteps, Plant, contact_substeps, coulomb_substeps, replace_parameters
 
 __all__ = ["DiscreteTwoMassServo", "TwoMassServo"]
 
@@ -242,9 +242,11 @@ class TwoMassServo(Plant):
         Returns
         -------
         int
-            8, more for a stiff Coulomb friction of the motor (``h c / (v J_m) <= 0.5``).
+            8, more for a stiff Coulomb friction of the motor (``h c / (v J_m) <= 0.5``) or a
+            stiff environment on the load (``h sqrt(k_e / J_l) <= 0.06``).
         """
-        return coulomb_substeps(self.coulomb, self.coulomb_velocity, self.J_motor, Ts)
+        return max(coulomb_substeps(self.coulomb, self.coulomb_velocity, self.J_motor, Ts),
+                   contact_substeps(self.environment, self.J_load, Ts))  # fmt: skip
 
     def sampler(self, Ts: float, substeps: int) -> ExactSubsteps:
         """The exact sub-step matrices the compiled kernel advances this plant with.
