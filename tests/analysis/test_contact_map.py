@@ -360,8 +360,10 @@ def test_coulomb_friction_is_outside_the_verdict():
 def test_quantisation_hides_a_sub_count_instability():
     """docs/force-control.md: why the verdict check uses an unquantised encoder. At
     1000 N m/rad the 0.05 N m deflection is 5e-5 rad, 0.13 of a 16384-count encoder's count:
-    from rest at the wall the unstable loop (map: radius 1.05) sees no motion and settles
-    within 1 %; started 2e-3 rad into the wall it does not settle."""
+    from rest at the wall the unstable loop (map: radius 1.05) sees no motion (one constant
+    count) and stays within 20 % of tau_ref (within 1 % only with 8 sub-steps, an
+    under-resolved contact; 17 % with the stiffness-following default of 32); started 2e-3 rad
+    into the wall it does not settle."""
     loop = _loop(1000.0, sensor=paper.VIRTUAL_SENSOR)
     cmap = contact_stability_map(loop, stiffness=[1000.0], bandwidth=[100.0],
                                  observer={"order": 1})  # fmt: skip
@@ -371,4 +373,5 @@ def test_quantisation_hides_a_sub_count_instability():
         warnings.simplefilter("ignore", SimulationDivergedWarning)
         runs = [simulate(point, reference=_step, duration=5.0, x0=(x, 0.0)) for x in (0.0, 2e-3)]
     errors = [np.max(np.abs(r.tau_contact[-500:] - TAU_REF)) / TAU_REF for r in runs]
-    assert errors[0] < 0.01 and errors[1] > 0.5
+    assert np.ptp(runs[0].theta_measured[-500:]) == 0.0  # the encoder sees no motion
+    assert errors[0] < 0.2 and errors[1] > 0.5
