@@ -51,6 +51,8 @@ def _commands(tmp_path):
                          *out("arm")],
         "simulate panda": ["simulate", str(ROOT / "examples" / "panda_joint_observers.toml"),
                            *out("panda")],
+        "simulate force": ["simulate", str(ROOT / "examples" / "force_step_stiff_wall.toml"),
+                           *out("force")],
         "tune": ["tune", "--J-range", "0.9,1.1", "--families", "position", "--frequency", "2",
                  "--counts-per-rev", "16384", *out("tune")],
         "estimate": ["estimate", str(log), "--time", "t", "--position", "q", "--input", "u",
@@ -96,7 +98,7 @@ def test_every_command_that_draws_was_caught(figures):
     commands = {command for command, _ in figures}
     assert commands == {"reproduce", "simulate", "tune", "estimate", "identify", "analyze bode",
                         "analyze noise", "analyze tradeoff", "analyze stability",
-                        "compare", "simulate arm", "simulate panda"}  # fmt: skip
+                        "compare", "simulate arm", "simulate panda", "simulate force"}  # fmt: skip
     assert {name for command, name in figures if command == "reproduce"} >= {
         "fig2", "fig3", "fig4", "fig5"}  # fmt: skip
 

@@ -9,6 +9,7 @@ __all__ = [
     "label_points",
     "legend_clear_of_data",
     "mark_clipped",
+    "plot_force_result",
     "plot_result",
     "style_axes",
     "time_axis",
@@ -185,4 +186,27 @@ def plot_result(result, *, title: str | None = None):
     fig.suptitle(title or result.label or "hpdob simulation")
     for ax in axes[:2]:  # legends in a band above the data
         legend_clear_of_data(ax, ncol=len(ax.get_legend_handles_labels()[1]))
+    return fig
+
+
+def plot_force_result(result, *, tau_ref=None, title: str | None = None):
+    """Two stacked panels of a force run: torques (contact, estimate, reference), estimate
+    error (``docs/force-control.md``)."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 1, figsize=(PAPER_WIDTH, 5.0), sharex=True, layout="constrained")
+    t = result.t
+    ax = axes[0]
+    if tau_ref is not None:
+        ref = np.broadcast_to(np.asarray(tau_ref, dtype=float), np.shape(t))
+        ax.plot(t, ref, "k--", linewidth=1.0, label=r"reference $\tau_{ref}$")
+    ax.plot(t, result.tau_contact, linewidth=1.2, label=r"contact $\tau_{contact}$")
+    ax.plot(t, result.tau_reac, linewidth=1.0, label=r"estimate $\hat\tau_{reac}$")
+    style_axes(ax, xlabel=None, ylabel="torque [N m]")
+    ax = axes[1]
+    ax.plot(t, result.tau_reac - result.tau_contact, linewidth=1.0)
+    style_axes(ax, xlabel="time [s]", ylabel=r"$\hat\tau_{reac} - \tau_{contact}$ [N m]")
+    time_axis(axes[-1], t, result.Ts)
+    fig.suptitle(title or result.label or "hpdob force run")
+    legend_clear_of_data(axes[0], ncol=len(axes[0].get_legend_handles_labels()[1]))
     return fig

@@ -151,6 +151,24 @@ def _contact_metrics(result, controller) -> dict:
     return {f"contact_{k}": v for k, v in result.contact_metrics(tau_ref).items()}
 
 
+def _force_reference(result, controller):
+    """``(kind, tau_ref)`` of a run: ``kind`` "force", "impedance" or "position-force" for
+    such a controller with an RTOB output (else None); ``tau_ref`` per sample [N m] (the
+    force controller's reference signal ``r``, the switching controller's ``tau_ref``), or
+    None for impedance control (its target is a position)."""
+    import numpy as np
+
+    from ..controllers import ForceControl, ImpedanceControl, PositionForceSwitch
+
+    if result.tau_contact is None or result.tau_reac is None:
+        return None, None
+    if isinstance(controller, ForceControl):
+        return "force", np.asarray(result.r, dtype=float)
+    if isinstance(controller, PositionForceSwitch):
+        return "position-force", np.full(len(result), float(controller.tau_ref))
+    return ("impedance" if isinstance(controller, ImpedanceControl) else None), None
+
+
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
@@ -180,6 +198,12 @@ def _run(args: argparse.Namespace) -> int:
     metrics = result.metrics(**windows)
     if result.tau_contact is not None:  # against a wall: the impact (docs/force-control.md)
         metrics.update(_contact_metrics(result, kwargs["controller"]))
+    force_kind, tau_ref = _force_reference(result, kwargs["controller"])
+    if force_kind is not None:  # tau_reac vs tau_contact, tau_contact vs tau_ref
+        metrics.update({f"force_{k}": v for k, v in result.force_metrics(tau_ref).items()})
+        if force_kind == "force":  # r is tau_ref [N m]: theta - r means nothing
+            for window in ("regulation", "tracking"):
+                metrics.pop(f"rms_position_error_{window}", None)
     # Staged: renamed together when all are written, metrics.json last (docs/reliability.md).
     # The previous run's <label>.csv/.png (another label, or a figure this --no-plot run does
     # not draw) are removed at the commit: the directory holds one consistent set.
@@ -192,7 +216,8 @@ def _run(args: argparse.Namespace) -> int:
         with staged_outputs(out, markers=["metrics.json"], replaces=replaces) as files:
             result.to_csv(files.path(f"{stem}.csv"), progress=writing if show else None)
             if not args.no_plot:
-                files.plot(f"{stem}.png", lambda: result.plot())
+                files.plot(f"{stem}.png", lambda: result.plot_force(tau_ref=tau_ref)
+                           if force_kind else result.plot())  # fmt: skip
             files.write_text("metrics.json", metrics_json({stem: metrics}))
     finally:
         writing.end()

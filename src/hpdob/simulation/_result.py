@@ -277,6 +277,87 @@ class SimulationResult:
             "overshoot_ratio": overshoot / tau_ref if tau_ref != 0.0 else math.nan,
         }
 
+    def force_metrics(self, tau_ref=None) -> dict[str, float]:
+        """RMS errors of a force run: the reaction-torque estimate and the force tracking.
+
+        Parameters
+        ----------
+        tau_ref : float or array_like, optional
+            The force reference [N m] at each sample (or one value for all). Default None:
+            no ``rms_force_error``.
+
+        Returns
+        -------
+        dict
+            ``rms_reaction_error`` [N m] (``tau_reac - tau_contact`` over the run) and, with
+            ``tau_ref``, ``rms_force_error`` [N m] (``tau_contact - tau_ref``).
+
+        Raises
+        ------
+        ParameterValueError
+            If the run has no environment or no reaction-torque estimate (``tau_contact``
+            or ``tau_reac`` is None), or ``tau_ref`` does not have one value per sample.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hpdob import Environment, ServoLoop, ServoModel, design_observer, simulate
+        >>> from hpdob.controllers import ForceControl
+        >>> from hpdob.observers import reaction_torque_observer
+        >>> nominal = ServoModel(2.8e-4)
+        >>> dob = design_observer(nominal.discretize(1e-3), order=1, bandwidth=100.0)
+        >>> loop = ServoLoop(plant=ServoModel(2.8e-4, environment=Environment(10.0)),
+        ...                  nominal=nominal, Ts=1e-3, observer=reaction_torque_observer(dob),
+        ...                  controller=ForceControl(1000.0, kv=40.0))
+        >>> result = simulate(loop, reference=lambda t: (0.05 + 0 * t, 0 * t, 0 * t),
+        ...                   duration=2.0)
+        >>> m = result.force_metrics(result.r)
+        >>> bool(m["rms_force_error"] < 0.05 and m["rms_reaction_error"] < 0.05)
+        True
+        """
+        if self.tau_contact is None or self.tau_reac is None:
+            raise ParameterValueError(
+                "force_metrics needs a run against an Environment with a reaction-torque "
+                "observer (tau_contact or tau_reac is None)"
+            )
+        metrics = {"rms_reaction_error": _rms(self.tau_reac - self.tau_contact)}
+        if tau_ref is not None:
+            ref = np.broadcast_to(np.asarray(tau_ref, dtype=float), np.shape(self.t)) \
+                if np.ndim(tau_ref) == 0 else np.asarray(tau_ref, dtype=float)  # fmt: skip
+            if ref.shape != self.tau_contact.shape:
+                raise ParameterValueError(
+                    f"tau_ref must have one value per sample ({len(self)}), got shape {ref.shape}"
+                )
+            metrics["rms_force_error"] = _rms(self.tau_contact - ref)
+        return metrics
+
+    def plot_force(self, *, tau_ref=None, title: str | None = None):
+        """Figure of a force run: contact torque, its estimate and the force reference.
+
+        Parameters
+        ----------
+        tau_ref : float or array_like, optional
+            The force reference [N m] to draw (one value or one per sample). Default None.
+        title : str, optional
+            The figure's title. Default: the result's label (or ``"hpdob force run"``).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            Two panels sharing the time axis [s]: torques [N m] (``tau_contact``,
+            ``tau_reac``, ``tau_ref``) and the estimate error ``tau_reac - tau_contact``
+            [N m]; the legend above the data.
+
+        Raises
+        ------
+        ParameterValueError
+            If the run has no ``tau_contact`` or ``tau_reac``.
+        """
+        from .._plotting import plot_force_result
+
+        self.force_metrics(tau_ref)  # the same checks
+        return plot_force_result(self, tau_ref=tau_ref, title=title)
+
     def max_abs_position_error(self) -> float:
         """Largest position error of the run.
 
