@@ -20,6 +20,8 @@ from hpdob import (
     closed_loop,
     closed_loop_poles,
     design_observer,
+    loop_margins,
+    loop_transfer,
     paper,
     simulate,
 )
@@ -109,9 +111,45 @@ def test_force_controller_runs_in_the_analysis_views():
     loop = ServoLoop(plant=PLANT.replace(coulomb=0.0), nominal=NOMINAL, Ts=TS,
                      observer=reaction_torque_observer(dob, viscous=DELTA_B),
                      controller=ForceControl(1000.0, kv=40.0))  # fmt: skip
-    system = closed_loop(loop)
-    poles = np.linalg.eigvals(system.A)
-    assert np.all(np.abs(poles) <= 1.0 + 1e-12)
+    poles = np.linalg.eigvals(closed_loop(loop).A)
+    assert np.all(np.abs(poles) <= 1.0 + 1e-12)  # the angle's pole at 1: no position feedback
+    slowest = np.max(np.abs(poles[np.abs(poles - 1.0) > 1e-9]))  # 0.962 here
+    result = simulate(loop, reference=lambda t: (0 * t, 0 * t, 0 * t), duration=1.0,
+                      x0=(0.0, 1.0))  # fmt: skip
+    k = np.arange(300, 600)  # the tail: faster modes gone, omega still far above rounding
+    rate = np.exp(np.polyfit(k, np.log(np.abs(result.omega[k])), 1)[0])
+    assert rate == pytest.approx(slowest, rel=1e-6)
+
+
+@pytest.mark.parametrize("kf", [1000.0, 3000.0])
+def test_margins_in_contact_match_python_control(kf):
+    """loop_margins of the loop in contact (InContact: 10 N m/rad spring, one sample of delay,
+    backward-difference velocity, so the controller side reads the angle alone) against
+    control.stability_margins of a loop gain assembled here: the library's free-space loop gain
+    times Pc/Pf, the ZOH transfers theta/u of plant + spring and of the plant alone, both from
+    python-control's c2d."""
+    import control
+
+    def loop(plant):
+        dob = design_observer(MODEL, order=1, bandwidth=100.0)
+        return ServoLoop(plant=plant, nominal=NOMINAL, Ts=TS, observer=reaction_torque_observer(
+            dob, viscous=DELTA_B), controller=ForceControl(kf, kv=40.0),
+            sensor=paper.VIRTUAL_SENSOR, actuator=Actuator(delay_samples=1))  # fmt: skip
+
+    free, k_e = PLANT.replace(coulomb=0.0), 10.0
+    w = np.geomspace(0.1, np.pi / TS, 20000)
+    z = np.exp(1j * w * TS)
+    Pf = control.c2d(control.tf([1.0], [free.J, free.b, 0.0]), TS, "zoh")
+    Pc = control.c2d(control.tf([1.0], [free.J, free.b, k_e]), TS, "zoh")
+    L = loop_transfer(loop(free))(z) * Pc(z) / Pf(z)
+    gm, pm, sm, _, wgc, _ = control.stability_margins(control.frd(L, w, dt=TS), returnall=True)
+    got = loop_margins(loop(InContact(free.replace(environment=Environment(k_e)))))
+    assert got.stable
+    assert got.gain_margin == pytest.approx(np.min(gm[gm > 1.0]), rel=1e-6)
+    i = np.argmin(np.abs(pm))  # loop_margins' phase margin: the crossover smallest in |.|
+    assert got.phase_margin == pytest.approx(pm[i], rel=1e-6)
+    assert got.crossover_frequency == pytest.approx(wgc[i] / (2 * np.pi), rel=1e-6)
+    assert got.stability_margin == pytest.approx(np.min(sm), rel=1e-4)
 
 
 @pytest.mark.parametrize(("k_e", "duration"), [(10.0, 3.0), (0.1, 60.0)])
