@@ -27,7 +27,13 @@ from hpdob import (
 )
 from hpdob.controllers import ForceControl, ImpedanceControl
 from hpdob.models import InContact
-from hpdob.observers import reaction_torque_observer
+from hpdob.observers import (
+    as_system,
+    design_at_bandwidth,
+    families,
+    get_family,
+    reaction_torque_observer,
+)
 
 TS = paper.TS
 NOMINAL = paper.NOMINAL  # J_n = 2.8e-4, b_n = 0 (the paper's nominal model)
@@ -152,13 +158,47 @@ def test_margins_in_contact_match_python_control(kf):
     assert got.stability_margin == pytest.approx(np.min(sm), rel=1e-4)
 
 
+#: The RTOB's bandwidth per family [rad/s]: the DOb's 100, but the classical ESO's 200. At
+#: 100 rad/s the ESO-based loop (current form) has a slow mode (closed-loop radius 0.9989 in
+#: contact, about 0.9 s) and is still 3.6 % off tau_ref after 3 s (measured 2026-12-01); at 200
+#: rad/s 0.9956 and settled.
+RTOB_BANDWIDTH = {"eso": 200.0}
+#: The Kalman family's angle noise: the 16384-count encoder's quantisation, resolution/sqrt(12).
+RTOB_EXTRA = {"kalman": {"position_noise_std": 2 * np.pi / 16384 / np.sqrt(12)}}
+
+
+@pytest.mark.parametrize("family", [f.name for f in families()])
+def test_rtob_of_every_registered_family_settles_the_stiff_wall_step(family):
+    """Issue 21 section 2: the RTOB of any registered family (here at its defaults, on the
+    nominal model) beside an HPDOb measuring what it measures (the angle only for the ESO and
+    the Kalman filter) settles the 0.05 N m step on the 10 N m/rad wall within 1 %."""
+    fam = get_family(family)
+    spec = {"type": family, **fam.defaults, **RTOB_EXTRA.get(family, {})}
+    rtob = as_system(design_at_bandwidth(MODEL, spec, RTOB_BANDWIDTH.get(family, 100.0)))
+    measurement = "state" if "omega" in rtob.measures else "position"
+    dob = design_observer(MODEL, order=1, bandwidth=100.0, measurement=measurement)
+    loop = _force_loop(10.0, reaction_torque_observer(dob, rtob, viscous=DELTA_B))
+    result = simulate(loop, reference=_step, duration=3.0, x0=(-0.01, 0.0))
+    assert np.max(np.abs(result.tau_contact[-1000:] - TAU_REF)) < 0.01 * TAU_REF
+
+
+def test_rtob_on_another_nominal_model_is_refused():
+    dob = design_observer(MODEL, order=1, bandwidth=100.0)
+    other = design_observer(NOMINAL.replace(J=3.06e-4).discretize(TS), order=0, bandwidth=100.0)
+    with pytest.raises(ParameterValueError,
+                       match=r"^reaction must be designed on dob's nominal model "
+                             r"DiscreteServoModel\(continuous=ServoModel\(J=0.00028"):  # fmt: skip
+        reaction_torque_observer(dob, other)
+
+
 @pytest.mark.parametrize(("k_e", "duration"), [(10.0, 3.0), (0.1, 60.0)])
 def test_force_step_settles_within_1_percent(k_e, duration):
     """Issue 21 target: the paper's motor, 16384-count encoder, one sample of delay, 0.444 N m
     limit; a 0.05 N m step of tau_ref; the friction model known (viscous beyond b_n in the
     RTOB). The contact torque settles to tau_ref within 1 % (test margin: 0.5 % over the last
     second). The soft wall is slow: the plant's Coulomb friction, not compensated by the
-    linear RTOB, acts near rest as a damper c/v = 1 N m s/rad (benchmarks/force_control.py)."""
+    linear RTOB, acts near rest as a damper c/v = 1 N m s/rad
+    (benchmarks/bench_force_control.py)."""
     dob = design_observer(MODEL, order=1, bandwidth=100.0)
     loop = _force_loop(k_e, reaction_torque_observer(dob, viscous=DELTA_B))
     result = simulate(loop, reference=_step, duration=duration, x0=(-0.01, 0.0))

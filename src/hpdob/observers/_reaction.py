@@ -84,7 +84,8 @@ def reaction_torque_observer(
     Raises
     ------
     ParameterValueError
-        If the observers measure different signals, were designed at different ``Ts``, or
+        If the observers measure different signals, were designed at different ``Ts`` or on
+        different nominal models, or
         ``viscous`` or ``coulomb`` is negative; if no velocity is available for a non-zero
         ``viscous`` or ``coulomb``; if ``friction`` is given with ``viscous`` or ``coulomb``,
         or its ``b`` is below ``b_n``.
@@ -135,6 +136,12 @@ def reaction_torque_observer(
         )
     if second.Ts != first.Ts:
         raise ParameterValueError(f"reaction.Ts = {second.Ts!r} must equal dob.Ts = {first.Ts!r}")
+    if None not in (first.model, second.model) and second.model != first.model:
+        # tau_reac = tau^R - f: a J_n or b_n other than the DOb's puts (J - J_n') a into it
+        raise ParameterValueError(
+            f"reaction must be designed on dob's nominal model {first.model!r}, "
+            f"got {second.model!r}"
+        )
     n1 = first.n_states
     if reaction is None:  # one observer: tau_reac is tau_hat minus the friction
         F, G, N = first.F, first.G, first.N
