@@ -66,8 +66,11 @@ def test_plant_that_cannot_carry_one():
     mujoco = pytest.importorskip("mujoco")  # noqa: F841 -- MujocoServo needs it
     from hpdob import MujocoServo
 
-    with pytest.raises(ParameterTypeError, match="environment"):
+    message = r"^environment: a MujocoServo cannot carry an Environment, got Environment; give"
+    with pytest.raises(ParameterTypeError, match=message):
         MujocoServo(J=J, b=B).replace(environment=Environment(10.0))
+    with pytest.raises(ParameterTypeError, match=message):  # was a plain "unexpected keyword"
+        MujocoServo(J=J, b=B, environment=Environment(10.0))
 
 
 @pytest.mark.parametrize("k_e", [10.0, 0.1])

@@ -44,6 +44,16 @@ def _check_timestep(timestep):
     return positive(timestep, "timestep", "a positive finite MuJoCo time step [s] or None")
 
 
+def _refuse_environment(environment) -> None:
+    """A MujocoServo has its own contact (``wall``): an Environment is refused by name."""
+    if environment is not None:
+        raise ParameterTypeError(
+            f"environment: a MujocoServo cannot carry an Environment, got "
+            f"{type(environment).__name__}; give it a wall the link presses (wall [rad] with "
+            "link_length [m])"
+        )
+
+
 class MujocoServo(Plant):
     r"""A servo simulated by MuJoCo, usable as ``plant=`` in :func:`simulate` and :func:`sweep`.
 
@@ -88,6 +98,9 @@ class MujocoServo(Plant):
         :math:`\theta > \theta_e`. Results get ``tau_contact`` (the contact force through
         the contact Jacobian, ``MujocoSession.contact``) and ``in_contact``. Needs a positive
         ``link_length`` (``link_mass`` may be 0: no gravity torque). Default None (no wall).
+    environment : None, optional
+        Not accepted: the MuJoCo model has no :class:`~hpdob.Environment`; its contact is
+        ``wall``. Anything but None is refused with a one-line ParameterTypeError.
 
     Raises
     ------
@@ -130,7 +143,9 @@ class MujocoServo(Plant):
         timestep=None,
         integrator="RK4",
         wall=None,
+        environment=None,
     ):
+        _refuse_environment(environment)
         params = {
             "J": positive(J, "J", "a positive finite inertia [kg m^2]"),
             "b": nonnegative(b, "b", "a non-negative finite viscous friction [N m s/rad]"),
@@ -318,6 +333,8 @@ class MujocoServo(Plant):
         ParameterTypeError, ParameterValueError
             For a parameter it does not accept, or a value the constructor rejects.
         """
+        if "environment" in changes:
+            _refuse_environment(changes.pop("environment"))
         valid = self._replaceable()
         unknown = sorted(set(changes) - set(valid))
         if unknown:
