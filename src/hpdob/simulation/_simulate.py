@@ -54,7 +54,7 @@ class SimulationDivergedWarning(RuntimeWarning):
 def default_substeps(plant, Ts: float) -> int:
     """Default sub-steps per sample of ``plant`` (see :meth:`hpdob.models.Plant.substeps`):
     8 for the rigid servo, more (an even number) for stiff Coulomb friction
-    (``h c / (v J) <= 0.5``)."""
+    (``h c / (v J) <= 0.5``) or a stiff environment (``h sqrt(k_e / J) <= 0.06``)."""
     return plant.substeps(Ts, None)
 
 
@@ -200,7 +200,9 @@ def simulate(
     substeps : int, optional
         Plant sub-steps per sample. Default: 8, raised to an even number with
         ``h c / (v J) <= 0.5`` for stiff Coulomb friction (:func:`default_substeps`; e.g. 66 for
-        the canonical plant with ``coulomb_velocity = 1e-3``). For a :class:`MujocoServo` these
+        the canonical plant with ``coulomb_velocity = 1e-3``) and with
+        ``h sqrt(k_e / J) <= 0.06`` for a stiff :class:`~hpdob.Environment` (32 at
+        1000 N m/rad on the paper's motor). For a :class:`MujocoServo` these
         are MuJoCo steps of ``Ts/substeps``; if the servo has its own ``timestep``, ``substeps``
         is ``Ts/timestep`` (None or that value).
     x0 : sequence of 2 floats, optional
