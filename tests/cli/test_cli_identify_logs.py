@@ -166,5 +166,5 @@ def test_step_response_refusals_name_the_options(tmp_path, capsys):
     brief = synthetic_log(kind="pulses", counts=4096, Ts=5e-4, coulomb=0.03, seed=1, duration=2.0)
     message = _error(capsys, _csv(tmp_path / "brief.csv", brief), *COLUMNS)
     assert "rests most of the time" in message
-    assert re.search(r"--bandwidth [0-9.]+ ", message) and "--min-speed 0 " in message
+    assert re.search(r"--filter-bandwidth [0-9.]+ ", message) and "--min-speed 0 " in message
     assert "bandwidth=" not in message and "min_speed" not in message

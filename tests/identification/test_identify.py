@@ -391,3 +391,17 @@ def test_idim_iv_with_a_loop_that_is_not_the_logs_is_refused():
     resting = FeedbackLoop(np.zeros(t.size), kp=0.0, kd=0.0)  # not the loop that moved the axis
     with pytest.raises(ParameterValueError, match=r"loop does not describe the controller.* %"):
         identify(t, q, u, method="idim-iv", loop=resting)
+
+
+def test_the_old_bandwidth_keyword_names_filter_bandwidth():
+    """``bandwidth=`` (an observer's bandwidth [rad/s] everywhere else) was renamed
+    ``filter_bandwidth`` [Hz]: the old keyword is a TypeError naming the new one (issue 23)."""
+    import hpdob
+    from hpdob._validation import ParameterTypeError
+    from hpdob.identification import emps
+
+    log = emps()
+    with pytest.raises(ParameterTypeError, match=r"give filter_bandwidth=20\.0 \(.*\[Hz\]"):
+        hpdob.identify(log, bandwidth=20.0)
+    with pytest.raises(TypeError, match="filter_bandwidth"):
+        log.identify(bandwidth=20.0)

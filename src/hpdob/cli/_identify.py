@@ -106,12 +106,20 @@ def register(subparsers) -> None:
         "--velocity-filter", type=_number_list(float), default=None, metavar="C0,C1,...",
         help="the loop's velocity estimate sum c_i y_(k-i) / Ts (default: 1,-1)",
     )  # fmt: skip
-    loop.add_argument("--limit", type=_real, help="the loop's output limit [N m or N]")
+    loop.add_argument("--torque-limit", type=_real,
+                      help="the loop's torque limit [N m or N] (as in tune)")  # fmt: skip
+    loop.add_argument("--limit", type=_real, dest="removed_limit", help=argparse.SUPPRESS)
     filters = parser.add_argument_group("filters (default: from the log, see identify())")
-    filters.add_argument("--bandwidth", type=_real,
-                         help="bandwidth of the motion to keep [Hz] (cutoff 5x)")  # fmt: skip
+    filters.add_argument(
+        "--filter-bandwidth", type=_real,
+        help="bandwidth of the motion the filters keep [Hz] (cutoff 5x)",
+    )  # fmt: skip
+    filters.add_argument("--bandwidth", type=_real, dest="removed_bandwidth",
+                         help=argparse.SUPPRESS)  # fmt: skip
     filters.add_argument("--cutoff", type=_real, help="Butterworth cut-off [Hz]")
-    filters.add_argument("--order", type=_integer, default=4, help="Butterworth order (4)")
+    filters.add_argument("--filter-order", type=_integer, default=4,
+                         help="order of the Butterworth filters (4)")  # fmt: skip
+    filters.add_argument("--order", type=_integer, dest="removed_order", help=argparse.SUPPRESS)
     filters.add_argument("--decimation", type=_integer, help="decimation factor")
     filters.add_argument("--border", type=_integer, help="samples dropped at each end")
     filters.add_argument(
@@ -197,7 +205,7 @@ def _loop(args, log, name: str):
         kp, kd = args.loop_kp, args.loop_kd
     loop = FeedbackLoop(
         log.reference, kp=kp, kd=kd, reference_velocity=velocity, feedforward=feedforward,
-        velocity_filter=tuple(args.velocity_filter or (1.0, -1.0)), limit=args.limit,
+        velocity_filter=tuple(args.velocity_filter or (1.0, -1.0)), limit=args.torque_limit,
     )  # fmt: skip
     return loop, source
 
@@ -263,7 +271,7 @@ _CLI_WORDS = [
     (re.compile(r"(?<![-\w])decimation\b(?= ?[=<>]| must)"), "--decimation"),
     (re.compile(r"(?<![-\w])cutoff\b(?= ?[=<>]| must)"), "--cutoff"),
     (re.compile(r"(?<![-\w])border\b(?= ?[=<>]| must)"), "--border"),
-    (re.compile(r"(?<![-\w])bandwidth=(?=\d)"), "--bandwidth "),
+    (re.compile(r"\bfilter_bandwidth=(?=\d)"), "--filter-bandwidth "),
 ]
 
 
@@ -275,12 +283,31 @@ def cli_words(text: str) -> str:
     return text
 
 
+#: identify's option spellings before 0.2 that other commands use with another meaning, and
+#: the option that replaces each (docs/naming.md: one meaning per option name).
+_REMOVED = {
+    "bandwidth": ("--bandwidth", "--filter-bandwidth", "[Hz], the filters' band; --bandwidth is "
+                  "an observer's bandwidth [rad/s] in design, estimate and analyze"),
+    "limit": ("--limit", "--torque-limit", "[N m or N], as in tune"),
+    "order": ("--order", "--filter-order", "the Butterworth filters'; --order is an observer's "
+              "truncation order m in design, estimate and export-c"),
+}  # fmt: skip
+
+
+def _refuse_removed(args) -> None:
+    for key, (old, new, why) in _REMOVED.items():
+        value = getattr(args, f"removed_{key}")
+        if value is not None:
+            raise CLIError(f"identify {old} is now {new}: give {new} {value:g} ({why})")
+
+
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
     from .._files import check_output, staged_outputs
     from ..identification import EMPS_PUBLISHED, IdentificationWarning, identify
 
+    _refuse_removed(args)
     if args.emps and args.validate is not None:
         raise CLIError("--validate takes a LOG with the same columns as LOG; not with --emps")
     logs, loops, loop_source = _load(args)
@@ -291,9 +318,10 @@ def _run(args: argparse.Namespace) -> int:
         try:
             result = identify(
                 logs if len(logs) > 1 else logs[0], method=args.method,
-                loop=loops if len(logs) > 1 else loops[0], bandwidth=args.bandwidth,
-                cutoff=args.cutoff, order=args.order, decimation=args.decimation,
-                border=args.border, min_speed=args.min_speed, friction=args.friction,
+                loop=loops if len(logs) > 1 else loops[0],
+                filter_bandwidth=args.filter_bandwidth, cutoff=args.cutoff,
+                order=args.filter_order, decimation=args.decimation, border=args.border,
+                min_speed=args.min_speed, friction=args.friction,
                 fixed=dict(args.fix) or None, offsets=args.offsets,
                 diagnostics=not args.no_diagnostics, axis=args.axis or logs[0].axis,
             )  # fmt: skip

@@ -23,6 +23,7 @@ inertia as the filters let more noise through.
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections.abc import Mapping, Sequence
@@ -88,6 +89,29 @@ def simulated_parameters(parameters: np.ndarray, run, layout) -> np.ndarray:
     return np.array([J, b, way * offset, 0.0])
 
 
+def renamed_keywords(**renamed):
+    """Refuse the keywords of ``renamed`` (old name -> new name and unit) with a
+    :class:`ParameterTypeError` that names the new keyword, instead of Python's bare
+    "unexpected keyword argument" (docs/changelog.md)."""
+
+    def wrap(function):
+        @functools.wraps(function)
+        def call(*args, **kwargs):
+            for old, new in renamed.items():
+                if old in kwargs:
+                    raise ParameterTypeError(
+                        f"{old} was renamed: give {new.split()[0]}={kwargs[old]!r} "
+                        f"(the filters' bandwidth {' '.join(new.split()[1:])}; "
+                        f"{function.__name__}() takes no {old}=)"
+                    )
+            return function(*args, **kwargs)
+
+        return call
+
+    return wrap
+
+
+@renamed_keywords(bandwidth="filter_bandwidth [Hz]")
 def identify(
     t,
     theta=None,
@@ -95,7 +119,7 @@ def identify(
     *,
     method: str = "auto",
     loop=None,
-    bandwidth: float | None = None,
+    filter_bandwidth: float | None = None,
     cutoff: float | None = None,
     order: int = 4,
     decimation: int | None = None,
@@ -145,12 +169,13 @@ def identify(
         None for an open-loop one). Required by ``"idim-iv"``; otherwise it is only
         simulated to report how well the identified model reproduces the run
         (``simulation``, ``fits``).
-    bandwidth : float, optional
-        Bandwidth [Hz] of the motion to keep: it sets ``cutoff = 5 bandwidth`` and
-        ``decimation = round(0.2 fs / bandwidth)`` (the EMPS benchmark's rules, with its
-        closed-loop bandwidth). Default with ``"auto"``: half the log's signal bandwidth
-        (Notes); with the other methods ``fs/50`` (20 Hz at 1 kHz, the EMPS settings:
-        cutoff 100 Hz, decimation 10).
+    filter_bandwidth : float, optional
+        Bandwidth [Hz] of the motion the filters keep (not an observer's bandwidth in rad/s;
+        ``bandwidth=`` before 0.2, now refused with a pointer here): it sets ``cutoff =
+        5 filter_bandwidth`` and ``decimation = round(0.2 fs / filter_bandwidth)`` (the EMPS
+        benchmark's rules, with its closed-loop bandwidth). Default with ``"auto"``: half the
+        log's signal bandwidth (Notes); with the other methods ``fs/50`` (20 Hz at 1 kHz, the
+        EMPS settings: cutoff 100 Hz, decimation 10).
     cutoff : float, optional
         Cut-off [Hz] of the Butterworth low-pass filter on the position (forward-backward).
     order : int, optional
@@ -208,7 +233,7 @@ def identify(
         motion, constant input, motion in one direction only (the message names the calls
         that identify that log: ``friction="viscous"``, ``fixed={"coulomb": ...}``, or a log
         that moves the other way with ``offsets="shared"``), a log that rests most of the
-        time (the message counts the rest rows and names the ``bandwidth`` that works), an
+        time (the message counts the rest rows and names the ``filter_bandwidth`` that works), an
         ill-conditioned regression;
         or if a setting is out of range, or ``loop`` does not match the log (length, or a
         simulation with the IDIM-LS estimate more than 50 % off the logged position).
@@ -292,7 +317,7 @@ def identify(
     for run in runs:
         where = f" ({run.name})" if len(runs) > 1 else ""
         settings = resolve(
-            run, adaptive, bandwidth, cutoff, order, decimation, border, min_speed, zoh
+            run, adaptive, filter_bandwidth, cutoff, order, decimation, border, min_speed, zoh
         )
         prepare(run, settings, where)
     solution = solve(runs, layout, method, own_sign, max_iterations, tolerance)
