@@ -94,6 +94,59 @@ def test_the_summary_says_how_far_the_filters_move_the_estimate(issue_log):
     assert "moves in standard deviations: J" in line
 
 
+def test_the_sensitivity_allowances_are_the_targets_own():
+    """Issue 23's targets, written out: b within 10 % or 0.02 J 2 pi B with B the
+    EXCITATION's bandwidth (a chirp to 10 Hz: B between 5 and 10 Hz, whatever the filters),
+    Coulomb within 5 % or 2 % of the input's RMS, J 2 % (inside its 3 % target)."""
+    import math
+    from types import SimpleNamespace
+
+    from hpdob.identification._sensitivity import allowances, excitation_bandwidth
+
+    s = synthetic_log(kind="chirp", counts=65536, Ts=2.5e-4, coulomb=0.03, seed=0)
+    band = excitation_bandwidth(s.log)
+    assert 5.0 <= band <= 10.5
+    layout = SimpleNamespace(parameters=lambda estimate, i: estimate)
+    J, b, c = 1.2e-3, 2e-3, 0.03
+    allowed = allowances(SimpleNamespace(estimate=np.array([J, b, c, 0.0])), layout, [s.log])
+    rms = math.sqrt(np.mean(s.log.u**2))
+    assert allowed["J"] == pytest.approx(0.02 * J)
+    assert allowed["b"] == pytest.approx(max(0.1 * b, 0.02 * J * 2 * math.pi * band))
+    assert allowed["coulomb"] == pytest.approx(max(0.05 * c, 0.02 * rms))
+    # a coarse encoder's PD: the input is mostly the loop's answer to quantisation (its 95 %
+    # power frequency near 2 kHz); capped at the position's signal band
+    pd = synthetic_log(kind="pd", counts=1024, Ts=2.5e-4, seed=0)
+    assert excitation_bandwidth(pd.log) < 20.0
+
+
+def test_in_auto_mode_the_doubled_line_cannot_warn(issue_log):
+    """The summary's "doubled" line says it is for information: with the filters read from
+    the log only halving counts; with the benchmark's rules both lines can warn."""
+    fit = issue_log.log.identify()
+    doubled = next(x for x in fit.summary().splitlines() if "bandwidth doubled" in x)
+    assert "for information only" in doubled and "only halving can warn" in doubled
+    halved = next(x for x in fit.summary().splitlines() if "bandwidth halved" in x)
+    assert "b 10 % or 0.02 J 2 pi B, Coulomb 5 % or 2 % of the input's RMS" in halved
+    with pytest.warns(IdentificationWarning):
+        ls = issue_log.log.identify(method="idim-ls")
+    doubled = next(x for x in ls.summary().splitlines() if "bandwidth doubled" in x)
+    assert "for information only" not in doubled
+
+
+def test_a_short_log_says_the_halving_was_not_checked():
+    """0.65 s of the issue's excitation: the filters with their bandwidth halved need more
+    samples than the log has, so the check is skipped, and the result and summary say so."""
+    s = synthetic_log(kind="chirp+prbs", counts=65536, Ts=1e-3, coulomb=0.03, seed=0,
+                      duration=0.65)  # fmt: skip
+    fit = s.log.identify()
+    assert "/2" not in fit.sensitivity
+    assert any("halved was not checked" in note for note in fit.notes)
+    assert "note: the filters' sensitivity with their bandwidth halved was not checked" in (
+        fit.summary()
+    )
+    assert fit.to_dict()["notes"] == list(fit.notes)
+
+
 # -- restricted models -----------------------------------------------------------------------------
 def test_fixed_parameters_are_held_at_their_value(issue_log):
     s = issue_log

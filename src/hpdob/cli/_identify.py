@@ -11,6 +11,8 @@ import argparse
 import re
 from pathlib import Path
 
+import numpy as np
+
 from .._validation import ParameterTypeError, ParameterValueError
 from ._design import _integer, _number_list
 from ._errors import CLIError
@@ -98,8 +100,10 @@ def register(subparsers) -> None:
     loop.add_argument(
         "--derive-reference", action="store_true",
         help="derive the reference velocity and acceleration from --reference by identify's "
-        "filtered differentiation (Butterworth, forward-backward, then central differences; "
-        "default with --kp/--kd when no column is given)",
+        "filtered differentiation (Butterworth, forward-backward, then central differences). "
+        "Default with --kp/--kd when no column is given, except for a step reference (it "
+        "holds its value exactly between jumps for 95 %% of the samples): zero velocity and "
+        "acceleration, as a PD answering steps uses",
     )  # fmt: skip
     loop.add_argument("--feedforward", metavar="NAME", help="feed-forward torque column [N m or N]")
     loop.add_argument(
@@ -158,6 +162,17 @@ def _wants_loop(args) -> bool:
     ) or bool(_columns(args))
 
 
+#: A reference whose sample-to-sample changes are exactly 0 this often is a step reference.
+STEP_FRACTION = 0.95
+
+
+def _is_steps(reference) -> bool:
+    """Whether ``reference`` is piecewise constant: it holds its value exactly between jumps
+    for at least :data:`STEP_FRACTION` of its samples (and moves at all)."""
+    changes = np.diff(np.asarray(reference, dtype=float))
+    return bool(changes.size and np.any(changes) and np.mean(changes == 0.0) >= STEP_FRACTION)
+
+
 def _loop(args, log, name: str):
     """The :class:`FeedbackLoop` of ``log`` from the loop options, and how its reference
     velocity was obtained."""
@@ -192,7 +207,16 @@ def _loop(args, log, name: str):
     if derive and (velocity is not None or acceleration is not None):
         raise CLIError("--derive-reference replaces --reference-velocity/acceleration: drop one")
     source = "columns" if velocity is not None else "none (velocity feedback only)"
-    if derive:
+    if derive and not args.derive_reference and _is_steps(log.reference):
+        # A step reference's velocity is zero but at its jumps, and a sampled PD sees a jump
+        # in the error only (hpdob's simulate: r_dot = r_ddot = 0 for steps); filtering the
+        # jump would smear it into a velocity pulse the loop never had.
+        velocity = acceleration = np.zeros_like(log.reference)
+        source = (
+            f"zero: the reference holds between jumps (steps; {STEP_FRACTION:.0%} or more of "
+            "its sample-to-sample changes are exactly 0)"
+        )
+    elif derive:
         velocity, acceleration = differentiate(log.reference, log.Ts, like=log.theta)
         source = "derived from the reference (filtered differentiation, cutoff as identify's)"
     feedforward = log.columns.get("feedforward")
@@ -265,6 +289,10 @@ _CLI_WORDS = [
     (re.compile(r"\bfriction='([\w+-]+)'"), r"--friction \1"),
     (re.compile(r"\boffsets='(\w+)'"), r"--offsets \1"),
     (re.compile(r"\bfixed=\{[^}]*\}"), "--fix NAME=VALUE"),
+    (
+        re.compile(r"FeedbackLoop\(reference_velocity=\.\.\., feedforward=\.\.\.\)"),
+        "--reference-velocity/--reference-acceleration columns, or --derive-reference",
+    ),
     (re.compile(r"\bloop="), "the loop options (--kp/--kd with --J-n, or --loop-kp/--loop-kd)"),
     (re.compile(r"\bmin_speed=(?=\d)"), "--min-speed "),
     (re.compile(r"\bmin_speed\b"), "--min-speed"),

@@ -45,7 +45,12 @@ from ._regression import (
 )
 from ._result import Identification
 from ._runs import as_runs, prepare, resolve
-from ._sensitivity import sensitivity, sensitivity_warnings
+from ._sensitivity import (
+    ADAPTIVE_FACTORS,
+    SENSITIVITY_FACTOR,
+    sensitivity,
+    sensitivity_warnings,
+)
 from ._simfit import MIN_FIT, simulate_fit
 from ._solve import relative_error, solve
 
@@ -357,9 +362,12 @@ def identify(
                 caught.append(
                     "the loop simulated with the IDIM-IV estimate differs from the logged "
                     f"position by {simulation['position_error_percent']:.3g} % (eq. 11): the "
-                    "instruments are poor; check the loop's gains, velocity filter and reference"
+                    "instruments are poor; check the loop's gains, velocity filter and "
+                    "reference, and the reference's velocity and acceleration the loop used "
+                    "(FeedbackLoop(reference_velocity=..., feedforward=...); zero for a step "
+                    "reference)"
                 )
-    moves = {}
+    moves, notes = {}, []
     if diagnostics:
         for run, fit in zip(runs, fits, strict=True):
             if fit is None:
@@ -384,6 +392,13 @@ def identify(
             ["offset"] if layout.n_offsets == 1 else [f"offset of {r.name}" for r in runs]
         )[: layout.n_offsets]
         caught.extend(sensitivity_warnings(moves, solution, layout, runs, adaptive, names))
+        for factor, which in ((1.0 / SENSITIVITY_FACTOR, "halved"), (SENSITIVITY_FACTOR,
+                                                                     "doubled")):  # fmt: skip
+            if factor not in moves and (factor in ADAPTIVE_FACTORS or not adaptive):
+                notes.append(
+                    f"the filters' sensitivity with their bandwidth {which} was not checked: "
+                    "the log has too few samples or rows for those filters"
+                )
     for message in caught:
         warnings.warn(message, IdentificationWarning, stacklevel=2)
     T = layout.transform()
@@ -452,6 +467,7 @@ def identify(
         if diagnostics
         else None,
         warnings=tuple(caught),
+        notes=tuple(notes),
     )
 
 

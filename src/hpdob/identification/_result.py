@@ -151,6 +151,9 @@ class Identification:
         deviations, with the filters' bandwidth doubled and halved.
     warnings : tuple of str
         The :class:`IdentificationWarning` messages of the identification.
+    notes : tuple of str
+        What the diagnostics could not check (e.g. a log too short for the filters' bandwidth
+        halved), printed by :meth:`summary`.
     """
 
     method: str
@@ -181,6 +184,7 @@ class Identification:
     sensitivity: Mapping | None = None
     warnings: tuple = ()
     covariance_iid: np.ndarray | None = field(default=None, repr=False)
+    notes: tuple = ()
 
     def __post_init__(self) -> None:
         if not self.offsets:
@@ -399,15 +403,23 @@ class Identification:
                     f"{fit['position_fit_percent']:.2f} %, velocity fit "
                     f"{fit['velocity_fit_percent']:.2f} % (MATLAB compare)"
                 )
+        adaptive = bool(self.settings.get("adaptive", False))
         for key, which in (("/2", "halved"), ("x2", "doubled")):
             moves = (self.sensitivity or {}).get(key)
             if moves:
                 listed = ", ".join(f"{name} {move:+.2g}" for name, move in moves.items()
                                    if not name.startswith("offset"))  # fmt: skip
+                why = (
+                    "for information only: with the filters read from the log only halving "
+                    "can warn" if adaptive and key == "x2" else
+                    "a change of bias; a warning needs its target's allowance too: 2 % of J, "
+                    "b 10 % or 0.02 J 2 pi B, Coulomb 5 % or 2 % of the input's RMS"
+                )  # fmt: skip
                 lines.append(
-                    f"  filters' bandwidth {which}: moves in standard deviations: {listed} (a "
-                    "change of bias; a warning needs 2 % of J or 25 % of b or Coulomb too)"
+                    f"  filters' bandwidth {which}: moves in standard deviations: {listed} ({why})"
                 )
+        for message in self.notes:
+            lines.append(f"  note: {message}")
         for message in self.warnings:
             lines.append(f"  warning: {message}")
         return "\n".join(lines)
@@ -422,7 +434,7 @@ class Identification:
             ``std``, ``std_iid``, ``units``, ``covariance``, ``relative_error_percent``,
             ``residual_std``, ``rows``, ``n_samples``, ``condition_number``, ``max_speed``,
             ``iterations``, ``converged``, ``simulation``, ``offsets``, ``offsets_std``,
-            ``fits``, ``sensitivity``, ``warnings`` and ``settings``.
+            ``fits``, ``sensitivity``, ``warnings``, ``notes`` and ``settings``.
         """
         return _json_ready(
             {
@@ -447,6 +459,7 @@ class Identification:
                 "fits": list(self.fits),
                 "sensitivity": None if self.sensitivity is None else dict(self.sensitivity),
                 "warnings": list(self.warnings),
+                "notes": list(self.notes),
                 "settings": dict(self.settings),
             }
         )
