@@ -333,6 +333,13 @@ def identify(
             f"{tolerance:g} standard deviations); the last estimate is returned. Stick "
             "phases make the simulated loop jump between iterations: if the log rests "
             "at times, drop them with min_speed"
+            + (
+                "; and check the reference velocity and acceleration the loop used "
+                "(FeedbackLoop(reference_velocity=..., feedforward=...); zero for a step "
+                "reference)"
+                if any(has_loop)
+                else ""
+            )
         )
     per_run = [layout.parameters(solution.estimate, i) for i in range(len(runs))]
     fits, simulation, traces = [], None, None
