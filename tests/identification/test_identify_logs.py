@@ -147,6 +147,28 @@ def test_a_short_log_says_the_halving_was_not_checked():
     assert fit.to_dict()["notes"] == list(fit.notes)
 
 
+@pytest.mark.parametrize(
+    ("kind", "counts", "Ts", "fraction", "closed"),
+    [("chirp+prbs", 4096, 5e-4, 0.1, False), ("pd", 1024, 2.5e-4, 0.1, True),
+     ("multisine", 16384, 1e-3, 0.1, False), ("chirp", 65536, 2.5e-4, 0.0, False)],
+)  # fmt: skip
+def test_the_truth_lies_within_statistical_plus_systematic(kind, counts, Ts, fraction, closed):
+    """The audit: the reported +- excluded the truth by 5-20 standard deviations (the method's
+    bias under the filters is not in it). ``systematic`` (the spread over the filters'
+    bandwidth x1, x2, /2) beside ``std``: the truth within 2 (std + systematic), the
+    2-standard-deviation band of the EMPS test, on grid points at Ts <= 1 ms (at 2 ms the
+    sampling's bias of J is not revealed by the filters: docs/real-data.md)."""
+    s = synthetic_log(kind=kind, counts=counts, Ts=Ts, coulomb_fraction=fraction, seed=0)
+    fit = s.log.identify(loop=s.loop if closed else None)
+    assert set(fit.systematic) == {"J", "b", "coulomb", "offset"}
+    for name, truth in (("J", s.J), ("b", s.b), ("coulomb", s.coulomb)):
+        band = fit.std[name] + fit.systematic[name]
+        assert abs(getattr(fit, name) - truth) <= 2.0 * band, (name, getattr(fit, name), band)
+    line = next(x for x in fit.summary().splitlines() if x.strip().startswith("inertia"))
+    assert "systematic +-" in line
+    assert fit.to_dict()["systematic"] == dict(fit.systematic)
+
+
 # -- restricted models -----------------------------------------------------------------------------
 def test_fixed_parameters_are_held_at_their_value(issue_log):
     s = issue_log
@@ -163,6 +185,9 @@ def test_viscous_only_model_on_a_log_without_coulomb_friction():
     assert fit.coulomb == 0.0 and fit.coulomb_std == 0.0
     np.testing.assert_allclose(fit.J, s.J, rtol=0.01)
     np.testing.assert_allclose(fit.b, s.b, rtol=0.05)
+    # the audit: the lumped Coulomb friction printed as "0 (fixed)"
+    line = next(x for x in fit.summary().splitlines() if x.strip().startswith("Coulomb"))
+    assert "lumps it into the offset" in line and "(fixed)" not in line
 
 
 #: A motor that only moves one way: closed-loop tracking of a ramp with a ripple,

@@ -94,6 +94,20 @@ def simulated_parameters(parameters: np.ndarray, run, layout) -> np.ndarray:
     return np.array([J, b, way * offset, 0.0])
 
 
+def systematic(moves, solution, layout, names) -> dict:
+    """The spread of each parameter over the three filter settings (as identified, bandwidth
+    x2 and /2), in its units: the systematic uncertainty beside the statistical one (0 where
+    fixed or not checked)."""
+    std = np.sqrt(np.diag(solution.covariance))
+    shifts = np.array([np.zeros_like(std)] + [m * std for m in moves.values()])
+    spread = shifts.max(axis=0) - shifts.min(axis=0)
+    out = dict.fromkeys(PARAMETERS, 0.0)
+    for k, name in enumerate(names):
+        key = "offset" if name.startswith("offset") else name
+        out[key] = max(out[key], float(spread[k]))
+    return out
+
+
 def renamed_keywords(**renamed):
     """Refuse the keywords of ``renamed`` (old name -> new name and unit) with a
     :class:`ParameterTypeError` that names the new keyword, instead of Python's bare
@@ -475,6 +489,7 @@ def identify(
         else None,
         warnings=tuple(caught),
         notes=tuple(notes),
+        systematic=systematic(moves, solution, layout, names) if diagnostics else None,
     )
 
 

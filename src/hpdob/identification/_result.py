@@ -151,6 +151,11 @@ class Identification:
         deviations, with the filters' bandwidth doubled and halved.
     warnings : tuple of str
         The :class:`IdentificationWarning` messages of the identification.
+    systematic : mapping or None
+        With ``diagnostics``: a systematic uncertainty of each parameter beside the statistical
+        ``std``: the largest move of the estimate when the filters' bandwidth is doubled or
+        halved (the method's bias under the filters, which ``std`` does not contain; 0 for a
+        fixed parameter). Report ``std`` and ``systematic`` side by side (docs/real-data.md).
     notes : tuple of str
         What the diagnostics could not check (e.g. a log too short for the filters' bandwidth
         halved), printed by :meth:`summary`.
@@ -185,6 +190,7 @@ class Identification:
     warnings: tuple = ()
     covariance_iid: np.ndarray | None = field(default=None, repr=False)
     notes: tuple = ()
+    systematic: Mapping | None = None
 
     def __post_init__(self) -> None:
         if not self.offsets:
@@ -380,8 +386,13 @@ class Identification:
             label = _LABELS[name][1 if linear else 0]
             if several and name == "offset":
                 label = "mean offset"
+            relative = _relative(value, std, name in fixed)
+            if name == "coulomb" and self.settings.get("friction") == "viscous":
+                relative = "0: friction='viscous' lumps it into the offset"
+            systematic = (self.systematic or {}).get(name)
+            extra = "" if not systematic else f", systematic +- {systematic:.3g}"
             lines.append(f"  {label:<22}{value:>14.6g} +- {std:<11.4g} {u[name]:<16} "
-                         f"({_relative(value, std, name in fixed)})")  # fmt: skip
+                         f"({relative}{extra})")  # fmt: skip
         if several:
             for source, value, std in zip(self.sources, self.offsets, self.offsets_std,
                                           strict=True):  # fmt: skip
@@ -434,7 +445,8 @@ class Identification:
             ``std``, ``std_iid``, ``units``, ``covariance``, ``relative_error_percent``,
             ``residual_std``, ``rows``, ``n_samples``, ``condition_number``, ``max_speed``,
             ``iterations``, ``converged``, ``simulation``, ``offsets``, ``offsets_std``,
-            ``fits``, ``sensitivity``, ``warnings``, ``notes`` and ``settings``.
+            ``fits``, ``sensitivity``, ``systematic``, ``warnings``, ``notes`` and
+            ``settings``.
         """
         return _json_ready(
             {
@@ -460,6 +472,7 @@ class Identification:
                 "sensitivity": None if self.sensitivity is None else dict(self.sensitivity),
                 "warnings": list(self.warnings),
                 "notes": list(self.notes),
+                "systematic": None if self.systematic is None else dict(self.systematic),
                 "settings": dict(self.settings),
             }
         )
