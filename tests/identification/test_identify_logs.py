@@ -282,6 +282,7 @@ def test_several_logs_share_J_b_coulomb_with_one_offset_each():
     assert min(f.J for f in alone) <= fit.J <= max(f.J for f in alone)
     assert fit.J_std < max(f.J_std for f in alone)
     assert "offset of" in fit.summary()
+    assert "(Ts = 0.0005, 0.001 s)" in fit.summary().splitlines()[0]  # each log's, not the first's
     assert "run" in fit.to_pandas().columns
 
 

@@ -377,8 +377,12 @@ class Identification:
         """
         u = self.units
         linear = self.axis == "linear"
+        periods = sorted({log["Ts"] for log in self.settings.get("logs", ())}) or [
+            self.settings["Ts"]
+        ]
+        ts = ", ".join(f"{value:g}" for value in periods)
         lines = [f"{self.method.upper()}: {self.t.size} regression rows from "
-                 f"{self.n_samples} samples (Ts = {self.settings['Ts']:g} s)"]  # fmt: skip
+                 f"{self.n_samples} samples (Ts = {ts} s)"]  # fmt: skip
         fixed = self.settings.get("fixed", {})
         several = len(self.offsets) > 1
         for name, value in self.parameters.items():
