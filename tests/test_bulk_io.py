@@ -92,3 +92,22 @@ def test_envelope_keeps_short_traces_and_the_extremes_of_long_ones():
     assert np.array_equal(np.sort(ey[:2000].reshape(1000, 2), axis=1),
                           np.column_stack([runs.min(axis=1), runs.max(axis=1)]))  # fmt: skip
     assert np.array_equal(ey, y[np.searchsorted(t, et)])  # points of the trace itself
+
+
+def test_the_column_wise_writer_reports_rows_written_per_chunk(tmp_path):
+    # issue 27 (rel4, item 3): simulate's and estimate's "writing" stage counts the chunks
+    pytest.importorskip("pyarrow")
+    from hpdob._csv_floats import CHUNK
+
+    n = 2 * CHUNK + 5  # two whole chunks and a partial one
+    columns = {"t": np.arange(n) * 1e-3, "x": np.sin(np.arange(n) * 1e-3)}
+    calls = []
+    got = columns_to_csv(columns, tmp_path / "a.csv", lambda *call: calls.append(call))
+    assert calls == [(CHUNK, n), (2 * CHUNK, n), (n, n)]
+    assert got.read_bytes() == csv_module_text(columns, tmp_path / "reference.csv")
+    short = []  # the csv module's path (a short table): once, at the end
+    columns_to_csv({"x": [0.5, 1.5]}, tmp_path / "b.csv", lambda *call: short.append(call))
+    assert short == [(2, 2)]
+    with pytest.raises(TypeError, match=r"^progress must be a callable .* got 'yes'"):
+        columns_to_csv(columns, tmp_path / "c.csv", "yes")
+    assert not (tmp_path / "c.csv").exists()

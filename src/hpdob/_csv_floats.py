@@ -169,15 +169,25 @@ def _chunk(columns: list, start: int, stop: int) -> np.ndarray:
     return out[: _rows(offsets, np.concatenate(data), out)]
 
 
-def write_float_rows(handle, columns: list) -> None:
-    """Write the rows of equal-length float64 ``columns`` to the binary file ``handle``."""
+def write_float_rows(handle, columns: list, progress=None) -> None:
+    """Write the rows of equal-length float64 ``columns`` to the binary file ``handle``
+    (``progress(rows written, rows)`` after each chunk, if given)."""
     n = len(columns[0]) if columns else 0
     starts = range(0, n, CHUNK)
+    written = [0]
+
+    def write(future):
+        text = future.result()
+        handle.write(text)
+        if progress is not None:
+            written[0] = min(written[0] + CHUNK, n)
+            progress(written[0], n)
+
     with ThreadPoolExecutor(2) as pool:  # numba and pyarrow release the GIL
         pending = []
         for start in starts:
             pending.append(pool.submit(_chunk, columns, start, min(start + CHUNK, n)))
             if len(pending) > 2:
-                handle.write(pending.pop(0).result())
+                write(pending.pop(0))
         for future in pending:
-            handle.write(future.result())
+            write(future)

@@ -23,8 +23,8 @@ SHARED = {
     "--b": ("true viscous friction", "N m s/rad"),
     "--J-n": ("nominal inertia", "kg m^2"),
     "--b-n": ("nominal viscous friction", "N m s/rad"),
-    "--kp": ("PD gain kp", "1/s^2"),
-    "--kd": ("PD gain kd", "1/s"),
+    "--kp": ("gain kp", "1/s^2"),
+    "--kd": ("gain kd", "1/s"),
     "--coulomb": ("Coulomb friction", "N m"),
     "--torque-limit": ("torque limit", "N m"),
     "--bandwidth": ("", "rad/s"),
@@ -54,6 +54,12 @@ SHARED = {
     "--input": ("input column", None),
     "--input-gain": ("from the input column to torque/force", None),
     "--out": ("", None),
+    "--controller": ("the outer loop", None),
+    "--ki": ("PID integral gain ki", "1/s^3"),
+    "--tracking-time": ("anti-windup tracking time", "s"),
+    "--time-constant": ("derivative filter time constant", "s"),
+    "--adrc-bandwidth": ("ADRC closed-loop bandwidth", "rad/s"),
+    "--adrc-observer-bandwidth": ("ADRC's own ESO", "rad/s"),
     "--no-plot": ("skip the figure", None),
     "--progress": ("stderr", None),
     "--no-progress": ("stderr", None),
@@ -86,7 +92,7 @@ def _options():
 
 
 def _unit(help_text: str):
-    found = re.search(r"\[([^\]]*)\](?! table)", help_text)  # not a TOML [table]
+    found = re.search(r"\[([^\]]*)\](?! table| type)", help_text)  # not a TOML [table]
     return None if found is None else LINEAR.get(found.group(1), found.group(1))
 
 

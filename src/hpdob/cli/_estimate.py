@@ -177,8 +177,14 @@ def _run(args: argparse.Namespace) -> int:
     written = ["estimate.csv"]
     # Staged and renamed together, estimate.json last (docs/reliability.md).
     # With --no-plot a previous run's estimate.png is removed: one consistent set.
+    writing = ProgressLine("hpdob estimate: writing estimate.csv", unit="rows")
     with staged_outputs(out, markers=["estimate.json"], replaces=["estimate.png"]) as files:
-        result.to_csv(files.path("estimate.csv"))
+        try:  # rows written, chunk by chunk (32768 rows each: the column-wise writer's)
+            if show:
+                writing(0, len(result.t))
+            result.to_csv(files.path("estimate.csv"), progress=writing if show else None)
+        finally:
+            writing.end()
         if not args.no_plot:
             files.plot(
                 "estimate.png",
