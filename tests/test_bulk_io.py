@@ -25,7 +25,6 @@ def csv_module_text(columns: dict, path) -> bytes:
 
 
 def test_column_wise_csv_is_byte_for_byte_the_csv_modules(tmp_path):
-    pytest.importorskip("pyarrow")
     rng = np.random.default_rng(7)
     n = 70_001  # several chunks and a partial one
     bits = rng.integers(0, 2**64, size=n, dtype=np.uint64).view(np.float64)  # every kind
@@ -41,6 +40,23 @@ def test_column_wise_csv_is_byte_for_byte_the_csv_modules(tmp_path):
         "noise": noise,
         "walk": np.cumsum(rng.standard_normal(n)) * 1e-4,
     }
+    got = columns_to_csv(columns, tmp_path / "fast.csv").read_bytes()
+    assert got == csv_module_text(columns, tmp_path / "reference.csv")
+
+
+def test_shortest_digits_match_repr_where_ryu_takes_its_rare_paths(tmp_path):
+    """The cases of the shortest-digit algorithm that random bit patterns rarely reach: the
+    powers of two (the lower neighbour is half as far), subnormals, exact integers and powers of
+    ten (trailing zeros: Ryu's general case), each with its neighbours, against ``repr``."""
+    powers = np.ldexp(1.0, np.arange(-1074, 1024))
+    tens = np.array([float(f"1e{k}") for k in range(-323, 309)])
+    integers = np.concatenate([np.arange(1.0, 3000.0), 2.0**53 + np.arange(-50.0, 50.0) * 2.0,
+                               np.arange(1, 200) * 1e15, np.arange(1, 200) * 1e16])  # fmt: skip
+    subnormal = np.arange(1, 3000) * 5e-324
+    base = np.concatenate([powers, tens, integers, subnormal, np.arange(1, 3000) * 0.001])
+    values = np.concatenate([base, np.nextafter(base, np.inf), np.nextafter(base, 0.0)])
+    values = np.concatenate([values, -values])
+    columns = {"x": values, "y": values[::-1].copy()}
     got = columns_to_csv(columns, tmp_path / "fast.csv").read_bytes()
     assert got == csv_module_text(columns, tmp_path / "reference.csv")
 
