@@ -108,3 +108,20 @@ def test_envelope_keeps_short_traces_and_the_extremes_of_long_ones():
     assert np.array_equal(np.sort(ey[:2000].reshape(1000, 2), axis=1),
                           np.column_stack([runs.min(axis=1), runs.max(axis=1)]))  # fmt: skip
     assert np.array_equal(ey, y[np.searchsorted(t, et)])  # points of the trace itself
+
+
+def test_envelope_of_a_trace_given_in_blocks_is_the_whole_traces():
+    from hpdob._plotting import Envelope
+
+    rng = np.random.default_rng(3)
+    for n, samples in [(1000, 2000), (1000, 100), (1003, 100), (12345, 64), (100_000, 1000)]:
+        t = np.arange(n) * 1e-3
+        y = rng.integers(0, 5, n).astype(float)  # ties: the first extreme wins
+        y[rng.integers(0, n, 3)] = np.nan  # and a NaN, as np.argmin
+        for _ in range(10):
+            cuts = np.sort(rng.integers(0, n, rng.integers(0, 8)))
+            streamed = Envelope(n, samples=samples)
+            for a, b in zip([0, *cuts], [*cuts, n], strict=True):
+                streamed.add(t[a:b], y[a:b])
+            (t1, y1), (t2, y2) = streamed.trace, envelope(t, y, samples=samples)
+            assert np.array_equal(t1, t2) and np.array_equal(y1, y2, equal_nan=True)

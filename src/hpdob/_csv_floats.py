@@ -24,10 +24,10 @@ from concurrent.futures import ThreadPoolExecutor
 import numba
 import numpy as np
 
-__all__ = ["format_rows", "write_float_rows"]
+__all__ = ["RowWriter", "format_rows", "write_float_rows"]
 
-#: Rows per chunk: ~3 MB of text for five columns.
-CHUNK = 1 << 15
+#: Rows per chunk: ~0.8 MB of text for five columns (a few chunks are held at a time).
+CHUNK = 1 << 13
 #: Longest text of one value: ``-1.2345678901234567e-308``.
 _WIDTH = 24
 
@@ -319,14 +319,46 @@ def format_rows(columns: list, start: int, stop: int) -> np.ndarray:
     return out[: _rows(block.view(np.uint64), out)]
 
 
+class RowWriter:
+    """Writes rows of float64 columns to a binary file as they come, a block at a time.
+
+    Chunks are formatted on two threads (the formatting releases the GIL) while this thread
+    writes the previous ones, at most two chunks ahead: the memory held is a few chunks. Use as
+    a context manager; :meth:`write` takes the columns of the next rows.
+    """
+
+    def __init__(self, handle):
+        self.handle = handle
+        self._pool = ThreadPoolExecutor(2)
+        self._pending: list = []
+
+    def write(self, columns: list) -> None:
+        """Queue the rows of equal-length float64 ``columns`` (written in order)."""
+        n = len(columns[0]) if columns else 0
+        for start in range(0, n, CHUNK):
+            self._pending.append(
+                self._pool.submit(format_rows, columns, start, min(start + CHUNK, n))
+            )
+            if len(self._pending) > 2:
+                self.handle.write(self._pending.pop(0).result())
+
+    def drain(self) -> None:
+        """Write every queued row: the columns given so far may change after this."""
+        while self._pending:
+            self.handle.write(self._pending.pop(0).result())
+
+    def __enter__(self) -> RowWriter:
+        return self
+
+    def __exit__(self, kind, value, traceback) -> None:
+        try:
+            if kind is None:
+                self.drain()
+        finally:
+            self._pool.shutdown(cancel_futures=True)
+
+
 def write_float_rows(handle, columns: list) -> None:
     """Write the rows of equal-length float64 ``columns`` to the binary file ``handle``."""
-    n = len(columns[0]) if columns else 0
-    with ThreadPoolExecutor(2) as pool:  # the formatting releases the GIL
-        pending = []
-        for start in range(0, n, CHUNK):
-            pending.append(pool.submit(format_rows, columns, start, min(start + CHUNK, n)))
-            if len(pending) > 2:
-                handle.write(pending.pop(0).result())
-        for future in pending:
-            handle.write(future.result())
+    with RowWriter(handle) as writer:
+        writer.write(columns)

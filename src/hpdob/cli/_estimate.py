@@ -11,7 +11,7 @@ import numpy as np
 
 from ._design import add_observer_arguments, design_on
 from ._errors import CLIError
-from ._logs import add_log_arguments, log_from_args
+from ._logs import add_log_arguments, log_file_from_args
 from ._options import finite, output_path
 
 __all__ = ["register"]
@@ -111,41 +111,37 @@ def _observer_settings(args: argparse.Namespace, design) -> dict:
 
 def _run(args: argparse.Namespace) -> int:
     from .._files import check_output, staged_outputs
-    from ..identification import estimate_disturbance
+    from ..identification import estimate_log
 
-    log = log_from_args(args)
+    log = log_file_from_args(args)  # a Parquet log is read block by block, never held whole
     out = args.out or Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
     check_output(out)  # before the estimate, not after it
     nominal, origin = _nominal(args)
     design = design_on(args, nominal.discretize(log.Ts))
-    result = estimate_disturbance(design, theta=log.theta, u=log.u, t=log.t)
-    # t increases strictly: the samples with t >= the cut are a slice (a view, not a copy)
-    cut = np.searchsorted(result.t, result.t[0] + 0.1 * (result.t[-1] - result.t[0]))
-    tail = result.tau_hat[cut:]
-    with np.errstate(all="ignore"):  # a diverged estimate is refused below, not warned about
-        mean, std = float(tail.mean()), float(tail.std())
-    if not (np.all(np.isfinite(result.tau_hat)) and math.isfinite(mean) and math.isfinite(std)):
-        raise CLIError(
-            f"the estimate of {design.system.name} is not finite on {log.source}: the observer "
-            "diverged (or the log's values overflow it); nothing was written"
-        )
-    report = {
-        "log": {"source": log.source, "names": dict(log.names), "samples": len(log),
-                "Ts": log.Ts, "input_gain": log.input_gain},
-        "nominal": {"J": nominal.J, "b": nominal.b, "origin": origin},
-        "observer": {**_observer_settings(args, design), "name": design.system.name},
-        "tau_hat": {"mean": mean, "std": std,
-                    "note": "over the last 90 % of the log (after the observer's transient)"},
-    }  # fmt: skip
     written = ["estimate.csv"]
-    # Staged and renamed together, estimate.json last (docs/reliability.md).
-    # With --no-plot a previous run's estimate.png is removed: one consistent set.
+    # Staged and renamed together, estimate.json last (docs/reliability.md): a refused estimate
+    # leaves nothing. With --no-plot a previous run's estimate.png is removed: one consistent set.
     with staged_outputs(out, markers=["estimate.json"], replaces=["estimate.png"]) as files:
-        result.to_csv(files.path("estimate.csv"))
+        # the traces are written as the estimate runs; the statistics skip the first 10 %
+        run = estimate_log(design, log, csv=files.path("estimate.csv"), settle=0.1, keep=False)
+        mean, std = run.mean, run.std
+        if not (run.finite and math.isfinite(mean) and math.isfinite(std)):
+            raise CLIError(
+                f"the estimate of {design.system.name} is not finite on {log.source}: the "
+                "observer diverged (or the log's values overflow it); nothing was written"
+            )
+        report = {
+            "log": {"source": log.source, "names": dict(log.names), "samples": len(log),
+                    "Ts": log.Ts, "input_gain": log.input_gain},
+            "nominal": {"J": nominal.J, "b": nominal.b, "origin": origin},
+            "observer": {**_observer_settings(args, design), "name": design.system.name},
+            "tau_hat": {"mean": mean, "std": std,
+                        "note": "over the last 90 % of the log (after the observer's transient)"},
+        }  # fmt: skip
         if not args.no_plot:
             files.plot(
                 "estimate.png",
-                lambda: result.plot(title=f"{design.system.name} on {log.source}", axis=log.axis),
+                lambda: run.plot(title=f"{design.system.name} on {log.source}", axis=log.axis),
             )
             written.append("estimate.png")
         files.write_json("estimate.json", report)

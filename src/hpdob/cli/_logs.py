@@ -10,7 +10,7 @@ from pathlib import Path
 from ._errors import CLIError
 from ._options import finite
 
-__all__ = ["add_log_arguments", "log_from_args", "logs_from_args"]
+__all__ = ["add_log_arguments", "log_file_from_args", "log_from_args", "logs_from_args"]
 
 
 def add_log_arguments(
@@ -133,4 +133,24 @@ def log_from_args(args: argparse.Namespace, columns=None):
         Ts=args.Ts,
         axis=args.axis,
         columns=columns,
+    )
+
+
+def log_file_from_args(args: argparse.Namespace):
+    """The log that ``add_log_arguments`` options describe, for a command that reads it block
+    by block: a :class:`~hpdob.identification.LogFile` (a Parquet file is never held whole),
+    or the EMPS run's :class:`~hpdob.identification.Log` with ``--emps``."""
+    from ..identification import open_log
+
+    if args.emps or args.log is None:
+        return log_from_args(args)
+    _require_columns(args)
+    return open_log(
+        args.log,
+        time=args.time,
+        position=args.position,
+        input=args.input,
+        input_gain=1.0 if args.input_gain is None else _input_gain(args.input_gain),
+        Ts=args.Ts,
+        axis=args.axis,
     )
