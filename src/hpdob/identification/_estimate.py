@@ -172,7 +172,7 @@ class EstimationResult:
         Returns
         -------
         matplotlib.figure.Figure
-            Traces longer than 200 000 samples are drawn as their envelope (the minimum and
+            Traces longer than 20 000 samples are drawn as their envelope (the minimum and
             maximum of each run of samples), which spans what the full trace would.
 
         Raises

@@ -156,12 +156,9 @@ def parquet_blocks(path: Path, wanted: dict[str, str]):
         for group in range(file.num_row_groups):
             for batch in file.iter_batches(batch_size=PARQUET_BLOCK, row_groups=[group],
                                            columns=names, use_threads=False):  # fmt: skip
-                yield {
-                    role: np.array(
-                        batch.column(names.index(name)).to_numpy(zero_copy_only=False), dtype=float
-                    )
-                    for role, name in wanted.items()
-                }
+                columns = [c.to_numpy(zero_copy_only=False) for c in batch.columns]
+                yield {role: np.asarray(columns[names.index(name)], dtype=float)
+                       for role, name in wanted.items()}  # fmt: skip
             pool.release_unused()  # pyarrow's allocator would keep the row group's pages
     except ParameterValueError:  # pragma: no cover - raised above, not by pyarrow
         raise
