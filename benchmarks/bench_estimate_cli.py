@@ -36,8 +36,17 @@ def child(command: list, source: str | None = None) -> tuple[float, float]:
     done = subprocess.run(["/usr/bin/time", "-v", *command], check=True, capture_output=True,
                           text=True, env=env)  # fmt: skip
     wall = time.perf_counter() - start
-    line = next(x for x in done.stderr.splitlines() if "Maximum resident set size" in x)
-    return wall, int(line.split(":")[1]) / 1024
+
+    def field(name):
+        return float(next(x for x in done.stderr.splitlines() if name in x).split(": ")[1])
+
+    CPU.append(field("User time (seconds)") + field("System time (seconds)"))
+    return wall, field("Maximum resident set size") / 1024
+
+
+#: CPU seconds (user + system) of each child, in order: less sensitive to a busy machine's load
+#: than the wall time.
+CPU: list = []
 
 
 def main() -> None:
@@ -73,11 +82,13 @@ def main() -> None:
         child(command("warm"), here)  # numba's caches
         if other:
             child(command("warm-other"), other)
-        runs, others = [], []
+        runs, others, cpu, other_cpu = [], [], [], []
         for _ in range(args.repeats):  # interleaved: both see the same load
             runs.append(child(command("out"), here))
+            cpu.append(CPU[-1])
             if other:
                 others.append(child(command("out-other"), other))
+                other_cpu.append(CPU[-1])
         wall, rss = min(w for w, _ in runs), max(r for _, r in runs)
         size = Path(tmp, "out", "estimate.csv").stat().st_size
         if other:
@@ -95,11 +106,13 @@ def main() -> None:
           f"peak RSS {rss:.0f} MB (targets <= 8 s, <= 400 MB)")  # fmt: skip
     print(f"  (a) estimate_disturbance alone: {api:.3f} s; (b) a process importing hpdob, "
           f"numba, pyarrow, matplotlib: {fixed:.2f} s, {fixed_rss:.0f} MB")  # fmt: skip
-    print(f"  ratio hpdob estimate / (a): {wall / api:.0f}; load average {os.getloadavg()[0]:.1f}")
+    print(f"  CPU time (user + system) {min(cpu):.2f} s; ratio hpdob estimate / (a): "
+          f"{wall / api:.0f}; load average {os.getloadavg()[0]:.1f}")  # fmt: skip
     if other:
         other_wall, other_rss = min(w for w, _ in others), max(r for _, r in others)
         print(f"  {args.other}: {other_wall:.2f} s wall, peak RSS {other_rss:.0f} MB; ratio "
-              f"this/other {wall / other_wall:.2f} wall, {rss / other_rss:.2f} RSS; "
+              f"this/other {wall / other_wall:.2f} wall, {min(cpu) / min(other_cpu):.2f} CPU, "
+              f"{rss / other_rss:.2f} RSS; "
               f"estimate.csv {'identical' if same else 'DIFFERENT'}")  # fmt: skip
 
 
