@@ -10,8 +10,9 @@ computed-torque peer, the external-force estimates, and the loop's speed.
    torque on the nominal model (without the payload). 1b: the nominal model's masses and
    inertias 20 % low instead (no payload).
 2. External force: a 10 N step at the flange, robot at rest and in motion: the momentum
-   observer (K_o = 50 1/s) and the per-joint observers' estimates of J^T F after 5/K_o; the
-   false force with no contact during the fast trajectory.
+   observer (K_o = 50 1/s) and the per-joint observers' estimates of J^T F after 5/K_o (at rest
+   also against the step error of each observer's own 1 - Q, and the HPDOb at 55 and 60 rad/s);
+   the false force with no contact during the fast trajectory.
 3. Speed: the 7-joint loop (DOb per joint) against real time, MuJoCo Euler and RK4.
 
     pip install 'hpdob[mujoco]' && python benchmarks/bench_robots.py [--short]
@@ -24,6 +25,7 @@ import time
 from itertools import product
 
 import numpy as np
+from scipy.signal import lfilter
 
 from hpdob import PD, Actuator, Encoder, ServoModel, design_observer, observer_noise_gain
 from hpdob.robots import (
@@ -128,8 +130,7 @@ def estimates(nominal, res, loop, name, with_momentum):
     """The momentum observer's and the per-joint observers' external-torque estimates."""
     if with_momentum:
         yield "momentum", momentum_observer(nominal, res, gain=K_O)
-    yield name, joint_observer_external(res, nominal, nominal_inertia=loop.nominal_inertia,
-                                        nominal_friction=loop.nominal_friction)  # fmt: skip
+    yield name, joint_observer_external(res, nominal, loop=loop)
 
 
 def external_force(duration: float) -> None:
@@ -159,6 +160,32 @@ def external_force(duration: float) -> None:
                       f"5/K_o: max {100 * err.max():6.2f} %, "
                       f"rms {100 * np.sqrt(np.mean(err**2)):6.2f} %; "
                       f"|F - F_true| rms {np.sqrt(np.mean(f_err**2)):.3f} N")  # fmt: skip
+    # the per-joint estimate is Q tau_ext: its error at 5/K_o is the step error of 1 - Q there
+    print(
+        "   per-joint observers at rest, ideal sensor: error after 5/K_o against the step "
+        "error of their own 1 - Q = (z - 1)^(m+1) / prod(z - p_i) at 5/K_o"
+    )
+    specs = dict(observers)
+    specs.update({f"HPDOb {g:g}": {"order": 1, "bandwidth": g} for g in (55.0, 60.0)})
+    dob_noise = observer_noise_gain(design_observer(ServoModel(J_n[0]).discretize(TS), order=0,
+                                                    bandwidth=100.0), noise="encoder")  # fmt: skip
+    for obs_name, spec in specs.items():
+        loop = ArmLoop(nominal, TS, PD_GAINS, observers=spec, q0=Q0, actuator=ACTUATORS)
+        res = simulate_arm(loop, duration=0.5 + 5.0 / K_O + 0.05, reference=hold, external=force,
+                           tau0="gravity")  # fmt: skip
+        late = res.t >= 0.5 + 5.0 / K_O
+        truth = res.tau_external[late]
+        est = joint_observer_external(res, nominal, loop=loop)
+        err = np.linalg.norm(est.tau[late] - truth, axis=1) / np.linalg.norm(truth, axis=1)
+        first = spec[0] if isinstance(spec, list) else spec
+        design = design_observer(ServoModel(J_n[0]).discretize(TS), **first)
+        step = np.ones(round(5.0 / K_O / TS) + 1)
+        predicted = lfilter(np.poly(np.ones(first["order"] + 1)), np.real(np.poly(design.poles)),
+                            step)[-1]  # fmt: skip
+        noise = observer_noise_gain(design, noise="encoder") / dob_noise
+        print(f"   {obs_name:10s} ({first['bandwidth']:5.1f} rad/s): max {100 * err.max():5.2f} %,"
+              f" its 1 - Q at 5/K_o {100 * abs(predicted):5.2f} %; encoder noise gain "
+              f"{noise:.2f} x the DOb-100's")  # fmt: skip
     print("   false force, no contact, the fast trajectory (t >= 0.5 s), |F| [N]: max / rms")
     for (model_name, plant), (sensor_name, sensor), (i, obs_name) in product(
         (("exact model", nominal), ("unknown 1 kg payload", heavy)), sensors,

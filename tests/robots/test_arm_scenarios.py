@@ -87,3 +87,68 @@ def test_ball_joint_model_in_a_scenario_is_refused(tmp_path, capsys):
     path.write_text(text + '[controller]\nkp = 1.0\nkd = 1.0\n[reference]\ntype = "joint_sines"\n')
     assert main(["simulate", str(path), "--out", str(tmp_path / "o")]) == 2
     assert "got joint 'a', a ball joint" in capsys.readouterr().err
+
+
+TWO_OBSERVERS = "[[observer]]\norder = 0\nbandwidth = 100.0\n[[observer]]\n"
+
+
+@pytest.mark.parametrize(
+    ("replace", "message"),
+    [
+        ({"torque_limit = [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0]":
+          "torque_limit = [87.0, 87.0, 87.0, 87.0, 12.0, 12.0]"},
+         "actuator.torque_limit must have one entry per joint (7), got 6"),
+        ({'q0 = "ready"': "q0 = [0.0, 0.0]"},
+         "q0 must have one entry per joint (7), got shape (2,)"),
+        ({'tau0 = "gravity"': "tau0 = [0.0, 0.0, 0.0]"},
+         "tau0 must have one entry per joint (7), got 3"),
+        ({"[observer]         # one observer for every joint (or [[observer]] tables, one per "
+          "joint)\n": TWO_OBSERVERS},
+         "observers must have one entry per joint (7), got 2"),
+        ({"[sensor]           # an 18-bit encoder on every joint\n":
+          "[[sensor]]\ncounts_per_rev = 4096\n[[sensor]]\n"},
+         "sensor must have one table per joint (7), got 2"),
+        ({"[controller]       # one PD for every joint (or [[controller]] tables, one per joint)\n"
+          "kp = 400.0         # 1/s^2\nkd = 40.0          # 1/s\n":
+          "[[controller]]\nkp = 400.0\nkd = 40.0\n"},
+         "controller must have one table per joint (7), got 1"),
+        ({"amplitude = 0.5    # rad": "amplitude = [0.5, 0.5]"},
+         "amplitude must have one entry per joint (7), got shape (2,)"),
+    ],
+)  # fmt: skip
+def test_per_joint_lists_of_the_wrong_length_in_a_panda_scenario(replace, message, tmp_path,
+                                                                 capsys):  # fmt: skip
+    path = shortened("panda_joint_observers.toml", tmp_path, **replace)
+    assert main(["simulate", str(path), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("name", ["panda_joint_observers.toml", "two_link_observers.toml"])
+def test_load_scenario_reads_the_arm_examples(name, tmp_path):
+    """hpdob.simulation.load_scenario selects the arm's loop from the registered plant type:
+    an ArmScenario whose run is simulate_arm's on load_arm_scenario's loop, bit for bit."""
+    import numpy as np
+
+    from hpdob.robots import ArmScenario
+    from hpdob.simulation import load_scenario
+
+    path = shortened(name, tmp_path)
+    scenario = load_scenario(path)
+    assert isinstance(scenario, ArmScenario) and isinstance(scenario.loop, ArmLoop)
+    loop, run = load_arm_scenario(path)
+    assert scenario.metrics_start == run.pop("metrics_start")
+    assert scenario.run["label"] == run["label"]
+    by_hand = simulate_arm(loop, **run)
+    np.testing.assert_array_equal(scenario.simulate().q, by_hand.q)
+    with pytest.raises(TypeError, match="not simulate"):
+        dict(scenario)  # a Scenario, not keyword arguments
+
+
+def test_load_arm_scenario_refuses_a_single_axis_file():
+    from hpdob import ParameterValueError
+
+    message = r"not an N-joint scenario: \[plant\] type must be one of 'two-link-arm', 'mujoco-arm'"
+    with pytest.raises(ParameterValueError, match=message):
+        load_arm_scenario(EXAMPLES / "canonical_hpdob.toml")

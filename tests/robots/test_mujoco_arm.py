@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hpdob import PD, Actuator, ParameterValueError
+from hpdob import PD, Actuator, ParameterTypeError, ParameterValueError
 from hpdob.robots import (
     PANDA_READY,
     PANDA_TORQUE_LIMITS,
@@ -99,20 +99,39 @@ def test_panda_loop_runs_with_per_joint_limits():
 
 TWO = """<mujoco><worldbody><body><joint name="a" type="{kind}" axis="0 1 0"/>
 <geom size="0.1" mass="1"/><body pos="0 0 -1"><joint name="b" type="hinge" axis="0 1 0"/>
-<geom size="0.1" mass="1"/><site name="tip"/></body></body></worldbody>
+<geom size="0.1" mass="1"/>{site}</body></body></worldbody>{tendon}
 <actuator><motor joint="a"/>{second}</actuator></mujoco>"""
+TIP = '<site name="tip"/>'
+TWO_SITES = '<site name="tip"/><site name="tool"/>'
+TENDON = '<tendon><fixed name="t"><joint joint="a" coef="1"/></fixed></tendon>'
+
+
+def two(kind="hinge", second='<motor joint="b"/>', site=TIP, tendon=""):
+    return TWO.format(kind=kind, second=second, site=site, tendon=tendon)
 
 
 @pytest.mark.parametrize(
     ("xml", "message"),
     [
-        (TWO.format(kind="ball", second='<motor joint="b"/>'),
+        (two(kind="ball"),
          "joints are all hinges (1 rotational dof each), got joint 'a', a ball joint"),
-        (TWO.format(kind="slide", second='<motor joint="b"/>'), "got joint 'a', a slide joint"),
-        (TWO.format(kind="hinge", second=""),
-         "path_or_string must give every joint one <motor>: joint 'b'"),
-        (TWO.format(kind="hinge", second='<position joint="b" kp="10"/>'),
-         "must be a torque source"),
+        (two(kind="slide"), "got joint 'a', a slide joint"),
+        (two(second=""), "path_or_string must drive every joint by exactly one <motor>, got 0 on "
+                         "joint 'b' (none); actuators: '#0 (unnamed)'"),
+        (two(second='<motor joint="b"/><motor joint="b"/>'), "got 2 on joint 'b'"),
+        (two(second='<position joint="b" kp="10"/>'),
+         "path_or_string must drive joint 'b' by a torque source (a <motor>"),
+        (two(second='<motor joint="b"/><motor name="m" tendon="t"/>', tendon=TENDON),
+         "path_or_string must drive only its hinges, each by one <motor>, got actuator 'm' on a "
+         "tendon transmission"),
+        # the joints and actuators are checked before the site: no site, or two, or a wrong one
+        # in a model that is wrong anyway reports what is wrong with the model first
+        (two(kind="ball", site=""), "got joint 'a', a ball joint"),
+        (two(kind="slide", site=TWO_SITES), "got joint 'a', a slide joint"),
+        (two(second="", site=""), "got 0 on joint 'b'"),
+        (two(second='<position joint="b" kp="10"/>', site=TWO_SITES), "by a torque source"),
+        (two(site=""), "end_effector must name the end-effector site: the model has 0 sites"),
+        (two(site=TWO_SITES), "the model has 2 sites ('tip', 'tool')"),
     ],
 )  # fmt: skip
 def test_bad_models_are_refused_with_one_line(xml, message):
@@ -122,10 +141,16 @@ def test_bad_models_are_refused_with_one_line(xml, message):
     assert "\n" not in str(info.value)
 
 
-def test_bad_site_is_refused():
-    xml = TWO.format(kind="hinge", second='<motor joint="b"/>')
-    with pytest.raises(ParameterValueError, match="end_effector must be a site of the model"):
-        MujocoArm.from_xml(xml, end_effector="hand")
+def test_the_site_is_checked_after_the_joints():
+    with pytest.raises(ParameterValueError, match="a ball joint"):
+        MujocoArm.from_xml(two(kind="ball"), end_effector="hand")
+    with pytest.raises(ParameterValueError, match="got 0 on joint 'b'"):
+        MujocoArm.from_xml(two(second=""), end_effector="hand")
+    with pytest.raises(ParameterValueError, match="end_effector must be a site of the model, "
+                                                  "got 'hand'; sites: 'tip'"):  # fmt: skip
+        MujocoArm.from_xml(two(), end_effector="hand")
+    with pytest.raises(ParameterTypeError, match="end_effector must be a site name"):
+        MujocoArm.from_xml(two(), end_effector=3)
 
 
 @pytest.mark.parametrize("engine", ["built-in", "mujoco"])

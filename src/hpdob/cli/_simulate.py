@@ -72,26 +72,24 @@ def _scenario(args):
     return kwargs, metric_windows(data)
 
 
-def _run_arm(args: argparse.Namespace, data: dict) -> int:
-    """An N-joint scenario (``[plant] type = "mujoco-arm"``; docs/robots.md)."""
+def _run_own_loop(args: argparse.Namespace, data: dict, kind) -> int:
+    """A scenario whose plant type has a loop of its own (``PlantType.scenario``: the N-joint
+    arms, ``[plant] type = "mujoco-arm"``; docs/robots.md), with per-joint metrics."""
     import warnings
 
     from .._files import check_file_stem, json_text, staged_outputs
-    from ..robots import simulate_arm
-    from ..robots._scenario import arm_scenario_from_dict
     from ..simulation import SimulationDivergedWarning
     from ._errors import CLIError
 
     if args.measurement is not None or args.pd_velocity is not None:
         raise CLIError("--measurement and --pd-velocity apply to single-axis scenarios only")
-    loop, run = arm_scenario_from_dict(data, args.scenario.parent)
-    start = run.pop("metrics_start")
-    run["label"] = run["label"] or args.scenario.stem
+    scenario = kind.scenario(data, args.scenario)
+    start = scenario.metrics_start
     out = args.out or Path("hpdob-results") / args.scenario.stem
-    stem = check_file_stem(run["label"], "label")
+    stem = check_file_stem(scenario.run["label"], "label")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SimulationDivergedWarning)  # reported below instead
-        result = simulate_arm(loop, **run)
+        result = scenario.simulate()
     metrics = result.metrics(start=start)
     with staged_outputs(out, markers=["metrics.json"]) as files:
         result.to_csv(files.path(f"{stem}.csv"))
@@ -137,14 +135,14 @@ def _run(args: argparse.Namespace) -> int:
     import warnings
 
     from .._files import check_file_stem, check_output, staged_outputs
-    from ..robots._scenario import is_arm_scenario
     from ..simulation._result import metrics_json
-    from ..simulation._scenario import _read_toml
+    from ..simulation._scenario import _read_toml, plant_type_of
     from ..simulation._simulate import SimulationDivergedWarning, simulate
 
     data = _read_toml(args.scenario)
-    if is_arm_scenario(data):
-        return _run_arm(args, data)
+    kind = plant_type_of(data)  # the registry: a type with a loop of its own runs that loop
+    if kind is not None and kind.scenario is not None:
+        return _run_own_loop(args, data, kind)
     kwargs, windows = _scenario(args)
     out = args.out or Path("hpdob-results") / args.scenario.stem
     # The label names the output files: never a path (e.g. "../escaped") nor a hidden name.

@@ -231,7 +231,7 @@ class FixedPointDesign:
     @functools.cached_property
     def python(self):
         """Generated Python functions ``(init, outputs, update)`` on integer tuples."""
-        from ._fixed_runtime import compile_fixed
+        from ._fixed_python import compile_fixed
 
         return compile_fixed(self)
 

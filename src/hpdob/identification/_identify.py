@@ -38,7 +38,7 @@ from .._validation import (
 )
 from ._checks import DEFAULT_TIME_TOLERANCE, check_axis
 from ._design import FRICTION_MODELS, OFFSETS, make_layout
-from ._log import Log
+from ._log import Log, register_identify
 from ._regression import (
     PARAMETERS,
 )
@@ -376,3 +376,6 @@ def identify(
         else None,
         warnings=tuple(caught),
     )
+
+
+register_identify(identify)

@@ -30,6 +30,15 @@ from ._readers import read_columns, scalar
 
 __all__ = ["MIN_LOG_SAMPLES", "Log", "read_log", "read_logs"]
 
+# ``identify`` is registered here by ``_identify`` when the package is imported: the data class
+# does not import the algorithm that takes it (no import cycle between the two modules).
+_IDENTIFY: list = []
+
+
+def register_identify(function) -> None:
+    """Make ``function`` the implementation of :meth:`Log.identify` (``_identify`` calls it)."""
+    _IDENTIFY[:] = [function]
+
 #: Fewest samples a :class:`Log` may hold (identification needs far more; see identify()).
 MIN_LOG_SAMPLES = 10
 
@@ -197,9 +206,7 @@ class Log:
         ...     for k in EMPS_PUBLISHED)   # within one published standard deviation
         True
         """
-        from ._identify import identify
-
-        return identify(self, **options)
+        return _IDENTIFY[0](self, **options)
 
     def slice(self, start: float | None = None, stop: float | None = None) -> Log:
         """The samples with ``start <= t < stop`` [s] as a new log (e.g. to identify on one

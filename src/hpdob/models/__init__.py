@@ -16,11 +16,16 @@ MujocoServo
 
 from ._contact import InContact
 from ._environment import Environment
+from ._lti import is_lti as is_lti
 from ._mujoco import MujocoServo
 from ._plant import ExactSubsteps, Plant, PlantSession
 from ._servo import DiscreteServoModel, ServoModel
+from ._servo import as_discrete_model as as_discrete_model
+from ._servo import as_servo_model as as_servo_model
 from ._two_mass import DiscreteTwoMassServo, TwoMassServo
 
+# Names imported "as" themselves and absent from __all__ are hpdob-internal: for the other
+# subpackages, not part of the public API (docs/architecture.md, "Dependency order").
 __all__ = [
     "DiscreteServoModel",
     "DiscreteTwoMassServo",

@@ -1,9 +1,9 @@
 r"""python-control systems in: a servo ``k/(J s^2 + b s)`` read as ``ServoModel`` parameters.
 
-One conversion helper for every entry point that takes a model: :func:`as_servo_model`
-(continuous: ``ServoModel`` or a continuous ``tf``/``ss``) and :func:`as_discrete_model`
-(discrete: ``DiscreteServoModel`` or the zero-order-hold sampling of a servo, as
-``control.c2d(sys, Ts)`` returns it).
+The parameters of a continuous servo (:func:`servo_parameters`) or of its zero-order-hold
+sampling (:func:`discrete_servo_parameters`, as ``control.c2d(sys, Ts)`` returns it). The
+conversion helpers every model-taking entry point uses, ``as_servo_model`` and
+``as_discrete_model``, live beside the classes in ``_servo``.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, positive
 
-__all__ = ["as_discrete_model", "as_servo_model", "discrete_servo_parameters", "servo_parameters"]
+__all__ = ["discrete_servo_parameters", "is_lti", "servo_parameters"]
 
 _SERVO = "a servo k/(J s^2 + b s) (torque gain k, J > 0, b >= 0)"
 #: Relative size below which a leading coefficient counts as round-off of a conversion.
@@ -137,13 +137,16 @@ def servo_parameters(sys, *, torque_gain: float = 1.0, name: str = "sys") -> tup
     return J, a * J
 
 
-def discrete_servo_parameters(sys, *, torque_gain: float = 1.0, name: str = "sys"):
+def discrete_servo_parameters(sys, *, servo, torque_gain: float = 1.0, name: str = "sys"):
     r"""``(J, b, Ts)`` of the zero-order-hold sampling of a servo (``control.c2d(servo, Ts)``).
 
     Parameters
     ----------
     sys : control.TransferFunction or control.StateSpace
         Discrete (``dt = Ts > 0``), one input (the command) and one output (the angle [rad]).
+    servo : type
+        The continuous servo class (``ServoModel``), whose ``discretize`` gives the ZOH shape the
+        numerator is checked against (passed in, so that this module does not import it).
     torque_gain : float, optional
         Torque per unit of the input [N m per input unit]. Default 1.
     name : str, optional
@@ -160,8 +163,6 @@ def discrete_servo_parameters(sys, *, torque_gain: float = 1.0, name: str = "sys
     ParameterTypeError, ParameterValueError
         If ``sys`` is not the ZOH sampling of a servo, naming what differs.
     """
-    from ._servo import ServoModel
-
     k = positive(torque_gain, "torque_gain", "a positive finite torque gain [N m per unit]")
     if is_lti(sys) and not sys.isdtime(strict=True):
         raise ParameterValueError(
@@ -184,7 +185,7 @@ def discrete_servo_parameters(sys, *, torque_gain: float = 1.0, name: str = "sys
     # a root of the nearly double root at 1
     p = float(den[2]) if abs(float(den[2]) - other.real) < 1e-6 else float(other.real)
     alpha = abs(math.log1p(p - 1.0))  # p in (0, 1]: alpha >= 0, never -0.0
-    unit = ServoModel(1.0, alpha / Ts).discretize(Ts)  # J = 1: the shape, scaled below
+    unit = servo(1.0, alpha / Ts).discretize(Ts)  # J = 1: the shape, scaled below
     unit_num = np.array([unit.B[0], unit.A[0, 1] * unit.B[1] - unit.A[1, 1] * unit.B[0]])
     J = float(np.sum(unit_num) / np.sum(num))
     if not (np.isfinite(J) and J > 0.0) or not np.allclose(num * J, unit_num, rtol=1e-8, atol=0):
@@ -194,65 +195,3 @@ def discrete_servo_parameters(sys, *, torque_gain: float = 1.0, name: str = "sys
         )
     J *= k
     return J, alpha / Ts * J, Ts
-
-
-def as_servo_model(value, name: str = "model"):
-    """A :class:`ServoModel`: ``value`` itself, or one read off a continuous python-control system.
-
-    Parameters
-    ----------
-    value : ServoModel or control.TransferFunction or control.StateSpace
-        The model; a python-control system is ``1/(J s^2 + b s)`` from torque [N m] to angle.
-    name : str, optional
-        Parameter name used in messages.
-
-    Returns
-    -------
-    ServoModel
-        Any other model (e.g. a ``TwoMassServo`` plant) is returned unchanged for the caller's
-        own check.
-    """
-    from ._servo import ServoModel
-
-    return ServoModel.from_lti(value, name=name) if is_lti(value) else value
-
-
-def as_discrete_model(value, name: str = "model"):
-    """A :class:`DiscreteServoModel`: ``value`` itself, or read off a sampled python-control servo.
-
-    Parameters
-    ----------
-    value : DiscreteServoModel or control.TransferFunction or control.StateSpace
-        The nominal discrete model; a python-control system is the ZOH sampling of
-        ``1/(J s^2 + b s)`` (torque [N m] to angle), e.g. ``control.c2d(sys, Ts)``.
-    name : str, optional
-        Parameter name used in messages.
-
-    Returns
-    -------
-    DiscreteServoModel
-
-    Raises
-    ------
-    ParameterTypeError
-        For a continuous model (``ServoModel`` or continuous system: discretise it first) or
-        another type.
-    ParameterValueError
-        For a python-control system that is not a sampled servo.
-    """
-    from ._servo import DiscreteServoModel, ServoModel
-
-    if isinstance(value, DiscreteServoModel):
-        return value
-    if is_lti(value) and value.isdtime(strict=True):
-        return DiscreteServoModel.from_lti(value, name=name)
-    if isinstance(value, ServoModel) or is_lti(value):
-        raise ParameterTypeError(
-            f"{name} must be a DiscreteServoModel (or a sampled python-control servo); "
-            "discretise the continuous model first, e.g. ServoModel(J_n, b_n).discretize(Ts), "
-            "ServoModel.from_lti(sys).discretize(Ts) or control.c2d(sys, Ts)"
-        )
-    raise ParameterTypeError(
-        f"{name} must be a DiscreteServoModel or a sampled python-control servo, got "
-        f"{type(value).__name__}"
-    )

@@ -9,9 +9,10 @@ import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive, readonly
 from ._environment import Environment, check_environment
+from ._lti import discrete_servo_parameters, is_lti, servo_parameters
 from ._plant import ExactSubsteps, Plant, coulomb_substeps, replace_parameters
 
-__all__ = ["DiscreteServoModel", "ServoModel"]
+__all__ = ["DiscreteServoModel", "ServoModel", "as_discrete_model", "as_servo_model"]
 
 
 @dataclass(frozen=True)
@@ -123,8 +124,6 @@ class ServoModel(Plant):
         >>> ServoModel.from_lti(0.05 / (2.8e-4 * s**2), torque_gain=0.05)  # from a current [A]
         ServoModel(J=0.00028, b=0.0, coulomb=0.0, coulomb_velocity=0.01)
         """
-        from ._lti import servo_parameters
-
         J, b = servo_parameters(sys, torque_gain=torque_gain, name=name)
         return cls(J, b, **friction)
 
@@ -399,9 +398,9 @@ class DiscreteServoModel:
         >>> round(model.J, 12), model.b, model.Ts
         (0.00028, 0.0, 0.001)
         """
-        from ._lti import discrete_servo_parameters
-
-        J, b, Ts = discrete_servo_parameters(sys, torque_gain=torque_gain, name=name)
+        J, b, Ts = discrete_servo_parameters(
+            sys, servo=ServoModel, torque_gain=torque_gain, name=name
+        )
         return cls(ServoModel(J, b), Ts)
 
     #: Names of the state entries (rows of ``C``: the motor angle and velocity).
@@ -461,3 +460,61 @@ class DiscreteServoModel:
         True
         """
         return self.A @ np.asarray(x, dtype=float) + self.B * u - self.D * tau
+
+
+def as_servo_model(value, name: str = "model"):
+    """A :class:`ServoModel`: ``value`` itself, or one read off a continuous python-control system.
+
+    Parameters
+    ----------
+    value : ServoModel or control.TransferFunction or control.StateSpace
+        The model; a python-control system is ``1/(J s^2 + b s)`` from torque [N m] to angle.
+    name : str, optional
+        Parameter name used in messages.
+
+    Returns
+    -------
+    ServoModel
+        Any other model (e.g. a ``TwoMassServo`` plant) is returned unchanged for the caller's
+        own check.
+    """
+    return ServoModel.from_lti(value, name=name) if is_lti(value) else value
+
+
+def as_discrete_model(value, name: str = "model"):
+    """A :class:`DiscreteServoModel`: ``value`` itself, or read off a sampled python-control servo.
+
+    Parameters
+    ----------
+    value : DiscreteServoModel or control.TransferFunction or control.StateSpace
+        The nominal discrete model; a python-control system is the ZOH sampling of
+        ``1/(J s^2 + b s)`` (torque [N m] to angle), e.g. ``control.c2d(sys, Ts)``.
+    name : str, optional
+        Parameter name used in messages.
+
+    Returns
+    -------
+    DiscreteServoModel
+
+    Raises
+    ------
+    ParameterTypeError
+        For a continuous model (``ServoModel`` or continuous system: discretise it first) or
+        another type.
+    ParameterValueError
+        For a python-control system that is not a sampled servo.
+    """
+    if isinstance(value, DiscreteServoModel):
+        return value
+    if is_lti(value) and value.isdtime(strict=True):
+        return DiscreteServoModel.from_lti(value, name=name)
+    if isinstance(value, ServoModel) or is_lti(value):
+        raise ParameterTypeError(
+            f"{name} must be a DiscreteServoModel (or a sampled python-control servo); "
+            "discretise the continuous model first, e.g. ServoModel(J_n, b_n).discretize(Ts), "
+            "ServoModel.from_lti(sys).discretize(Ts) or control.c2d(sys, Ts)"
+        )
+    raise ParameterTypeError(
+        f"{name} must be a DiscreteServoModel or a sampled python-control servo, got "
+        f"{type(value).__name__}"
+    )

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, _show
+from ._signals import MEASUREMENTS, OUTPUTS
 
 __all__ = ["observer_from_statespace"]
 
@@ -14,8 +15,7 @@ def observer_from_statespace(cls, sys, *, measures, outputs, model, N, name):
     """:meth:`LinearObserver.from_statespace` (``cls`` is the class built)."""
     import control
 
-    from ..models._lti import as_discrete_model, is_lti
-    from ._system import MEASUREMENTS, OUTPUTS
+    from ..models import as_discrete_model, is_lti
 
     if not is_lti(sys):
         raise ParameterTypeError(

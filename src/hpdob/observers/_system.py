@@ -44,6 +44,7 @@ from .._validation import (
 )
 from ._error_dynamics import ErrorDynamics
 from ._program import RESET_OPERANDS, Program, Term, check_program, compile_python
+from ._signals import MEASUREMENTS, OUTPUTS, UNITS
 
 __all__ = [
     "MEASUREMENTS",
@@ -57,17 +58,6 @@ __all__ = [
     "as_system",
     "check_designed_on",
 ]
-
-#: Measured signals of the two observer kinds: ``"state"`` (angle and velocity) and
-#: ``"position"`` (angle only).
-MEASUREMENTS = {"state": ("theta", "omega"), "position": ("theta",)}
-#: Output sets an observer may have: the estimate, optionally followed by a velocity estimate.
-OUTPUTS = (("tau_hat",), ("tau_hat", "omega_hat"), ("tau_hat", "tau_reac"),
-           ("tau_hat", "omega_hat", "tau_reac"))  # fmt: skip
-#: Units of the signals, for messages and generated code.
-UNITS = {"theta": "rad", "omega": "rad/s", "u": "N m", "tau_hat": "N m", "omega_hat": "rad/s",
-         "tau_reac": "N m"}  # fmt: skip
-
 
 class _Designed:
     """What every family's frozen design shares: its ``model`` and ``system`` give ``Ts`` and
@@ -453,7 +443,7 @@ def as_system(observer, name: str = "observer") -> LinearObserver:
     system = getattr(observer, "system", None)
     if isinstance(system, LinearObserver):
         return system
-    from ..models._lti import is_lti
+    from ..models import is_lti
 
     if is_lti(observer):
         return LinearObserver.from_statespace(observer, name=name)

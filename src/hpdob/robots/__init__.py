@@ -7,8 +7,10 @@ MujocoArm, panda
     published parameters.
 ArmLoop, JointSines, simulate_arm, ArmResult
     The N-joint loop: per-joint observers and controllers, encoder, delay and limits per joint.
-load_arm_scenario
-    An N-joint TOML scenario (``[plant] type = "mujoco-arm"``), as ``hpdob simulate`` runs it.
+load_arm_scenario, ArmScenario
+    An N-joint TOML scenario (``[plant] type = "mujoco-arm"`` or ``"two-link-arm"``: plant
+    types registered with :mod:`hpdob.simulation` on import, so that
+    :func:`hpdob.simulation.load_scenario` and ``hpdob simulate`` read them).
 ComputedTorque
     Computed-torque control on a nominal model.
 momentum_observer, joint_observer_external, end_effector_force, ExternalEstimate
@@ -27,7 +29,7 @@ from ._external import (
 from ._mujoco_arm import MujocoArm
 from ._panda import PANDA_READY, PANDA_TORQUE_LIMITS, panda
 from ._result import ArmResult
-from ._scenario import load_arm_scenario
+from ._scenario import ArmScenario, load_arm_scenario
 from ._simulate import simulate_arm
 from ._two_link import TwoLinkArm
 
@@ -36,6 +38,7 @@ __all__ = [
     "PANDA_TORQUE_LIMITS",
     "ArmLoop",
     "ArmResult",
+    "ArmScenario",
     "ComputedTorque",
     "ExternalEstimate",
     "JointSines",

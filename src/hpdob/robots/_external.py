@@ -22,11 +22,18 @@ of the nominal model at the measured :math:`q, \dot q`.
 
 A per-joint observer estimates joint ``i``'s nominal disturbance, which holds the external
 torque with the opposite sign: :math:`\tau_{dn} = (M - J_n)\ddot q + C\dot q + g + (B - B_n)
-\dot q - \tau_{ext}`. Its external-torque estimate subtracts what a nominal model says of the
-rest: :math:`\hat\tau_{ext} = \hat g + \hat C\dot q + (\hat B - B_n)\dot q + (\hat M - J_n)\ddot r
-- \hat\tau_{dn}` (the coupling through the reference acceleration :math:`\ddot r`, the only
-acceleration the loop knows without differentiating twice), or :math:`-\hat\tau_{dn}` alone
-without a model.
+\dot q - \tau_{ext}`, and it sees it through its own low-pass: :math:`\hat\tau_{dn} = Q\,
+\tau_{dn}` (:math:`1 - Q(z) = (z-1)^{m+1}/\prod_i (z - p_i)` for the order-m family). Its
+external-torque estimate passes what a nominal model says of the rest, :math:`w = \hat g +
+\hat C\dot q + (\hat B - B_n)\dot q + (\hat M - J_n)\bar a`, through the same observer, so that
+both sides see the same :math:`Q`: :math:`\hat\tau_{ext} = Q\,w - \hat\tau_{dn}`, which is
+:math:`Q\,\tau_{ext}` on a correct model (the loop's recovery from a push, the coupling
+:math:`(M - J_n)\ddot q`, cancels instead of showing up as force). :math:`Q w` is the observer's
+estimate with ``w`` as its command and its measured signals at zero (on its nominal model a
+command that cancels the disturbance leaves the plant at rest), and :math:`\bar a_k = (\dot
+q_{k+1} - \dot q_k)/T_s` the mean acceleration over sample ``k``, what a disturbance held over
+that sample acts with (causal: ``w_k`` first reaches the estimate of sample ``k + 1``). Without
+a model: :math:`-\hat\tau_{dn}` alone.
 
 The end-effector force follows from :math:`\tau_{ext} = J^T F` by the damped pseudo-inverse
 :math:`\hat F = (J J^T + \lambda^2 I)^{-1} J \hat\tau_{ext}` (Nakamura and Hanafusa 1986).
@@ -34,11 +41,12 @@ The end-effector force follows from :math:`\tau_{ext} = J^T F` by the damped pse
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from .._validation import ParameterTypeError, nonnegative, positive
+from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive
 from ._result import ArmResult
 
 __all__ = ["ExternalEstimate", "end_effector_force", "joint_observer_external", "momentum_observer"]
@@ -162,10 +170,32 @@ def momentum_observer(model, result: ArmResult, *, gain: float, measured: bool =
     return ExternalEstimate(result.t, r, force, "momentum")
 
 
-def joint_observer_external(result: ArmResult, model=None, *, nominal_inertia=None,
-                            nominal_friction=None, measured: bool = True,
+def _estimate_of(system, w, tau_start):
+    """Observer ``system``'s estimate of a disturbance ``w`` on its nominal model: ``w`` fed as
+    its command with the measured signals at zero (a nominal plant at rest whose command cancels
+    its disturbance stays at rest), from the state converged on ``tau_start`` -- :math:`Q w`."""
+    g, h = system.G[:, -1], system.H[0]
+    s = system.N @ np.array([0.0, 0.0, tau_start])
+    out = np.empty(len(w))
+    for k, wk in enumerate(w):
+        out[k] = h @ s
+        s = system.F @ s + g * wk
+    return out
+
+
+def joint_observer_external(result: ArmResult, model=None, *, loop=None, measured: bool = True,
                             damping: float = 1e-3) -> ExternalEstimate:  # fmt: skip
-    """External joint torques from the per-joint observers' estimates (module docstring).
+    r"""External joint torques from the per-joint observers' estimates (module docstring).
+
+    With a nominal model, joint ``i``'s estimate is
+    :math:`\hat\tau_{ext,i} = Q_i w_i - \hat\tau_{dn,i}`: the model's part of the nominal
+    disturbance, :math:`w = \hat g + \hat C\dot q + (\hat B - B_n)\dot q + (\hat M - J_n)
+    \bar a`, passed through joint ``i``'s own observer (its estimate of a disturbance ``w`` on
+    its nominal model, :math:`Q_i w_i`), so that both terms see the same low-pass :math:`Q_i`
+    and :math:`\hat\tau_{ext} = Q\,\tau_{ext}` on a correct model; :math:`\bar a_k =
+    (\dot q_{k+1} - \dot q_k)/T_s` is the mean acceleration over sample ``k``, the value a
+    held disturbance of that sample acts with (causal: the observer's estimate at ``k + 1`` is
+    the first to read it).
 
     Parameters
     ----------
@@ -174,36 +204,60 @@ def joint_observer_external(result: ArmResult, model=None, *, nominal_inertia=No
     model : arm model, optional
         The nominal model whose gravity, Coriolis, friction and inertial coupling are
         subtracted; None: ``-tau_hat`` alone (and no force: it needs the Jacobian).
-    nominal_inertia, nominal_friction : sequence of float, optional
-        The loop's :math:`J_{n,i}`, :math:`b_{n,i}` (``loop.nominal_inertia``,
-        ``loop.nominal_friction``); needed with a model.
+    loop : ArmLoop
+        The run's loop: its per-joint observers and :math:`J_{n,i}`, :math:`b_{n,i}`; needed
+        with a model.
     measured : bool, optional
         Evaluate the model at the measured (default) or the true state.
     damping : float, optional
-        :math:`\\lambda` of :func:`end_effector_force`.
+        :math:`\lambda` of :func:`end_effector_force`.
 
     Returns
     -------
     ExternalEstimate
+
+    Raises
+    ------
+    ParameterTypeError, ParameterValueError
+        Naming the argument: not an ArmResult, a model or loop of another number of joints,
+        a loop without an observer on some joint or at another ``Ts``.
     """
     if model is None:
         tau = -np.asarray(result.tau_hat)
         return ExternalEstimate(result.t, tau, np.full((len(result.t), 3), np.nan),
                                 "joint observers")  # fmt: skip
     _check(model, result)
-    if nominal_inertia is None or nominal_friction is None:
+    from ._arm_loop import ArmLoop
+
+    if not isinstance(loop, ArmLoop):
         raise ParameterTypeError(
-            "nominal_inertia and nominal_friction must be the loop's (loop.nominal_inertia, "
-            "loop.nominal_friction) when a model is given"
+            f"loop must be the run's ArmLoop when a model is given, got {type(loop).__name__}"
         )
-    J_n = np.asarray(nominal_inertia, dtype=float)
-    b_n = np.asarray(nominal_friction, dtype=float)
+    N = result.q.shape[1]
+    if loop.n_joints != N or not math.isclose(loop.Ts, result.Ts, rel_tol=1e-12):
+        raise ParameterValueError(
+            f"loop must be the run's ({N} joints at Ts = {result.Ts!r} s), got {loop.n_joints} "
+            f"joints at Ts = {loop.Ts!r} s"
+        )
+    missing = [i for i, s in enumerate(loop.systems) if s is None]
+    if missing:
+        raise ParameterValueError(
+            f"loop must have an observer on every joint, got none on joint(s) {missing}"
+        )
+    J_n = np.asarray(loop.nominal_inertia, dtype=float)
+    b_n = np.asarray(loop.nominal_friction, dtype=float)
     q, qd = _signals(result, measured)
-    tau = np.zeros_like(q)
+    accel = np.zeros_like(qd)
+    accel[:-1] = np.diff(qd, axis=0) / result.Ts  # the last one reaches no recorded estimate
+    w = np.zeros_like(q)
     for k in range(len(q)):
-        coupling = (model.mass_matrix(q[k]) - np.diag(J_n)) @ result.r_ddot[k]
-        known = model.gravity_torque(q[k]) + model.coriolis(q[k], qd[k]) + coupling
-        known += _friction(model, qd[k]) - b_n * qd[k]
-        tau[k] = known - result.tau_hat[k]
+        w[k] = model.gravity_torque(q[k]) + model.coriolis(q[k], qd[k])
+        w[k] += _friction(model, qd[k]) - b_n * qd[k]
+        w[k] += (model.mass_matrix(q[k]) - np.diag(J_n)) @ accel[k]
+    filtered = np.column_stack([
+        _estimate_of(system, w[:, i], result.tau_hat[0, i])
+        for i, system in enumerate(loop.systems)
+    ])  # fmt: skip
+    tau = filtered - result.tau_hat
     force = end_effector_force(model, q, tau, damping=damping)
     return ExternalEstimate(result.t, tau, force, "joint observers")

@@ -17,7 +17,7 @@ from dataclasses import KW_ONLY, dataclass, field
 import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive
-from ..models._mjcf import compile_model, find_actuator, import_mujoco, object_names, read_mjcf
+from ..models._mjcf import compile_model, import_mujoco, object_names, read_mjcf
 
 __all__ = ["MujocoArm"]
 
@@ -37,6 +37,69 @@ def _with_payload(source: str, site: str, mass: float) -> str:
     raise ParameterValueError(
         f"payload needs the end-effector site {site!r} inside a <body> of the MJCF"
     )
+
+
+def _listed(names) -> str:
+    return ", ".join(map(repr, names)) or "none"
+
+
+def _kind(enum, value) -> str:
+    return enum(value).name.split("_", 1)[1].lower()
+
+
+def _check_joints(mujoco, model) -> list:
+    """The joint names, every joint a hinge (one rotational dof)."""
+    names = object_names(model, mujoco.mjtObj.mjOBJ_JOINT, model.njnt)
+    for j, name in enumerate(names):
+        if model.jnt_type[j] != mujoco.mjtJoint.mjJNT_HINGE:
+            raise ParameterValueError(
+                f"path_or_string must be an MJCF whose joints are all hinges (1 rotational "
+                f"dof each), got joint {name!r}, a {_kind(mujoco.mjtJoint, model.jnt_type[j])} "
+                "joint"
+            )
+    if not names:
+        raise ParameterValueError("path_or_string must be an MJCF with hinge joints, got none")
+    return names
+
+
+def _check_actuators(mujoco, model, joints) -> tuple:
+    """Each joint's actuator index and ``ctrl`` per N m: every actuator a ``<motor>`` on one
+    hinge, every hinge driven by exactly one."""
+    names = object_names(model, mujoco.mjtObj.mjOBJ_ACTUATOR, model.nu)
+    on_joint = mujoco.mjtTrn.mjTRN_JOINT
+    for a, name in enumerate(names):
+        if model.actuator_trntype[a] != on_joint:
+            raise ParameterValueError(
+                f"path_or_string must drive only its hinges, each by one <motor>, got actuator "
+                f"{name!r} on a {_kind(mujoco.mjtTrn, model.actuator_trntype[a])} transmission"
+            )
+    actuators, scale = [], []
+    for j, joint in enumerate(joints):
+        drivers = [a for a in range(model.nu) if model.actuator_trnid[a, 0] == j]
+        if len(drivers) != 1:
+            raise ParameterValueError(
+                f"path_or_string must drive every joint by exactly one <motor>, got "
+                f"{len(drivers)} on joint {joint!r} ({_listed([names[a] for a in drivers])}); "
+                f"actuators: {_listed(names)}"
+            )
+        a = drivers[0]
+        gain = float(model.actuator_gear[a, 0] * model.actuator_gainprm[a, 0])
+        motor = (
+            model.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED
+            and model.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE
+            and model.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_NONE
+        )
+        if not motor or gain == 0.0:
+            raise ParameterValueError(
+                f"path_or_string must drive joint {joint!r} by a torque source (a <motor>: "
+                f"fixed nonzero gain, no bias, no activation dynamics), got actuator "
+                f"{names[a]!r} with gain {_kind(mujoco.mjtGain, model.actuator_gaintype[a])}, "
+                f"bias {_kind(mujoco.mjtBias, model.actuator_biastype[a])}, dynamics "
+                f"{_kind(mujoco.mjtDyn, model.actuator_dyntype[a])}, gear x gain = {gain!r}"
+            )
+        actuators.append(a)
+        scale.append(1.0 / gain)
+    return actuators, scale
 
 
 @dataclass(frozen=True)
@@ -105,8 +168,11 @@ class MujocoArm:
         Raises
         ------
         ParameterValueError
-            A joint that is not a hinge (``joints must all be hinges ...``), a hinge without a
-            motor, an unknown site, a bad payload or scale.
+            Checked in this order, the first failure named in one line: a joint that is not a
+            hinge (``path_or_string must be an MJCF whose joints are all hinges ...``); an
+            actuator not on a joint, a hinge without exactly one actuator, an actuator that is
+            not a ``<motor>``; then an unknown or ambiguous end-effector site; a bad payload or
+            scale.
         """
         source, path = read_mjcf(path_or_string)
         return cls(source, end_effector, path=path, inertia_scale=inertia_scale,
@@ -121,13 +187,17 @@ class MujocoArm:
                                              "a positive finite factor"))  # fmt: skip
         mujoco = import_mujoco()
         model = compile_model(self.xml, self.path)
+        # joints, then their actuators, then the site: the first error names the first thing
+        # wrong with the model, not a site the user could not yet know is needed
+        names = _check_joints(mujoco, model)
+        actuators, scale = _check_actuators(mujoco, model, names)
         sites = object_names(model, mujoco.mjtObj.mjOBJ_SITE, model.nsite)
         site = self.end_effector
         if site is None:
             if len(sites) != 1:
                 raise ParameterValueError(
                     f"end_effector must name the end-effector site: the model has {len(sites)} "
-                    f"sites ({', '.join(map(repr, sites)) or 'none'})"
+                    f"sites ({_listed(sites)})"
                 )
             site = sites[0]
         if not isinstance(site, str):
@@ -136,35 +206,13 @@ class MujocoArm:
             )
         if site not in sites:
             raise ParameterValueError(
-                f"end_effector must be a site of the model, got {site!r}; sites: "
-                f"{', '.join(map(repr, sites)) or 'none'}"
+                f"end_effector must be a site of the model, got {site!r}; sites: {_listed(sites)}"
             )
         set_(self, "end_effector", site)
         source, path = self.xml, self.path
         if self.payload > 0.0:
             source, path = _with_payload(self.xml, site, self.payload), None
-            model = compile_model(source, None)
-        names = object_names(model, mujoco.mjtObj.mjOBJ_JOINT, model.njnt)
-        hinge = mujoco.mjtJoint.mjJNT_HINGE
-        for j, name in enumerate(names):
-            if model.jnt_type[j] != hinge:
-                kind = mujoco.mjtJoint(model.jnt_type[j]).name.removeprefix("mjJNT_").lower()
-                raise ParameterValueError(
-                    f"path_or_string must be an MJCF whose joints are all hinges (1 rotational "
-                    f"dof each), got joint {name!r}, a {kind} joint"
-                )
-        if model.njnt == 0:
-            raise ParameterValueError("path_or_string must be an MJCF with hinge joints, got none")
-        actuators, scale = [], []
-        for j, name in enumerate(names):
-            try:
-                index, per_torque = find_actuator(model, j, name, None)
-            except ParameterValueError as err:
-                raise ParameterValueError(
-                    f"path_or_string must give every joint one <motor>: joint {name!r}: {err}"
-                ) from None
-            actuators.append(index)
-            scale.append(per_torque)
+            compile_model(source, None)  # the added body keeps the joints and actuators
         set_(self, "joint_names", tuple(names))
         set_(self, "_cache", {"actuators": np.array(actuators), "ctrl_per_torque": np.array(scale),
                               "site": sites.index(site), "source": (source, path)})  # fmt: skip

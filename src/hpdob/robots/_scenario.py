@@ -1,37 +1,71 @@
-r"""N-joint scenarios in TOML (``[plant] type = "mujoco-arm"`` or ``"two-link-arm"``), run by
-``hpdob simulate``; the format is in ``docs/robots.md``."""
+r"""N-joint scenarios in TOML (``[plant] type = "mujoco-arm"`` or ``"two-link-arm"``, registered
+as plant types of :mod:`hpdob.simulation` when this package is imported), read by
+:func:`hpdob.simulation.load_scenario` and run by ``hpdob simulate``; the format is in
+``docs/robots.md``."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import types
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, check_keys, positive
-from ..simulation import PD, Actuator, Encoder
+from ..simulation import (
+    PD,
+    Actuator,
+    Encoder,
+    PlantType,
+    Scenario,
+    get_plant_type,
+    plant_types,
+    register_plant_type,
+)
 from ._arm_loop import ArmLoop, JointSines
 from ._computed_torque import ComputedTorque
 from ._mujoco_arm import MujocoArm
 from ._panda import PANDA_READY, panda
 from ._two_link import TwoLinkArm
 
-__all__ = ["ARM_PLANTS", "arm_scenario_from_dict", "is_arm_scenario", "load_arm_scenario"]
+__all__ = ["ArmScenario", "arm_scenario_from_dict", "load_arm_scenario"]
 
-#: ``[plant] type`` values of an N-joint scenario.
-ARM_PLANTS = ("mujoco-arm", "two-link-arm")
 TOP_LEVEL = ("label", "Ts", "duration", "substeps", "q0", "tau0", "plant", "nominal",
              "controller", "observer", "sensor", "actuator", "reference", "force",
              "metrics")  # fmt: skip
-_MUJOCO_KEYS = ("type", "model", "path", "payload", "inertia_scale", "integrator", "end_effector")
-_TWO_LINK_KEYS = ("type", "m", "l", "lc", "I", "J", "b", "gravity")
+_MUJOCO_KEYS = ("model", "path", "payload", "inertia_scale", "integrator", "end_effector")
+_TWO_LINK_KEYS = ("m", "l", "lc", "I", "J", "b", "gravity")
 
 
-def is_arm_scenario(data) -> bool:
-    """True if the parsed TOML document describes an N-joint arm (its ``[plant] type``)."""
-    plant = data.get("plant") if isinstance(data, dict) else None
-    return isinstance(plant, dict) and plant.get("type") in ARM_PLANTS
+@dataclass(frozen=True, eq=False)
+class ArmScenario(Scenario):
+    """An N-joint scenario file read by :func:`hpdob.simulation.load_scenario`.
+
+    Attributes
+    ----------
+    loop : ArmLoop
+        The loop: plant, per-joint observers and controllers, sensors, actuators.
+    run : mapping
+        :func:`simulate_arm`'s other arguments: ``duration``, ``reference``, ``tau0``,
+        ``label`` and, where given, ``external``, ``substeps``.
+    metrics_start : float
+        Start of the metrics' window [s] (``[metrics] start``).
+    """
+
+    metrics_start: float = 0.0
+
+    def simulate(self):
+        """Run it: ``simulate_arm(self.loop, **self.run)``.
+
+        Returns
+        -------
+        ArmResult
+        """
+        from ._simulate import simulate_arm
+
+        return simulate_arm(self.loop, **self.run)
 
 
 def _table(value, where):
@@ -40,31 +74,42 @@ def _table(value, where):
     return value
 
 
-def _arm(table, where, base: Path | None):
-    table = _table(table, where)
-    kind = table.get("type")
-    if kind not in ARM_PLANTS:
-        raise ParameterValueError(
-            f"{where}.type must be one of {', '.join(map(repr, ARM_PLANTS))}, got {kind!r}"
-        )
-    if kind == "two-link-arm":
-        check_keys(table, _TWO_LINK_KEYS, where)
-        return TwoLinkArm(**{k: v for k, v in table.items() if k != "type"})
-    check_keys(table, _MUJOCO_KEYS, where)
-    options = {k: table[k] for k in ("payload", "inertia_scale", "integrator") if k in table}
-    if ("model" in table) == ("path" in table):
+def _two_link(fields, where, base):
+    check_keys(fields, _TWO_LINK_KEYS, where)
+    return TwoLinkArm(**fields)
+
+
+def _mujoco_arm(fields, where, base):
+    check_keys(fields, _MUJOCO_KEYS, where)
+    options = {k: fields[k] for k in ("payload", "inertia_scale", "integrator") if k in fields}
+    if ("model" in fields) == ("path" in fields):
         raise ParameterValueError(
             f'{where} must give one of model = "panda" or path = "<an MJCF file>", got '
-            f"{'both' if 'model' in table else 'neither'}"
+            f"{'both' if 'model' in fields else 'neither'}"
         )
-    if "model" in table:
-        if table["model"] != "panda":
-            raise ParameterValueError(f'{where}.model must be "panda", got {table["model"]!r}')
+    if "model" in fields:
+        if fields["model"] != "panda":
+            raise ParameterValueError(f'{where}.model must be "panda", got {fields["model"]!r}')
         return panda(**options)
-    path = Path(table["path"])
+    path = Path(fields["path"])
     if base is not None and not path.is_absolute():
         path = base / path
-    return MujocoArm.from_xml(path, end_effector=table.get("end_effector"), **options)
+    return MujocoArm.from_xml(path, end_effector=fields.get("end_effector"), **options)
+
+
+def _arm_types() -> list:
+    return [name for name, kind in plant_types().items() if kind.scenario is _scenario]
+
+
+def _arm(table, where, base: Path | None):
+    table = _table(table, where)
+    kind = get_plant_type(table.get("type"), f"{where}.type")
+    if kind.scenario is not _scenario:
+        raise ParameterValueError(
+            f"{where}.type must be an N-joint arm, one of {', '.join(map(repr, _arm_types()))}, "
+            f"got {kind.name!r}"
+        )
+    return kind.build({k: v for k, v in table.items() if k != "type"}, where, base)
 
 
 def _per_joint_tables(value, where, build, n):
@@ -211,8 +256,18 @@ def arm_scenario_from_dict(data: dict, base: Path | None = None) -> tuple[ArmLoo
     return loop, run
 
 
+def _scenario(data: dict, path: Path) -> ArmScenario:
+    """The :class:`ArmScenario` of the parsed file ``path`` (the arms' ``PlantType.scenario``)."""
+    loop, run = arm_scenario_from_dict(data, path.parent)
+    start = run.pop("metrics_start")
+    run["label"] = run["label"] or path.stem
+    return ArmScenario(loop, types.MappingProxyType(run), metrics_start=start)
+
+
 def load_arm_scenario(path) -> tuple[ArmLoop, dict]:
     """Read an N-joint TOML scenario (``docs/robots.md``).
+
+    :func:`hpdob.simulation.load_scenario` reads the same file into an :class:`ArmScenario`.
 
     Parameters
     ----------
@@ -234,11 +289,21 @@ def load_arm_scenario(path) -> tuple[ArmLoop, dict]:
 
     path = Path(path)
     data = _read_toml(path)
-    if not is_arm_scenario(data):
+    plant = data.get("plant")
+    kind = get_plant_type(plant.get("type", "rigid")) if isinstance(plant, dict) else None
+    if kind is None or kind.scenario is not _scenario:
         raise ParameterValueError(
             f"{path} is not an N-joint scenario: [plant] type must be one of "
-            f"{', '.join(map(repr, ARM_PLANTS))}"
+            f"{', '.join(map(repr, _arm_types()))}"
         )
     loop, run = arm_scenario_from_dict(data, path.parent)
     run["label"] = run["label"] or path.stem
     return loop, run
+
+
+for _name, _build, _what in (
+    ("two-link-arm", _two_link, "the built-in two-link planar arm, TwoLinkArm"),
+    ("mujoco-arm", _mujoco_arm, "an MJCF arm of hinges and motors or the Panda, MujocoArm"),
+):
+    register_plant_type(PlantType(_name, _build, scenario=_scenario, description=_what),
+                        replace=True)  # fmt: skip

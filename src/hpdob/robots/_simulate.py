@@ -25,7 +25,7 @@ def _samples(values, shape, name):
     if array.shape != shape:
         array = (
             np.broadcast_to(array, shape)
-            if array.ndim <= 1 and array.size in (1, shape[1])
+            if array.ndim <= 1 and array.size in (1, shape[-1])
             else array
         )
     if array.shape != shape:
@@ -138,7 +138,17 @@ def simulate_arm(loop: ArmLoop, *, duration: float, reference, external=None, su
     elif isinstance(tau0, str) and tau0 == "gravity":
         tau0 = loop.nominal.gravity_torque(np.array(loop.q0))
     else:
-        tau0 = _samples(tau0, (N,), "tau0")
+        try:
+            values = np.asarray(tau0, dtype=float)
+        except (TypeError, ValueError):
+            raise ParameterValueError(
+                f'tau0 must be None, "gravity" or one torque [N m] per joint, got {tau0!r}'
+            ) from None
+        if values.ndim == 1 and values.size != N:
+            raise ParameterValueError(
+                f"tau0 must have one entry per joint ({N}), got {values.size}"
+            )
+        tau0 = _samples(values, (N,), "tau0")
     work = np.zeros(3 * S + 3 * N + 4 * N)
     for i, s0 in enumerate(loop.initial_observer_states(tau0)):
         if s0 is not None:

@@ -10,6 +10,9 @@ simulate, SimulationResult, SimulationDivergedWarning
 load_scenario, Scenario, scenario_toml
     A TOML scenario file read into a :class:`ServoLoop` and the run settings, and written from a
     loop and a run.
+PlantType, register_plant_type, unregister_plant_type, plant_types, get_plant_type
+    The registry of ``[plant] type`` values of scenario files: how a table becomes a plant and
+    which loop runs it (the N-joint arms register theirs from :mod:`hpdob.robots`).
 sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
 """
@@ -17,6 +20,13 @@ sweep
 from ._controller import PD as PD  # the PD lives in hpdob.controllers; kept importable here
 from ._devices import Actuator, Encoder
 from ._loop import ServoLoop
+from ._plant_types import (
+    PlantType,
+    get_plant_type,
+    plant_types,
+    register_plant_type,
+    unregister_plant_type,
+)
 from ._result import SimulationResult
 from ._scenario import Scenario, load_scenario
 from ._scenario_toml import scenario_toml
@@ -26,12 +36,17 @@ from ._sweep import sweep
 __all__ = [
     "Actuator",
     "Encoder",
+    "PlantType",
     "Scenario",
     "ServoLoop",
     "SimulationDivergedWarning",
     "SimulationResult",
+    "get_plant_type",
     "load_scenario",
+    "plant_types",
+    "register_plant_type",
     "scenario_toml",
     "simulate",
     "sweep",
+    "unregister_plant_type",
 ]

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, fields, replace
 
 from .._validation import ParameterTypeError, ParameterValueError, positive, require_instance
 from ..controllers import LOOP_SIGNALS, Controller, LinearController, controller_system
-from ..models._lti import as_servo_model, is_lti
+from ..models import as_servo_model, is_lti
 from ..models._plant import Plant
 from ..models._servo import ServoModel
 from ..observers import (

@@ -22,12 +22,13 @@ from .._validation import (
 )
 from .._waveforms import Chirp, Noise, Sine
 from ..controllers import CONTROLLER_TYPES
-from ..models import Environment
+from ..models import Environment, MujocoServo
 from ..models._servo import ServoModel
 from ..models._two_mass import TwoMassServo
 from ..observers import Observer, check_spec, design_from_spec, get_family
 from ._devices import Actuator, Encoder
 from ._loop import LOOP_KEYS, ServoLoop
+from ._plant_types import PlantType, get_plant_type, register_plant_type
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import check_run_arguments, simulate
 
@@ -44,6 +45,7 @@ __all__ = [
     "load_scenario",
     "load_sweep",
     "metric_windows",
+    "plant_type_of",
     "scenario_from_dict",
     "scenario_of",
 ]
@@ -257,25 +259,62 @@ def _observer(model, spec: dict):
         raise _prefixed("observer", err, ("type", *family.keys)) from None
 
 
-#: ``[plant] type = ...`` -> the plant class (default ``"rigid"``).
-PLANT_TYPES = {"rigid": ServoModel, "two-mass": TwoMassServo}
+def _with_environment(fields: dict, key: str) -> dict:
+    """``[plant.environment]`` as an :class:`~hpdob.Environment`, errors named
+    ``plant.environment.*``."""
+    if "environment" in fields:
+        contact = fields["environment"]
+        if not isinstance(contact, dict):
+            raise ParameterTypeError(
+                f"{key}.environment must be a table (stiffness, damping, position), got {contact!r}"
+            )
+        fields = {**fields, "environment": _build(Environment, contact, f"{key}.environment")}
+    return fields
+
+
+#: The keys of ``[plant] type = "mujoco"`` (a :class:`~hpdob.MujocoServo` built from them).
+MUJOCO_SERVO_KEYS = ("J", "b", "coulomb", "link_mass", "link_length", "timestep", "integrator")
+
+
+def _rigid(fields: dict, key: str, base) -> ServoModel:
+    return _build(ServoModel, _with_environment(fields, key), key)
+
+
+def _two_mass(fields: dict, key: str, base) -> TwoMassServo:
+    return _build(TwoMassServo, _with_environment(fields, key), key)
+
+
+def _mujoco_servo(fields: dict, key: str, base) -> MujocoServo:
+    return _build(MujocoServo, fields, key, allowed=MUJOCO_SERVO_KEYS, required=("J",))
+
+
+# the single-axis plant types; packages above register theirs (hpdob.robots: the arms)
+for _name, _builder, _what in (
+    ("rigid", _rigid, "a rigid axis, ServoModel (the default)"),
+    ("two-mass", _two_mass, "motor and load on a spring, TwoMassServo"),
+    ("mujoco", _mujoco_servo, "a servo simulated by MuJoCo, MujocoServo"),
+):
+    register_plant_type(PlantType(_name, _builder, description=_what), replace=True)
+
+
+def plant_type_of(data) -> PlantType | None:
+    """The registered type of a parsed document's ``[plant]`` table (default ``"rigid"``); None
+    without a ``[plant]`` table (the reader reports it)."""
+    plant = data.get("plant") if isinstance(data, dict) else None
+    if not isinstance(plant, dict):
+        return None
+    return get_plant_type(plant.get("type", "rigid"), "plant.type")
 
 
 def _plant(table: dict):
     fields = dict(table)
-    kind = fields.pop("type", "rigid")
-    if kind not in PLANT_TYPES:
+    kind = get_plant_type(fields.pop("type", "rigid"), "plant.type")
+    if kind.scenario is not None:
         raise ParameterValueError(
-            f"plant.type must be one of {', '.join(repr(k) for k in PLANT_TYPES)}; got {kind!r}"
+            f"plant.type {kind.name!r} ({kind.description}) is run by its own loop, not "
+            "simulate(): read the file with load_scenario"
         )
-    if "environment" in fields:  # [plant.environment]: errors named plant.environment.*
-        contact = fields["environment"]
-        if not isinstance(contact, dict):
-            raise ParameterTypeError(
-                f"plant.environment must be a table (stiffness, damping, position), got {contact!r}"
-            )
-        fields["environment"] = _build(Environment, contact, "plant.environment")
-    return _build(PLANT_TYPES[kind], fields, "plant")
+    return kind.build(fields, "plant", None)
 
 
 #: Largest scenario or sweep file [bytes]: a scenario is a few hundred bytes, a sweep's explicit
@@ -401,11 +440,14 @@ def scenario_of(kwargs: dict) -> Scenario:
 def load_scenario(path) -> Scenario:
     """Read a TOML scenario file: a :class:`~hpdob.ServoLoop` and the run settings.
 
-    The format (``[plant]`` rigid or two-mass, ``[nominal]``, ``[controller]``,
-    ``[observer]`` of any family, ``[sensor]``, ``[actuator]``, ``reference`` and
-    ``disturbance`` signal lists, ``Ts``, ``duration``) is documented in
-    ``docs/simulation.md``; ``examples/*.toml`` are runnable examples; ``hpdob simulate FILE``
-    runs one from the command line.
+    The format (``[plant]`` of a registered type, :func:`plant_types`: ``"rigid"``,
+    ``"two-mass"``, ``"mujoco"``; ``[nominal]``, ``[controller]``, ``[observer]`` of any
+    family, ``[sensor]``, ``[actuator]``, ``reference`` and ``disturbance`` signal lists,
+    ``Ts``, ``duration``) is documented in ``docs/simulation.md``; ``examples/*.toml`` are
+    runnable examples; ``hpdob simulate FILE`` runs one from the command line. A plant type
+    with a loop of its own gives that loop's scenario: ``"two-link-arm"`` and
+    ``"mujoco-arm"`` an :class:`hpdob.robots.ArmScenario` (an :class:`~hpdob.robots.ArmLoop`,
+    ``docs/robots.md``).
 
     Parameters
     ----------
@@ -419,7 +461,8 @@ def load_scenario(path) -> Scenario:
         the file gives them, the observer's spec, which the loop designs on the nominal
         model, sensor, actuator); ``.run``: ``duration``, ``reference`` and, when given,
         ``disturbance``, ``substeps``, ``x0``, and ``label`` (default: the file's stem). Run
-        it with ``simulate(scenario.loop, **scenario.run)`` or ``scenario.simulate()``.
+        it with ``simulate(scenario.loop, **scenario.run)`` or ``scenario.simulate()``
+        (which runs an arm's loop with :func:`hpdob.robots.simulate_arm`).
 
     Raises
     ------
@@ -436,7 +479,11 @@ def load_scenario(path) -> Scenario:
     >>> result = simulate(scenario.loop, **scenario.run)                   # doctest: +SKIP
     """
     path = Path(path)
-    kwargs = scenario_from_dict(_read_toml(path), build_observer=False)
+    data = _read_toml(path)
+    kind = plant_type_of(data)
+    if kind is not None and kind.scenario is not None:  # a loop of its own (an N-joint arm)
+        return kind.scenario(data, path)
+    kwargs = scenario_from_dict(data, build_observer=False)
     kwargs.setdefault("label", path.stem)
     return scenario_of(kwargs)
 
