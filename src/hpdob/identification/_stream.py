@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, as_real, readonly
-from ..observers._system import as_system
+from ..observers import as_system
 from . import _estimate_kernel as kernel
 from ._estimate import estimate_figure, observer_label, start_state
 from ._log import Log
