@@ -64,6 +64,7 @@ _MANTISSA = np.uint64((1 << 52) - 1)
 _HIDDEN = np.uint64(1 << 52)
 _SIGN = np.uint64(1 << 63)
 _U10000 = np.uint64(10000)
+_U1E8 = np.uint64(100_000_000)
 #: ``10^i`` for i < 17, and the text of 00 to 99 (the digits are written two at a time).
 _POW10 = np.array([10**i for i in range(17)], dtype=np.uint64)
 _PAIRS = np.frombuffer(b"".join(b"%02d" % i for i in range(100)), dtype=np.uint8).copy()
@@ -177,9 +178,23 @@ def _shortest(bits):
             last = _U4  # an exact half rounds to even
         up = (vr == vm and (not even or not vm_zeros)) or last >= _U5
         output = vr + (_U1 if up else _U0)
-    else:  # the common case
+    else:  # the common case; digits removed eight, four, two at a time where Ryu removes one
+        # (if vp and vm differ above 10^k they do above every 10^j, j < k; the rounding is that
+        # of the last digit removed, the block's leading one: up if the block is >= 5 10^(k-1))
         up = False
-        if vp // _U100 > vm // _U100:
+        if vp // _U1E8 > vm // _U1E8:
+            up = vr % _U1E8 >= np.uint64(50_000_000)
+            vr //= _U1E8
+            vp //= _U1E8
+            vm //= _U1E8
+            removed += 8
+        while vp // _U10000 > vm // _U10000:
+            up = vr % _U10000 >= np.uint64(5000)
+            vr //= _U10000
+            vp //= _U10000
+            vm //= _U10000
+            removed += 4
+        while vp // _U100 > vm // _U100:
             up = vr % _U100 >= np.uint64(50)
             vr //= _U100
             vp //= _U100
@@ -199,8 +214,43 @@ def _shortest(bits):
     return output, exponent
 
 
+@numba.njit(nogil=True, cache=True, inline="always")
+def _digits(value, out, end):
+    """Write the decimal digits of ``value`` (> 0) so that the last one is at ``out[end - 1]``:
+    the last eight from one remainder by 10^8 (two independent groups of four), then four at a
+    time, then two (a table of the pairs 00-99)."""
+    if value >= _U1E8:
+        low8 = np.int64(value % _U1E8)
+        value //= _U1E8
+        c, d = low8 % 10000, low8 // 10000
+        a, b = 2 * (c % 100), 2 * (c // 100)
+        out[end - 4], out[end - 3] = _PAIRS[b], _PAIRS[b + 1]
+        out[end - 2], out[end - 1] = _PAIRS[a], _PAIRS[a + 1]
+        a, b = 2 * (d % 100), 2 * (d // 100)
+        out[end - 8], out[end - 7] = _PAIRS[b], _PAIRS[b + 1]
+        out[end - 6], out[end - 5] = _PAIRS[a], _PAIRS[a + 1]
+        end -= 8
+    rest = np.int64(value)
+    while rest >= 10000:
+        c = rest % 10000
+        rest //= 10000
+        a, b = 2 * (c % 100), 2 * (c // 100)
+        out[end - 4], out[end - 3] = _PAIRS[b], _PAIRS[b + 1]
+        out[end - 2], out[end - 1] = _PAIRS[a], _PAIRS[a + 1]
+        end -= 4
+    while rest >= 100:
+        low = 2 * (rest % 100)
+        rest //= 100
+        out[end - 2], out[end - 1] = _PAIRS[low], _PAIRS[low + 1]
+        end -= 2
+    if rest >= 10:
+        out[end - 2], out[end - 1] = _PAIRS[2 * rest], _PAIRS[2 * rest + 1]
+    else:
+        out[end - 1] = _ZERO + rest
+
+
 @numba.njit(nogil=True, cache=True, inline="always")  # a call would count references
-def _value(bits, out, pos, digits):
+def _value(bits, out, pos):
     """Write the double with the IEEE ``bits`` as Python's ``repr`` does at ``out[pos:]``;
     return the position after it."""
     magnitude = bits & ~_SIGN
@@ -223,62 +273,31 @@ def _value(bits, out, pos, digits):
     n = 17  # the number of digits d_1..d_n
     while n > 1 and value < _POW10[n - 1]:
         n -= 1
-    j = n  # digits[:j] are still to be written: four at a time from the end, then two
-    while value >= _U10000:
-        c = np.int64(value % _U10000)
-        value //= _U10000
-        low, high = 2 * (c % 100), 2 * (c // 100)
-        digits[j - 4], digits[j - 3] = _PAIRS[high], _PAIRS[high + 1]
-        digits[j - 2], digits[j - 1] = _PAIRS[low], _PAIRS[low + 1]
-        j -= 4
-    rest = np.int64(value)
-    while rest >= 100:
-        low = 2 * (rest % 100)
-        rest //= 100
-        digits[j - 2], digits[j - 1] = _PAIRS[low], _PAIRS[low + 1]
-        j -= 2
-    if rest >= 10:
-        digits[0], digits[1] = _PAIRS[2 * rest], _PAIRS[2 * rest + 1]
-    else:
-        digits[0] = _ZERO + rest
     point = exponent + n  # the value is 0.d_1..d_n 10^point
     if -4 < point <= 16:  # Python's repr: positional notation
-        if point <= 0:
+        if point <= 0:  # 0.00ddd
             out[pos], out[pos + 1] = _ZERO, _DOT
-            pos += 2
-            for _ in range(-point):
-                out[pos] = _ZERO
-                pos += 1
-            for j in range(n):
-                out[pos] = digits[j]
-                pos += 1
-        elif point >= n:
-            for j in range(n):
-                out[pos] = digits[j]
-                pos += 1
-            for _ in range(point - n):
-                out[pos] = _ZERO
-                pos += 1
-            out[pos], out[pos + 1] = _DOT, _ZERO
-            pos += 2
-        else:
-            for j in range(point):
-                out[pos] = digits[j]
-                pos += 1
-            out[pos] = _DOT
-            pos += 1
-            for j in range(point, n):
-                out[pos] = digits[j]
-                pos += 1
-        return pos
-    out[pos] = digits[0]  # scientific: d.ddd e+XX, at least two exponent digits
-    pos += 1
+            for j in range(pos + 2, pos + 2 - point):
+                out[j] = _ZERO
+            _digits(value, out, pos + 2 - point + n)
+            return pos + 2 - point + n
+        _digits(value, out, pos + n)
+        if point >= n:  # ddd00.0
+            for j in range(pos + n, pos + point):
+                out[j] = _ZERO
+            out[pos + point], out[pos + point + 1] = _DOT, _ZERO
+            return pos + point + 2
+        for j in range(pos + n, pos + point, -1):  # dd.ddd: the fraction moves up by one
+            out[j] = out[j - 1]
+        out[pos + point] = _DOT
+        return pos + n + 1
+    _digits(value, out, pos + 1 + n)  # scientific: d.ddd e+XX, at least two exponent digits
+    out[pos] = out[pos + 1]
     if n > 1:
-        out[pos] = _DOT
+        out[pos + 1] = _DOT
+        pos += n + 1
+    else:
         pos += 1
-        for j in range(1, n):
-            out[pos] = digits[j]
-            pos += 1
     e = point - 1
     out[pos] = _E
     out[pos + 1] = _MINUS if e < 0 else _PLUS
@@ -296,12 +315,11 @@ def _value(bits, out, pos, digits):
 def _rows(bits, out):
     """CSV rows of the columns ``bits[c]`` (IEEE bits of float64) into ``out``; return the
     number of bytes written."""
-    digits = np.empty(24, np.uint8)
     columns, n = bits.shape
     pos = 0
     for k in range(n):
         for c in range(columns):
-            pos = _value(bits[c, k], out, pos, digits)
+            pos = _value(bits[c, k], out, pos)
             out[pos] = 44  # ","
             pos += 1
         out[pos - 1] = 13  # "\r\n" instead of the last ","

@@ -39,6 +39,7 @@ def register_identify(function) -> None:
     """Make ``function`` the implementation of :meth:`Log.identify` (``_identify`` calls it)."""
     _IDENTIFY[:] = [function]
 
+
 #: Fewest samples a :class:`Log` may hold (identification needs far more; see identify()).
 MIN_LOG_SAMPLES = 10
 
