@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 from pathlib import Path
@@ -110,8 +111,7 @@ def _observer_settings(args: argparse.Namespace, design) -> dict:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .._files import check_output, staged_outputs
-    from ..identification import estimate_log
+    from .._files import check_output
 
     log = log_file_from_args(args)  # a Parquet log is read block by block, never held whole
     out = args.out or Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
@@ -119,6 +119,29 @@ def _run(args: argparse.Namespace) -> int:
     nominal, origin = _nominal(args)
     design = design_on(args, nominal.discretize(log.Ts))
     written = ["estimate.csv"]
+    created = [p for p in (out, *out.parents) if not p.exists()]  # removed again on a refusal
+    try:
+        mean, std = _estimate(args, log, design, nominal, origin, out, written)
+    except BaseException:
+        for directory in created:  # innermost first; only what is still empty
+            with contextlib.suppress(OSError):
+                directory.rmdir()
+        raise
+    print(
+        f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s; {design.system.name} on "
+        f"J_n = {nominal.J:.6g}, b_n = {nominal.b:.6g} ({origin})"
+    )
+    print(f"  tau_hat: mean {mean:.6g}, std {std:.6g} (last 90 % of the log)")
+    print(f"wrote {', '.join(written)} to {out}")
+    return 0
+
+
+def _estimate(args, log, design, nominal, origin, out, written) -> tuple:
+    """Run the estimate and write its set of files (``written`` lists them); return the mean
+    and standard deviation of the estimate over the last 90 % of the log."""
+    from .._files import staged_outputs
+    from ..identification import estimate_log
+
     # Staged and renamed together, estimate.json last (docs/reliability.md): a refused estimate
     # leaves nothing. With --no-plot a previous run's estimate.png is removed: one consistent set.
     with staged_outputs(out, markers=["estimate.json"], replaces=["estimate.png"]) as files:
@@ -146,10 +169,4 @@ def _run(args: argparse.Namespace) -> int:
             written.append("estimate.png")
         files.write_json("estimate.json", report)
         written.append("estimate.json")
-    print(
-        f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s; {design.system.name} on "
-        f"J_n = {nominal.J:.6g}, b_n = {nominal.b:.6g} ({origin})"
-    )
-    print(f"  tau_hat: mean {mean:.6g}, std {std:.6g} (last 90 % of the log)")
-    print(f"wrote {', '.join(written)} to {out}")
-    return 0
+    return mean, std
