@@ -3,7 +3,10 @@
 
 Open loop: the torque is applied through a PD with zero gains and feed-forward (the torque is
 ``J_n r_ddot``, so ``r_ddot = u / J_n``). Closed loop: hpdob's PD tracking a two-sine
-reference. The encoder quantises the position; 1 % (of the input's RMS) white noise is added to
+reference. Step responses (the most common logs): hpdob's PD answering reference steps of
+1 rad every second, one way (a staircase) or both ways, and open-loop torque pulses of 0.1 s
+every second that leave the axis to coast to rest, one way or alternating; each rests between
+moves. The encoder quantises the position; 1 % (of the input's RMS) white noise is added to
 the *logged* input, as a current measurement would carry.
 """
 
@@ -24,6 +27,11 @@ J_TRUE, B_TRUE = 1.2e-3, 2e-3
 EXCITATION_BANDWIDTH = 10.0
 #: Torque amplitude [N m] of the open-loop excitations.
 TORQUE = 0.1
+#: The step-response logs: one move every STEP_PERIOD [s]; torque pulses last PULSE [s].
+STEP_PERIOD, PULSE = 1.0, 0.1
+#: The kinds of log: open loop, closed-loop tracking, and step responses.
+KINDS = ("chirp+prbs", "chirp", "prbs", "multisine", "pd")
+STEP_KINDS = ("steps", "steps-down", "steps-both", "pulses", "pulses-one-way")
 
 
 @dataclass(frozen=True)
@@ -60,6 +68,10 @@ def _torque(kind: str, t: np.ndarray, rng) -> np.ndarray:
         phase = -np.pi * np.arange(1, f.size + 1) ** 2 / f.size  # Schroeder phases
         u = np.sin(2 * np.pi * f[:, None] * t + phase[:, None]).sum(axis=0)
         return TORQUE * math.sqrt(2) * u / np.sqrt(np.mean(u**2))
+    if kind in ("pulses", "pulses-one-way"):
+        move = np.floor(t / STEP_PERIOD)
+        way = 1.0 if kind == "pulses-one-way" else np.where(move % 2 == 0, 1.0, -1.0)
+        return TORQUE * np.where(t - move * STEP_PERIOD < PULSE, way, 0.0)
     raise ValueError(f"unknown excitation {kind!r}")
 
 
@@ -89,12 +101,24 @@ def synthetic_log(
         r_ddot = np.pi**2 * np.cos(np.pi * t) + 4.8 * np.pi**2 * np.cos(4 * np.pi * t)
         bandwidth = 5.0
         rms = J * math.sqrt(np.mean(r_ddot**2))  # the input's RMS without friction
+    elif kind in ("steps", "steps-down", "steps-both"):
+        omega = 2 * np.pi * 5.0
+        controller = PD(omega**2, 2 * omega)
+        move = np.floor(t / STEP_PERIOD)
+        r = {"steps": move + 1.0, "steps-down": -(move + 1.0)}.get(
+            kind, np.where(move % 2 == 0, 1.0, 0.0)
+        )
+        r_dot, r_ddot = np.zeros_like(t), np.zeros_like(t)
+        bandwidth = 5.0
+        rms = None  # measured below: the input's RMS
     else:
         controller = PD(0.0, 0.0, feedforward=True)
         u_open = _torque(kind, t, rng)
         r, r_dot, r_ddot = np.zeros_like(t), np.zeros_like(t), u_open / J
         bandwidth = EXCITATION_BANDWIDTH
         rms = math.sqrt(np.mean(u_open**2))
+    if rms is None:  # steps: the frictionless run's input RMS
+        rms = _steps_rms(controller, r, J, b, counts, Ts)
     if coulomb_fraction is not None:
         coulomb = coulomb_fraction * rms
     coulomb = coulomb or 0.0
@@ -117,9 +141,24 @@ def synthetic_log(
     u_rms = math.sqrt(np.mean(result.u**2))
     logged = result.u + input_noise * u_rms * rng.standard_normal(result.u.size)
     loop = None
-    if kind == "pd":
+    if kind in ("pd", "steps", "steps-down", "steps-both"):
         loop = FeedbackLoop.from_pd(
             controller, J_n=J, reference=r, reference_velocity=r_dot, reference_acceleration=r_ddot
         )
     log = Log(result.t, result.theta_measured, logged, reference=r, source=f"synthetic-{kind}")
     return SyntheticLog(log, J, b, coulomb, bandwidth, u_rms, loop)
+
+
+def _steps_rms(controller, r: np.ndarray, J: float, b: float, counts: int, Ts: float) -> float:
+    """RMS [N m] of the input of a PD step-response run without Coulomb friction."""
+    table = {"r": r, "z": np.zeros_like(r)}
+
+    def reference(times):
+        k = np.rint(np.asarray(times) / Ts).astype(int)
+        return table["r"][k], table["z"][k], table["z"][k]
+
+    result = hpdob.simulate(
+        plant=ServoModel(J, b), nominal=ServoModel(J), Ts=Ts, controller=controller,
+        sensor=Encoder(counts), reference=reference, duration=r.size * Ts,
+    )  # fmt: skip
+    return math.sqrt(np.mean(result.u**2))

@@ -58,8 +58,6 @@ read_log, Log, identify, Identification
 # python-control up front: see hpdob._interrupts.
 from __future__ import annotations
 
-import importlib
-
 from ._version import __version__
 
 #: Public name -> the module that defines it (a module name alone: the subpackage itself).
@@ -143,6 +141,8 @@ def __getattr__(name: str):
     module = _LAZY.get(name)
     if module is None:
         raise AttributeError(f"module 'hpdob' has no attribute {name!r}")
+    import importlib  # here, not at the top: `import hpdob` stays a few assignments
+
     if module == f".{name}":  # a subpackage or module of hpdob
         value = importlib.import_module(module, __name__)
     else:

@@ -2,6 +2,6 @@
 
 import sys
 
-from .cli import main
+from ._entry import main  # first: it installs the signal handlers (hpdob._entry)
 
 sys.exit(main())

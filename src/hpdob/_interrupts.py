@@ -195,19 +195,28 @@ def checkpoint(name: str) -> None:
 
     The hook pauses at ``name`` for a signal if ``HPDOB_TEST_PAUSE=<name>:<file>`` asks for
     it (unset in normal use: then this is one dictionary look-up). The file is created when
-    the checkpoint is reached; the process then waits up to 60 s for the signal the test
-    sends, and goes on if none comes.
+    the checkpoint is first reached (a process pauses at a checkpoint once); the process then
+    waits up to 60 s for the signal the test sends, and goes on if none comes or as soon as
+    the test removes the file (so that a test can act elsewhere, e.g. stop a dask scheduler,
+    while the command waits at a known point).
     """
     check()
     spec = os.environ.get("HPDOB_TEST_PAUSE")
     if not spec:
         return
     wanted, _, path = spec.partition(":")
-    if wanted != name or not path:
+    if wanted != name or not path or name in _paused:
         return
+    _paused.add(name)
     with open(path, "w", encoding="utf-8") as flag:
         flag.write(f"{os.getpid()} {name}\n")
     deadline = time.monotonic() + 60.0
     while time.monotonic() < deadline:
         time.sleep(0.01)  # a signal's handler runs here and raises
         check()
+        if not os.path.exists(path):  # the test removed the file: go on
+            return
+
+
+#: Checkpoints this process has paused at: it pauses at each at most once.
+_paused: set[str] = set()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -160,3 +161,35 @@ def test_bad_identification_file(tmp_path, capsys):
     bad.write_text('{"J": 1}')
     code, _, err = run(capsys, "estimate", "--emps", "--from-identification", bad, "--no-plot")
     assert code == 2 and "is not an 'hpdob identify' result" in err
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        ((), "--J-n"),  # the nominal model missing
+        (("--from-identification", "missing.json"), "missing.json"),
+        (("--J-n", 2.8e-4, "--extended-order", 2), "--extended-order"),
+        (("--J-n", 2.8e-4, "--out", "a_file/out"), "a_file"),
+    ],
+)
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="POSIX FIFOs")
+def test_options_are_checked_before_the_log_is_read(tmp_path, capsys, monkeypatch, extra, needle):
+    """Issue 27: a missing --J-n (or another bad option, or an output location that cannot be
+    written) was reported only after the whole log was read (up to 256 MiB: minutes). The log
+    reader here is a FIFO nobody writes to, and read_log is replaced by a trap: an error that
+    reaches it would hang or fail differently."""
+    import hpdob.identification as identification
+
+    def trap(*args, **kwargs):
+        raise AssertionError("the log was read before the options were checked")
+
+    monkeypatch.setattr(identification, "read_log", trap)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a_file").write_text("")
+    fifo = tmp_path / "slow.csv"
+    os.mkfifo(fifo)
+    code, out, err = run(
+        capsys, "estimate", fifo, "--time", "t", "--position", "q", "--input", "i", *extra
+    )
+    assert code == 2 and out == "", err
+    assert err.count("\n") == 1 and needle in err, err

@@ -46,9 +46,12 @@ def test_emps_writes_json_csv_and_figure(tmp_path, capsys):
     ]  # and no temporary files left behind
     report = json.loads((tmp_path / "identification.json").read_text())
     # the defaults (filters from the log, IV through the EMPS loop, the input aligned with the
-    # held command): within 2.5 % of the published IDIM-LS (docs/real-data.md says why)
+    # held command, the rests dropped): within 3.5 % of the published IDIM-LS, which keeps
+    # the rests (dropping them moves Fv by -2.6 % and Fc by +3.1 %, as a min_speed of 1 mm/s
+    # does; docs/real-data.md says why)
     for name in ("J", "b", "coulomb"):
-        assert report["parameters"][name] == pytest.approx(EMPS_PUBLISHED[name], rel=0.03)
+        assert report["parameters"][name] == pytest.approx(EMPS_PUBLISHED[name], rel=0.035)
+    assert report["settings"]["rest_rows"] > 0
     assert report["method"] == "idim-iv" and report["settings"]["adaptive"]
     assert report["units"]["J"] == "kg" and report["log"]["names"]["position"] == "qm"
     assert report["published"] == dict(EMPS_PUBLISHED)

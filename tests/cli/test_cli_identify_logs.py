@@ -4,6 +4,7 @@ a run column, restricted models and --validate. Logs are SYNTHETIC (tests/synthe
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -146,3 +147,24 @@ def test_library_messages_name_the_commands_options(tmp_path, capsys):
     assert "--fix J" in message and "fixed[" not in message
     message = _error(capsys, fit, *COLUMNS, "--decimation", "100000")
     assert "--decimation" in message
+
+
+def test_step_response_refusals_name_the_options(tmp_path, capsys):
+    """A staircase of PD steps (one way) and a log that mostly rests: the refusals say what to
+    give on the command line, and the first way out works."""
+    up = synthetic_log(kind="steps", counts=4096, Ts=5e-4, coulomb_fraction=0.1, seed=1)
+    csv = _csv(tmp_path / "up.csv", up)
+    message = _error(capsys, csv, *COLUMNS)
+    for option in ("--friction viscous", "--fix coulomb=VALUE",
+                   "hpdob identify LOG OTHER_LOG --offsets shared"):  # fmt: skip
+        assert option in message, message
+    assert "friction='" not in message and "fixed=" not in message and "offsets='" not in message
+    code, out, _ = run(capsys, "identify", csv, *COLUMNS, "--friction", "viscous", "--no-plot",
+                       "--out", tmp_path / "lumped")  # fmt: skip
+    assert code == 0, out
+    assert _report(tmp_path / "lumped")["parameters"]["J"] == pytest.approx(J_TRUE, rel=0.03)
+    brief = synthetic_log(kind="pulses", counts=4096, Ts=5e-4, coulomb=0.03, seed=1, duration=2.0)
+    message = _error(capsys, _csv(tmp_path / "brief.csv", brief), *COLUMNS)
+    assert "rests most of the time" in message
+    assert re.search(r"--bandwidth [0-9.]+ ", message) and "--min-speed 0 " in message
+    assert "bandwidth=" not in message and "min_speed" not in message

@@ -159,3 +159,86 @@ def test_ctrl_c_in_compare_tune_estimate(capsys, tmp_path, monkeypatch, command,
     assert [p.name for p in out.iterdir()] == [marker] and (out / marker).read_text() == (
         "previous\n"
     )
+
+
+# -- issue 27, item 5: a signal at any moment of start-up ------------------------------------
+def console_script() -> list[str]:
+    """The program pip's wrapper for the ``hpdob`` console script runs (its template: ``re``
+    and ``sys`` imported, then the entry point of pyproject.toml called)."""
+    import tomllib
+
+    pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
+    entry = tomllib.loads(pyproject.read_text())["project"]["scripts"]["hpdob"]
+    module, _, function = entry.partition(":")
+    code = (
+        f"import re\nimport sys\nfrom {module} import {function}\nif __name__ == '__main__':\n"
+        f"    sys.argv[0] = re.sub(r'(-script\\.pyw|\\.exe)?$', '', sys.argv[0])\n"
+        f"    sys.exit({function}())\n"
+    )
+    return [sys.executable, "-c", code]
+
+
+ENTRIES = {"python -m hpdob": [sys.executable, "-m", "hpdob"], "console script": console_script()}
+
+
+def start_at(entry: str, argv, checkpoint: str, tmp_path: Path):
+    """Start the ``hpdob`` command by ``entry`` and return it once it waits at ``checkpoint``
+    (and the checkpoint's file: remove it to let the command go on)."""
+    flag = tmp_path / f"{checkpoint}.reached"
+    flag.unlink(missing_ok=True)
+    env = {**os.environ, "HPDOB_TEST_PAUSE": f"{checkpoint}:{flag}", "PYTHONUNBUFFERED": "1"}
+    process = subprocess.Popen(
+        [*ENTRIES[entry], *map(str, argv)], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    while not flag.exists():
+        if process.poll() is not None:
+            raise AssertionError(f"exited before {checkpoint}: {process.communicate()}")
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            process.wait(0.02)
+    return process, flag
+
+
+@pytest.mark.parametrize("entry", ENTRIES)
+@pytest.mark.parametrize(
+    ("signum", "code", "line"),
+    [(signal.SIGINT, 130, "hpdob: interrupted\n"),
+     (signal.SIGTERM, 143, "hpdob: interrupted (SIGTERM)\n")],
+)  # fmt: skip
+def test_a_signal_before_the_imports_is_one_line(tmp_path, entry, signum, code, line):
+    # The entry point's first statement installs the handler; the checkpoint is right after
+    # it, before the command modules, argparse and numpy are imported (they used to import
+    # first: a KeyboardInterrupt traceback, exit -2).
+    process, _ = start_at(entry, ["design"], "entry", tmp_path)
+    process.send_signal(signum)
+    out, err = process.communicate(timeout=60)
+    assert (process.returncode, out, err) == (code, "", line)
+
+
+def test_ctrl_c_at_any_moment_after_the_entry_is_clean(tmp_path):
+    # Every moment from the entry point on: imports, parsing, the design, printing, the exit.
+    # The delays only spread the moments; whatever moment each signal hits, the outcome
+    # must be clean: exit 130 (or -2: killed by SIGINT once Python's exit restored the
+    # default action, which a shell reports as 130) with at most one line and no traceback,
+    # or, if the command ended before the signal came, its normal output and exit 0.
+    done = subprocess.run(
+        [*ENTRIES["python -m hpdob"], "design"], cwd=tmp_path, capture_output=True, text=True,
+        check=True, timeout=60,
+    )  # fmt: skip
+    lines = {"", "hpdob: interrupted\n", "hpdob design: interrupted\n"}
+    outcomes = []
+    for i, delay in enumerate([0, 0.002, 0.01, 0.03, 0.1, 0.3, 0.6, 1.0, 1.5, 2.5]):
+        entry = list(ENTRIES)[i % 2]
+        process, flag = start_at(entry, ["design"], "entry", tmp_path)
+        flag.unlink()  # go on
+        time.sleep(delay)  # spreads the moments; nothing below depends on it
+        with contextlib.suppress(ProcessLookupError):
+            process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+        outcomes.append(process.returncode)
+        if process.returncode == 0:
+            assert (out, err) == (done.stdout, ""), (entry, delay)
+        else:
+            assert process.returncode in (130, -signal.SIGINT), (entry, delay, err)
+            assert err in lines, (entry, delay, err)
+    assert any(code != 0 for code in outcomes)  # the signals did arrive during the run

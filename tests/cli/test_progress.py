@@ -85,8 +85,13 @@ def test_analyze_stability_progress_on_stderr_only(capsys, tmp_path):
               "--bandwidths", "50,100", "--dpi", "30")  # fmt: skip
     code, out, err = run(capsys, *common, "--out", str(tmp_path / "p"), "--progress")
     assert code == 0
-    assert "analyze stability: order 0 6/6 (100%)\n" in err
-    assert "analyze stability: order 1 0/6 (0%)" in err
+    # one line for both maps: done/total (and the time left) count every requested order
+    frames = err.split("\r\x1b[K")[1:]
+    assert frames[0] == "analyze stability: order 0, 0/12 (0%)"
+    assert "analyze stability: order 0, 6/12 (50%)" in frames[3]
+    assert "analyze stability: order 1, 6/12 (50%)" in frames[4]
+    assert frames[-1] == "analyze stability: order 1, 12/12 (100%)\n"
+    assert err.count("\n") == 1 and all("left" in f for f in frames[1:-1] if "0/12" not in f)
     assert "analyze stability" not in out
     code, _, quiet = run(capsys, *common, "--out", str(tmp_path / "q"), "--no-progress")
     assert code == 0 and "analyze stability:" not in quiet
@@ -95,6 +100,29 @@ def test_analyze_stability_progress_on_stderr_only(capsys, tmp_path):
     assert code == 0 and "analyze stability:" not in default
     for name in ("stability.json", "stability_J_ratio_m1.csv"):
         assert (tmp_path / "p" / name).read_bytes() == (tmp_path / "q" / name).read_bytes()
+
+
+def test_stability_time_left_covers_every_requested_order():
+    # issue 27: the time left used to cover the current order's map only
+    from hpdob.cli._analyze import _overall
+
+    stream, clock = io.StringIO(), Clock()
+    line = ProgressLine("analyze stability:", stream, clock=clock)
+    first, second = _overall(line, 0, 2, 0), _overall(line, 1, 2, 1)
+    first(0, 100)
+    clock.now += 10.0
+    first(50, 100)  # 50 of 200 points in 10 s: 150 more take 30 s (not 10 s: order 0's rest)
+    first(100, 100)
+    second(0, 100)
+    clock.now += 10.0
+    second(100, 100)
+    assert stream.getvalue().split("\r\x1b[K")[1:] == [
+        "analyze stability: order 0, 0/200 (0%)",
+        "analyze stability: order 0, 50/200 (25%), about 30 s left",
+        "analyze stability: order 0, 100/200 (50%), about 10 s left",
+        "analyze stability: order 1, 100/200 (50%), about 10 s left",
+        "analyze stability: order 1, 200/200 (100%)\n",
+    ]
 
 
 def test_tune_progress_has_time_left_per_stage():
@@ -130,14 +158,39 @@ def _canonical(duration):
 def test_simulate_states_a_long_run_before_it(capsys):
     # 2000 s at 1 ms with the canonical plant's 8 sub-steps: 1.6e7 plant steps, announced
     # (not run: the notice is computed from the arguments alone).
-    cli_simulate._announce_size(_canonical(2000.0))
+    cli_simulate._check_size(_canonical(2000.0))
     err = capsys.readouterr().err
     assert err == (
         "hpdob simulate: a long run of 2000000 samples x 8 substeps = 1.6e+07 plant steps "
-        "(the limit per run is 1e+08); it shows no progress\n"
+        "(the limits per run are 2000000 samples and 1e+08 plant steps); --progress shows how "
+        "far it is\n"
     )
-    cli_simulate._announce_size(_canonical(10.0))  # 8e4 plant steps: nothing to say
+    cli_simulate._check_size(_canonical(2000.0), showing=True)  # the progress says it all
     assert capsys.readouterr().err == ""
+    cli_simulate._check_size(_canonical(10.0))  # 8e4 plant steps: nothing to say
+    assert capsys.readouterr().err == ""
+
+
+def test_simulate_refuses_a_run_beyond_its_sample_limit(capsys, tmp_path):
+    # issue 27: a run up to 1e8 plant steps (1e8 samples: a 17 GB CSV, half an hour) showed
+    # no progress; the command now stops at 2e6 samples, about a minute, before any work
+    from hpdob.cli import CLIError
+
+    with pytest.raises(
+        CLIError,
+        match=r"^a run of 2000001 samples \(duration 2000\.001 s at "
+        r"Ts = 0\.001 s\) is beyond hpdob simulate's limit of 2000000 samples",
+    ):
+        cli_simulate._check_size(_canonical(2000.001))
+    scenario = tmp_path / "long.toml"
+    text = (EXAMPLES / "canonical_hpdob.toml").read_text()
+    scenario.write_text(text.replace("duration = 10.0", "duration = 1e5"))
+    assert "duration = 1e5" in scenario.read_text()
+    code = main(["simulate", str(scenario), "--out", str(tmp_path / "o"), "--no-plot"])
+    out, err = capsys.readouterr()
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert "a run of 100000000 samples" in err and "limit of 2000000 samples" in err
+    assert not (tmp_path / "o").exists()
 
 
 def test_simulate_notice_leaves_the_results_bit_for_bit(capsys, tmp_path, monkeypatch):
@@ -209,3 +262,81 @@ def test_a_line_left_open_is_ended_once():
     show("analysis", 3, 72)
     show.end()
     assert stream.getvalue() == "\r\x1b[Ktune: analysing candidates 3/72 (4%), about 0 s left\n"
+
+
+def test_read_log_reports_the_bytes_read(tmp_path, monkeypatch):
+    # issue 27: `hpdob estimate` on a log under the 256 MiB cap read it with no progress
+    import hpdob.identification._readers as readers
+    from hpdob import read_log
+
+    monkeypatch.setattr(readers, "PROGRESS_STEP", 1000)  # a report every 1000 characters
+    path = tmp_path / "log.csv"
+    rows = [
+        f"{k * 1e-3!r},{float(np.sin(k * 1e-3))!r},{float(np.cos(k * 1e-3))!r}" for k in range(2000)
+    ]
+    path.write_text("t,q,u\n" + "\n".join(rows) + "\n")
+    calls = []
+    log = read_log(path, time="t", position="q", input="u", progress=lambda *c: calls.append(c))
+    size = path.stat().st_size
+    assert calls[0] == (0, size) and calls[-1] == (size, size)
+    done = [d for d, _ in calls]
+    assert done == sorted(done) and len(calls) >= size // 1000 and {t for _, t in calls} == {size}
+    plain = read_log(path, time="t", position="q", input="u")
+    assert np.array_equal(log.theta, plain.theta) and np.array_equal(log.u, plain.u)
+    with pytest.raises(ParameterTypeError, match=r"^progress must be a callable"):
+        read_log(path, time="t", position="q", input="u", progress="yes")
+
+
+def test_estimate_progress_reading_and_estimating_on_stderr_only(capsys, tmp_path, monkeypatch):
+    import hpdob.identification._readers as readers
+
+    monkeypatch.setattr(readers, "PROGRESS_STEP", 4096)
+    path = tmp_path / "log.csv"
+    rows = [f"{k * 1e-3!r},{float(1e-3 * np.sin(k * 1e-2))!r},{float(0.01 * np.cos(k * 1e-2))!r}"
+            for k in range(3000)]  # fmt: skip
+    path.write_text("t,q,u\n" + "\n".join(rows) + "\n")
+    common = ["estimate", str(path), "--time", "t", "--position", "q", "--input", "u",
+              "--J-n", "2.8e-4", "--no-plot"]  # fmt: skip
+    code, out, err = run(capsys, *common, "--out", str(tmp_path / "p"), "--progress")
+    assert code == 0, err
+    frames = err.split("\r\x1b[K")[1:]
+    mib = path.stat().st_size / 2**20
+    assert frames[0] == f"hpdob estimate: reading log.csv 0.0/{mib:.1f} MiB (0%)"
+    assert frames[1].startswith("hpdob estimate: reading log.csv ") and "left" in frames[1]
+    assert f"hpdob estimate: reading log.csv {mib:.1f}/{mib:.1f} MiB (100%)\n" in frames
+    assert frames[-2:] == [
+        "hpdob estimate: estimating 0/3000 samples (0%)",
+        "hpdob estimate: estimating 3000/3000 samples (100%)\n",
+    ]
+    assert "hpdob estimate:" not in out
+    code, _, quiet = run(capsys, *common, "--out", str(tmp_path / "q"), "--no-progress")
+    assert code == 0 and quiet == ""
+    code, _, default = run(capsys, *common, "--out", str(tmp_path / "d"))  # not a terminal
+    assert code == 0 and default == ""
+    for name in ("estimate.csv", "estimate.json"):
+        assert (tmp_path / "p" / name).read_bytes() == (tmp_path / "q" / name).read_bytes()
+
+
+def test_simulate_progress_on_stderr_only_and_the_same_files(capsys, tmp_path, monkeypatch):
+    # issue 27: `hpdob simulate` showed no progress; the kernel now runs in chunks (the same
+    # bits, tests/simulation/test_simulate.py) and reports the samples done with the time left
+    import hpdob.simulation._simulate as module
+
+    monkeypatch.setattr(module, "PROGRESS_PLANT_STEPS", 8 * 2500)  # 2500 samples a chunk
+    scenario = str(EXAMPLES / "canonical_hpdob.toml")
+    code, out, err = run(capsys, "simulate", scenario, "--out", str(tmp_path / "p"),
+                         "--no-plot", "--progress")  # fmt: skip
+    assert code == 0, err
+    frames = err.split("\r\x1b[K")[1:]
+    assert frames[0] == "hpdob simulate: 0/10000 samples (0%)"
+    assert frames[1].startswith("hpdob simulate: 2500/10000 samples (25%), about ")
+    assert frames[4] == "hpdob simulate: 10000/10000 samples (100%)\n"
+    assert frames[5:] == [
+        "hpdob simulate: writing HPDOb-100.csv 0/10000 rows (0%)",
+        "hpdob simulate: writing HPDOb-100.csv 10000/10000 rows (100%)\n",
+    ]
+    assert "hpdob simulate:" not in out
+    code, _, quiet = run(capsys, "simulate", scenario, "--out", str(tmp_path / "q"), "--no-plot")
+    assert code == 0 and quiet == ""  # not a terminal: no progress, one call of the kernel
+    for name in ("metrics.json", "HPDOb-100.csv"):
+        assert (tmp_path / "p" / name).read_bytes() == (tmp_path / "q" / name).read_bytes()

@@ -510,8 +510,9 @@ def test_a_failing_dask_cluster_keeps_the_finished_rows(capsys, tmp_path, monkey
             cluster.close()
     assert code == 1 and err.count("\n") == 1, err  # was "internal error" and no rows
     assert err.startswith("hpdob sweep: error: the dask cluster failed after 4 of 12 scenarios")
-    assert "KilledWorker" in err and "missing: scenarios 4-11" in err and "rerun" in err
-    rows = pd.read_csv(out)
+    assert "KilledWorker" in err and "missing: scenarios 4-11" in err and "--resume" in err
+    assert not out.exists()  # the finished rows go to the partial file, --out stays complete
+    rows = pd.read_csv(tmp_path / "rows.partial.csv")
     assert rows["scenario"].tolist() == [0, 1, 2, 3] and rows["error"].isna().all()
 
 

@@ -94,7 +94,7 @@ def test_idim_ls_is_the_benchmark_script(emps_ls):
     error = y - X @ beta
     std = np.sqrt(error @ error / (y.size - 4) * np.diag(np.linalg.inv(X.T @ X)))
     np.testing.assert_allclose(list(emps_ls.parameters.values()), beta, rtol=1e-8)
-    np.testing.assert_allclose(list(emps_ls.std.values()), std, rtol=1e-8)
+    np.testing.assert_allclose(list(emps_ls.std_iid.values()), std, rtol=1e-8)
     np.testing.assert_allclose(emps_ls.u, y, rtol=1e-8, atol=1e-9)
     assert emps_ls.relative_error == pytest.approx(100 * np.linalg.norm(error) / np.linalg.norm(y))
 
@@ -104,9 +104,10 @@ def test_emps_idim_ls_meets_the_published_values(emps_ls):
     for name in ("J", "b", "coulomb"):
         assert getattr(emps_ls, name) == pytest.approx(EMPS_PUBLISHED[name], rel=0.02)
     assert abs(emps_ls.offset - EMPS_PUBLISHED["offset"]) < 0.5
-    # standard deviations, relative error 4.0834 % and condition number 25.9883 (same source)
+    # standard deviations (the textbook ones, as published), relative error 4.0834 % and
+    # condition number 25.9883 (same source)
     for name, std in EMPS_PUBLISHED_STD.items():
-        assert emps_ls.std[name] == pytest.approx(std, rel=0.05)
+        assert emps_ls.std_iid[name] == pytest.approx(std, rel=0.05)
     assert emps_ls.relative_error == pytest.approx(4.0834, abs=0.2)
     assert emps_ls.condition_number == pytest.approx(25.9883, rel=0.01)
 
@@ -380,7 +381,7 @@ def test_example_prints_the_tables_of_the_docs(tmp_path, capsys):
     assert (tmp_path / "emps_identification.png").is_file()
     docs = (ROOT / "docs" / "real-data.md").read_text().replace("−", "-")
     tables = [line for line in out.splitlines() if line.startswith("|")]
-    assert len(tables) == 7 + 7 + 6  # the three tables of the page
+    assert len(tables) == 8 + 7 + 6  # the three tables of the page
     for line in tables:
         assert line in docs, line
 

@@ -34,11 +34,13 @@ def issue_log():
 
 def test_the_issues_log_fails_with_the_benchmark_rules(issue_log):
     """What the issue saw: IDIM-LS with the EMPS rules underestimates J by far more than 3 %
-    (here -5.9 %), many standard deviations from the truth, and nothing warns."""
+    (here -5.9 %), many standard deviations from the truth (14.9 textbook ones, 8.7 of the
+    batch-means ones identify reports), and nothing warns."""
     s = issue_log
     fit = identify(s.log.t, s.log.theta, s.log.u, method="idim-ls", diagnostics=False)
     assert fit.J / s.J - 1.0 < -0.04
-    assert (s.J - fit.J) / fit.J_std > 10
+    assert (s.J - fit.J) / fit.std_iid["J"] > 10
+    assert (s.J - fit.J) / fit.J_std > 5
 
 
 def test_the_issues_log_is_right_by_default(issue_log):

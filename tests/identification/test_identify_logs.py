@@ -60,6 +60,40 @@ def test_near_zero_parameters_print_absolute_uncertainties(issue_log):
     assert _relative(2.0e-3, 0.0, True) == "fixed"
 
 
+def test_the_loop_input_error_is_measured_in_the_band_identified():
+    """The audit's "input error 86 %": on a 4096-count PD log at 0.5 ms the logged input is
+    mostly the controller's response to the encoder's quantisation, which the noise-free loop
+    simulation lacks. In the band the regression uses (below the decimation filter's cut-off)
+    the simulated input matches to 1 %; the summary gives both and says why."""
+    s = synthetic_log(kind="pd", counts=4096, Ts=5e-4, coulomb=0.03, seed=1)
+    fit = s.log.identify(loop=s.loop)
+    simulation = fit.simulation
+    assert simulation["input_error_percent"] > 50.0
+    assert simulation["input_error_band_percent"] < 2.0
+    assert simulation["band_hz"] == fit.settings["decimation_cutoff"]
+    line = next(x for x in fit.summary().splitlines() if "loop simulated" in x)
+    assert "(the band identified)" in line and "quantisation" in line
+
+
+def test_in_band_keeps_the_band_and_removes_what_is_above():
+    """A 2 Hz sine plus a 200 Hz one, band 17 Hz: the 2 Hz sine is what is left (to 1e-3)."""
+    from hpdob.identification._identify import in_band
+    from hpdob.identification._regression import resolve_settings
+
+    settings = resolve_settings(5e-4, bandwidth=8.5)  # decimation cut-off 0.8 fs / (2 dec)
+    t = np.arange(20000) * 5e-4
+    slow = np.sin(2 * np.pi * 2.0 * t)
+    (kept,) = in_band([slow + np.sin(2 * np.pi * 200.0 * t)], settings)
+    assert settings.decimation_cutoff < 20.0
+    np.testing.assert_allclose(kept[1000:-1000], slow[1000:-1000], atol=1e-3)
+
+
+def test_the_summary_says_how_far_the_filters_move_the_estimate(issue_log):
+    fit = issue_log.log.identify()
+    line = next(x for x in fit.summary().splitlines() if "bandwidth halved" in x)
+    assert "moves in standard deviations: J" in line
+
+
 # -- restricted models -----------------------------------------------------------------------------
 def test_fixed_parameters_are_held_at_their_value(issue_log):
     s = issue_log
@@ -164,7 +198,11 @@ def test_several_logs_share_J_b_coulomb_with_one_offset_each():
     assert fit.sources == tuple(log.source for log in logs)
     assert len(fit.settings["logs"]) == 2 and set(fit.run.tolist()) == {0, 1}
     alone = [identify(log) for log in logs]
-    assert fit.J_std < min(f.J_std for f in alone)  # more data, a tighter estimate
+    # the shared J lies between the logs' own; its batch-means standard deviation counts how
+    # far the logs disagree (each log's scores no longer sum to zero), so it is not below
+    # both of theirs (chirp alone J +1.3 %, 6 of its std off the truth; multisine +0.07 %)
+    assert min(f.J for f in alone) <= fit.J <= max(f.J for f in alone)
+    assert fit.J_std < max(f.J_std for f in alone)
     assert "offset of" in fit.summary()
     assert "run" in fit.to_pandas().columns
 

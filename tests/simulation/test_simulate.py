@@ -366,3 +366,89 @@ def test_observer_on_the_wrong_model():
     obs2 = paper.observer("HPDOb-100")
     with pytest.raises(ValueError, match=r"Ts=0.001 but nominal .* Ts=0.0005"):
         simulate(**{**kwargs, "Ts": 5e-4}, observer=obs2)
+
+
+def _same(a, b) -> None:
+    """Every trace of two results bit for bit (NaN where NaN), and the same verdict."""
+    assert (a.diverged, a.message, len(a)) == (b.diverged, b.message, len(b))
+    columns = a.to_pandas().columns
+    assert list(columns) == list(b.to_pandas().columns)
+    for name in columns:
+        x, y = a.to_pandas()[name].to_numpy(), b.to_pandas()[name].to_numpy()
+        assert np.array_equal(x, y, equal_nan=True), name
+
+
+def _loops():
+    from hpdob import Environment, TwoMassServo
+
+    base = paper.scenario()
+    base.pop("duration")
+    nominal = base["nominal"]
+    yield "canonical HPDOb", {**base, "observer": paper.observer("HPDOb-100")}, 4
+    yield "encoder noise, delay, saturation", {
+        **base, "observer": paper.observer("DOb-100"),
+        "sensor": Encoder(4096, noise_std=1e-4, seed=5),
+        "actuator": Actuator(torque_limit=0.055, delay_samples=3),
+    }, 4  # fmt: skip
+    position = design_observer(nominal.discretize(1e-3), order=1, bandwidth=100.0,
+                               measurement="position")  # fmt: skip
+    yield "position-only observer", {**base, "observer": position, "sensor": Encoder(4096)}, 8
+    drive = TwoMassServo(2.8e-4, 5.6e-4, 30.0, 0.004, b_motor=1e-5, b_load=2e-5,
+                         environment=Environment(10.0, damping=0.02, position=0.5))  # fmt: skip
+    yield "two-mass drive against a wall", {**base, "plant": drive,
+                                            "observer": paper.observer("HPDOb-100")}, 8  # fmt: skip
+    unstable = {"plant": ServoModel(3e-5), "nominal": ServoModel(3e-4), "Ts": 1e-3,
+                "controller": PD(50, 5), "reference": Step(0.0, 1.0),
+                "observer": DisturbanceObserver(ServoModel(3e-4).discretize(1e-3), order=1,
+                                                bandwidth=900.0)}  # fmt: skip
+    yield "a run that diverges mid-chunk", unstable, 1
+
+
+@pytest.mark.parametrize(("name", "kwargs", "substeps"), list(_loops()), ids=lambda v: str(v))
+def test_a_run_in_chunks_with_progress_equals_one_call_bit_for_bit(
+    monkeypatch, name, kwargs, substeps
+):
+    # issue 27, item 13: `hpdob simulate` shows progress by running the kernel in chunks;
+    # its state is carried across them exactly. 37 plant steps a chunk: many boundaries,
+    # none aligned with anything (delay line, encoder difference, sub-steps).
+    import warnings
+
+    import hpdob.simulation._simulate as module
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SimulationDivergedWarning)
+        whole = simulate(**kwargs, duration=2.0, substeps=substeps)
+        monkeypatch.setattr(module, "PROGRESS_PLANT_STEPS", 37)
+        calls = []
+        chunked = simulate(**kwargs, duration=2.0, substeps=substeps,
+                           progress=lambda d, t: calls.append((d, t)))  # fmt: skip
+    _same(chunked, whole)
+    chunk = max(1, 37 // substeps)
+    assert calls[0] == (0, 2000) and calls[-1][0] == len(whole)
+    steps = np.diff([done for done, _ in calls])
+    assert np.all(steps[:-1] == chunk) and 0 < steps[-1] <= chunk
+    if name.startswith("a run that diverges"):
+        assert whole.diverged and len(whole) % chunk != 0  # it stopped inside a chunk
+
+
+def test_progress_must_be_callable():
+    from hpdob import ParameterTypeError
+
+    with pytest.raises(ParameterTypeError, match=r"^progress must be a callable"):
+        simulate(**paper.scenario(), observer=paper.observer("DOb-100"), progress=True)
+
+
+def test_a_mujoco_run_with_progress_equals_one_without(monkeypatch):
+    # the Python loop around the compiled sample step (MuJoCo) reports every few samples
+    pytest.importorskip("mujoco")
+    import hpdob.simulation._simulate as module
+    from hpdob import MujocoServo
+
+    kwargs = {**paper.scenario(), "observer": paper.observer("HPDOb-100"), "duration": 0.5,
+              "plant": MujocoServo(3.06e-4, 5e-5, coulomb=0.01, link_mass=0.01,
+                                   link_length=0.05)}  # fmt: skip
+    whole = simulate(**kwargs, substeps=4)
+    monkeypatch.setattr(module, "PROGRESS_PLANT_STEPS", 37)
+    calls = []
+    _same(simulate(**kwargs, substeps=4, progress=lambda d, t: calls.append(d)), whole)
+    assert calls == [0, *range(9, 500, 9), 500]

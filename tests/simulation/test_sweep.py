@@ -346,3 +346,50 @@ def test_scenarios_that_share_a_design_design_it_once(monkeypatch):
     assert rows["stable"].all()
     # one check up front, then one design per chunk (one worker: 8 chunks of 13 scenarios)
     assert len(calls) == 1 + 8
+
+
+def test_resume_runs_only_the_missing_scenarios_and_equals_a_run_from_scratch(monkeypatch):
+    # issue 27, item 2: the rows a failed dask run kept are completed, not recomputed
+    import hpdob.simulation._sweep as module
+
+    grid = {"observer.order": [0, 1], "observer.bandwidth": [60.0, 120.0]}
+    vary = {"plant.J": ("loguniform", 2e-4, 5e-4)}
+    settings = {"grid": grid, "vary": vary, "n": 2, "seed": 3, "progress": False}
+    full = sweep(base(0.5), **settings)
+    ran = []
+    real = module.run_scenario
+    monkeypatch.setattr(module, "run_scenario", lambda b, p, c=None: ran.append(p) or real(b, p, c))
+    kept = full.iloc[[0, 3, 4, 7]]
+    resumed = sweep(base(0.5), **settings, resume=kept, scheduler=2)
+    assert len(ran) == len(full) - len(kept)
+    pd.testing.assert_frame_equal(resumed, full)
+    ran.clear()
+    pd.testing.assert_frame_equal(sweep(base(0.5), **settings, resume=full), full)
+    assert ran == []
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"seed": 4}, r"^resume's scenario 0 has plant.J = .*, but this sweep's has .*another"),
+        ({"grid": {"observer.order": [0, 1]}}, r"^resume must have this sweep's columns"),
+    ],
+)
+def test_resume_refuses_rows_of_another_sweep(change, match):
+    settings = {"grid": {"observer.order": [0, 1], "observer.bandwidth": [60.0, 120.0]},
+                "vary": {"plant.J": ("loguniform", 2e-4, 5e-4)}, "n": 2, "seed": 3,
+                "progress": False}  # fmt: skip
+    rows = sweep(base(0.2), **settings).iloc[:3]
+    with pytest.raises(ValueError, match=match):
+        sweep(base(0.2), **{**settings, **change}, resume=rows)
+
+
+def test_resume_refuses_bad_rows():
+    settings = {"grid": {"observer.order": [0, 1]}, "progress": False}
+    rows = sweep(base(0.2), **settings)
+    with pytest.raises(ValueError, match=r"^resume holds scenario 1 twice$"):
+        sweep(base(0.2), **settings, resume=pd.concat([rows, rows.iloc[[1]]]))
+    with pytest.raises(ValueError, match=r"^resume's scenario must be a whole number from 0 to 1"):
+        sweep(base(0.2), **settings, resume=rows.assign(scenario=[0, 5]))
+    with pytest.raises(TypeError, match=r"^resume must be the pandas DataFrame .* got list$"):
+        sweep(base(0.2), **settings, resume=[])

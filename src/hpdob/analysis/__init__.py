@@ -8,6 +8,9 @@ noise_gains, observer_noise_gain, noise_tradeoff
     Exact noise gains (discrete Lyapunov equation) and the accuracy/noise trade-off.
 robust_stability_map
     Closed-loop stability over inertia or friction errors and observer bandwidths.
+contact_stability_map, ContactStabilityMap, force_response, ForceResponse
+    The force loop in contact: stability over environment stiffness or J_n/J and bandwidth;
+    tau_env/tau_ref, its poles, zeros and -3 dB bandwidth.
 compare_observers, Comparison
     The paper's observers, their position-only versions, ESO and Kalman at equal noise.
 bode_figure, noise_figure
@@ -16,8 +19,10 @@ bode_figure, noise_figure
 
 from ._closed_loop import closed_loop, closed_loop_poles
 from ._comparison import Comparison, compare_observers
+from ._contact_map import ContactStabilityMap, contact_stability_map
 from ._estimation import estimation_response, estimation_transfer
 from ._figures import bode_figure, noise_figure
+from ._force_response import ForceResponse, force_response
 from ._noise import NoiseGains, noise_gains, observer_noise_gain
 from ._robust import StabilityMap, robust_stability_map
 from ._sensitivity import GangOfFour, LoopMargins, gang_of_four, loop_margins, loop_transfer
@@ -25,6 +30,8 @@ from ._tradeoff import NoiseTradeoff, noise_tradeoff
 
 __all__ = [
     "Comparison",
+    "ContactStabilityMap",
+    "ForceResponse",
     "GangOfFour",
     "LoopMargins",
     "NoiseGains",
@@ -34,8 +41,10 @@ __all__ = [
     "closed_loop",
     "closed_loop_poles",
     "compare_observers",
+    "contact_stability_map",
     "estimation_response",
     "estimation_transfer",
+    "force_response",
     "gang_of_four",
     "loop_margins",
     "loop_transfer",

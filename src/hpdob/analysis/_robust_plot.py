@@ -1,16 +1,42 @@
-"""The heat-map of a :class:`hpdob.StabilityMap` (matplotlib is imported when it is drawn)."""
+"""Heat-maps of spectral-radius grids: :class:`hpdob.StabilityMap` and the contact map
+(matplotlib is imported when one is drawn)."""
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["plot_stability_map"]
+__all__ = ["plot_radius_map", "plot_stability_map"]
 
 _UNITS = {"J_ratio": "true/nominal inertia J/J_n [-]", "b": "true viscous friction b [N m s/rad]"}
 
 
 def plot_stability_map(smap, ax=None, *, mark=None, mark_label=None):
     """Draw ``smap`` (see :meth:`hpdob.StabilityMap.plot`); return the figure."""
+    if smap.parameter == "J_ratio":
+        fixed = f"b = {smap.b:.3g} N m s/rad"
+    else:
+        fixed = f"J/J_n = {smap.J_ratio:.3g}"
+    delay = f"\n{smap.delay_samples}-sample actuator delay" if smap.delay_samples else ""
+    return plot_radius_map(
+        bandwidths=smap.bandwidths,
+        values=smap.values,
+        radius=smap.spectral_radius,
+        Ts=smap._setting.Ts,
+        ylabel=_UNITS[smap.parameter],
+        title=f"{smap._setting.name}\n{fixed}{delay}",
+        log_values=smap.parameter == "J_ratio" or bool(np.all(smap.values > 0)),
+        what="J/J_n" if smap.parameter == "J_ratio" else "b",  # the axis label has its unit
+        ax=ax,
+        mark=mark,
+        mark_label=mark_label,
+    )
+
+
+def plot_radius_map(*, bandwidths, values, radius, Ts, ylabel, title, log_values, what, ax=None,
+                    mark=None, mark_label=None):  # fmt: skip
+    """Heat-map of a spectral-radius grid ``radius[i, j]`` (``values[i]``, ``bandwidths[j]``)
+    with the boundary ``radius = 1``, the legend above the map; return the figure. ``what``
+    names the vertical quantity in the mark's legend entry."""
     import matplotlib.pyplot as plt
     from matplotlib.colors import SymLogNorm
     from matplotlib.lines import Line2D
@@ -21,13 +47,13 @@ def plot_stability_map(smap, ax=None, *, mark=None, mark_label=None):
         fig, ax = plt.subplots(figsize=(PAPER_WIDTH * 0.62, 3.9), layout="constrained")
     else:
         fig = ax.figure
-    rho = smap.spectral_radius
+    rho = radius
     # Slowest decay rate [1/s]: positive stable, negative growing; symmetric log colours.
-    rate = -np.log(rho) / smap._setting.Ts
+    rate = -np.log(rho) / Ts
     top = max(float(np.abs(rate).max()), 1.0)
     mesh = ax.pcolormesh(
-        smap.bandwidths,
-        smap.values,
+        bandwidths,
+        values,
         rate,
         shading="nearest",
         cmap="RdBu",
@@ -35,30 +61,24 @@ def plot_stability_map(smap, ax=None, *, mark=None, mark_label=None):
     )
     handles = []
     if rho.shape[0] > 1 and rho.shape[1] > 1 and rho.min() < 1.0 < rho.max():
-        ax.contour(smap.bandwidths, smap.values, rho, levels=[1.0], colors="k", linewidths=1.4)
+        ax.contour(bandwidths, values, rho, levels=[1.0], colors="k", linewidths=1.4)
         handles.append(
             Line2D([], [], color="k", linewidth=1.4, label="stability boundary (radius = 1)")
         )
     ax.set_xscale("log")
-    _log_ticks(ax.xaxis, smap.bandwidths)
-    if smap.parameter == "J_ratio" or np.all(smap.values > 0):
+    _log_ticks(ax.xaxis, bandwidths)
+    if log_values:
         ax.set_yscale("log")
-        _log_ticks(ax.yaxis, smap.values)
+        _log_ticks(ax.yaxis, values)
     if mark is not None:
         g, value = (float(v) for v in mark)
         style = {"marker": "*", "color": "gold", "markeredgecolor": "k", "markersize": 11}
         ax.plot(g, value, linestyle="none", **style)
-        what = "J/J_n" if smap.parameter == "J_ratio" else "b"  # the axis label has its unit
         label = mark_label or f"design: g = {g:g} rad/s, {what} = {value:.3g}"
         handles.append(Line2D([], [], linestyle="none", label=label, **style))
     cbar = fig.colorbar(mesh, ax=ax)
     cbar.set_label("slowest decay rate -ln(radius)/Ts [1/s]\n(< 0: unstable)")
-    style_axes(ax, xlabel="observer bandwidth g [rad/s]", ylabel=_UNITS[smap.parameter])
-    if smap.parameter == "J_ratio":
-        fixed = f"b = {smap.b:.3g} N m s/rad"
-    else:
-        fixed = f"J/J_n = {smap.J_ratio:.3g}"
-    delay = f"\n{smap.delay_samples}-sample actuator delay" if smap.delay_samples else ""
+    style_axes(ax, xlabel="observer bandwidth g [rad/s]", ylabel=ylabel)
     pad = 6.0  # [points] matplotlib's default title pad
     if handles:  # above the map (it has no free space), between the map and its title
         legend = ax.legend(
@@ -77,7 +97,7 @@ def plot_stability_map(smap, ax=None, *, mark=None, mark_label=None):
         pad += legend.get_window_extent().height * 72.0 / fig.dpi
     # The observer, the plant and the delay on lines of their own: short lines that fit the
     # map's width; a narrow map (subplots) gets a smaller font rather than a clipped one.
-    title = ax.set_title(f"{smap._setting.name}\n{fixed}{delay}", fontsize="medium", pad=pad)
+    title = ax.set_title(title, fontsize="medium", pad=pad)
     _fit(title, [title], ax, cbar)
     return fig
 

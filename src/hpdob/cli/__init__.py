@@ -15,7 +15,14 @@ import os
 import re
 import sys
 
-from .._interrupts import EXIT_CODES, Interrupted, check, checkpoint, handling_signals
+from .._interrupts import (
+    EXIT_CODES,
+    Interrupted,
+    check,
+    checkpoint,
+    handling_signals,
+    received,
+)
 from .._version import __version__
 from ._errors import CLIError
 
@@ -117,6 +124,9 @@ def main(argv: list[str] | None = None) -> int:
             except KeyboardInterrupt as err:
                 return _interrupted(command, err)
             except Exception as err:
+                if received() is not None:  # the signal's exception, turned into another
+                    # by C code it interrupted (an import: SyntaxError "can't load unicodedata")
+                    return _interrupted(command, Interrupted(received()))
                 return _failed(command, err)
         except KeyboardInterrupt as err:  # a second signal while reporting the first
             return _interrupted(command, err)

@@ -495,8 +495,6 @@ def _tradeoff(args, files) -> list[str]:
 
 
 def _stability(args, files) -> list[str]:
-    from ..analysis._robust import robust_stability_map
-    from ..models._servo import ServoModel
     from ._progress import ProgressLine, show_progress
 
     loop = _loop(args)
@@ -512,47 +510,71 @@ def _stability(args, files) -> list[str]:
         else {"J_ratio": J_ratio, "b": values}
     )
     written, summary = [], {"loop": _describe(args), "maps": []}
-    show = show_progress(args.progress)
-    for m in args.orders:
-        line = ProgressLine(f"analyze stability: order {m}") if show else None
-        try:
-            smap = robust_stability_map(
-                **grid,
-                bandwidth=bandwidths,
-                order=m,
-                nominal=ServoModel(args.J_n, args.b_n),
-                Ts=args.Ts,
-                controller=loop["controller"],
-                delay_samples=args.delay,
-                measurement=args.measurement,
-                progress=line,
+    # One line for all the maps: done/total and the time left count every requested order.
+    line = ProgressLine("analyze stability:") if show_progress(args.progress) else None
+    try:
+        for k, m in enumerate(args.orders):
+            progress = _overall(line, k, len(args.orders), m)
+            written += _stability_map(
+                args, files, grid, bandwidths, loop, J_ratio, summary, order=m, progress=progress
             )
-        finally:  # an error or interrupt message starts on its own line
-            if line is not None:
-                line.end()
-        stem = f"stability_{args.parameter}_m{m}" + (f"_delay{args.delay}" if args.delay else "")
-        if args.measurement == "position":
-            stem += "_position"
-        # Mark the user's design (--bandwidth) at the loop's own plant if it lies on the map.
-        point = None
-        if args.bandwidth is not None:
-            point = (args.bandwidth, J_ratio if args.parameter == "J_ratio" else args.b)
-            inside = (
-                smap.bandwidths.min() <= point[0] <= smap.bandwidths.max()
-                and smap.values.min() <= point[1] <= smap.values.max()
-            )
-            point = point if inside else None
-        save_figure(smap.plot(mark=point), files, f"{stem}.png", args.dpi)
-        smap.to_csv(files.path(f"{stem}.csv"))
-        written += [f"{stem}.png", f"{stem}.csv"]
-        summary["maps"].append(
-            {
-                "order": m,
-                "parameter": args.parameter,
-                "delay_samples": args.delay,
-                "stable_fraction": float(smap.stable.mean()),
-                "boundary": smap.boundary(),
-            }
-        )
+    finally:  # an error or interrupt message starts on its own line
+        if line is not None:
+            line.end()
     write_json(files, "stability.json", summary)
     return [*written, "stability.json"]
+
+
+def _overall(line, k: int, maps: int, order: int):
+    """``progress(done, total)`` of map ``k`` of ``maps`` (all of one size) as the share of the
+    whole command on ``line``."""
+    if line is None:
+        return None
+
+    def progress(done: int, total: int) -> None:
+        line(k * total + done, maps * total, detail=f"order {order},")
+
+    return progress
+
+
+def _stability_map(args, files, grid, bandwidths, loop, J_ratio, summary, *, order, progress):
+    """Compute, draw and stage the map of one order; returns the names written."""
+    from ..analysis import robust_stability_map
+    from ..models import ServoModel
+
+    m = order
+    smap = robust_stability_map(
+        **grid,
+        bandwidth=bandwidths,
+        order=m,
+        nominal=ServoModel(args.J_n, args.b_n),
+        Ts=args.Ts,
+        controller=loop["controller"],
+        delay_samples=args.delay,
+        measurement=args.measurement,
+        progress=progress,
+    )
+    stem = f"stability_{args.parameter}_m{m}" + (f"_delay{args.delay}" if args.delay else "")
+    if args.measurement == "position":
+        stem += "_position"
+    # Mark the user's design (--bandwidth) at the loop's own plant if it lies on the map.
+    point = None
+    if args.bandwidth is not None:
+        point = (args.bandwidth, J_ratio if args.parameter == "J_ratio" else args.b)
+        inside = (
+            smap.bandwidths.min() <= point[0] <= smap.bandwidths.max()
+            and smap.values.min() <= point[1] <= smap.values.max()
+        )
+        point = point if inside else None
+    save_figure(smap.plot(mark=point), files, f"{stem}.png", args.dpi)
+    smap.to_csv(files.path(f"{stem}.csv"))
+    summary["maps"].append(
+        {
+            "order": m,
+            "parameter": args.parameter,
+            "delay_samples": args.delay,
+            "stable_fraction": float(smap.stable.mean()),
+            "boundary": smap.boundary(),
+        }
+    )
+    return [f"{stem}.png", f"{stem}.csv"]

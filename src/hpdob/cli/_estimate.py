@@ -10,10 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ._design import add_observer_arguments, design_on
+from ._design import add_observer_arguments, design_on, observer_spec_of_args
 from ._errors import CLIError
 from ._logs import add_log_arguments, log_file_from_args
 from ._options import finite, output_path
+from ._progress import ProgressLine, show_progress
 
 __all__ = ["register"]
 
@@ -50,6 +51,13 @@ def register(subparsers) -> None:
         help="output directory (default: hpdob-results/estimate-<log name>)",
     )
     parser.add_argument("--no-plot", action="store_true", help="skip the figure")
+    parser.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="reading and estimating progress with the time left on stderr (default: when "
+        "stderr is a terminal)",
+    )
     parser.set_defaults(handler=_run)
 
 
@@ -113,20 +121,42 @@ def _observer_settings(args: argparse.Namespace, design) -> dict:
 def _run(args: argparse.Namespace) -> int:
     from .._files import check_output
 
-    log = log_file_from_args(args)  # a Parquet log is read block by block, never held whole
-    out = args.out or Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
-    check_output(out)  # before the estimate, not after it
+    # Every option and the output location are checked before the log is read: a log may
+    # take minutes to read (up to 256 MiB), and a missing --J-n must not wait for it.
     nominal, origin = _nominal(args)
+    observer_spec_of_args(args)  # the observer options (their values need the log's Ts)
+    out = args.out
+    if out is None and args.log is not None:  # the default is named after the log file
+        out = Path("hpdob-results") / f"estimate-{Path(args.log).stem}"
+    if out is not None:
+        check_output(out)
+    show = show_progress(args.progress)
+    name = "EMPS" if args.log is None else Path(args.log).name
+    reading = ProgressLine(f"hpdob estimate: reading {name}", unit="MiB", scale=2**20)
+    try:  # a Parquet log is checked here and read block by block below, never held whole
+        log = log_file_from_args(args, progress=reading if show else None)
+    finally:  # an error or interrupt message starts on its own line
+        reading.end()
+    if out is None:  # --emps: its name is the shipped file's
+        out = Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
+        check_output(out)
     design = design_on(args, nominal.discretize(log.Ts))
+    # The estimate and the CSV written as it runs: a stage, not a bar.
+    estimating = ProgressLine("hpdob estimate: estimating", unit="samples")
+    if show:
+        estimating(0, len(log))
     written = ["estimate.csv"]
     created = [p for p in (out, *out.parents) if not p.exists()]  # removed again on a refusal
     try:
         mean, std = _estimate(args, log, design, nominal, origin, out, written)
     except BaseException:
+        estimating.end()  # the message starts on its own line
         for directory in created:  # innermost first; only what is still empty
             with contextlib.suppress(OSError):
                 directory.rmdir()
         raise
+    if show:
+        estimating(len(log), len(log))
     print(
         f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s; {design.system.name} on "
         f"J_n = {nominal.J:.6g}, b_n = {nominal.b:.6g} ({origin})"

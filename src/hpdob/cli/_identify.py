@@ -115,8 +115,10 @@ def register(subparsers) -> None:
     filters.add_argument("--decimation", type=_integer, help="decimation factor")
     filters.add_argument("--border", type=_integer, help="samples dropped at each end")
     filters.add_argument(
-        "--min-speed", type=_real, default=0.0, help="drop rows slower than this [rad/s or m/s]"
-    )
+        "--min-speed", type=_real, default=None,
+        help="drop rows slower than this [rad/s or m/s]; 0 keeps every row (default with "
+        "--method auto: drop the log's rests, where the speed stays below 2 %% of its largest)",
+    )  # fmt: skip
     parser.add_argument(
         "--validate", type=Path, default=None, metavar="LOG",
         help="simulate the identified model on LOG (same columns; through its loop if the "
@@ -245,12 +247,18 @@ def _stem(log) -> str:
 
 #: identify()'s keyword spellings in its messages and hints, and the options that set them.
 _CLI_WORDS = [
+    (
+        re.compile(r"\bidentify\(\[log, other\], offsets='shared'\)"),
+        "hpdob identify LOG OTHER_LOG --offsets shared",
+    ),
     (re.compile(r"fixed\[['\"](\w+)['\"]\]"), r"--fix \1"),
+    (re.compile(r"\bfixed=\{'(\w+)': (\w+)\}"), r"--fix \1=\2"),
     (re.compile(r"\bmethod='([\w-]+)'"), r"--method \1"),
     (re.compile(r"\bfriction='([\w+-]+)'"), r"--friction \1"),
     (re.compile(r"\boffsets='(\w+)'"), r"--offsets \1"),
     (re.compile(r"\bfixed=\{[^}]*\}"), "--fix NAME=VALUE"),
     (re.compile(r"\bloop="), "the loop options (--kp/--kd with --J-n, or --loop-kp/--loop-kd)"),
+    (re.compile(r"\bmin_speed=(?=\d)"), "--min-speed "),
     (re.compile(r"\bmin_speed\b"), "--min-speed"),
     (re.compile(r"(?<![-\w])decimation\b(?= ?[=<>]| must)"), "--decimation"),
     (re.compile(r"(?<![-\w])cutoff\b(?= ?[=<>]| must)"), "--cutoff"),

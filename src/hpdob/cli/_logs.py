@@ -109,8 +109,9 @@ def _require_columns(args) -> None:
         )
 
 
-def log_from_args(args: argparse.Namespace, columns=None):
-    """The :class:`~hpdob.identification.Log` that ``add_log_arguments`` options describe."""
+def log_from_args(args: argparse.Namespace, columns=None, progress=None):
+    """The :class:`~hpdob.identification.Log` that ``add_log_arguments`` options describe
+    (``progress(done, total)``: bytes read, see :func:`~hpdob.identification.read_log`)."""
     from ..identification import emps, read_log
 
     roles = [r for r in ("time", "position", "input", "reference") if hasattr(args, r)]
@@ -133,19 +134,24 @@ def log_from_args(args: argparse.Namespace, columns=None):
         Ts=args.Ts,
         axis=args.axis,
         columns=columns,
+        progress=progress,
     )
 
 
-def log_file_from_args(args: argparse.Namespace):
+def log_file_from_args(args: argparse.Namespace, progress=None):
     """The log that ``add_log_arguments`` options describe, for a command that reads it block
-    by block: a :class:`~hpdob.identification.LogFile` (a Parquet file is never held whole),
-    or the EMPS run's :class:`~hpdob.identification.Log` with ``--emps``."""
+    by block: a :class:`~hpdob.identification.LogFile` for a Parquet file (checked, never held
+    whole; ``progress`` is called at the start and the end), else the
+    :class:`~hpdob.identification.Log` of :func:`log_from_args`."""
     from ..identification import open_log
 
-    if args.emps or args.log is None:
-        return log_from_args(args)
+    if args.emps or args.log is None or Path(args.log).suffix.lower() not in (".parquet", ".pq"):
+        return log_from_args(args, progress=progress)
     _require_columns(args)
-    return open_log(
+    total = Path(args.log).stat().st_size if Path(args.log).is_file() else 0
+    if progress is not None:
+        progress(0, total)
+    log = open_log(
         args.log,
         time=args.time,
         position=args.position,
@@ -154,3 +160,6 @@ def log_file_from_args(args: argparse.Namespace):
         Ts=args.Ts,
         axis=args.axis,
     )
+    if progress is not None:
+        progress(total, total)
+    return log

@@ -32,18 +32,26 @@ class ProgressLine:
     ``clock`` is injectable so that tests check the lines, not the speed.
     """
 
-    def __init__(self, label: str, stream=None, clock=time.monotonic):
+    def __init__(self, label: str, stream=None, clock=time.monotonic, *, unit: str = "",
+                 scale: float = 1.0):  # fmt: skip
         self.label = label
+        self.unit, self.scale = unit, scale  # counts shown as done/scale, e.g. bytes as MiB
         self.stream = sys.stderr if stream is None else stream
         self.clock = clock
         self.start = clock()
         self.open = False  # a line written but not yet ended
 
-    def __call__(self, done: int, total: int) -> None:
+    def __call__(self, done: int, total: int, *, detail: str = "") -> None:
         now = self.clock()
         if done == 0:
             self.start = now
-        line = f"{self.label} {done}/{total}"
+        if self.scale == 1.0:
+            counts = f"{done}/{total}"
+        else:
+            counts = f"{done / self.scale:.1f}/{total / self.scale:.1f}"
+        line = f"{self.label}{' ' + detail if detail else ''} {counts}"
+        if self.unit:
+            line += f" {self.unit}"
         if total > 0:
             line += f" ({100 * done // total}%)"
         if 0 < done < total:

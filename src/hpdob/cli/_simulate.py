@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from ._options import output_path
+from ._progress import ProgressLine, show_progress
 
 __all__ = ["register"]
 
@@ -44,6 +45,13 @@ def register(subparsers) -> None:
         default=None,
         help="override the [controller] table's velocity: the sensor's, or the position-only "
         "observer's estimate",
+    )
+    parser.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="samples done and time left on stderr, then the writing stage (default: when "
+        "stderr is a terminal)",
     )
     parser.set_defaults(handler=_run)
 
@@ -148,20 +156,33 @@ def _run(args: argparse.Namespace) -> int:
     # The label names the output files: never a path (e.g. "../escaped") nor a hidden name.
     stem = check_file_stem(kwargs.get("label") or args.scenario.stem, "label")
     check_output(out)  # before the run, not after it
-    _announce_size(kwargs)
+    show = show_progress(args.progress)
+    _check_size(kwargs, showing=show)
+    line = ProgressLine("hpdob simulate:", unit="samples")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SimulationDivergedWarning)  # reported below instead
-        result = simulate(**kwargs)
+        try:  # the kernel runs in chunks when progress is shown: the same bits (simulate())
+            result = simulate(**kwargs, progress=line if show else None)
+        finally:  # an error or interrupt message starts on its own line
+            line.end()
     metrics = result.metrics(**windows)
     # Staged: renamed together when all are written, metrics.json last (docs/reliability.md).
     # The previous run's <label>.csv/.png (another label, or a figure this --no-plot run does
     # not draw) are removed at the commit: the directory holds one consistent set.
     replaces = [*_previous_files(out), f"{stem}.png"]
-    with staged_outputs(out, markers=["metrics.json"], replaces=replaces) as files:
-        result.to_csv(files.path(f"{stem}.csv"))
-        if not args.no_plot:
-            files.plot(f"{stem}.png", lambda: result.plot())
-        files.write_text("metrics.json", metrics_json({stem: metrics}))
+    writing = ProgressLine(f"hpdob simulate: writing {stem}.csv", unit="rows")  # a stage
+    try:
+        if show:
+            writing(0, len(result))
+        with staged_outputs(out, markers=["metrics.json"], replaces=replaces) as files:
+            result.to_csv(files.path(f"{stem}.csv"))
+            if not args.no_plot:
+                files.plot(f"{stem}.png", lambda: result.plot())
+            files.write_text("metrics.json", metrics_json({stem: metrics}))
+            if show:
+                writing(len(result), len(result))
+    finally:
+        writing.end()
     for name, value in metrics.items():
         print(f"{name:<32}{value:.6e}")
     print(f"wrote {stem}.csv, metrics.json{'' if args.no_plot else f', {stem}.png'} to {out}")
@@ -174,25 +195,37 @@ def _run(args: argparse.Namespace) -> int:
 #: Plant steps above which ``hpdob simulate`` says on stderr how big the run is before it.
 NOTICE_PLANT_STEPS = 10**7
 
+#: Samples per run of ``hpdob simulate`` (the library's simulate() has no such limit, only
+#: its 1e8 plant steps): every sample is a row of <label>.csv, about 175 bytes, so this bounds
+#: the command to about a minute and 350 MB (docs/reliability.md: 2e6 samples took 28 s).
+MAX_SAMPLES = 2_000_000
 
-def _announce_size(kwargs) -> None:
-    """One line on stderr before a long run: its plant steps against the per-run limit.
 
-    The run itself is one call of the kernel (its results are bit for bit those of
-    ``simulate``), so the size is stated up front instead of a progress bar.
-    """
+def _check_size(kwargs, *, showing: bool = False) -> None:
+    """Refuse a run beyond :data:`MAX_SAMPLES`, and state the size of a long one before it
+    when its progress is not shown (``showing``)."""
     from ..simulation._simulate import MAX_PLANT_STEPS, _sample_count
+    from ._errors import CLIError
 
     try:
         n = _sample_count(kwargs["Ts"], kwargs["duration"])
         substeps = kwargs["plant"].substeps(kwargs["Ts"], kwargs.get("substeps"))
     except (TypeError, ValueError):
         return  # simulate() reports it with its own message
+    if n > MAX_SAMPLES:
+        raise CLIError(
+            f"a run of {n} samples (duration {kwargs['duration']:.12g} s at Ts = "
+            f"{kwargs['Ts']:.12g} s) is beyond hpdob simulate's limit of {MAX_SAMPLES} samples "
+            "per run (each sample is a row of the CSV it writes: the limit keeps a run to "
+            "about a minute); shorten duration, raise Ts, or call hpdob.simulate() from Python "
+            f"(no CSV; its limit is {MAX_PLANT_STEPS:.0e} plant steps)"
+        )
     steps = n * substeps
-    if NOTICE_PLANT_STEPS < steps <= MAX_PLANT_STEPS:
+    if not showing and NOTICE_PLANT_STEPS < steps <= MAX_PLANT_STEPS:
         print(
             f"hpdob simulate: a long run of {n} samples x {substeps} substeps = {steps:.3g} "
-            f"plant steps (the limit per run is {MAX_PLANT_STEPS:.0e}); it shows no progress",
+            f"plant steps (the limits per run are {MAX_SAMPLES} samples and "
+            f"{MAX_PLANT_STEPS:.0e} plant steps); --progress shows how far it is",
             file=sys.stderr,
             flush=True,
         )

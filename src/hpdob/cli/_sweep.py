@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -52,12 +55,25 @@ def register(subparsers) -> None:
         default=None,
         help="a progress bar with the time left on stderr (default: when stderr is a terminal)",
     )
+    parser.add_argument(
+        "--resume",
+        action="store_true",
+        help="complete an incomplete sweep: read the rows a failed dask run kept in "
+        "<out>.partial.csv (or .parquet), run only the missing scenarios and write --out, "
+        "equal to a run from scratch",
+    )
     parser.set_defaults(handler=_run)
 
 
+def partial_path(out: Path) -> Path:
+    """Where the finished rows of an incomplete sweep go: ``r.csv`` -> ``r.partial.csv``
+    (never ``--out`` itself: a file there is always a complete result)."""
+    return out.with_name(f"{out.stem}.partial{out.suffix}")
+
+
 def _run(args: argparse.Namespace) -> int:
+    from ..simulation import SweepIncomplete, sweep
     from ..simulation._scenario import load_sweep
-    from ..simulation._sweep import SweepIncomplete, sweep
 
     if args.scheduler is not None and not args.scheduler.strip():  # '' used to run locally
         raise CLIError(
@@ -67,32 +83,96 @@ def _run(args: argparse.Namespace) -> int:
         raise CLIError(f"--out must end in {' or '.join(FORMATS)}, got {str(args.out)!r}")
     if args.out.is_dir():
         raise CLIError(f"--out must be a file, got the directory {str(args.out)!r}")
+    partial = partial_path(args.out)
     base, options = load_sweep(args.spec)
+    resume = _read_partial(partial) if args.resume else None
     start = time.perf_counter()
     try:
-        rows = sweep(
-            base,
-            **{**options, "progress": args.progress},
-            scheduler=args.scheduler or args.workers,
-        )
+        with _quiet_dask(args.scheduler is not None):
+            rows = sweep(
+                base,
+                **{**options, "progress": args.progress, "resume": resume},
+                scheduler=args.scheduler or args.workers,
+            )
     except SweepIncomplete as failure:  # keep the finished rows; say what is missing
-        if len(failure.rows):
-            _write(failure.rows, args.out)
+        _write(failure.rows, partial)
+        again = ["hpdob", "sweep", str(args.spec), "--out", str(args.out), "--resume"]
+        if args.scheduler is not None:
+            again += ["--scheduler", args.scheduler]
         print(
             f"hpdob sweep: error: {failure}; wrote the {len(failure.rows)} finished rows to "
-            f"{args.out}; missing: scenarios {_ranges(failure.missing)}; rerun the sweep to "
-            f"complete it (every row depends only on the spec and its seed)",
+            f"{partial} ({args.out} was not written); missing: scenarios "
+            f"{_ranges(failure.missing)}; to run only those and write {args.out}: "
+            f"{shlex.join(again)}",
             file=sys.stderr,
         )
         return 1
     elapsed = time.perf_counter() - start
     _write(rows, args.out)
+    partial.unlink(missing_ok=True)  # complete now (or stale: this run did every scenario)
     stable = int(rows["stable"].sum())
+    resumed = "" if resume is None else f", {len(resume)} of them from {partial}"
     print(
-        f"{len(rows)} scenarios ({stable} stable, {len(rows) - stable} diverged or invalid) "
-        f"in {elapsed:.1f} s; wrote {args.out}"
+        f"{len(rows)} scenarios ({stable} stable, {len(rows) - stable} diverged or invalid"
+        f"{resumed}) in {elapsed:.1f} s; wrote {args.out}"
     )
     return 0
+
+
+def _read_partial(partial: Path):
+    """The rows of ``partial`` as written by :func:`_write`, read back exactly (pandas 3 parses
+    floats to the nearest double; the resumed file is compared byte for byte with a run from
+    scratch in the tests), an empty cell as NaN only where a number belongs (``error`` is
+    text)."""
+    import pandas as pd
+
+    if not partial.is_file():
+        raise CLIError(
+            f"--resume: there is no partial result {partial} to resume (one is written when a "
+            "dask sweep fails part-way; without it, run the sweep without --resume)"
+        )
+    try:
+        if partial.suffix == ".parquet":
+            return pd.read_parquet(partial)
+        header = pd.read_csv(partial, nrows=0).columns
+        # pandas 3 reads floats exactly by default (and deprecates the option); pandas 2 not
+        exact = {"float_precision": "round_trip"} if pd.__version__.startswith("2.") else {}
+        return pd.read_csv(
+            partial,
+            **exact,
+            keep_default_na=False,
+            na_values={name: [""] for name in header if name != "error"},
+        )
+    except (OSError, ValueError) as err:  # pandas' parser errors are ValueErrors
+        message = " ".join(str(err).split())
+        raise CLIError(f"--resume: cannot read the partial result {partial}: {message}") from None
+
+
+@contextlib.contextmanager
+def _quiet_dask(active: bool):
+    """Route dask's loggers to nothing while a sweep runs on a cluster: a lost scheduler makes
+    ``distributed.client`` log a 20-line traceback beside hpdob's one-line message, which says
+    all there is to say. ``HPDOB_TRACEBACK=1`` keeps them (as it keeps hpdob's traceback)."""
+    if not active or os.environ.get("HPDOB_TRACEBACK"):
+        yield
+        return
+    import logging
+
+    with contextlib.suppress(ImportError):  # configures its loggers on import: do that first
+        import distributed  # noqa: F401
+    families = ("distributed", "tornado", "bokeh", "asyncio")
+    names = {n for n in logging.Logger.manager.loggerDict if n.split(".")[0] in families}
+    saved = []
+    for name in sorted(names | set(families)):  # distributed.client has its own handler
+        logger = logging.getLogger(name)
+        saved.append((logger, logger.handlers[:], logger.propagate))
+        logger.handlers = [logging.NullHandler()]
+        logger.propagate = False
+    try:
+        yield
+    finally:
+        for logger, handlers, propagate in saved:
+            logger.handlers, logger.propagate = handlers, propagate
 
 
 def _write(rows, out: Path) -> None:

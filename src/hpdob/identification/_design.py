@@ -162,44 +162,78 @@ def scaled_condition(X: np.ndarray) -> float:
     return singular[0] / singular[-1] if singular[-1] > 0 else math.inf
 
 
-def directions(run) -> float:
-    """+1 or -1 if the log moves one way in every regression row, else 0."""
-    direction = np.sign(run.regression.velocity[run.regression.index])
-    for sign in (1.0, -1.0):
-        if np.all(direction == sign):
-            return sign
-    return 0.0
+#: A log "moves one way" when less than this fraction of its travel over the regression rows
+#: is in the other direction: the filters' ringing around a hard step, or a small overshoot,
+#: do not make the sign column differ from the constant one.
+ONE_WAY_TRAVEL = 0.01
 
 
+def directions(run) -> tuple[float, float]:
+    """+1 or -1 if the log moves one way (all but :data:`ONE_WAY_TRAVEL` of its travel over
+    the regression rows in that direction), else 0; and the fraction of the travel that way."""
+    velocity = run.regression.velocity[run.regression.index]
+    forward, backward = float(velocity[velocity > 0].sum()), float(-velocity[velocity < 0].sum())
+    total = forward + backward
+    if total == 0.0:
+        return 0.0, 0.0
+    way = 1.0 if forward >= backward else -1.0
+    share = max(forward, backward) / total
+    return (way if share > 1.0 - ONE_WAY_TRAVEL else 0.0), share
+
+
+#: The ways to identify a log that moves one way, in identify's keywords (the command line
+#: translates them: hpdob.cli._identify.cli_words).
 LUMP_HINT = (
-    "friction='viscous' lumps the Coulomb friction into the offset (offset + coulomb for "
-    "motion one way), fixed={'coulomb': value} uses a known Coulomb friction"
+    "friction='viscous' (J, b, and the offset with the Coulomb friction lumped into it: "
+    "offset + coulomb for positive motion, offset - coulomb for negative), or "
+    "fixed={'coulomb': VALUE} (a known Coulomb friction)"
 )
 
 
+def _rests(runs) -> str:
+    """What the adaptive defaults dropped as rests, for a message ("" if nothing)."""
+    dropped = sum(run.regression.rest_rows for run in runs)
+    if not dropped:
+        return ""
+    speed = max(run.regression.rest_speed for run in runs)
+    return (
+        f", after dropping {dropped} rows at rest (filtered speed below {speed:.3g}, 2 % of "
+        "its largest)"
+    )
+
+
 def check_design(runs, layout: Layout, X: np.ndarray) -> None:
-    """Refuse a regression that cannot separate the parameters, saying how to proceed."""
+    """Refuse a regression that cannot separate the parameters, saying how to proceed on
+    this log: the hints name the keywords that make it identifiable."""
     coulomb_free = 2 in layout.free
     if coulomb_free and layout.n_offsets:
-        ways = [directions(run) for run in runs]
+        found = [directions(run) for run in runs]
+        ways = [way for way, _ in found]
         word = {1.0: "positive", -1.0: "negative"}
+        rests = _rests(runs)
         if len(runs) == 1 and ways[0]:
             raise ParameterValueError(
-                f"theta moves in one direction only (the velocity is {word[ways[0]]} in every "
-                "regression row): coulomb and offset cannot be told apart; "
-                f"{LUMP_HINT}, or log a run that moves both ways"
+                f"theta moves in one direction only ({word[ways[0]]}: "
+                f"{100 * found[0][1]:.4g} % of its travel in the regression rows{rests}): "
+                "coulomb and offset cannot be told apart. To identify this log: "
+                f"{LUMP_HINT}; or together with a log that moves the other way, "
+                "identify([log, other], offsets='shared')"
             )
         if all(ways) and (layout.n_offsets > 1 or len(set(ways)) == 1):
             listed = ", ".join(f"{run.name} {word[w]}" for run, w in zip(runs, ways, strict=True))
-            shared = (
-                "; offsets='shared' separates them with logs that move in opposite directions"
-                if len(set(ways)) == 2
-                else ""
-            )
+            if len(set(ways)) == 2:
+                way_out = (
+                    "offsets='shared' (one offset for all) separates them with these logs, "
+                    f"which move in opposite directions; or {LUMP_HINT}"
+                )
+            else:
+                way_out = (
+                    f"{LUMP_HINT}; or add a log that moves the other way, with offsets='shared'"
+                )
             raise ParameterValueError(
-                f"every log moves in one direction only ({listed}): coulomb and the "
-                f"offset{'s' if layout.n_offsets > 1 else ''} cannot be told apart{shared}; "
-                f"{LUMP_HINT}"
+                f"every log moves in one direction only ({listed}{rests}): coulomb and the "
+                f"offset{'s' if layout.n_offsets > 1 else ''} cannot be told apart. To "
+                f"identify them: {way_out}"
             )
     base = list(layout.free)
     if len(base) >= 2:
@@ -209,7 +243,7 @@ def check_design(runs, layout: Layout, X: np.ndarray) -> None:
         if collinear:
             hint = (
                 "the speed is nearly the same in every row: log motion at several speeds, or "
-                "fix one of them (friction='viscous' or fixed={...})"
+                "fix one of them (friction='viscous' or fixed={'b': VALUE})"
                 if {"b", "coulomb"} <= set(collinear)
                 else "log a run with more varied motion"
             )

@@ -287,6 +287,7 @@ def read_log(
     axis: str | None = None,
     time_tolerance: float = DEFAULT_TIME_TOLERANCE,
     columns: Mapping | None = None,
+    progress=None,
 ) -> Log:
     """Read a logged run from a CSV, Parquet or MATLAB ``.mat`` file by column names.
 
@@ -319,6 +320,11 @@ def read_log(
     columns : mapping, optional
         Further columns to read, ``{name: column}`` (e.g. ``{"reference_velocity":
         "rdot"}``); the log's ``columns`` holds them.
+    progress : callable, optional
+        Called as ``progress(done, total)`` with the bytes of the file read so far and its
+        size: every MiB of a CSV file (counted in characters, the bytes of an ASCII file),
+        at the start and the end of a Parquet or MAT file. It sees counts only; a display
+        with the time left is the caller's (``hpdob estimate --progress``).
 
     Returns
     -------
@@ -344,9 +350,13 @@ def read_log(
     >>> len(log), log.Ts, round(log.input_gain, 2)
     (24841, 0.001, 35.15)
     """
+    if progress is not None and not callable(progress):
+        raise ParameterTypeError(
+            f"progress must be a callable progress(done, total), got {progress!r}"
+        )
     logs = _read(path, time=time, position=position, input=input, input_gain=input_gain,
                  reference=reference, Ts=Ts, axis=axis, time_tolerance=time_tolerance,
-                 run=None, columns=columns)  # fmt: skip
+                 run=None, columns=columns, progress=progress)  # fmt: skip
     return logs[0]
 
 
@@ -408,7 +418,7 @@ def read_logs(
 
 
 def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_tolerance, run,
-          columns):  # fmt: skip
+          columns, progress=None):  # fmt: skip
     """The logs of a file: one, or one per value of the ``run`` column."""
     path, wanted, input_gain, axis = _request(path, time=time, position=position, input=input,
                                               input_gain=input_gain, reference=reference, Ts=Ts,
@@ -418,7 +428,7 @@ def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_
             f"log {str(path)!r} has {path.stat().st_size} bytes; at most {MAX_LOG_BYTES} bytes "
             f"(256 MiB, some 5 million CSV rows) are read: decimate or split the log"
         )
-    data = read_columns(path, wanted)
+    data = read_columns(path, wanted, progress)
     if "input_gain" in wanted:
         input_gain = scalar(data.pop("input_gain"), "input_gain", wanted.pop("input_gain"), path)
     gain = as_real(input_gain, "input_gain", "a finite non-zero gain")

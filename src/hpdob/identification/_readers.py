@@ -26,7 +26,7 @@ FORMATS = {
 }
 
 
-def read_columns(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
+def read_columns(path: Path, wanted: dict[str, str], progress=None) -> dict[str, np.ndarray]:
     """Read the columns ``{role: name}`` of ``path``; the result maps each role to its values.
 
     Raises
@@ -43,8 +43,15 @@ def read_columns(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
         )
     if not path.is_file():
         raise ParameterValueError(f"log file {path} does not exist or is not a file")
-    reader = {"csv": _read_csv, "parquet": _read_parquet, "mat": _read_mat}[kind]
-    return reader(path, wanted)
+    if kind == "csv":
+        return _read_csv(path, wanted, progress)
+    total = path.stat().st_size
+    if progress is not None:
+        progress(0, total)
+    data = {"parquet": _read_parquet, "mat": _read_mat}[kind](path, wanted)
+    if progress is not None:
+        progress(total, total)
+    return data
 
 
 def _missing(path: Path, wanted: dict[str, str], available) -> None:
@@ -61,9 +68,9 @@ def _one_line(err: Exception) -> str:
     return " ".join(str(err).split())
 
 
-def _read_csv(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
+def _read_csv(path: Path, wanted: dict[str, str], progress=None) -> dict[str, np.ndarray]:
     try:
-        return _parse_csv(path, wanted)
+        return _parse_csv(path, wanted, progress)
     except UnicodeDecodeError as err:
         raise ParameterValueError(
             f"{path.name} is not UTF-8 text (byte {err.start} is "
@@ -73,12 +80,31 @@ def _read_csv(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
         raise ParameterValueError(f"cannot read {path.name} as CSV: {_one_line(err)}") from None
 
 
-def _parse_csv(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
+#: Characters of a CSV log between two calls of ``progress``.
+PROGRESS_STEP = 1 << 20
+
+
+def _counted(handle, progress, total: int):
+    """The lines of ``handle``, calling ``progress(done, total)`` every
+    :data:`PROGRESS_STEP` characters (and at the start and the end)."""
+    progress(0, total)
+    done, report = 0, PROGRESS_STEP
+    for text in handle:
+        done += len(text)
+        if done >= report:
+            progress(min(done, total), total)
+            report = done + PROGRESS_STEP
+        yield text
+    progress(total, total)
+
+
+def _parse_csv(path: Path, wanted: dict[str, str], progress=None) -> dict[str, np.ndarray]:
     with path.open(newline="", encoding="utf-8-sig") as handle:
         first = handle.readline()
         delimiter = max(",;\t", key=first.count) if first.strip() else ","
         handle.seek(0)
-        rows = csv.reader(handle, delimiter=delimiter)
+        lines = handle if progress is None else _counted(handle, progress, path.stat().st_size)
+        rows = csv.reader(lines, delimiter=delimiter)
         header = [cell.strip() for cell in next(rows, [])]
         _missing(path, wanted, header)
         index = {role: header.index(name) for role, name in wanted.items()}

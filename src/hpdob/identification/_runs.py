@@ -98,11 +98,14 @@ def as_runs(t, theta, u, loop, time_tolerance):
 
 
 def resolve(run: Run, adaptive, bandwidth, cutoff, order, decimation, border, min_speed, zoh):
+    """The settings of ``run``: the adaptive defaults (filters from the log, rests dropped
+    when ``min_speed`` is None) or the benchmark's rules, overridden by what is given."""
     if adaptive and bandwidth is None and cutoff is None and decimation is None:
         bandwidth = adaptive_bandwidth(run.theta, run.Ts)
     return resolve_settings(
         run.Ts, bandwidth=bandwidth, cutoff=cutoff, order=order, decimation=decimation,
-        border=border, min_speed=min_speed, zoh=adaptive if zoh is None else zoh,
+        border=border, min_speed=0.0 if min_speed is None else min_speed,
+        zoh=adaptive if zoh is None else zoh, rests=adaptive and min_speed is None,
     )  # fmt: skip
 
 
@@ -113,7 +116,7 @@ def scaled(settings: Settings, factor: float, border_given: bool) -> Settings | 
             settings.Ts, bandwidth=settings.bandwidth * factor, cutoff=settings.cutoff * factor,
             order=settings.order, decimation=max(1, round(settings.decimation / factor)),
             border=settings.border if border_given else None, min_speed=settings.min_speed,
-            zoh=settings.zoh,
+            zoh=settings.zoh, rests=settings.rests,
         )  # fmt: skip
     except ParameterValueError:
         return None
@@ -146,6 +149,18 @@ def check_run(run: Run, where: str) -> None:
             "identify J, b, coulomb and offset"
         )
     rows = run.regression.X.shape[0]
+    rests = run.regression.rest_rows
+    if rows < MIN_ROWS and rests:
+        raise ParameterValueError(
+            f"the log{where} rests most of the time: {rests} of {rows + rests} regression rows "
+            f"are at rest (filtered speed below {run.regression.rest_speed:.3g}, 2 % of its "
+            f"largest, for more than {settings.decimation} samples) and are dropped, leaving "
+            f"{rows}, fewer than {MIN_ROWS}. Give more rows per move with "
+            f"bandwidth={2 * settings.bandwidth:.3g} (twice the {settings.bandwidth:.3g} Hz "
+            f"read from the log: half the decimation, now {settings.decimation}), or keep "
+            "the rest rows with min_speed=0 (the friction at rest is then read as offset), or "
+            "log longer moves"
+        )
     if rows < MIN_ROWS:
         raise ParameterValueError(
             f"min_speed = {settings.min_speed:g} leaves {rows} regression rows{where}, fewer "

@@ -59,6 +59,7 @@ __all__ = [
     "check_designed_on",
 ]
 
+
 class _Designed:
     """What every family's frozen design shares: its ``model`` and ``system`` give ``Ts`` and
     ``to_statespace``."""

@@ -31,7 +31,7 @@ from ._result import SimulationResult
 from ._scenario import Scenario, load_scenario
 from ._scenario_toml import scenario_toml
 from ._simulate import SimulationDivergedWarning, simulate
-from ._sweep import sweep
+from ._sweep import SweepIncomplete, sweep
 
 __all__ = [
     "Actuator",
@@ -41,6 +41,7 @@ __all__ = [
     "ServoLoop",
     "SimulationDivergedWarning",
     "SimulationResult",
+    "SweepIncomplete",
     "get_plant_type",
     "load_scenario",
     "plant_types",

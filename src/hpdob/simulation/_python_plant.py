@@ -26,9 +26,13 @@ _PYTHON_PLANT = LinearPlantRecord(
 )  # fmt: skip
 
 
-def run_python_plant(session, n_samples, substeps, Ts, records, out, work, limit) -> int:
+def run_python_plant(session, n_samples, substeps, Ts, records, out, work, limit, *,
+                     progress=None, every=None) -> int:  # fmt: skip
     """Simulate ``n_samples`` samples on ``session``; fill ``out``; return the samples
-    completed (as :func:`~hpdob.simulation._kernel.run_samples`)."""
+    completed (as :func:`~hpdob.simulation._kernel.run_samples`). ``progress(done, total)``
+    is called at the start, every ``every`` samples and at the end."""
+    if progress is not None:
+        progress(0, n_samples)
     from ._kernel import ground_truth, run_samples
 
     ctl, sig = records["ctl"], records["sig"]
@@ -47,5 +51,9 @@ def run_python_plant(session, n_samples, substeps, Ts, records, out, work, limit
         base = k * substeps
         session.advance(a, tau_mid[base : base + substeps])
         if session.diverged(limit):
+            if progress is not None:
+                progress(k + 1, n_samples)
             return k + 1
+        if progress is not None and ((k + 1) % every == 0 or k + 1 == n_samples):
+            progress(k + 1, n_samples)
     return n_samples

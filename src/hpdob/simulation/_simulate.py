@@ -166,6 +166,7 @@ def simulate(
     x0=(0.0, 0.0),
     label: str = "",
     observer_state=None,
+    progress=None,
 ) -> SimulationResult:
     r"""Simulate the sampled-data loop: continuous plant, sampled PD, observer inner loop.
 
@@ -211,6 +212,13 @@ def simulate(
         The observer's state at the first sample (e.g. ``initial_state(design, x0, tau0)``,
         or a runtime observer's ``.state``). Default: the loop's (converged on zero
         disturbance at ``x0``, :meth:`ServoLoop.initial_observer_state`).
+    progress : callable, optional
+        Called as ``progress(done, total)`` with the samples completed, at the start and
+        after every chunk of about 2**20 plant steps. The run is then a sequence of calls of
+        the same compiled sample loop over consecutive samples, its whole state carried
+        between them in the same arrays, so the result is bit for bit that of one call. It
+        sees counts only; a display with the time left is the caller's (``hpdob simulate
+        --progress``).
 
     Returns
     -------
@@ -244,8 +252,12 @@ def simulate(
     if not isinstance(label, str):
         raise ParameterTypeError(f"label must be a str, got {type(label).__name__}")
     state = None if observer_state is None else check_observer_state(loop, observer_state)
+    if progress is not None and not callable(progress):
+        raise ParameterTypeError(
+            f"progress must be a callable progress(done, total), got {progress!r}"
+        )
     signals = sample_signals(reference, disturbance, Ts=Ts, n=n, substeps=S)
-    result = run_loop(loop, signals, x0, label=label, observer_state=state)
+    result = run_loop(loop, signals, x0, label=label, observer_state=state, progress=progress)
     if result.diverged:
         warnings.warn(result.message, SimulationDivergedWarning, stacklevel=3)
     return result
@@ -354,14 +366,23 @@ def _sensor_record(sensor, n: int) -> tuple[SensorRecord, np.ndarray]:
     return SensorRecord(mode, sensor.resolution), noise
 
 
+#: Plant steps between two calls of a run's ``progress`` (the chunk of samples run by one
+#: call of the compiled loop; one call for the whole run without ``progress``).
+PROGRESS_PLANT_STEPS = 1 << 20
+
+
 def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
-             observer_state=None) -> SimulationResult:  # fmt: skip
+             observer_state=None, progress=None) -> SimulationResult:  # fmt: skip
     """Run ``loop`` on pre-sampled signals from the motor state ``x0`` (no warning).
 
     The shared engine of :func:`simulate` and :func:`hpdob.sweep`. The plant's sampler decides
     how it is advanced: :class:`~hpdob.models.ExactSubsteps` by the compiled kernel, any other
     by the Python loop around the compiled sample step (MuJoCo). ``observer_state`` overrides
-    the loop's initial observer state.
+    the loop's initial observer state. ``progress(done, total)`` is called at the start and
+    after every :data:`PROGRESS_PLANT_STEPS` plant steps: the kernel then runs the samples in
+    consecutive chunks, its whole state (observer, controller, plant, encoder) carried in
+    ``work`` and the actuator's delay line read from ``out``, as every sample does within one
+    call, so the result is bit for bit the same.
     """
     from . import _kernel  # numba is imported on the first run, not by ``import hpdob``
 
@@ -406,15 +427,27 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
             sampler.contact_index, *((wall.stiffness, wall.damping, wall.position)
                                      if wall is not None else (1.0, 0.0, 0.0)),
         )  # fmt: skip
-        done = _kernel.run_samples(
-            0, n, S, Ts, record, **records, out=out, work=work, limit=DIVERGENCE_LIMIT
-        )
+        chunk = n if progress is None else max(1, PROGRESS_PLANT_STEPS // S)
+        done = 0
+        if progress is not None:
+            progress(0, n)
+        while done < n:  # one call without progress: the chunk is the whole run
+            stop = min(n, done + chunk)
+            done = _kernel.run_samples(
+                done, stop, S, Ts, record, **records, out=out, work=work, limit=DIVERGENCE_LIMIT
+            )
+            if progress is not None:
+                progress(done, n)
+            if done < stop:  # diverged
+                break
         unstable = ""
     else:
         from ._python_plant import run_python_plant
 
         session = sampler.start(x)
-        done = run_python_plant(session, n, S, Ts, records, out, work, DIVERGENCE_LIMIT)
+        every = None if progress is None else max(1, PROGRESS_PLANT_STEPS // S)
+        done = run_python_plant(session, n, S, Ts, records, out, work, DIVERGENCE_LIMIT,
+                                progress=progress, every=every)  # fmt: skip
         unstable = f" or {getattr(session, 'engine', 'the plant')} flagged it unstable"
     diverged = done < n
     message = "ok"

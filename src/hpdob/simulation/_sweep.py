@@ -29,7 +29,7 @@ from ..observers import check_spec, design_from_spec, get_family, spec_of
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import _sample_count, check_run_arguments, run_loop, sample_signals
-from ._sweep_dask import SweepIncomplete, _Incomplete, _run_dask
+from ._sweep_dask import SweepIncomplete, _Incomplete, _run_dask, resumed_rows
 from ._sweep_spec import check_paths_apply, expand_scenarios, replaced_plant
 
 __all__ = ["SweepIncomplete", "sweep"]
@@ -242,13 +242,14 @@ def run_chunk(base: dict, chunk: list, stop: threading.Event | None = None) -> l
     for index, params in chunk:
         if stop is not None and stop.is_set():
             raise SweepCancelled
+        if stop is None:  # on a dask worker: a test hook only (hpdob._interrupts)
+            checkpoint("sweep-scenario")
         rows.append({"scenario": index, **run_scenario(base, params, cache)})
     return rows
 
 
-def _chunks(scenarios: list, workers: int) -> list:
+def _chunks(indexed: list, workers: int) -> list:
     """Split ``[(index, params)]`` into chunks: ~8 per worker, 1-64 scenarios each."""
-    indexed = list(enumerate(scenarios))
     size = max(1, min(64, math.ceil(len(indexed) / (8 * max(workers, 1)))))
     return [indexed[i : i + size] for i in range(0, len(indexed), size)]
 
@@ -358,6 +359,7 @@ def sweep(
     metric_windows=None,
     scheduler=None,
     progress=None,
+    resume=None,
 ):
     """Run many closed-loop scenarios and return one row of parameters and metrics each.
 
@@ -407,6 +409,13 @@ def sweep(
     progress : None, bool or callable, optional
         None: a progress bar on a terminal (stderr), silent otherwise. True/False force it on
         or off; a callable is called as ``progress(done, total)``.
+    resume : pandas.DataFrame, optional
+        Rows of an earlier run of the same sweep (same base, grid, vary, n and seed) that did
+        not finish: the ``rows`` of a :class:`SweepIncomplete`, or the partial file ``hpdob
+        sweep`` writes, read back. Only the scenarios missing from it run (``progress`` counts
+        those), and the result holds every row, equal to a run from scratch: a row depends
+        only on its scenario. Its columns and the parameters of every row are checked
+        against this sweep first.
 
     Returns
     -------
@@ -418,10 +427,15 @@ def sweep(
 
     Raises
     ------
+    SweepIncomplete
+        When a dask cluster fails part-way (the scheduler lost, a task's workers killed
+        repeatedly): it carries the finished rows (those of ``resume`` included) and the
+        numbers of the missing scenarios; pass its ``rows`` as ``resume`` to complete them.
     ValueError, TypeError
         For a bad ``base``, an unknown path (the valid ones are listed), a bad distribution,
-        or a bad scheduler. Bad *values* in a scenario (e.g. a negative inertia drawn from a
-        normal distribution) do not raise: that row gets ``stable=False`` and the message.
+        a bad scheduler, or ``resume`` rows of another sweep. Bad *values* in a scenario (e.g.
+        a negative inertia drawn from a normal distribution) do not raise: that row gets
+        ``stable=False`` and the message.
 
     Examples
     --------
@@ -451,7 +465,6 @@ def sweep(
     sample_signals(
         resolved["reference"], resolved["disturbance"], Ts=resolved["loop"].Ts, n=2, substeps=1
     )
-    update, close = _progress_callback(progress, len(scenarios))
     columns = [
         "scenario",
         *(list(grid or {}) + sorted(vary or {})),
@@ -459,21 +472,29 @@ def sweep(
         "stable",
         "error",
     ]
+    finished = [] if resume is None else resumed_rows(resume, scenarios, columns)
+    done = {row["scenario"] for row in finished}
+    todo = [(i, params) for i, params in enumerate(scenarios) if i not in done]
+    update, close = _progress_callback(progress, len(todo))
     try:
-        if mode == "local":
-            rows = _run_local(resolved, _chunks(scenarios, workers), workers, update)
+        if not todo:
+            rows = []
+        elif mode == "local":
+            rows = _run_local(resolved, _chunks(todo, workers), workers, update)
         else:
             rows = _run_dask(
-                resolved, scenarios, scheduler, update, run_chunk=run_chunk, chunks_of=_chunks
+                resolved, todo, scheduler, update, run_chunk=run_chunk, chunks_of=_chunks
             )
     except _Incomplete as failure:  # keep what finished: the caller decides what to write
-        failure.rows.sort(key=lambda row: row["scenario"])
-        done = {row["scenario"] for row in failure.rows}
+        rows = finished + failure.rows
+        rows.sort(key=lambda row: row["scenario"])
+        done = {row["scenario"] for row in rows}
         missing = [i for i in range(len(scenarios)) if i not in done]
         raise SweepIncomplete(
-            pd.DataFrame(failure.rows, columns=columns), missing, failure.__cause__
+            pd.DataFrame(rows, columns=columns), missing, failure.__cause__
         ) from None
     finally:
         close()
+    rows = finished + rows
     rows.sort(key=lambda row: row["scenario"])
     return pd.DataFrame(rows, columns=columns)

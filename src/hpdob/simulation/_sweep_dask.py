@@ -1,12 +1,15 @@
-"""The dask path of :func:`hpdob.sweep`, and what a cluster that fails part-way leaves."""
+"""The dask path of :func:`hpdob.sweep`, what a cluster that fails part-way leaves, and how a
+later run resumes from it."""
 
 from __future__ import annotations
 
 import contextlib
+import math
 
 from .._interrupts import checkpoint
+from .._validation import ParameterTypeError, ParameterValueError
 
-__all__ = ["SweepIncomplete"]
+__all__ = ["SweepIncomplete", "resumed_rows"]
 
 
 class SweepIncomplete(RuntimeError):
@@ -14,7 +17,8 @@ class SweepIncomplete(RuntimeError):
 
     ``rows`` is the DataFrame of the scenarios that finished (as :func:`sweep` returns, fewer
     rows), ``missing`` the numbers of the others, ``cause`` the cluster's error. The CLI
-    writes ``rows`` and names what is missing instead of losing the finished work.
+    writes ``rows`` to a partial file and names what is missing instead of losing the
+    finished work; ``sweep(..., resume=rows)`` runs only the missing scenarios.
     """
 
     def __init__(self, rows, missing, cause: BaseException):
@@ -74,3 +78,52 @@ def _run_dask(base, scenarios, scheduler, update, *, run_chunk, chunks_of) -> li
     finally:
         if own:
             client.close()
+
+
+def resumed_rows(resume, scenarios: list, columns: list) -> list[dict]:
+    """The rows of ``resume`` (an earlier, incomplete run's DataFrame) as :func:`sweep`'s row
+    dicts, after checking that they belong to this sweep: the same columns, scenario numbers
+    within ``range(len(scenarios))`` and each once, and every row's parameters equal to its
+    scenario's (a partial file of another spec or seed is refused, not merged)."""
+    if type(resume).__name__ != "DataFrame":
+        raise ParameterTypeError(
+            f"resume must be the pandas DataFrame of an incomplete run of this sweep, got "
+            f"{type(resume).__name__}"
+        )
+    if list(resume.columns) != columns:
+        raise ParameterValueError(
+            f"resume must have this sweep's columns {columns}, got {list(resume.columns)}: "
+            "it is not a result of this sweep"
+        )
+    rows = resume.to_dict("records")
+    seen = set()
+    for row in rows:
+        index = row["scenario"]
+        if isinstance(index, float) and index.is_integer():
+            index = int(index)
+        if not isinstance(index, int) or isinstance(index, bool) or not 0 <= index < len(scenarios):
+            raise ParameterValueError(
+                f"resume's scenario must be a whole number from 0 to {len(scenarios) - 1} (this "
+                f"sweep has {len(scenarios)} scenarios), got {row['scenario']!r}"
+            )
+        if index in seen:
+            raise ParameterValueError(f"resume holds scenario {index} twice")
+        seen.add(index)
+        row["scenario"] = index
+        for path, value in scenarios[index].items():
+            given = row[path]
+            same = given == value or (
+                isinstance(given, float) and isinstance(value, float)
+                and math.isnan(given) and math.isnan(value)
+            )  # fmt: skip
+            if not same:
+                raise ParameterValueError(
+                    f"resume's scenario {index} has {path} = {given!r}, but this sweep's has "
+                    f"{value!r}: the rows come from another spec or seed"
+                )
+            row[path] = value  # the sweep's own value and type (a file read back may differ)
+        if not isinstance(row["error"], str):  # an empty cell read back from a CSV
+            row["error"] = (
+                "" if row["error"] is None or row["error"] != row["error"] else str(row["error"])
+            )
+    return rows

@@ -1,0 +1,91 @@
+"""The ``hpdob`` console script and ``python -m hpdob``: signals are handled from the start.
+
+:func:`main` installs, as its first statement and before anything else is imported, a
+handler for SIGINT, SIGTERM and SIGHUP that prints ``hpdob: interrupted`` and exits with
+128 + the signal's number (130 for Ctrl-C) by raising ``SystemExit``, which Python never
+reports with a traceback. It covers the import of the command modules, numpy and the rest;
+:func:`hpdob.cli.main` then installs the command's own handlers
+(``hpdob._interrupts.handling_signals``: outputs cleaned up, ``hpdob <command>:
+interrupted``). Once the command has returned, a signal ends the process at once with the
+same code, stdout flushed (a ``SystemExit`` raised while Python exits would be printed as
+"Exception ignored in atexit callback").
+
+Importing the module changes nothing (the doctests import every module); only the entry
+points call :func:`main`. What runs before it is outside hpdob's control: the interpreter's
+own start-up and ``site`` (about 3 ms here), the wrapper script pip generates (it imports
+``re`` first, about 30 ms), and ``hpdob/__init__`` (a few assignments: the package imports
+its subpackages lazily). A Ctrl-C there is Python's own: a ``KeyboardInterrupt`` traceback
+(docs/reliability.md, section 3).
+"""
+
+import signal
+import sys
+
+__all__ = ["main"]
+
+_SIGNALS = [getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)]
+
+
+def _line(signum: int) -> str:
+    name = signal.Signals(signum).name
+    return "hpdob: interrupted\n" if name == "SIGINT" else f"hpdob: interrupted ({name})\n"
+
+
+#: Signals the early handler received (its SystemExit may be lost in a ``__del__``).
+_received: list[int] = []
+
+
+def _early(signum, frame):
+    """Until the command's handlers are in place: one line, exit 128 + signum."""
+    if not _received:
+        sys.stderr.write(_line(signum))
+    _received.append(signum)
+    raise SystemExit(128 + signum)
+
+
+def _unraisable(info, previous=sys.unraisablehook):
+    """Python prints an exception raised in a ``__del__`` or a weakref callback ("Exception
+    ignored in ...") and goes on; for a signal's exception that is a traceback after the one
+    line. The signal was recorded (here or in ``hpdob._interrupts``) and still ends the run."""
+    if isinstance(info.exc_value, (KeyboardInterrupt, SystemExit)):
+        return
+    previous(info)
+
+
+def _late(signum, frame):
+    """After the command: end at once (its outputs are complete, or were cleaned up)."""
+    import contextlib
+    import os
+
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):  # e.g. a closed pipe: nothing more to say
+            stream.flush()
+    with contextlib.suppress(OSError):
+        os.write(2, _line(signum).encode())
+    os._exit(128 + signum)
+
+
+def _install(handler) -> None:
+    for signum in _SIGNALS:
+        if signal.getsignal(signum) is not signal.SIG_IGN:  # e.g. SIGHUP under nohup
+            signal.signal(signum, handler)
+
+
+def main() -> int:
+    """Run the ``hpdob`` command (:func:`hpdob.cli.main`) and return its exit code."""
+    _install(_early)  # first, before the imports below (numpy and the rest follow)
+    sys.unraisablehook = _unraisable
+    try:
+        from ._interrupts import checkpoint
+
+        checkpoint("entry")  # a test hook (hpdob._interrupts); a no-op otherwise
+        from .cli import main as run
+    except Exception:
+        if not _received:
+            raise
+        # else the signal's SystemExit, turned into another error by the C code it hit
+    if _received:  # (or lost in a __del__ during the imports)
+        raise SystemExit(128 + _received[0])
+    code = run()
+    _install(_late)
+    return code

@@ -1,0 +1,33 @@
+"""The regression's rows (identification/_regression.py): which rows the adaptive defaults drop
+as the log's rests."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from hpdob.identification._regression import REST_SPEED_FRACTION, rest_rows_mask
+
+
+def test_a_rest_and_its_margin_are_dropped_and_a_brief_reversal_is_kept():
+    """Speed 1 for 300 samples, at rest for 200, -1 for 300, through 0 for 5 samples, then 1;
+    rows every 10 samples, rests longer than 10 samples, margin 20: the rows from 280 to 510
+    are dropped (the rest and 20 samples either side), the reversal at 800 is not a rest."""
+    velocity = np.concatenate([np.ones(300), np.zeros(200), -np.ones(300), np.zeros(5),
+                               np.ones(195)])  # fmt: skip
+    index = np.arange(0, 1000, 10)
+    resting, speed = rest_rows_mask(velocity, index, 10, 20)
+    assert speed == REST_SPEED_FRACTION * 1.0
+    np.testing.assert_array_equal(index[resting], np.arange(280, 520, 10))
+
+
+def test_slow_but_not_resting_motion_is_kept():
+    """A sine has no rests: it passes through zero speed in a few samples."""
+    t = np.arange(20000) * 1e-3
+    velocity = np.cos(2 * np.pi * 2.0 * t)
+    index = np.arange(0, t.size, 20)
+    resting, _ = rest_rows_mask(velocity, index, 20, 40)
+    assert not resting.any()
+    # the same sine with holds of 0.5 s at every other zero crossing
+    held = np.where((t % 1.0) < 0.5, 0.0, velocity)
+    resting, _ = rest_rows_mask(held, index, 20, 40)
+    assert 0.45 < resting.mean() < 0.6
