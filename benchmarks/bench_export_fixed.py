@@ -65,7 +65,7 @@ def designs():
 
 def closed_loop():
     kwargs = paper.scenario()
-    kwargs.update(observer=paper.observer("HPDOb-100"), sensor=Encoder(CPR),
+    kwargs.update(observer=paper.observer("HPDOb-100").design, sensor=Encoder(CPR),
                   actuator=Actuator(torque_limit=0.444),
                   reference=Sine(1.0, 0.3) + Sine(0.5, 1.7),
                   disturbance=Step(1.5, 0.05) + Sine(0.02, 2.0, start=2.5),

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from hpdob import DisturbanceObserver, MujocoServo, ServoModel, paper, simulate
+from hpdob import MujocoServo, ServoModel, design_observer, paper, simulate
 from hpdob.signals import SmoothStep, Step
 
 METRICS = ("rms_estimation_error", "rms_position_error_regulation", "rms_position_error_tracking")
@@ -37,7 +37,7 @@ def cross_validation() -> None:
     for name in ("DOb-100", "HPDOb-100"):
         kwargs = paper.scenario()
         kwargs["plant"] = paper.PLANT.replace(coulomb=0.0)
-        kwargs["observer"] = paper.observer(name)
+        kwargs["observer"] = paper.observer(name).design
         for integrator in ("RK4", "Euler", "implicitfast"):
             for substeps in (4, 8, 16, 32):
                 reference, kernel_time = timed(**kwargs, substeps=substeps)
@@ -61,9 +61,7 @@ def pendulum() -> None:
     print(f"{'bandwidth':>9s} {'order':>5s} {'rms':>9s} {'max':>9s} {'rms pos err (track)':>20s}")
     for bandwidth in (50.0, 100.0, 200.0):
         for order in (0, 1):
-            obs = DisturbanceObserver(
-                nominal.discretize(paper.TS), order=order, bandwidth=bandwidth
-            )
+            obs = design_observer(nominal.discretize(paper.TS), order=order, bandwidth=bandwidth)
             result = simulate(
                 plant=plant,
                 nominal=nominal,
@@ -85,7 +83,8 @@ def friction() -> None:
     print("\n3a. canonical runs, tanh (hpdob) vs frictionloss (MuJoCo), 0.01 N m")
     print(f"{'run':10s} {'model':12s} " + " ".join(f"{m[4:]:>26s}" for m in METRICS))
     for name in ("PD", "DOb-50", "DOb-100", "DOb-200", "HPDOb-100"):
-        kwargs = {**paper.scenario(), "observer": paper.observer(name)}
+        obs = paper.observer(name)  # None for the PD alone
+        kwargs = {**paper.scenario(), "observer": None if obs is None else obs.design}
         tanh = simulate(**kwargs)
         plant = MujocoServo(paper.PLANT.J, paper.PLANT.b, coulomb=paper.PLANT.coulomb)
         mujoco = simulate(**{**kwargs, "plant": plant})
@@ -100,7 +99,7 @@ def friction() -> None:
         kwargs.update(
             reference=SmoothStep(0.2, 1.2, 1.0),
             disturbance=Step(1.5005, 0.05),
-            observer=paper.observer(name),
+            observer=paper.observer(name).design,
         )
         plant = MujocoServo(paper.PLANT.J, paper.PLANT.b, coulomb=paper.PLANT.coulomb)
         for label, result in (

@@ -92,8 +92,8 @@ def main() -> None:
                          b_motor=paper.PLANT.b, coulomb=paper.PLANT.coulomb,
                          coulomb_velocity=paper.PLANT.coulomb_velocity)  # fmt: skip
     two_mass = {**paper.scenario(), "plant": drive, "label": "two-mass"}
-    simulate(**two_mass, observer=paper.observer("HPDOb-100"))
-    t_d = best_of(lambda: simulate(**two_mass, observer=paper.observer("HPDOb-100")), 30)
+    simulate(**two_mass, observer=paper.observer("HPDOb-100").design)
+    t_d = best_of(lambda: simulate(**two_mass, observer=paper.observer("HPDOb-100").design), 30)
     print(f"{'method':<58}{'time [ms]':>10}{'vs (a)':>9}")
     print(f"{'(a) hpdob.simulate (compiled kernel)':<58}{t_a * 1e3:>10.2f}{1:>9.1f}")
     print(

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import argparse
 
-from hpdob import PD, DisturbanceObserver, Encoder, paper
+from hpdob import PD, DisturbanceObserver, Encoder, design_observer, paper
 
 TARGET_ESTIMATION = 2.0e-3  # N m
 GOAL_ESTIMATION = 1.1e-3  # N m
@@ -36,7 +36,7 @@ ON_DIFFERENCE = PD(50.0, 5.0)
 
 
 def position_only(order: int, bandwidth: float, velocity_bandwidth=None):
-    return DisturbanceObserver(
+    return design_observer(
         NOMINAL,
         order=order,
         bandwidth=bandwidth,
@@ -87,7 +87,7 @@ def kalman() -> None:
             P = solve_discrete_are(Aa.T, c, W, np.array([[r]]))
             L = Aa @ P @ c / (c.T @ P @ c + r)
             poles = np.linalg.eigvals(Aa - L @ c.T)
-            obs = DisturbanceObserver(NOMINAL, order=m, poles=poles, measurement="position")
+            obs = design_observer(NOMINAL, order=m, poles=poles, measurement="position")
             est, reg, trk = metrics("virtual-experiment-position", observer=obs)
             rates = np.sort(-np.log(np.abs(poles)) / paper.TS)
             print(

@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hpdob import DisturbanceObserver, ServoModel, design_observer, export_c, paper
+from hpdob import ServoModel, design_observer, export_c, paper
 from hpdob.testing import CObserver, export_error_bound
 
 J_N, TS = 2.8e-4, 1e-3
@@ -105,7 +105,7 @@ def bound_vs_measured(workdir: Path) -> None:
         name = {0: "DOb-100", 1: "HPDOb-100"}.get(order)
         result = paper.run(
             name or "HPDOb-100",
-            **({} if name else {"observer": DisturbanceObserver.from_design(design)}),
+            **({} if name else {"observer": design}),
         )
         cells = []
         canonical = (result.theta_measured, result.omega_measured, result.u)

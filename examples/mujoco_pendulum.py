@@ -34,7 +34,7 @@ matplotlib.use("Agg")  # no display needed
 import matplotlib.pyplot as plt
 import numpy as np
 
-from hpdob import DisturbanceObserver, MujocoServo, ServoModel, paper, simulate
+from hpdob import MujocoServo, ServoModel, design_observer, paper, simulate
 
 LINK_MASS, LINK_LENGTH = 0.02, 0.1  # kg, m
 OBSERVERS = {"DOb": 0, "HPDOb": 1}  # name -> truncation order
@@ -47,9 +47,7 @@ def run(duration: float, bandwidth: float) -> tuple[MujocoServo, dict]:
     nominal = ServoModel(plant.inertia, paper.PLANT.b)
     results = {}
     for name, order in OBSERVERS.items():
-        observer = DisturbanceObserver(
-            nominal.discretize(paper.TS), order=order, bandwidth=bandwidth
-        )
+        observer = design_observer(nominal.discretize(paper.TS), order=order, bandwidth=bandwidth)
         results[name] = simulate(
             plant=plant,
             nominal=nominal,

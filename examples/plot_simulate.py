@@ -10,7 +10,7 @@ step and carries a load that steps and then oscillates.
 
 import matplotlib.pyplot as plt
 
-from hpdob import PD, DisturbanceObserver, Encoder, ServoModel, simulate
+from hpdob import PD, Encoder, ServoModel, design_observer, simulate
 from hpdob.signals import Sine, SmoothStep, Step
 
 Ts = 1e-3  # sampling period [s]
@@ -22,7 +22,7 @@ result = simulate(
     Ts=Ts,
     duration=3.0,
     controller=PD(kp=60.0, kd=6.0, feedforward=True),
-    observer=DisturbanceObserver(nominal.discretize(Ts), order=1, bandwidth=150.0),
+    observer=design_observer(nominal.discretize(Ts), order=1, bandwidth=150.0),
     reference=SmoothStep(0.1, 0.6, 0.5),
     disturbance=Step(1.0, 0.03) + Sine(0.01, 3.0, start=2.0),
     sensor=Encoder(65536),

@@ -125,3 +125,22 @@ def test_envelope_of_a_trace_given_in_blocks_is_the_whole_traces():
                 streamed.add(t[a:b], y[a:b])
             (t1, y1), (t2, y2) = streamed.trace, envelope(t, y, samples=samples)
             assert np.array_equal(t1, t2) and np.array_equal(y1, y2, equal_nan=True)
+
+
+def test_the_column_wise_writer_reports_rows_written_per_chunk(tmp_path):
+    # issue 27 (rel4, item 3): simulate's and estimate's "writing" stage counts the chunks
+    pytest.importorskip("pyarrow")
+    from hpdob._csv_floats import CHUNK
+
+    n = 2 * CHUNK + 5  # two whole chunks and a partial one
+    columns = {"t": np.arange(n) * 1e-3, "x": np.sin(np.arange(n) * 1e-3)}
+    calls = []
+    got = columns_to_csv(columns, tmp_path / "a.csv", lambda *call: calls.append(call))
+    assert calls == [(CHUNK, n), (2 * CHUNK, n), (n, n)]
+    assert got.read_bytes() == csv_module_text(columns, tmp_path / "reference.csv")
+    short = []  # the csv module's path (a short table): once, at the end
+    columns_to_csv({"x": [0.5, 1.5]}, tmp_path / "b.csv", lambda *call: short.append(call))
+    assert short == [(2, 2)]
+    with pytest.raises(TypeError, match=r"^progress must be a callable .* got 'yes'"):
+        columns_to_csv(columns, tmp_path / "c.csv", "yes")
+    assert not (tmp_path / "c.csv").exists()

@@ -26,8 +26,8 @@ import numpy as np
 
 __all__ = ["RowWriter", "format_rows", "write_float_rows"]
 
-#: Rows per chunk: ~0.8 MB of text for five columns (a few chunks are held at a time).
-CHUNK = 1 << 13
+#: Rows per chunk: ~3 MB of text for five columns (a few chunks are held at a time).
+CHUNK = 1 << 15
 #: Longest text of one value: ``-1.2345678901234567e-308``.
 _WIDTH = 24
 
@@ -345,25 +345,33 @@ class RowWriter:
     a context manager; :meth:`write` takes the columns of the next rows.
     """
 
-    def __init__(self, handle):
+    def __init__(self, handle, *, progress=None, rows: int = 0):
         self.handle = handle
         self._pool = ThreadPoolExecutor(2)
-        self._pending: list = []
+        self._pending: list = []  # (future, rows of its chunk)
+        self._progress, self._rows, self._written = progress, rows, 0
+
+    def _write_next(self) -> None:
+        future, rows = self._pending.pop(0)
+        self.handle.write(future.result())
+        self._written += rows
+        if self._progress is not None:  # rows written of ``rows`` (a chunk at a time)
+            self._progress(self._written, self._rows)
 
     def write(self, columns: list) -> None:
         """Queue the rows of equal-length float64 ``columns`` (written in order)."""
         n = len(columns[0]) if columns else 0
         for start in range(0, n, CHUNK):
-            self._pending.append(
-                self._pool.submit(format_rows, columns, start, min(start + CHUNK, n))
-            )
+            stop = min(start + CHUNK, n)
+            self._pending.append((self._pool.submit(format_rows, columns, start, stop),
+                                  stop - start))  # fmt: skip
             if len(self._pending) > 2:
-                self.handle.write(self._pending.pop(0).result())
+                self._write_next()
 
     def drain(self) -> None:
         """Write every queued row: the columns given so far may change after this."""
         while self._pending:
-            self.handle.write(self._pending.pop(0).result())
+            self._write_next()
 
     def __enter__(self) -> RowWriter:
         return self
@@ -376,7 +384,8 @@ class RowWriter:
             self._pool.shutdown(cancel_futures=True)
 
 
-def write_float_rows(handle, columns: list) -> None:
-    """Write the rows of equal-length float64 ``columns`` to the binary file ``handle``."""
-    with RowWriter(handle) as writer:
+def write_float_rows(handle, columns: list, progress=None) -> None:
+    """Write the rows of equal-length float64 ``columns`` to the binary file ``handle``
+    (``progress(rows written, rows)`` after each chunk, if given)."""
+    with RowWriter(handle, progress=progress, rows=len(columns[0]) if columns else 0) as writer:
         writer.write(columns)

@@ -29,6 +29,7 @@ import time
 __all__ = [
     "EXIT_CODES",
     "Interrupted",
+    "acknowledge",
     "check",
     "checkpoint",
     "handling_signals",
@@ -48,11 +49,16 @@ EXIT_CODES = {int(s): 128 + int(s) for s in SIGNALS}
 
 
 class Interrupted(KeyboardInterrupt):
-    """Raised by the handler of :func:`handling_signals`; ``signum`` is the signal."""
+    """Raised by the handler of :func:`handling_signals`; ``signum`` is the signal.
 
-    def __init__(self, signum: int = signal.SIGINT):
+    ``detail`` (re-raised by a command that kept finished work) is appended to the one line
+    ``hpdob <command>: interrupted`` the command line prints, e.g. where that work went.
+    """
+
+    def __init__(self, signum: int = signal.SIGINT, detail: str = ""):
         super().__init__(signum)
         self.signum = int(signum)
+        self.detail = detail
 
     @property
     def name(self) -> str:
@@ -73,6 +79,13 @@ def check() -> None:
     """Raise :class:`Interrupted` if a signal was received (even if its exception was lost)."""
     if _received:
         raise Interrupted(_received[0])
+
+
+def acknowledge() -> None:
+    """Forget the signals received so far: the caller has handled them and writes what it
+    keeps (e.g. an interrupted sweep's finished rows), which :func:`check` would otherwise
+    refuse to commit. A signal received after this call interrupts that writing as usual."""
+    _received.clear()
 
 
 def _handler(signum, frame):

@@ -39,26 +39,37 @@ def _float_columns(columns: dict) -> list | None:
 _COMPILED_ROWS = 2000
 
 
-def columns_to_csv(columns: dict, path) -> Path:
+def columns_to_csv(columns: dict, path, progress=None) -> Path:
     """Write equal-length columns ``{name: values}`` to ``path`` (header row, full precision).
 
     Every number is written as ``repr`` writes it, rows by :mod:`csv`'s default dialect. Long
     float columns (traces, logs) are formatted column-wise in compiled code
-    (:mod:`hpdob._csv_floats`), into the same bytes. Atomically: a reader never sees a truncated
-    file (:func:`hpdob._files.atomic_path`).
+    (:mod:`hpdob._csv_floats`), into the same bytes, ``progress(rows written, rows)`` called
+    after each chunk of 32768 rows (a short table: once, at its end). Atomically: a reader
+    never sees a truncated file (:func:`hpdob._files.atomic_path`).
     """
+    if progress is not None and not callable(progress):
+        from ._validation import ParameterTypeError
+
+        raise ParameterTypeError(
+            f"progress must be a callable progress(done, total) or None, got {progress!r} of "
+            f"type {type(progress).__name__}"
+        )
     path = Path(path)
     floats = _float_columns(columns)
     with atomic_path(path) as temporary, temporary.open("w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f)
         writer.writerow(list(columns))
         if floats is None:
-            writer.writerows([_cell(v) for v in row] for row in zip(*columns.values(), strict=True))
+            rows = [[_cell(v) for v in row] for row in zip(*columns.values(), strict=True)]
+            writer.writerows(rows)
+            if progress is not None:
+                progress(len(rows), len(rows))
         else:
             from ._csv_floats import write_float_rows
 
             f.flush()
-            write_float_rows(f.buffer, floats)
+            write_float_rows(f.buffer, floats, progress)
     return path
 
 

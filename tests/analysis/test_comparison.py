@@ -5,14 +5,33 @@ from __future__ import annotations
 
 import json
 import math
+import sys
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from hpdob import ServoModel, compare_observers, design_observer, estimate_disturbance
+from hpdob import (
+    ADRC,
+    PID,
+    FilteredPD,
+    ServoLoop,
+    ServoModel,
+    compare_observers,
+    design_observer,
+    estimate_disturbance,
+    simulate,
+)
 from hpdob.analysis import observer_noise_gain
 from hpdob.cli import main
 from hpdob.observers import design_eso, design_kalman
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import interconnect
+
+TS = 1e-3
+NOMINAL = ServoModel(2.8e-4)
 
 
 @pytest.fixture(scope="module")
@@ -137,3 +156,48 @@ def test_noise_gain_is_the_encoder_channels():
     assert observer_noise_gain(design, noise="encoder") == observer_noise_gain(
         design, noise="position"
     )
+
+
+# -- the comparison in a loop with any controller of the protocol (issue 20, section 3) -----
+
+CANDIDATES = {
+    "DOb": {"type": "dob", "order": 0},
+    "position-only HPDOb": {"type": "dob", "order": 1, "measurement": "position"},
+}
+
+
+@pytest.mark.parametrize(
+    ("controller", "expected"),
+    [
+        # a controller with a velocity source takes the candidate's velocity estimate where it
+        # has one, the measured velocity otherwise
+        (PID(50.0, 100.0, 5.0), lambda c, v: replace(c, velocity=v)),
+        (FilteredPD(50.0, 5.0, time_constant=2e-3), lambda c, v: replace(c, velocity=v)),
+        # ADRC has none: it runs as it is
+        (ADRC(40.0), lambda c, v: c),
+    ],
+    ids=["PID", "FilteredPD", "ADRC"],
+)
+def test_a_loop_with_any_controller(controller, expected):
+    from hpdob.observers import design_from_spec
+    from hpdob.paper import DISTURBANCE, PLANT, REFERENCE
+
+    loop = ServoLoop(plant=PLANT, nominal=NOMINAL, Ts=TS, controller=controller)
+    table = compare_observers(loop, sensors=("ideal",), duration=0.5, candidates=CANDIDATES)
+    for row in table.rows:
+        assert row["tuning"] == "matched"
+        spec = {**CANDIDATES[row["observer"]], "bandwidth": row["value"]}
+        design = design_from_spec(NOMINAL.discretize(TS), spec)
+        velocity = "observer" if design.system.has_velocity else "measured"
+        run = loop.replace(controller=expected(controller, velocity), observer=design)
+        direct = simulate(run, reference=REFERENCE, disturbance=DISTURBANCE, duration=0.5)
+        result = table._results[(row["observer"], "ideal")]
+        np.testing.assert_array_equal(result.u, direct.u)  # the run is this loop's
+        # the stable inertia range is that of the python-control loop (at the range's ends)
+        linear = {"b": PLANT.b, "Ts": TS, "controller": run.controller_system,
+                  "observer": design.system}  # fmt: skip
+        low, high = row["J_ratio_low"], row["J_ratio_high"]
+        assert 1e-3 < low < 1.0 < high < 1e3  # both ends found for these loops
+        for end, inside in ((low, 1.001), (high, 0.999)):
+            assert interconnect.radius(J=end * inside * NOMINAL.J, **linear) < 1.0
+            assert interconnect.radius(J=end / inside * NOMINAL.J, **linear) > 1.0

@@ -4,16 +4,23 @@ of the boundary (inertia error, friction error, one-sample delay), and the map's
 from __future__ import annotations
 
 import math
+import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hpdob import (
+    ADRC,
     PD,
+    PID,
     Actuator,
+    FilteredPD,
+    LinearController,
     ParameterTypeError,
     ParameterValueError,
+    ServoLoop,
     ServoModel,
     SimulationDivergedWarning,
     StabilityMap,
@@ -239,3 +246,73 @@ def test_bad_arguments():
     smap = robust_stability_map(J_ratio=[1.0], **kw)
     with pytest.raises(ParameterValueError, match=r"value must be a positive.*-2"):
         smap.radius_at(-2.0, 100.0)
+
+
+# -- any controller of the protocol, the loop as the first argument (issue 20, section 3) ----
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import interconnect  # noqa: E402  (tests/interconnect.py: the loop assembled by python-control)
+
+K, KI, KV, TF = 0.1, 0.3, 0.004, 5e-3  # N m/rad, N m/(rad s), N m s/rad, s
+
+
+def from_scratch() -> LinearController:
+    """A PI on the angle with a dirty-derivative velocity, plus the estimate, written here
+    from its equations only (no anti-windup: the map's loop is linear):
+    ``u = K (r - theta) + KI c1 - KV (theta - c2)/TF + tau_hat``,
+    ``c1+ = c1 + Ts (r - theta)``, ``c2+ = c2 + (Ts/TF)(theta - c2)``."""
+    a = TS / TF
+    return LinearController(
+        F=[[1.0, 0.0], [0.0, 1 - a]], G=[[TS, -TS, 0.0, 0.0], [0.0, a, 0.0, 0.0]],
+        H=[[KI, KV / TF]], E=[[K, -K - KV / TF, 1.0]], N=[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]],
+        Ts=TS, inputs=("r", "theta", "tau_hat"), name="PI + dirty derivative",
+    )  # fmt: skip
+
+
+CONTROLLERS = {
+    "PID": PID(50.0, 100.0, 5.0),
+    "FilteredPD": FilteredPD(50.0, 5.0, time_constant=2e-3),
+    "ADRC": ADRC(40.0),
+    "from scratch": from_scratch(),
+    "PD, observer's velocity": PD(50.0, 5.0, velocity="observer"),
+}
+
+
+@pytest.mark.parametrize("name", list(CONTROLLERS))
+def test_map_of_any_controller_is_the_python_control_loop(name):
+    controller = CONTROLLERS[name]
+    measurement = "position" if "velocity" in name else "state"
+    spec = {"type": "dob", "order": 1, "bandwidth": 100.0, "measurement": measurement}
+    loop = ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=controller,
+                     observer=spec)  # fmt: skip
+    ratios, bandwidths = [0.3, 1.0, 3.0], [40.0, 150.0]
+    smap = robust_stability_map(loop, J_ratio=ratios, b=CANONICAL_B, bandwidth=bandwidths)
+    assert smap.observer["measurement"] == measurement  # the loop's spec, its bandwidth set
+    for i, ratio in enumerate(ratios):
+        for j, g in enumerate(bandwidths):
+            design = design_observer(NOMINAL.discretize(TS), order=1, bandwidth=g,
+                                     measurement=measurement)  # fmt: skip
+            expected = interconnect.radius(J=ratio * NOMINAL.J, b=CANONICAL_B, Ts=TS,
+                                           controller=loop.controller_system,
+                                           observer=design.system)  # fmt: skip
+            assert smap.spectral_radius[i, j] == pytest.approx(expected, rel=1e-9, abs=1e-12)
+    # the map's verdicts are not all alike: the grid crosses the boundary for some controllers
+    assert smap.spectral_radius.min() < 1.0
+
+
+def test_map_of_a_pd_loop_is_the_keyword_map_bit_for_bit():
+    loop = ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=PDC,
+                     observer={"order": 1, "bandwidth": 100.0})  # fmt: skip
+    ratios = np.geomspace(0.05, 2.0, 7)
+    by_loop = robust_stability_map(loop, J_ratio=ratios, bandwidth=[50.0, 100.0])
+    by_keywords = robust_stability_map(J_ratio=ratios, bandwidth=[50.0, 100.0], order=1,
+                                       nominal=NOMINAL, Ts=TS, controller=PDC)  # fmt: skip
+    np.testing.assert_array_equal(by_loop.spectral_radius, by_keywords.spectral_radius)
+
+
+def test_map_refuses_a_controller_it_cannot_wire():
+    # the observer's velocity estimate from a family that measures the state: named, before
+    # any work (it used to fail inside the linear algebra with a KeyError)
+    with pytest.raises(ParameterValueError, match=r"controller\.velocity = 'observer' needs"):
+        robust_stability_map(J_ratio=[1.0, 2.0], bandwidth=[100.0], order=1, nominal=NOMINAL,
+                             Ts=TS, controller=PD(50.0, 5.0, velocity="observer"))  # fmt: skip

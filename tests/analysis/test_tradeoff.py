@@ -3,16 +3,23 @@
 from __future__ import annotations
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.optimize import brentq
 
 from hpdob import (
+    ADRC,
+    PD,
+    PID,
     DisturbanceObserver,
+    FilteredPD,
     NoiseTradeoff,
     ParameterTypeError,
     ParameterValueError,
+    ServoLoop,
     ServoModel,
     design_observer,
     noise_tradeoff,
@@ -162,3 +169,41 @@ def test_pole_tolerance_passes_through_to_the_designs():
                              bandwidth=2.220254341396507, pole_tolerance=None)  # fmt: skip
     expected = abs(estimation_response(design, 2.0, error=True)[0])
     assert table.error_gain[0, 0] == expected
+
+
+# -- the command's noise gain with any controller of the protocol (issue 20, section 2) ------
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+import interconnect  # noqa: E402  (tests/interconnect.py: the loop assembled by python-control)
+
+
+@pytest.mark.parametrize(
+    "controller",
+    [PID(50.0, 100.0, 5.0), FilteredPD(50.0, 5.0, time_constant=2e-3), ADRC(40.0)],
+    ids=lambda c: type(c).__name__,
+)
+def test_command_noise_gain_of_any_controller_is_the_python_control_loop(controller):
+    grid = [50.0, 200.0]
+    loop = ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=controller)
+    for noise, channel in (("velocity", "n_omega"), ("position", "n_theta")):
+        t = noise_tradeoff(loop, frequency=2.0, bandwidths=grid, orders=(0, 1), noise=noise)
+        for i, m in enumerate(t.orders):
+            for j, g in enumerate(grid):
+                design = design_observer(NOMINAL.discretize(TS), order=m, bandwidth=g)
+                system = interconnect.closed_loop(J=NOMINAL.J, b=NOMINAL.b, Ts=TS,
+                                                  controller=loop.controller_system,
+                                                  observer=design.system)  # fmt: skip
+                expected = interconnect.h2(system, channel, "u")
+                assert t.u_noise_gain[i, j] == pytest.approx(expected, rel=1e-7, abs=1e-11)
+        assert t.u_noise_gain.max() > 0 or noise == "velocity"  # ADRC reads no velocity
+    # (rel=1e-7 tells them from the PD's: the PID's differ from it by 5e-5 relative)
+
+
+def test_a_loop_or_its_keywords_not_both():
+    loop = ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=PD(50.0, 5.0))
+    with pytest.raises(ParameterTypeError, match="not both; got a loop and Ts"):
+        noise_tradeoff(loop, Ts=TS, frequency=2.0, bandwidths=[50.0])
+    with pytest.raises(ParameterTypeError, match=r"missing: nominal, Ts"):
+        noise_tradeoff(frequency=2.0, bandwidths=[50.0])
+    with pytest.raises(ParameterTypeError, match="controller must be a PD, PID"):
+        noise_tradeoff(nominal=NOMINAL, Ts=TS, frequency=2.0, bandwidths=[50.0], controller=3)

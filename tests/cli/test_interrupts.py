@@ -104,14 +104,84 @@ seed = 0
 
 
 def test_ctrl_c_stops_a_local_sweep(tmp_path):
-    # Interrupted once its first chunk is back (the sweep waits there for the signal).
+    # Interrupted once its first chunk (64 scenarios of 2000) is back: the sweep waits there
+    # for the signal, and ends at once, keeping that chunk (issue 27, rel4 item 1).
     (tmp_path / "spec.toml").write_text(SWEEP)
     argv = ["sweep", "spec.toml", "--out", "rows.csv", "--workers", "2"]
     process = start_paused(argv, "sweep-chunk", tmp_path, cwd=tmp_path)
     process.send_signal(signal.SIGINT)
     _, err = process.communicate(timeout=120)
-    assert (process.returncode, err) == (130, "hpdob sweep: interrupted\n")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["spec.toml", "sweep-chunk.reached"]
+    assert process.returncode == 130
+    kept = check_kept_line(err, "", "rows.partial.csv", "rows.csv", 2000, tmp_path)
+    assert len(kept) == 64
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "rows.partial.csv", "spec.toml", "sweep-chunk.reached"]  # fmt: skip
+
+
+def check_kept_line(err: str, name: str, partial: str, out: str, total: int, cwd: Path) -> set:
+    """Check the one line of a sweep interrupted by signal ``name`` ("" for SIGINT, else e.g.
+    " (SIGTERM)") and return the scenarios of the partial file; with those the line says are
+    missing, they are every scenario once. Which chunk finishes first is up to the threads."""
+    import re
+
+    import pandas as pd
+
+    pattern = (
+        rf"hpdob sweep: interrupted{re.escape(name)}; wrote the (\d+) finished rows to "
+        rf"{re.escape(partial)} \({re.escape(out)} was not written\); missing: scenarios "
+        rf"([-\d, ]+); to run only those and write {re.escape(out)}: hpdob sweep spec.toml "
+        rf"--out {re.escape(out)} --resume\n"
+    )
+    match = re.fullmatch(pattern, err)
+    assert match, err
+    missing = set()
+    for span in match[2].split(", "):
+        first, _, last = span.partition("-")
+        missing.update(range(int(first), int(last or first) + 1))
+    path = cwd / partial
+    rows = pd.read_parquet(path) if path.suffix == ".parquet" else pd.read_csv(path)
+    kept = set(rows["scenario"])
+    assert len(kept) == len(rows) == int(match[1]) and not kept & missing
+    assert kept | missing == set(range(total))
+    return kept
+
+
+SMALL_SWEEP = SWEEP.replace("duration = 10.0", "duration = 0.5").replace("n = 2000", "n = 40")
+
+
+@pytest.mark.parametrize(
+    ("signum", "code", "name", "suffix"),
+    [(signal.SIGINT, 130, "", ".csv"), (signal.SIGTERM, 143, " (SIGTERM)", ".parquet")],
+)  # fmt: skip
+def test_an_interrupted_local_sweep_resumes_to_the_same_bytes(tmp_path, signum, code, name,
+                                                              suffix):  # fmt: skip
+    # issue 27, rel4 item 1: a local sweep interrupted by a signal keeps its finished rows
+    # (before: nothing), and --resume writes the file a run from scratch writes, byte for byte.
+    from hpdob.cli import main
+
+    (tmp_path / "spec.toml").write_text(SMALL_SWEEP)
+    reference = tmp_path / "reference"
+    reference.mkdir()
+    spec, expected = tmp_path / "spec.toml", reference / f"rows{suffix}"
+    assert main(["sweep", str(spec), "--out", str(expected), "--workers", "2"]) == 0
+    argv = ["sweep", "spec.toml", "--out", f"rows{suffix}", "--workers", "2"]
+    process = start_paused(argv, "sweep-chunk", tmp_path, cwd=tmp_path)
+    process.send_signal(signum)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == code
+    # 40 scenarios on 2 workers: chunks of 3; the first chunk is back at the checkpoint
+    kept = check_kept_line(err, name, f"rows.partial{suffix}", f"rows{suffix}", 40, tmp_path)
+    assert len(kept) == 3
+    assert not (tmp_path / f"rows{suffix}").exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no temporaries
+    resumed = subprocess.run(
+        [sys.executable, "-m", "hpdob", "sweep", "spec.toml", "--out", f"rows{suffix}",
+         "--resume", "--workers", "2"], cwd=tmp_path, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert (resumed.returncode, resumed.stderr) == (0, "")
+    assert ", 3 of them from rows.partial" in resumed.stdout
+    assert (tmp_path / f"rows{suffix}").read_bytes() == expected.read_bytes()
+    assert not (tmp_path / f"rows.partial{suffix}").exists()
 
 
 def test_ctrl_c_during_reproduce_leaves_the_previous_outputs(tmp_path):

@@ -304,9 +304,9 @@ def test_estimate_progress_reading_and_estimating_on_stderr_only(capsys, tmp_pat
     assert frames[0] == f"hpdob estimate: reading log.csv 0.0/{mib:.1f} MiB (0%)"
     assert frames[1].startswith("hpdob estimate: reading log.csv ") and "left" in frames[1]
     assert f"hpdob estimate: reading log.csv {mib:.1f}/{mib:.1f} MiB (100%)\n" in frames
-    assert frames[-2:] == [
-        "hpdob estimate: estimating 0/3000 samples (0%)",
-        "hpdob estimate: estimating 3000/3000 samples (100%)\n",
+    assert frames[-2:] == [  # one stage: the CSV is written as the estimate runs (issue 25)
+        "hpdob estimate: estimating, writing estimate.csv 0/3000 rows (0%)",  # one chunk
+        "hpdob estimate: estimating, writing estimate.csv 3000/3000 rows (100%)\n",
     ]
     assert "hpdob estimate:" not in out
     code, _, quiet = run(capsys, *common, "--out", str(tmp_path / "q"), "--no-progress")
@@ -340,3 +340,87 @@ def test_simulate_progress_on_stderr_only_and_the_same_files(capsys, tmp_path, m
     assert code == 0 and quiet == ""  # not a terminal: no progress, one call of the kernel
     for name in ("metrics.json", "HPDOb-100.csv"):
         assert (tmp_path / "p" / name).read_bytes() == (tmp_path / "q" / name).read_bytes()
+
+
+def test_identify_stage_lines_have_time_left_per_stage():
+    # issue 27 (rel4, item 2): identify's stages, each timed by its own clock
+    from hpdob.cli import _identify as cli_identify
+    from hpdob.cli._progress import StagedProgress
+
+    stream, clock = io.StringIO(), Clock()
+    show = StagedProgress("hpdob identify:", cli_identify.STAGES, stream, clock)
+    show("filtering", 0, 1)
+    show("filtering", 1, 1)
+    show("iterating", 0, 20)
+    clock.now += 4.0  # 2 of at most 20 in 4 s: at most 36 s more
+    show("iterating", 2, 20)
+    show("iterating", 3, 3)  # converged after 3
+    show("sensitivity", 0, 2)
+    clock.now += 7.0
+    show("sensitivity", 1, 2)
+    show.end()  # interrupted: the open line is ended
+    frames = stream.getvalue().split("\r\x1b[K")[1:]
+    assert frames == [
+        "hpdob identify: filtering the logs 0/1 (0%)",
+        "hpdob identify: filtering the logs 1/1 (100%)\n",
+        "hpdob identify: IDIM-IV iterations (at most) 0/20 (0%)",
+        "hpdob identify: IDIM-IV iterations (at most) 2/20 (10%), about 36 s left",
+        "hpdob identify: IDIM-IV iterations (at most) 3/3 (100%)\n",
+        "hpdob identify: re-estimating with the filters x2, /2 0/2 (0%)",
+        "hpdob identify: re-estimating with the filters x2, /2 1/2 (50%), about 7 s left\n",
+    ]
+
+
+def test_cli_identify_progress_on_stderr_only(capsys, tmp_path):
+    # noise-free motion with J = 2, b = 3, c = 1.5, offset = -0.4 (as test_cli_identify's)
+    t = np.arange(5000) * 1e-3
+    w = 2 * np.pi
+    q = 0.3 * np.sin(w * t) + 0.05 * np.sin(3 * w * t)
+    qd = 0.3 * w * np.cos(w * t) + 0.15 * w * np.cos(3 * w * t)
+    qdd = -0.3 * w**2 * np.sin(w * t) - 0.45 * w**2 * np.sin(3 * w * t)
+    u = 2.0 * qdd + 3.0 * qd + 1.5 * np.sign(qd) - 0.4
+    log = tmp_path / "run.csv"
+    rows = zip(t.tolist(), q.tolist(), u.tolist(), strict=True)
+    log.write_text("time,pos,cmd\n" + "".join(f"{a!r},{b!r},{c!r}\n" for a, b, c in rows))
+    common = ["identify", str(log), "--time", "time", "--position", "pos", "--input", "cmd",
+              "--no-plot"]  # fmt: skip
+    assert main([*common, "--out", str(tmp_path / "a"), "--progress"]) == 0
+    out, err = capsys.readouterr()
+    frames = err.split("\r\x1b[K")[1:]
+    assert frames[0].startswith("hpdob identify: reading run.csv 0.0/0.")
+    assert [f for f in frames if f.endswith("\n")][1:] == [
+        "hpdob identify: filtering the logs 1/1 (100%)\n",
+        *[f for f in frames if f.startswith("hpdob identify: IDIM-IV") and f.endswith("\n")],
+        "hpdob identify: simulating the fit 1/1 (100%)\n",
+        "hpdob identify: re-estimating with the filters x2, /2 2/2 (100%)\n",
+    ]
+    assert "\r" not in out
+    assert main([*common, "--out", str(tmp_path / "b"), "--no-progress"]) == 0
+    quiet_out, quiet_err = capsys.readouterr()
+    assert quiet_err == "" and quiet_out.replace(str(tmp_path / "b"), "") == out.replace(
+        str(tmp_path / "a"), "")  # fmt: skip
+    for name in ("identification.json", "identification.csv"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+
+
+def test_simulate_writing_stage_counts_the_chunks(capsys, tmp_path, monkeypatch):
+    # issue 27 (rel4, item 3): the CSV is formatted in chunks; the line counts their rows
+    from hpdob import _csv_floats
+
+    monkeypatch.setattr(_csv_floats, "CHUNK", 4000)  # 10000 rows: chunks of 4000, 4000, 2000
+    scenario = str(EXAMPLES / "canonical_hpdob.toml")
+    assert main(["simulate", scenario, "--out", str(tmp_path / "a"), "--no-plot",
+                 "--progress"]) == 0  # fmt: skip
+    frames = capsys.readouterr().err.split("\r\x1b[K")[1:]
+    writing = [f for f in frames if "writing" in f]
+    # (the time left of the middle lines is the real clock's: only their counts are checked)
+    assert [f.split(", about")[0] for f in writing] == [
+        "hpdob simulate: writing HPDOb-100.csv 0/10000 rows (0%)",
+        "hpdob simulate: writing HPDOb-100.csv 4000/10000 rows (40%)",
+        "hpdob simulate: writing HPDOb-100.csv 8000/10000 rows (80%)",
+        "hpdob simulate: writing HPDOb-100.csv 10000/10000 rows (100%)\n",
+    ]
+    assert main(["simulate", scenario, "--out", str(tmp_path / "b"), "--no-plot"]) == 0
+    capsys.readouterr()
+    name = "HPDOb-100.csv"
+    assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()

@@ -343,7 +343,7 @@ def canonical_traces():
         if name not in cache:
             if name.startswith("order-"):
                 obs = DisturbanceObserver(MODEL, order=order, bandwidth=100.0)
-                result = paper.run("HPDOb-100", observer=obs, label=name)
+                result = paper.run("HPDOb-100", observer=obs.design, label=name)
             else:
                 result = paper.run(name)
             assert not result.diverged

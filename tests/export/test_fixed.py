@@ -83,7 +83,7 @@ def closed_loop():
     measured velocity and applied torque (10^5 samples)."""
     kwargs = paper.scenario()
     kwargs.update(
-        observer=paper.observer("HPDOb-100"),
+        observer=paper.observer("HPDOb-100").design,
         sensor=Encoder(CPR),
         actuator=Actuator(torque_limit=0.444),
         reference=Sine(1.0, 0.3) + Sine(0.5, 1.7),

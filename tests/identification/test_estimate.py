@@ -135,7 +135,7 @@ def test_encoder_log_from_a_simulation_runs_through_read_log(tmp_path):
     from hpdob import read_log
 
     kwargs = {**paper.scenario(), "duration": 2.0}
-    run = simulate(**kwargs, observer=paper.observer("HPDOb-100"), sensor=Encoder(16384))
+    run = simulate(**kwargs, observer=paper.observer("HPDOb-100").design, sensor=Encoder(16384))
     path = tmp_path / "log.csv"
     run.to_csv(path)
     log = read_log(path, time="t", position="theta_measured", input="u")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from pathlib import Path
@@ -391,3 +392,27 @@ def test_idim_iv_with_a_loop_that_is_not_the_logs_is_refused():
     resting = FeedbackLoop(np.zeros(t.size), kp=0.0, kd=0.0)  # not the loop that moved the axis
     with pytest.raises(ParameterValueError, match=r"loop does not describe the controller.* %"):
         identify(t, q, u, method="idim-iv", loop=resting)
+
+
+def test_progress_reports_each_stage_from_zero_to_its_total_and_changes_nothing():
+    # issue 27 (rel4, item 2): counts only, in stage order; the estimate is the same bits
+    from hpdob.identification import emps
+
+    log = emps()
+    calls = []
+    quiet = identify(log.t, log.theta, log.u, axis="linear")
+    shown = identify(log.t, log.theta, log.u, axis="linear",
+                     progress=lambda *call: calls.append(call))  # fmt: skip
+    assert (shown.J, shown.b, shown.coulomb, shown.offset) == (
+        quiet.J, quiet.b, quiet.coulomb, quiet.offset)  # fmt: skip
+    stages = list(dict.fromkeys(stage for stage, _, _ in calls))
+    assert stages == ["filtering", "iterating", "simulating", "sensitivity"]
+    for stage in stages:
+        counts = [(done, total) for s, done, total in calls if s == stage]
+        assert counts[0][0] == 0 and counts[-1][0] == counts[-1][1] > 0, (stage, counts)
+        assert all(a[0] <= b[0] for a, b in itertools.pairwise(counts)), (stage, counts)
+    iterations = [(d, t) for s, d, t in calls if s == "iterating"]
+    # the iterations used, of at most max_iterations (20), then the stage closed there
+    assert iterations[0] == (0, 20) and iterations[-1] == (quiet.iterations, quiet.iterations)
+    with pytest.raises(TypeError, match=r"^progress must be a callable .* got 'yes'"):
+        identify(log.t, log.theta, log.u, progress="yes")

@@ -129,11 +129,11 @@ def test_observer_on_the_sampled_tf_fits_the_loop_on_the_tf():
     and still refuses a model that differs."""
     tf = 1 / (3.06e-4 * s**2 + 5e-5 * s)
     observer = DisturbanceObserver(control.c2d(tf, TS), order=1, bandwidth=100.0)
-    loop = ServoLoop(plant=tf, nominal=tf, Ts=TS, controller=PD(50, 5), observer=observer)
+    loop = ServoLoop(plant=tf, nominal=tf, Ts=TS, controller=PD(50, 5), observer=observer.design)
     assert pytest.approx(observer.design.model.J, rel=1e-12) == loop.nominal.J
     with pytest.raises(ParameterValueError, match=r"must be designed on nominal\.discretize"):
         ServoLoop(plant=tf, nominal=ServoModel(3.06e-4 * (1 + 1e-6), 5e-5), Ts=TS,
-                  controller=PD(50, 5), observer=observer)  # fmt: skip
+                  controller=PD(50, 5), observer=observer.design)  # fmt: skip
 
 
 # -- LinearObserver.from_statespace -----------------------------------------------------------

@@ -112,7 +112,7 @@ def test_open_times_and_pickles():
 @pytest.mark.parametrize("name", ["DOb-100", "HPDOb-100"])
 def test_cross_validation_canonical(name):
     """No link, no Coulomb friction: MuJoCo (RK4, h = Ts/8) reproduces hpdob's integrator."""
-    kwargs = no_coulomb_scenario(observer=paper.observer(name))
+    kwargs = no_coulomb_scenario(observer=paper.observer(name).design)
     reference = simulate(**kwargs)
     plant = kwargs["plant"]
     result = simulate(**{**kwargs, "plant": MujocoServo(plant.J, plant.b)})
@@ -127,7 +127,7 @@ def test_first_order_integrator_misses():
     """MuJoCo's (semi-implicit) Euler misses hpdob's result by far more than the tolerance, and
     by half as much when its step halves (first order): the tolerance can fail, and it is RK4
     that makes it tight."""
-    kwargs = no_coulomb_scenario(observer=paper.observer("DOb-100"), duration=5.0)
+    kwargs = no_coulomb_scenario(observer=paper.observer("DOb-100").design, duration=5.0)
     gaps = []
     for substeps in (4, 8):
         reference = simulate(**kwargs, substeps=substeps)
@@ -144,7 +144,7 @@ def test_same_sample_loop_with_encoder_noise_delay_and_limit():
         duration=3.0,
         sensor=Encoder(4096, noise_std=1e-4, seed=5),
         actuator=Actuator(torque_limit=0.055, delay_samples=2),
-        observer=paper.observer("DOb-100"),
+        observer=paper.observer("DOb-100").design,
         substeps=4,
     )
     reference = simulate(**kwargs)
@@ -159,7 +159,7 @@ def test_same_sample_loop_with_encoder_noise_delay_and_limit():
 
 
 def test_mujoco_timestep_sets_the_steps_per_sample():
-    kwargs = no_coulomb_scenario(duration=0.5, observer=paper.observer("HPDOb-100"))
+    kwargs = no_coulomb_scenario(duration=0.5, observer=paper.observer("HPDOb-100").design)
     J, b = kwargs["plant"].J, kwargs["plant"].b
     own = simulate(**{**kwargs, "plant": MujocoServo(J, b, timestep=paper.TS / 16)})
     by_substeps = simulate(**{**kwargs, "plant": MujocoServo(J, b)}, substeps=16)
@@ -188,7 +188,7 @@ def pendulum_runs():
             Ts=paper.TS,
             duration=6.0,
             controller=paper.CONTROLLER,
-            observer=obs,
+            observer=obs.design,
             reference=paper.REFERENCE,
         )
     gravity = {order: plant.bias_torque(run.theta) for order, run in runs.items()}
@@ -264,7 +264,7 @@ def test_frictionloss_observers_converge(name):
         reference=SmoothStep(0.2, 1.2, 1.0),
         disturbance=Step(1.5005, 0.05),
         duration=6.0,
-        observer=paper.observer(name),
+        observer=paper.observer(name).design,
     )
     result = simulate(**kwargs)
     t, error, position_error = result.t, result.estimation_error, result.theta - result.r
@@ -280,9 +280,9 @@ def test_frictionloss_against_tanh_model(name):
     """Canonical scenario: MuJoCo's frictionloss vs hpdob's tanh (same level 0.01 N m). They
     differ only near zero velocity, so the metrics agree within 25 % (measured <= 11 %)."""
     kwargs = paper.scenario()
-    tanh = simulate(**kwargs, observer=paper.observer(name))
+    tanh = simulate(**kwargs, observer=paper.observer(name).design)
     plant = MujocoServo(paper.PLANT.J, paper.PLANT.b, coulomb=paper.PLANT.coulomb)
-    friction = simulate(**{**kwargs, "plant": plant}, observer=paper.observer(name))
+    friction = simulate(**{**kwargs, "plant": plant}, observer=paper.observer(name).design)
     for key, value in friction.metrics().items():
         assert abs(value / tanh.metrics()[key] - 1) < 0.25, key
 
@@ -349,7 +349,9 @@ def test_from_xml_reproduces_the_built_model(tmp_path):
         "duration": 1.0,
         "controller": paper.CONTROLLER,
         "reference": paper.REFERENCE,
-        "observer": DisturbanceObserver(nominal.discretize(paper.TS), order=1, bandwidth=100.0),
+        "observer": DisturbanceObserver(
+            nominal.discretize(paper.TS), order=1, bandwidth=100.0
+        ).design,
     }
     built = simulate(plant=servo, **kwargs)
     from_file = simulate(plant=wrapped, **kwargs)
@@ -496,7 +498,7 @@ def test_sweep_over_a_mujoco_plant():
             "plant": MujocoServo(paper.PLANT.J, paper.PLANT.b, link_mass=0.02, link_length=0.1),
             "observer": DisturbanceObserver(
                 base["nominal"].discretize(paper.TS), order=1, bandwidth=100.0
-            ),
+            ).design,
         }
     )
     row = rows[(rows["plant.link_mass"] == 0.02) & (rows["observer.order"] == 1)].iloc[0]

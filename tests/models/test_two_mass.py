@@ -79,11 +79,11 @@ def test_ground_truth_is_eq3_on_the_motor_side():
 
 def test_a_stiff_coupling_is_the_rigid_servo():
     kwargs = {**paper.scenario(), "duration": 4.0}
-    rigid = simulate(**kwargs, observer=paper.observer("HPDOb-100"))
+    rigid = simulate(**kwargs, observer=paper.observer("HPDOb-100").design)
     J = paper.PLANT.J
     stiff = TwoMassServo(J / 2, J / 2, 1e7, b_motor=paper.PLANT.b, coulomb=paper.PLANT.coulomb,
                          coulomb_velocity=paper.PLANT.coulomb_velocity)  # fmt: skip
-    coupled = simulate(**{**kwargs, "plant": stiff}, observer=paper.observer("HPDOb-100"))
+    coupled = simulate(**{**kwargs, "plant": stiff}, observer=paper.observer("HPDOb-100").design)
     # the spring deflects by tau/k ~ 1e-8 rad; the loop sees practically the rigid motor
     np.testing.assert_allclose(coupled.theta, rigid.theta, atol=2e-5)
     np.testing.assert_allclose(coupled.theta_load, rigid.theta, atol=2e-5)

@@ -445,7 +445,7 @@ def test_virtual_experiment_position_meets_the_targets():
         obs = DisturbanceObserver(
             paper.NOMINAL.discretize(TS), order=m, bandwidth=150.0, measurement="position"
         )
-        orders.append(paper.run("virtual-experiment-position", observer=obs).metrics())
+        orders.append(paper.run("virtual-experiment-position", observer=obs.design).metrics())
     for key in orders[0]:
         assert orders[1][key] < 0.6 * orders[0][key], key
 
@@ -512,7 +512,7 @@ def test_sweep_toml_and_cli(tmp_path, capsys):
             bandwidth=row["observer.bandwidth"],
             measurement=row["observer.measurement"],
         )
-        direct = simulate(**kwargs, observer=obs).metrics()
+        direct = simulate(**kwargs, observer=obs.design).metrics()
         assert row["rms_estimation_error"] == direct["rms_estimation_error"]
     data = {
         "Ts": 1e-3,
@@ -529,8 +529,8 @@ def test_sweep_toml_and_cli(tmp_path, capsys):
         },
     }
     scenario = scenario_from_dict(data)
-    assert scenario["observer"].design.velocity_bandwidth == 200.0
-    assert scenario["observer"].measures == ("theta",)
+    assert scenario["observer"].velocity_bandwidth == 200.0  # the design: a value
+    assert scenario["observer"].system.measures == ("theta",)
     with pytest.raises(ParameterValueError, match=r"^observer\.measurement must be one of"):
         scenario_from_dict(
             {**data, "observer": {"order": 1, "bandwidth": 9.0, "measurement": "angle"}}
@@ -553,7 +553,7 @@ def test_sweep_toml_and_cli(tmp_path, capsys):
     obs = DisturbanceObserver(
         paper.NOMINAL.discretize(TS), order=1, bandwidth=100.0, measurement="position"
     )
-    expected = paper.run("HPDOb-100", observer=obs, controller=PD_OMEGA_HAT).metrics()
+    expected = paper.run("HPDOb-100", observer=obs.design, controller=PD_OMEGA_HAT).metrics()
     assert got == pytest.approx(expected, rel=1e-12)
 
 

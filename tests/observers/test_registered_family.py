@@ -268,3 +268,59 @@ def test_tune_candidates(registered):
     assert families_seen == {"filtered"}
     assert {row["order"] for row in result.rows} == {0, 1}
     assert isinstance(result.design, FilteredDesign)
+
+
+def test_robust_map_and_comparison_of_a_loop_with_the_family(registered):
+    """The family as a loop's observer spec: the map designs it at every bandwidth (its
+    spec's other parameters kept), with any controller; the comparison runs it in the loop."""
+    from hpdob import PID, ServoLoop, closed_loop_poles
+
+    spec = {"type": "dob_lp", "order": 1, "bandwidth": 100.0, "filter_bandwidth": 2000.0}
+    loop = ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=PID(50.0, 100.0, 5.0),
+                     observer=spec)  # fmt: skip
+    smap = robust_stability_map(loop, J_ratio=[0.5, 1.0, 2.0], bandwidth=[50.0, 150.0])
+    assert smap.observer == {"type": "dob_lp", "order": 1, "filter_bandwidth": 2000.0}
+    for i, ratio in enumerate((0.5, 1.0, 2.0)):
+        for j, g in enumerate((50.0, 150.0)):
+            design = design_filtered(MODEL, order=1, bandwidth=g, filter_bandwidth=2000.0)
+            moved = loop.replace(plant=ServoModel(ratio * NOMINAL.J), observer=design)
+            assert smap.spectral_radius[i, j] == np.abs(closed_loop_poles(moved)).max()
+    candidates = {"LP": {"type": "dob_lp", "order": 0, "filter_bandwidth": 2000.0}}
+    table = compare_observers(loop.replace(plant=ServoModel(3.06e-4, 5e-5)), sensors=("ideal",),
+                              duration=0.3, candidates=candidates)  # fmt: skip
+    assert [r["family"] for r in table.rows] == ["dob_lp"] and table.rows[0]["tuning"] == "matched"
+
+
+def test_export_c_of_a_design_of_the_family(registered, tmp_path):
+    """``export_c`` (the library call) writes the family's program: the C estimate replayed on
+    a trace is the functional core's."""
+    from hpdob import export_c
+    from hpdob.observers import estimate, initial_state, update
+    from hpdob.testing import find_compiler
+
+    design = design_from_spec(MODEL, {"type": "dob_lp", "order": 1, "bandwidth": 150.0,
+                                      "filter_bandwidth": 300.0})  # fmt: skip
+    header, source = export_c(design, tmp_path, prefix="lp")
+    text = source.read_text()
+    assert "lp_estimate" in header.read_text() and "lp_update" in text
+    if find_compiler() is None:  # the C is checked where a compiler is (CI has one)
+        return
+    import ctypes
+
+    from hpdob.testing import STRICT_FLAGS, compile_c
+
+    library = ctypes.CDLL(
+        str(compile_c([source], tmp_path / "lp.so", flags=STRICT_FLAGS, shared=True))
+    )
+    n = design.system.n_states
+    state = (ctypes.c_double * n)()
+    library.lp_init(state, ctypes.c_double(0.0), ctypes.c_double(0.0), ctypes.c_double(0.0))
+    library.lp_estimate.restype = ctypes.c_double
+    rng = np.random.default_rng(3)
+    s = initial_state(design, (0.0, 0.0), 0.0)
+    for _ in range(200):
+        theta, omega, u = rng.normal(size=3) * (1e-2, 1e-1, 1e-3)
+        args = [ctypes.c_double(theta), ctypes.c_double(omega)]
+        assert library.lp_estimate(state, *args) == estimate(design, s, (theta, omega))
+        library.lp_update(state, *args, ctypes.c_double(u))
+        s = update(design, s, (theta, omega), u)

@@ -17,7 +17,7 @@ from hpdob import Actuator, Encoder, paper, simulate
 kw = paper.scenario()
 kw.update(duration=0.6, sensor=Encoder(4096, noise_std=2e-4, seed=1),
           actuator=Actuator(torque_limit=0.06, delay_samples=1),
-          observer=paper.observer("HPDOb-100"), substeps=4)
+          observer=paper.observer("HPDOb-100").design, substeps=4)
 r = simulate(**kw)
 np.savez(sys.argv[1], **{k: getattr(r, k) for k in
          ("theta", "omega", "u", "tau_hat", "tau_dn", "theta_measured")})
@@ -49,7 +49,7 @@ def test_compiled_equals_plain_python(tmp_path):
         duration=0.6,
         sensor=Encoder(4096, noise_std=2e-4, seed=1),
         actuator=Actuator(torque_limit=0.06, delay_samples=1),
-        observer=paper.observer("HPDOb-100"),
+        observer=paper.observer("HPDOb-100").design,
         substeps=4,
     )
     compiled = simulate(**kw)

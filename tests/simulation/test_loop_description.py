@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from hpdob import PD, DisturbanceObserver, ServoLoop, ServoModel, design_observer, simulate
-from hpdob.observers import design_eso, initial_state
+from hpdob.observers import Observer, design_eso, initial_state
 from hpdob.signals import SmoothStep, Step
 
 TS = 1e-3
@@ -41,15 +41,31 @@ def test_a_bad_spec_is_named():
         loop({"type": "nope"})
 
 
-def test_a_runtime_observer_is_held_as_its_design_and_its_state():
+@pytest.mark.parametrize("family", ["dob", "eso", "system"])
+def test_a_runtime_observer_is_refused_with_the_call_to_use(family):
     model = NOMINAL.discretize(TS)
-    runtime = DisturbanceObserver(model, order=1, bandwidth=100.0)
+    design = design_eso(model, bandwidth=100.0) if family == "eso" else (
+        design_observer(model, order=1, bandwidth=100.0))  # fmt: skip
+    design = design.system if family == "system" else design
+    runtime = Observer.of(design)
     runtime.reset(x0=(0.0, 0.0), tau0=0.02)
-    servo = loop(runtime)
-    assert servo.observer is runtime.design  # a value, not the mutable object
-    assert servo.observer_state == tuple(runtime.state.tolist())
-    runtime.reset(x0=(0.0, 0.0), tau0=0.0)  # changing the object does not change the loop
-    assert servo.observer_state != tuple(runtime.state.tolist())
+    part = "system" if family == "system" else "design"
+    message = (
+        rf"^observer must be a family spec, a design or a LinearObserver \(a loop holds values, "
+        rf"not state\), got a runtime {type(runtime).__name__}; pass observer=obs\.{part} and "
+        r"start the run from its state: simulate\(loop, \.\.\., observer_state=obs\.state\)$"
+    )
+    with pytest.raises(TypeError, match=message):
+        loop(runtime)
+    with pytest.raises(TypeError, match=message):  # and wherever a loop is built from it
+        simulate(plant=PLANT, nominal=NOMINAL, Ts=TS, controller=PD(50, 5), observer=runtime, **RUN)
+    servo = loop(None)
+    with pytest.raises(TypeError, match=message):
+        servo.replace(observer=runtime)
+    assert servo.observer is None  # a refused replace leaves the loop as it was
+    # the call the message shows runs the runtime observer's run
+    by_state = simulate(loop(getattr(runtime, part)), **RUN, observer_state=runtime.state)
+    assert by_state.tau_hat[0] == pytest.approx(0.02)
 
 
 def test_the_initial_observer_state_is_an_argument_of_the_run():
@@ -58,7 +74,7 @@ def test_the_initial_observer_state_is_an_argument_of_the_run():
     runtime = DisturbanceObserver(NOMINAL.discretize(TS), order=1, bandwidth=100.0)
     runtime.reset(x0=(0.0, 0.0), tau0=0.02)
     by_argument = simulate(loop(design), **RUN, observer_state=state)
-    by_object = simulate(loop(runtime), **RUN)
+    by_object = simulate(loop(runtime.design), **RUN, observer_state=runtime.state)
     assert np.array_equal(by_argument.tau_hat, by_object.tau_hat)
     assert by_argument.tau_hat[0] == pytest.approx(0.02)
     assert simulate(loop(design), **RUN).tau_hat[0] == 0.0
@@ -149,3 +165,26 @@ def test_hpdob_compare_for_another_motor(tmp_path, capsys):
     assert code == 0, capsys.readouterr().err
     rows = json.loads((out / "comparison.json").read_text())["rows"]
     assert all(not r["diverged"] for r in rows)
+
+
+def test_hpdob_simulate_starts_the_files_observer_at_its_x0(tmp_path):
+    """``hpdob simulate`` passes the ``[observer]`` table's design (a value) to the loop, so a
+    file's non-zero ``x0`` starts the observer converged there, as ``load_scenario`` does (a
+    runtime observer built from the file started at rest at 0 and gave a transient)."""
+    import json
+
+    from hpdob.cli import main
+    from hpdob.simulation import load_scenario
+
+    path = tmp_path / "x0.toml"
+    path.write_text(
+        "Ts = 1e-3\nduration = 0.3\nx0 = [0.5, 2.0]\n[plant]\nJ = 3.06e-4\nb = 5e-5\n"
+        "[nominal]\nJ = 2.8e-4\n[controller]\nkp = 50.0\nkd = 5.0\n"
+        '[observer]\norder = 1\nbandwidth = 100.0\n[[reference]]\ntype = "step"\ntime = 0.0\n'
+        "amplitude = 0.5\n"
+    )
+    assert main(["simulate", str(path), "--no-plot", "--out", str(tmp_path / "out")]) == 0
+    got = json.loads((tmp_path / "out" / "metrics.json").read_text())["x0"]
+    expected = load_scenario(path).simulate()
+    assert got["rms_estimation_error"] == expected.metrics()["rms_estimation_error"]
+    assert abs(expected.tau_hat[0]) < 1e-12  # converged at x0 on zero disturbance

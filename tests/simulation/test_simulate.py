@@ -56,7 +56,7 @@ def test_agrees_with_reference_loop_noise_delay_saturation():
         actuator=Actuator(torque_limit=0.055, delay_samples=2),
     )
     obs = paper.observer("DOb-100")
-    result = simulate(**kwargs, observer=obs, substeps=4)
+    result = simulate(**kwargs, observer=obs.design, substeps=4)
     assert np.max(np.abs(result.u)) == pytest.approx(0.055)  # the limit is active
     expected = reference_loop(**kwargs, observer=obs, substeps=4)
     assert_traces_close(result, expected, rtol=1e-12)
@@ -144,7 +144,7 @@ def test_constant_disturbance_nominal_plant(order):
         Ts=1e-3,
         duration=6.0,
         controller=PD(100.0, 20.0),
-        observer=obs,
+        observer=obs.design,
         reference=Constant(0.5),
         disturbance=Step(0.5005, 0.03),
     )
@@ -176,7 +176,7 @@ def test_ramp_disturbance_steady_errors():
             Ts=Ts,
             duration=2.0,
             controller=PD(50, 5),
-            observer=obs,
+            observer=obs.design,
             reference=Constant(0.0),
             disturbance=Ramp(0.0, slope),
         )
@@ -214,7 +214,8 @@ def test_observer_is_not_modified_and_state_is_used(paper_model):
         Ts=1e-3,
         duration=0.1,
         controller=PD(50, 5),
-        observer=obs,
+        observer=obs.design,
+        observer_state=obs.state,  # a loop holds the design, the run starts at this state
         reference=Constant(0.0),
         disturbance=Constant(0.02),
     )
@@ -305,7 +306,7 @@ def test_divergence_is_reported_not_raised():
             Ts=1e-3,
             duration=10.0,
             controller=PD(50, 5),
-            observer=obs,
+            observer=obs.design,
             reference=Step(0.0, 1.0),
         )
     assert res.diverged
@@ -362,8 +363,8 @@ def test_observer_on_the_wrong_model():
     kwargs = paper.scenario()
     obs = DisturbanceObserver(ServoModel(3.06e-4).discretize(1e-3), order=1, bandwidth=100.0)
     with pytest.raises(ValueError, match=r"observer must be designed on nominal.discretize\(Ts\)"):
-        simulate(**kwargs, observer=obs)
-    obs2 = paper.observer("HPDOb-100")
+        simulate(**kwargs, observer=obs.design)
+    obs2 = paper.observer("HPDOb-100").design
     with pytest.raises(ValueError, match=r"Ts=0.001 but nominal .* Ts=0.0005"):
         simulate(**{**kwargs, "Ts": 5e-4}, observer=obs2)
 
@@ -384,9 +385,9 @@ def _loops():
     base = paper.scenario()
     base.pop("duration")
     nominal = base["nominal"]
-    yield "canonical HPDOb", {**base, "observer": paper.observer("HPDOb-100")}, 4
+    yield "canonical HPDOb", {**base, "observer": paper.observer("HPDOb-100").design}, 4
     yield "encoder noise, delay, saturation", {
-        **base, "observer": paper.observer("DOb-100"),
+        **base, "observer": paper.observer("DOb-100").design,
         "sensor": Encoder(4096, noise_std=1e-4, seed=5),
         "actuator": Actuator(torque_limit=0.055, delay_samples=3),
     }, 4  # fmt: skip
@@ -395,12 +396,12 @@ def _loops():
     yield "position-only observer", {**base, "observer": position, "sensor": Encoder(4096)}, 8
     drive = TwoMassServo(2.8e-4, 5.6e-4, 30.0, 0.004, b_motor=1e-5, b_load=2e-5,
                          environment=Environment(10.0, damping=0.02, position=0.5))  # fmt: skip
-    yield "two-mass drive against a wall", {**base, "plant": drive,
-                                            "observer": paper.observer("HPDOb-100")}, 8  # fmt: skip
+    wall = {**base, "plant": drive, "observer": paper.observer("HPDOb-100").design}
+    yield "two-mass drive against a wall", wall, 8
     unstable = {"plant": ServoModel(3e-5), "nominal": ServoModel(3e-4), "Ts": 1e-3,
                 "controller": PD(50, 5), "reference": Step(0.0, 1.0),
-                "observer": DisturbanceObserver(ServoModel(3e-4).discretize(1e-3), order=1,
-                                                bandwidth=900.0)}  # fmt: skip
+                "observer": design_observer(ServoModel(3e-4).discretize(1e-3), order=1,
+                                            bandwidth=900.0)}  # fmt: skip
     yield "a run that diverges mid-chunk", unstable, 1
 
 
@@ -435,7 +436,7 @@ def test_progress_must_be_callable():
     from hpdob import ParameterTypeError
 
     with pytest.raises(ParameterTypeError, match=r"^progress must be a callable"):
-        simulate(**paper.scenario(), observer=paper.observer("DOb-100"), progress=True)
+        simulate(**paper.scenario(), observer=paper.observer("DOb-100").design, progress=True)
 
 
 def test_a_mujoco_run_with_progress_equals_one_without(monkeypatch):
@@ -444,7 +445,7 @@ def test_a_mujoco_run_with_progress_equals_one_without(monkeypatch):
     import hpdob.simulation._simulate as module
     from hpdob import MujocoServo
 
-    kwargs = {**paper.scenario(), "observer": paper.observer("HPDOb-100"), "duration": 0.5,
+    kwargs = {**paper.scenario(), "observer": paper.observer("HPDOb-100").design, "duration": 0.5,
               "plant": MujocoServo(3.06e-4, 5e-5, coulomb=0.01, link_mass=0.01,
                                    link_length=0.05)}  # fmt: skip
     whole = simulate(**kwargs, substeps=4)

@@ -13,7 +13,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hpdob import DisturbanceObserver, ServoModel, SimulationDivergedWarning, paper, simulate, sweep
+from hpdob import (
+    DisturbanceObserver,
+    ServoModel,
+    SimulationDivergedWarning,
+    design_observer,
+    paper,
+    simulate,
+    sweep,
+)
 
 METRICS = [
     "rms_estimation_error",
@@ -43,7 +51,7 @@ def test_rows_equal_single_simulations():
         obs = DisturbanceObserver(
             kwargs["nominal"].discretize(1e-3), order=int(row["observer.order"]), bandwidth=100.0
         )
-        kwargs["observer"] = obs
+        kwargs["observer"] = obs.design
         result = simulate(**kwargs)
         for name, value in result.metrics().items():
             assert row[name] == value, name  # the same engine: bit for bit
@@ -242,8 +250,13 @@ def test_an_interrupted_dask_sweep_cancels_its_tasks(cluster):
     def tasks(dask_scheduler):
         return len(dask_scheduler.tasks)
 
-    with pytest.raises(KeyboardInterrupt):  # the traceback keeps the futures referenced
+    from hpdob.simulation import SweepInterrupted
+
+    with pytest.raises(SweepInterrupted) as caught:  # a KeyboardInterrupt
         sweep(base(10.0), grid=grid, scheduler=client, progress=interrupt)
+    # issue 27 (rel4): the chunk back before the interrupt is kept, not lost
+    assert len(caught.value.rows) == 64 and len(caught.value.missing) == 4000 - 64
+    del caught  # the traceback keeps the futures referenced
     deadline = time.monotonic() + 20
     while client.run_on_scheduler(tasks):
         assert time.monotonic() < deadline, "chunks still on the scheduler after the interrupt"
@@ -305,7 +318,7 @@ def test_metric_windows():
     )
     kwargs = {**base(2.0)}
     spec = kwargs.pop("observer")
-    kwargs["observer"] = DisturbanceObserver(kwargs["nominal"].discretize(kwargs["Ts"]), **spec)
+    kwargs["observer"] = design_observer(kwargs["nominal"].discretize(kwargs["Ts"]), **spec)
     expected = simulate(**kwargs).metrics(tracking=(0.5, 1.0))
     assert rows.loc[0, "rms_position_error_tracking"] == expected["rms_position_error_tracking"]
     assert rows.loc[0, "rms_position_error_regulation"] == expected["rms_position_error_regulation"]
@@ -393,3 +406,27 @@ def test_resume_refuses_bad_rows():
         sweep(base(0.2), **settings, resume=rows.assign(scenario=[0, 5]))
     with pytest.raises(TypeError, match=r"^resume must be the pandas DataFrame .* got list$"):
         sweep(base(0.2), **settings, resume=[])
+
+
+def test_an_interrupted_sweep_keeps_the_finished_rows_and_resume_completes_it():
+    # issue 27 (rel4, item 1): Ctrl-C used to throw away every finished row of a local sweep
+    from hpdob.simulation import SweepInterrupted
+
+    settings = {"grid": {"observer.order": [0, 1], "observer.bandwidth": [60.0, 120.0]},
+                "vary": {"plant.J": ("loguniform", 2e-4, 5e-4)}, "n": 6, "seed": 3}  # fmt: skip
+    full = sweep(base(0.3), **settings, progress=False, scheduler=2)
+
+    def progress(done, total):  # Ctrl-C once the first chunk is back
+        raise KeyboardInterrupt
+
+    with pytest.raises(SweepInterrupted) as caught:
+        sweep(base(0.3), **settings, progress=progress, scheduler=2)
+    interrupt = caught.value
+    assert isinstance(interrupt, KeyboardInterrupt) and interrupt.signum == signal.SIGINT
+    kept = interrupt.rows
+    assert 0 < len(kept) < len(full)  # chunks of 2 scenarios (24 on 2 workers)
+    assert sorted([*kept["scenario"], *interrupt.missing]) == list(range(len(full)))
+    pd.testing.assert_frame_equal(kept, full[full["scenario"].isin(kept["scenario"])]
+                                  .reset_index(drop=True))  # fmt: skip
+    resumed = sweep(base(0.3), **settings, progress=False, scheduler=2, resume=kept)
+    pd.testing.assert_frame_equal(resumed, full)

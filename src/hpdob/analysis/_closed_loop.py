@@ -18,9 +18,9 @@ def closed_loop(loop: ServoLoop):
     Parameters
     ----------
     loop : ServoLoop
-        The loop (see :class:`~hpdob.ServoLoop`); its keyword arguments (``plant=...,
-        nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...``) are
-        accepted instead, as before. The plant must have a linear model (a
+        The loop (see :class:`~hpdob.ServoLoop`), or its parts as keyword arguments
+        (the loop functions' one alias rule, :data:`hpdob.simulation.LOOP_KEYS`).
+        The plant must have a linear model (a
         :class:`~hpdob.ServoModel` or a :class:`~hpdob.TwoMassServo`; Coulomb friction is
         ignored); of the sensor only its ``velocity`` method is used (default: the ideal
         state); of the actuator only ``delay_samples`` (``torque_limit`` must be None).
@@ -97,9 +97,8 @@ def closed_loop_poles(loop: ServoLoop) -> np.ndarray:
     Parameters
     ----------
     loop : ServoLoop
-        The loop (see :class:`~hpdob.ServoLoop`). Its keyword arguments (``plant=...,
-        nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...``) are
-        accepted instead, as before.
+        The loop (see :class:`~hpdob.ServoLoop`), or its parts as keyword arguments
+        (the loop functions' one alias rule, :data:`hpdob.simulation.LOOP_KEYS`).
 
     Returns
     -------

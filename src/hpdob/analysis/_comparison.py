@@ -20,6 +20,7 @@ import numpy as np
 
 from .._table import columns_to_csv, columns_to_pandas
 from .._validation import ParameterTypeError, ParameterValueError, check_choice, positive
+from ..simulation._loop import MISSING, loop_parts
 
 __all__ = ["Comparison", "compare_observers", "default_candidates"]
 
@@ -331,9 +332,26 @@ class Comparison:
         return fig
 
 
+def _with_velocity(controller, has_velocity: bool):
+    """The loop's controller for one candidate: one with a ``velocity`` source (the PD, the
+    filtered PD, the PID) takes the candidate's velocity estimate where it has one and the
+    measured velocity otherwise; any other controller (ADRC, a
+    :class:`~hpdob.controllers.LinearController`) runs as it is."""
+    import dataclasses
+
+    from ..controllers import VELOCITY_SOURCES
+
+    if getattr(controller, "velocity", None) not in VELOCITY_SOURCES or not (
+        dataclasses.is_dataclass(controller)
+    ):
+        return controller
+    return dataclasses.replace(controller, velocity="observer" if has_velocity else "measured")
+
+
 def _loop_scenario(loop, scenario: dict, encoder, actuator):
-    """The comparison's run in ``loop``: its plant, nominal, Ts and PD; the paper's reference
-    and its disturbance at the same acceleration; the loop's sensor and actuator, if any."""
+    """The comparison's run in ``loop``: its plant, nominal, Ts and controller; the paper's
+    reference and its disturbance at the same acceleration; the loop's sensor and actuator, if
+    any."""
     from ..simulation import ServoLoop
 
     if not isinstance(loop, ServoLoop):
@@ -356,6 +374,12 @@ def compare_observers(
     loop=None,
     /,
     *,
+    plant=MISSING,
+    nominal=MISSING,
+    Ts=MISSING,
+    controller=MISSING,
+    sensor=MISSING,
+    actuator=MISSING,
     sensors=SENSORS,
     noise_gain: float = DEFAULT_NOISE_GAIN,
     candidates=None,
@@ -368,19 +392,27 @@ def compare_observers(
     encoder adds to every observer alike, differenced into the velocity where one is taken),
     then runs the paper's scenario with each sensor: ``"ideal"`` (the paper's simulations) and
     ``"encoder"`` (the virtual experiment: 16384 counts/rev, one sample of delay, 0.444 N m
-    limit). Observers with a velocity estimate drive the PD's derivative with it
-    (``PD(velocity="observer")``); the paper's state-measuring observers use the measured (with
-    the encoder: differenced) velocity.
+    limit). Observers with a velocity estimate drive the controller's derivative with it
+    (``velocity="observer"`` of the PD, the filtered PD and the PID); the paper's
+    state-measuring observers use the measured (with the encoder: differenced) velocity. A
+    controller without a velocity source (:class:`~hpdob.ADRC`, a
+    :class:`~hpdob.controllers.LinearController`) runs as it is.
 
     Parameters
     ----------
     loop : ServoLoop, optional
-        The loop the observers are compared in: its plant, nominal model, ``Ts`` and PD gains
-        (its observer is replaced by each candidate's), and, if it has one, its sensor and
-        actuator for the ``"encoder"`` case. The run is the paper's reference and disturbance,
-        the disturbance scaled by ``J_n / 2.8e-4 kg m^2`` (the paper's acceleration), over the
-        paper's 10 s in whole samples. Default: the paper's loop (:func:`hpdob.paper.scenario`)
-        with the virtual experiment's encoder and actuator.
+        The loop the observers are compared in: its plant, nominal model, ``Ts`` and
+        controller (any of the protocol; its observer is replaced by each candidate's), and,
+        if it has one, its sensor and actuator for the ``"encoder"`` case. The run is the
+        paper's reference and disturbance, the disturbance scaled by ``J_n / 2.8e-4 kg m^2``
+        (the paper's acceleration), over the paper's 10 s in whole samples. Default: the
+        paper's loop (:func:`hpdob.paper.scenario`) with the virtual experiment's encoder and
+        actuator.
+    plant, nominal, Ts, controller, sensor, actuator : optional
+        Instead of a loop, its parts (the loop functions' one alias rule,
+        :data:`hpdob.simulation.LOOP_KEYS`; the observer is the comparison's): ``plant``,
+        ``nominal``, ``Ts`` and ``controller`` together, ``sensor`` and ``actuator``
+        optional.
     sensors : sequence of {"ideal", "encoder"}, optional
         Default both.
     noise_gain : float, optional
@@ -418,12 +450,23 @@ def compare_observers(
     ...     for row in table.rows if row["tuning"] == "matched")   # all at the same noise
     True
     """
-    from ..simulation import PD, ServoLoop, simulate
+    from ..simulation import ServoLoop, simulate
     from ..simulation import _canonical as paper  # the paper's set-up, as data
     from ..simulation._simulate import _sample_count
     from ._noise import noise_gains
     from ._sensitivity import loop_margins
 
+    legacy = {"plant": plant, "nominal": nominal, "Ts": Ts, "controller": controller,
+              "sensor": sensor, "actuator": actuator}  # fmt: skip
+    parts = loop_parts(loop, legacy, "compare_observers")
+    if loop is None and parts:  # the loop of the parts given (the observer is the comparison's)
+        missing = [k for k in ("plant", "nominal", "Ts", "controller") if k not in parts]
+        if missing:
+            raise ParameterTypeError(
+                "compare_observers() needs a ServoLoop as first argument, or the keyword "
+                f"arguments plant, nominal, Ts and controller (missing: {', '.join(missing)})"
+            )
+        loop = ServoLoop(**parts)
     if isinstance(sensors, str):
         sensors = (sensors,)
     if not isinstance(sensors, (tuple, list)):
@@ -453,9 +496,7 @@ def compare_observers(
             design, parameter, value, tuning = _tune(model, spec, target, sigma)
         except (ParameterTypeError, ParameterValueError) as err:
             raise type(err)(f"candidates[{name!r}]: {err}") from None
-        velocity = "observer" if design.system.has_velocity else "measured"
-        pd = scenario["controller"]
-        controller = PD(pd.kp, pd.kd, feedforward=pd.feedforward, velocity=velocity)
+        controller = _with_velocity(scenario["controller"], design.system.has_velocity)
         for sensor in sensors:
             devices = {"sensor": encoder, "actuator": actuator} if sensor == "encoder" else {}
             with warnings.catch_warnings():

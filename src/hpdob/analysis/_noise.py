@@ -122,9 +122,9 @@ def noise_gains(loop: ServoLoop) -> NoiseGains:
     Parameters
     ----------
     loop : ServoLoop
-        The loop (see :class:`~hpdob.ServoLoop`). Its keyword arguments (``plant=...,
-        nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...``) are
-        accepted instead, as before. With ``Encoder(velocity="backward-difference")`` the
+        The loop (see :class:`~hpdob.ServoLoop`), or its parts as keyword arguments
+        (the loop functions' one alias rule, :data:`hpdob.simulation.LOOP_KEYS`).
+        With ``Encoder(velocity="backward-difference")`` the
         position noise also reaches the differenced velocity.
 
     Returns

@@ -24,12 +24,12 @@ from .._validation import (
     nonnegative,
     positive,
 )
+from ..controllers import Controller, LinearController, controller_system
 from ..models._servo import ServoModel
 from ..observers import design_at_bandwidth, spec_label
 from ..observers._system import MEASUREMENTS
-from ..simulation._controller import PD
 from ..simulation._devices import Encoder
-from ..simulation._loop import MISSING, loop_parts
+from ..simulation._loop import MISSING, ServoLoop, loop_parts
 from ._linear_loop import MAX_DELAY_SAMPLES, LoopSpec, loop_matrices
 
 __all__ = ["StabilityMap", "robust_stability_map"]
@@ -139,7 +139,7 @@ def _map_spec(loop) -> dict:
 class _Setting:
     nominal: ServoModel
     Ts: float
-    controller: PD
+    controller: LinearController  # the loop's controller, designed on nominal and Ts once
     spec: dict  # the observer family and its arguments but the bandwidth
     delay: int
     backward_difference: bool
@@ -148,7 +148,7 @@ class _Setting:
         plant = ServoModel(J_ratio * self.nominal.J, b).discretize(self.Ts)
         spec = LoopSpec(
             plant=plant,
-            controller=self.controller.design(self.nominal, self.Ts),
+            controller=self.controller,
             system=design.system,
             backward_difference=self.backward_difference,
             delay=self.delay,
@@ -367,7 +367,7 @@ def robust_stability_map(
     order: int | None = None,
     nominal: ServoModel = MISSING,
     Ts: float = MISSING,
-    controller: PD = MISSING,
+    controller: Controller | LinearController = MISSING,
     b=None,
     delay_samples: int | None = None,
     gain_direction=(1.0, 1.0),
@@ -389,9 +389,9 @@ def robust_stability_map(
     loop : ServoLoop, optional
         The loop: its ``nominal``, ``Ts``, ``controller``, ``sensor``, its actuator's delay and
         (unless ``order`` or ``observer`` is given) its observer's family spec; its plant is
-        replaced at every grid point. Instead of a loop, its keyword arguments ``nominal``,
-        ``Ts``, ``controller`` and ``sensor`` are accepted (the loop functions' one alias,
-        the parts of a :class:`~hpdob.ServoLoop`).
+        replaced at every grid point. Instead of a loop, its parts ``nominal``, ``Ts``,
+        ``controller``, ``sensor`` and (the family spec) ``observer`` as keyword arguments
+        (the loop functions' one alias rule, :data:`hpdob.simulation.LOOP_KEYS`).
     J_ratio : float or array_like, optional
         True/nominal inertia ratio(s) ``J / J_n``, positive; a grid must be strictly
         increasing. Default 1.
@@ -404,7 +404,12 @@ def robust_stability_map(
         Nominal model (``J_n``, ``b_n``) of controller and observer.
     Ts : float
         Sampling period [s].
-    controller : PD
+    controller : Controller or LinearController
+        Any controller of the protocol (:class:`~hpdob.PD`, :class:`~hpdob.PID`,
+        :class:`~hpdob.FilteredPD`, :class:`~hpdob.ADRC`, a
+        :class:`~hpdob.controllers.LinearController`), designed once on ``nominal`` and
+        ``Ts``; its inputs are wired as in :class:`~hpdob.ServoLoop` (checked with the first
+        bandwidth's observer before the map is computed).
     b : float or array_like, optional
         True viscous friction(s) [N m s/rad], >= 0; a grid must be strictly increasing.
         Default: ``nominal.b``.
@@ -487,11 +492,10 @@ def robust_stability_map(
     delay_samples = 0 if delay_samples is None else delay_samples
     if not isinstance(nominal, ServoModel):
         raise ParameterTypeError(f"nominal must be a ServoModel, got {type(nominal).__name__}")
-    if not isinstance(controller, PD):
-        raise ParameterTypeError(f"controller must be a PD, got {type(controller).__name__}")
     if sensor is not None and not isinstance(sensor, Encoder):
         raise ParameterTypeError(f"sensor must be an Encoder or None, got {type(sensor).__name__}")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
+    linear_controller = controller_system(controller, nominal, Ts)  # refuses a non-controller
     if (order is None) == (observer is None):
         raise ParameterValueError(
             "give exactly one of order (the paper's family) and observer (a family spec), got "
@@ -528,7 +532,7 @@ def robust_stability_map(
     setting = _Setting(
         nominal=nominal,
         Ts=Ts,
-        controller=controller,
+        controller=linear_controller,
         spec=spec,
         delay=delay,
         backward_difference=sensor is not None and sensor.velocity == "backward-difference",
@@ -536,6 +540,9 @@ def robust_stability_map(
     values = ratios if ratio_grid else frictions
     check_map_size(values, bandwidths)
     designs = [setting.design(float(g)) for g in bandwidths]
+    # the controller's inputs wired to this family's outputs, as a loop wires them (named)
+    ServoLoop(plant=nominal, nominal=nominal, Ts=Ts, controller=controller, observer=designs[0],
+              sensor=sensor)  # fmt: skip
     # Validate every plant before computing (ServoModel checks finiteness of J and b).
     check_plants(values, ratio_grid, ratios, frictions, nominal, Ts)
     rho = np.empty((values.size, bandwidths.size))

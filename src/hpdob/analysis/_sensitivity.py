@@ -64,9 +64,8 @@ def gang_of_four(loop: ServoLoop) -> GangOfFour:
     Parameters
     ----------
     loop : ServoLoop
-        The loop (see :class:`~hpdob.ServoLoop`). Its keyword arguments (``plant=...,
-        nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...``) are
-        accepted instead, as before.
+        The loop (see :class:`~hpdob.ServoLoop`), or its parts as keyword arguments
+        (the loop functions' one alias rule, :data:`hpdob.simulation.LOOP_KEYS`).
 
     Returns
     -------
@@ -147,9 +146,8 @@ def loop_transfer(loop: ServoLoop):
     Parameters
     ----------
     loop : ServoLoop
-        The loop (see :class:`~hpdob.ServoLoop`). Its keyword arguments (``plant=...,
-        nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...``) are
-        accepted instead, as before.
+        The loop (see :class:`~hpdob.ServoLoop`), or its parts as keyword arguments
+        (the loop functions' one alias rule, :data:`hpdob.simulation.LOOP_KEYS`).
 
     Returns
     -------
@@ -278,9 +276,8 @@ def loop_margins(loop: ServoLoop) -> LoopMargins:
     Parameters
     ----------
     loop : ServoLoop
-        The loop (see :class:`~hpdob.ServoLoop`). Its keyword arguments (``plant=...,
-        nominal=..., Ts=..., controller=..., observer=..., sensor=..., actuator=...``) are
-        accepted instead, as before.
+        The loop (see :class:`~hpdob.ServoLoop`), or its parts as keyword arguments
+        (the loop functions' one alias rule, :data:`hpdob.simulation.LOOP_KEYS`).
 
     Returns
     -------

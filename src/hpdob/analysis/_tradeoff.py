@@ -24,14 +24,14 @@ from .._validation import (
     check_choice,
     positive,
     readonly,
-    require_instance,
 )
+from ..controllers import Controller, LinearController, controller_system
 from ..models._servo import ServoModel
 from ..observers._realised import POLE_TOLERANCE
 from ..observers._synthesis import design_observer
 from ..observers._system import MEASUREMENTS
-from ..simulation._controller import PD
 from ..simulation._devices import Encoder
+from ..simulation._loop import MISSING, loop_parts
 from ._estimation import estimation_response
 from ._noise import OBSERVER_CHANNELS, noise_gains, observer_noise_gain
 
@@ -112,7 +112,7 @@ class NoiseTradeoff:
         if self.u_noise_gain is None:
             raise ParameterValueError(
                 "channel='command' needs the command's noise gains: call noise_tradeoff with "
-                "controller=PD(...)"
+                "a controller (controller=PD(...), or a ServoLoop with one)"
             )
         return self.u_noise_gain
 
@@ -321,8 +321,8 @@ def _row_name(m: int, kind: str) -> str:
 def _u_noise_gain(design, nominal, Ts, controller, noise) -> float:
     """RMS of ``u`` per unit white noise in the nominal closed loop (see noise_tradeoff)."""
     position_only = design.system.measurement == "position"
-    if not position_only and controller.velocity == "observer":
-        controller = replace(controller, velocity="measured")
+    if not position_only and getattr(controller, "velocity", None) == "observer":
+        controller = replace(controller, velocity="measured")  # the measured one, then
     encoder = Encoder(2**20, velocity="backward-difference") if noise == "encoder" else None
     try:
         gains = noise_gains(
@@ -335,22 +335,29 @@ def _u_noise_gain(design, nominal, Ts, controller, noise) -> float:
 
 
 def noise_tradeoff(
+    loop=None,
+    /,
     *,
-    nominal: ServoModel,
-    Ts: float,
+    nominal: ServoModel = MISSING,
+    Ts: float = MISSING,
     frequency: float,
     bandwidths,
     orders=(0, 1, 2, 3),
     noise: str = "velocity",
     gain_direction=(1.0, 1.0),
     measurements=("state",),
-    controller: PD | None = None,
+    controller: Controller | LinearController | None = MISSING,
     pole_tolerance: float | None = POLE_TOLERANCE,
 ) -> NoiseTradeoff:
     r"""Estimation error for a sinusoidal disturbance against noise gain, per order and bandwidth.
 
     Parameters
     ----------
+    loop : ServoLoop, optional
+        A loop whose ``nominal``, ``Ts`` and ``controller`` are used (its plant, observer,
+        sensor and actuator are not: the figures are of the observers on the nominal model).
+        Instead of a loop, the keyword arguments ``nominal``, ``Ts`` and ``controller``
+        (the loop functions' one alias, :data:`hpdob.simulation.LOOP_KEYS`).
     nominal : ServoModel
         The nominal model the observers are designed on.
     Ts : float
@@ -371,11 +378,15 @@ def noise_tradeoff(
         As for :func:`hpdob.design_observer` (observers measuring the state).
     measurements : sequence of {"state", "position"}, optional
         Observer families; rows are every family with every order. Default ``("state",)``.
-    controller : PD, optional
+    controller : Controller or LinearController, optional
         Also compute the command's noise gain in the nominal closed loop (plant = nominal,
-        no delay): its D term takes the velocity from the sensor (differenced from the angle for
-        ``noise="encoder"``), or for position-only observers from their estimate when
-        ``controller.velocity == "observer"``.
+        no delay), with any controller of the protocol (:class:`~hpdob.PD`,
+        :class:`~hpdob.PID`, :class:`~hpdob.FilteredPD`, :class:`~hpdob.ADRC`, a
+        :class:`~hpdob.controllers.LinearController`): the measured velocity comes from the
+        sensor (differenced from the angle for ``noise="encoder"``); a controller with
+        ``velocity == "observer"`` takes the position-only observers' estimate, and the
+        measured velocity with observers measuring the state. A NaN marks a grid point
+        whose nominal loop is unstable.
     pole_tolerance : float or None, optional
         As for :func:`hpdob.design_observer` (default 0.05): a grid point whose design cannot
         be realised in double precision (high orders at low bandwidths) raises. ``None``
@@ -413,6 +424,15 @@ def noise_tradeoff(
     >>> both.measurements
     ('state', 'position')
     """
+    parts = loop_parts(loop, {"nominal": nominal, "Ts": Ts, "controller": controller},
+                       "noise_tradeoff")  # fmt: skip
+    missing = [k for k in ("nominal", "Ts") if k not in parts]
+    if missing:
+        raise ParameterTypeError(
+            "noise_tradeoff() needs a ServoLoop as first argument, or the keyword arguments "
+            f"nominal and Ts (missing: {', '.join(missing)})"
+        )
+    nominal, Ts, controller = parts["nominal"], parts["Ts"], parts.get("controller")
     if not isinstance(nominal, ServoModel):
         raise ParameterTypeError(f"nominal must be a ServoModel, got {type(nominal).__name__}")
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
@@ -446,7 +466,8 @@ def noise_tradeoff(
             "noise must be 'position' or 'encoder' when measurements include 'position' (a "
             "position-only observer measures no velocity), got 'velocity'"
         )
-    require_instance(controller, PD, "controller", optional=True)
+    if controller is not None:
+        controller_system(controller, nominal, Ts)  # refuses what is not a controller, named
     model = nominal.discretize(Ts)
     rows = [(m, kind) for kind in kinds for m in ms]
     err = np.empty((len(rows), grid.size))

@@ -150,10 +150,12 @@ def _check_outputs(args: argparse.Namespace) -> None:
 
 def _interrupted(command: str, err: KeyboardInterrupt) -> int:
     """Report an interrupt on one line; the exit code is 128 + the signal's number."""
+    detail = getattr(err, "detail", "")  # e.g. where a sweep's finished rows went
+    detail = f"; {detail}" if detail else ""
     if isinstance(err, Interrupted) and err.name != "SIGINT":
-        print(f"{command}: interrupted ({err.name})", file=sys.stderr)
+        print(f"{command}: interrupted ({err.name}){detail}", file=sys.stderr)
         return EXIT_CODES[err.signum]
-    print(f"{command}: interrupted", file=sys.stderr)
+    print(f"{command}: interrupted{detail}", file=sys.stderr)
     return 130
 
 

@@ -18,6 +18,7 @@ from ._errors import CLIError
 from ._options import (
     add_loop_arguments,
     add_nominal_arguments,
+    controller_from_args,
     finite,
     output_path,
     reject_plant_arguments,
@@ -145,8 +146,8 @@ def _add_measurement(parser: argparse.ArgumentParser, *, loop: bool = True) -> N
             "--pd-velocity",
             choices=("measured", "observer"),
             default="measured",
-            help="velocity of the PD's D term: the sensor's or the position-only observer's "
-            "estimate (default: %(default)s)",
+            help="velocity of the D term (pd, pid, filtered-pd): the sensor's or the "
+            "position-only observer's estimate (default: %(default)s)",
         )
 
 
@@ -301,14 +302,14 @@ def register(subparsers) -> None:
 
 def _loop(args):
     from ..models._servo import ServoModel
-    from ..simulation._controller import PD
     from ..simulation._devices import Actuator
 
+    velocity = getattr(args, "pd_velocity", "measured")
     return {
         "plant": ServoModel(args.J, args.b),
         "nominal": ServoModel(args.J_n, args.b_n),
         "Ts": args.Ts,
-        "controller": PD(args.kp, args.kd, velocity=getattr(args, "pd_velocity", "measured")),
+        "controller": controller_from_args(args, velocity=velocity),
         "actuator": Actuator(delay_samples=args.delay),
     }
 
@@ -432,14 +433,18 @@ def _noise(args, files) -> list[str]:
 
 
 def _describe(args) -> dict:
+    from ..controllers import controller_settings
+
+    controller = controller_from_args(args, velocity=args.pd_velocity)
     return {
         "J_n": args.J_n,
         "b_n": args.b_n,
         "J": args.J,
         "b": args.b,
         "Ts": args.Ts,
-        "kp": args.kp,
-        "kd": args.kd,
+        "controller": {**controller_settings(controller), "type": args.controller},
+        "kp": getattr(controller, "kp", None),
+        "kd": getattr(controller, "kd", None),
         "delay_samples": args.delay,
         "measurement": args.measurement,
         "pd_velocity": args.pd_velocity,

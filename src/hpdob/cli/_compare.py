@@ -6,7 +6,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ._options import add_nominal_arguments, finite, output_path
+from ._options import (
+    add_controller_arguments,
+    add_nominal_arguments,
+    controller_from_args,
+    finite,
+    output_path,
+)
 
 __all__ = ["register"]
 
@@ -23,7 +29,9 @@ def register(subparsers) -> None:
     )
     add_nominal_arguments(parser.add_argument_group("nominal model"))
     loop = parser.add_argument_group(
-        "loop", "the true plant and the PD; defaults: the paper's, the plant scaled with J_n"
+        "loop",
+        "the true plant and the controller; defaults: the paper's (its PD), the plant scaled "
+        "with J_n",
     )
     loop.add_argument(
         "--J",
@@ -43,8 +51,7 @@ def register(subparsers) -> None:
         default=None,
         help="true Coulomb friction [N m] (default: 0.01 J_n/2.8e-4)",
     )
-    loop.add_argument("--kp", type=finite, default=None, help="PD gain kp [1/s^2] (50)")
-    loop.add_argument("--kd", type=finite, default=None, help="PD gain kd [1/s] (5)")  # fmt: skip
+    add_controller_arguments(loop)
     parser.add_argument(
         "--sensor",
         choices=("ideal", "encoder", "both"),
@@ -72,7 +79,7 @@ def _loop(args: argparse.Namespace):
     """The loop of the comparison: the paper's, at the given J_n (plant scaled with it)."""
     from ..models import ServoModel
     from ..paper import CONTROLLER, NOMINAL, PLANT
-    from ..simulation import PD, ServoLoop
+    from ..simulation import ServoLoop
 
     scale = args.J_n / NOMINAL.J
     plant = PLANT.replace(
@@ -80,10 +87,9 @@ def _loop(args: argparse.Namespace):
         b=PLANT.b * scale if args.b is None else args.b,
         coulomb=PLANT.coulomb * scale if args.coulomb is None else args.coulomb,
     )
-    kp = CONTROLLER.kp if args.kp is None else args.kp
-    kd = CONTROLLER.kd if args.kd is None else args.kd
+    controller = controller_from_args(args, feedforward=CONTROLLER.feedforward)
     return ServoLoop(plant=plant, nominal=ServoModel(args.J_n, args.b_n), Ts=args.Ts,
-                     controller=PD(kp, kd, feedforward=CONTROLLER.feedforward))  # fmt: skip
+                     controller=controller)  # fmt: skip
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -141,22 +141,22 @@ def _run(args: argparse.Namespace) -> int:
         out = Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
         check_output(out)
     design = design_on(args, nominal.discretize(log.Ts))
-    # The estimate and the CSV written as it runs: a stage, not a bar.
-    estimating = ProgressLine("hpdob estimate: estimating", unit="samples")
-    if show:
-        estimating(0, len(log))
+    # One stage: the CSV is written as the estimate runs, rows counted chunk by chunk.
+    writing = ProgressLine("hpdob estimate: estimating, writing estimate.csv", unit="rows")
     written = ["estimate.csv"]
     created = [p for p in (out, *out.parents) if not p.exists()]  # removed again on a refusal
     try:
-        mean, std = _estimate(args, log, design, nominal, origin, out, written)
+        if show:
+            writing(0, len(log))
+        mean, std = _estimate(args, log, design, nominal, origin, out, written,
+                              writing if show else None)  # fmt: skip
     except BaseException:
-        estimating.end()  # the message starts on its own line
+        writing.end()  # the message starts on its own line
         for directory in created:  # innermost first; only what is still empty
             with contextlib.suppress(OSError):
                 directory.rmdir()
         raise
-    if show:
-        estimating(len(log), len(log))
+    writing.end()
     print(
         f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s; {design.system.name} on "
         f"J_n = {nominal.J:.6g}, b_n = {nominal.b:.6g} ({origin})"
@@ -166,7 +166,7 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _estimate(args, log, design, nominal, origin, out, written) -> tuple:
+def _estimate(args, log, design, nominal, origin, out, written, progress=None) -> tuple:
     """Run the estimate and write its set of files (``written`` lists them); return the mean
     and standard deviation of the estimate over the last 90 % of the log."""
     from .._files import staged_outputs
@@ -176,7 +176,8 @@ def _estimate(args, log, design, nominal, origin, out, written) -> tuple:
     # leaves nothing. With --no-plot a previous run's estimate.png is removed: one consistent set.
     with staged_outputs(out, markers=["estimate.json"], replaces=["estimate.png"]) as files:
         # the traces are written as the estimate runs; the statistics skip the first 10 %
-        run = estimate_log(design, log, csv=files.path("estimate.csv"), settle=0.1, keep=False)
+        run = estimate_log(design, log, csv=files.path("estimate.csv"), settle=0.1, keep=False,
+                           progress=progress)  # fmt: skip
         mean, std = run.mean, run.std
         if not (run.finite and math.isfinite(mean) and math.isfinite(std)):
             raise CLIError(

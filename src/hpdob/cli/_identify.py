@@ -17,6 +17,7 @@ from ._errors import CLIError
 from ._logs import add_log_arguments, log_from_args, logs_from_args
 from ._options import finite as _real
 from ._options import output_path
+from ._progress import ProgressLine, StagedProgress, show_progress
 
 __all__ = ["register"]
 
@@ -132,7 +133,21 @@ def register(subparsers) -> None:
         help="output directory (default: hpdob-results/identify-<log name>)",
     )
     parser.add_argument("--no-plot", action="store_true", help="skip the figures")
+    parser.add_argument(
+        "--progress", action=argparse.BooleanOptionalAction, default=None,
+        help="reading and identification progress with the time left on stderr (default: "
+        "when stderr is a terminal)",
+    )  # fmt: skip
     parser.set_defaults(handler=_run)
+
+
+#: The stages of identify()'s progress, as the command's lines name them.
+STAGES = {
+    "filtering": "filtering the logs",
+    "iterating": "IDIM-IV iterations (at most)",
+    "simulating": "simulating the fit",
+    "sensitivity": "re-estimating with the filters x2, /2",
+}
 
 
 def _columns(args) -> dict:
@@ -202,10 +217,10 @@ def _loop(args, log, name: str):
     return loop, source
 
 
-def _load(args):
+def _load(args, progress=None):
     from ..identification import emps_loop
 
-    logs = logs_from_args(args, _columns(args) or None)
+    logs = logs_from_args(args, _columns(args) or None, progress)
     if args.emps:
         if _wants_loop(args):
             raise CLIError("--emps brings its own controller: drop the loop options")
@@ -283,9 +298,21 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.emps and args.validate is not None:
         raise CLIError("--validate takes a LOG with the same columns as LOG; not with --emps")
-    logs, loops, loop_source = _load(args)
+    show = show_progress(args.progress)
+    lines = []
+
+    def reading(name):
+        lines.append(ProgressLine(f"hpdob identify: reading {name}", unit="MiB", scale=2**20))
+        return lines[-1]
+
+    try:
+        logs, loops, loop_source = _load(args, reading if show else None)
+    finally:  # an error or interrupt message starts on its own line
+        for line in lines:
+            line.end()
     # before the identification, not after it
     check_output(args.out or Path("hpdob-results") / f"identify-{_stem(logs[0])}")
+    stages = StagedProgress("hpdob identify:", STAGES)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", IdentificationWarning)
         try:
@@ -296,9 +323,12 @@ def _run(args: argparse.Namespace) -> int:
                 border=args.border, min_speed=args.min_speed, friction=args.friction,
                 fixed=dict(args.fix) or None, offsets=args.offsets,
                 diagnostics=not args.no_diagnostics, axis=args.axis or logs[0].axis,
+                progress=stages if show else None,
             )  # fmt: skip
         except (ParameterTypeError, ParameterValueError) as err:
             raise CLIError(cli_words(str(err))) from None
+        finally:
+            stages.end()
     first = logs[0]
     out = args.out or Path("hpdob-results") / f"identify-{_stem(first)}"
     report = result.to_dict()

@@ -64,8 +64,14 @@ def _input_gain(text: str):
     return value
 
 
-def logs_from_args(args: argparse.Namespace, columns=None) -> list:
-    """The logs of ``LOG ...`` (several files, or one with ``--run``) or ``--emps``."""
+def logs_from_args(args: argparse.Namespace, columns=None, progress=None) -> list:
+    """The logs of ``LOG ...`` (several files, or one with ``--run``) or ``--emps``
+    (``progress(name)``: the ``progress(done, total)`` callback, bytes read, for the file
+    ``name``, or None)."""
+
+    def reading(name):
+        return None if progress is None else progress(name)
+
     from ..identification import read_logs
 
     files = list(args.log)
@@ -76,7 +82,8 @@ def logs_from_args(args: argparse.Namespace, columns=None) -> list:
             raise CLIError("--emps is one run; drop --run")
         return [log_from_args(argparse.Namespace(**{**vars(args), "log": None}))]
     if getattr(args, "run", None) is None:
-        return [log_from_args(argparse.Namespace(**{**vars(args), "log": f}), columns)
+        return [log_from_args(argparse.Namespace(**{**vars(args), "log": f}), columns,
+                              reading(Path(f).name))
                 for f in files]  # fmt: skip
     if len(files) > 1:
         raise CLIError("--run splits one file into its runs: give one LOG with it")
@@ -90,6 +97,7 @@ def logs_from_args(args: argparse.Namespace, columns=None) -> list:
         Ts=args.Ts,
         axis=args.axis,
         columns=columns,
+        progress=reading(Path(files[0]).name),
     )
 
 

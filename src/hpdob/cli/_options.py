@@ -14,8 +14,10 @@ from pathlib import Path
 from ..paper._scenario import CONTROLLER, NOMINAL, PLANT, TS
 
 __all__ = [
+    "add_controller_arguments",
     "add_loop_arguments",
     "add_nominal_arguments",
+    "controller_from_args",
     "finite",
     "output_path",
     "reject_plant_arguments",
@@ -82,12 +84,89 @@ def add_loop_arguments(group) -> None:
     group.add_argument(
         "--b", type=finite, default=PLANT.b, help="true viscous friction [N m s/rad] (%(default)s)"
     )
-    group.add_argument(
-        "--kp", type=finite, default=CONTROLLER.kp, help="PD gain kp [1/s^2] (%(default)s)"
-    )
-    group.add_argument(
-        "--kd", type=finite, default=CONTROLLER.kd, help="PD gain kd [1/s] (%(default)s)"
-    )
+    add_controller_arguments(group)
     group.add_argument(
         "--delay", type=int, default=0, help="actuator delay [samples] (%(default)s)"
     )
+
+
+#: The options of one controller type each: ``option: (--controller type, help)``.
+CONTROLLER_OPTIONS = {
+    "--ki": ("pid", "PID integral gain ki [1/s^3] (needed by --controller pid)"),
+    "--tracking-time": ("pid",
+                        "PID anti-windup tracking time [s] (default: sqrt(kd/ki))"),
+    "--time-constant": ("filtered-pd",
+                        "derivative filter time constant T_f [s] (needed by --controller "
+                        "filtered-pd)"),
+    "--adrc-bandwidth": ("adrc",
+                         "ADRC closed-loop bandwidth w_c [rad/s] (needed by --controller adrc)"),
+    "--adrc-observer-bandwidth": ("adrc",
+                                  "bandwidth of ADRC's own ESO [rad/s] (default: 5 w_c)"),
+}  # fmt: skip
+
+
+def add_controller_arguments(group) -> None:
+    """``--controller`` (a scenario file's ``[controller] type``), ``--kp``, ``--kd`` and the
+    options of each type (:data:`CONTROLLER_OPTIONS`); see :func:`controller_from_args`."""
+    from ..controllers import CONTROLLER_TYPES
+
+    group.add_argument(
+        "--controller",
+        choices=tuple(CONTROLLER_TYPES),
+        default="pd",
+        help="the outer loop, as a scenario file's [controller] type (default: %(default)s)",
+    )
+    group.add_argument(
+        "--kp",
+        type=finite,
+        default=None,
+        help=f"gain kp [1/s^2] of pd, pid, filtered-pd ({CONTROLLER.kp:g})",
+    )
+    group.add_argument(
+        "--kd",
+        type=finite,
+        default=None,
+        help=f"gain kd [1/s] of pd, pid, filtered-pd ({CONTROLLER.kd:g})",
+    )
+    for option, (_, text) in CONTROLLER_OPTIONS.items():
+        group.add_argument(option, type=finite, default=None, help=text)  # fmt: skip
+
+
+def controller_from_args(args, *, velocity: str = "measured", feedforward: bool = True):
+    """The controller of ``--controller`` and its options, the paper's PD gains by default.
+
+    ``velocity`` (``"measured"`` or ``"observer"``) and ``feedforward`` apply to the types
+    that have them (pd, pid, filtered-pd). An option of another type, or a type's option left
+    out, is refused with the option named (``CLIError``); values are checked by the
+    controller's constructor.
+    """
+    from ..controllers import ADRC, PD, PID, FilteredPD
+    from ._errors import CLIError
+
+    kind = args.controller
+    for option, (owner, _) in CONTROLLER_OPTIONS.items():
+        if getattr(args, name_of(option)) is not None and owner != kind:
+            raise CLIError(f"{option} applies to --controller {owner} only, not {kind}")
+    if kind == "adrc":
+        for option in ("--kp", "--kd"):
+            if getattr(args, name_of(option)) is not None:
+                raise CLIError(f"{option} applies to --controller pd, pid, filtered-pd, not adrc")
+    needed = {"pid": "--ki", "filtered-pd": "--time-constant", "adrc": "--adrc-bandwidth"}
+    if kind in needed and getattr(args, name_of(needed[kind])) is None:
+        raise CLIError(f"--controller {kind} needs {needed[kind]} "
+                       f"({CONTROLLER_OPTIONS[needed[kind]][1].split(' (')[0]})")  # fmt: skip
+    if kind == "adrc":
+        return ADRC(args.adrc_bandwidth, observer_bandwidth=args.adrc_observer_bandwidth)
+    kp = CONTROLLER.kp if args.kp is None else args.kp
+    kd = CONTROLLER.kd if args.kd is None else args.kd
+    common = {"feedforward": feedforward, "velocity": velocity}
+    if kind == "pid":
+        return PID(kp, args.ki, kd, tracking_time=args.tracking_time, **common)
+    if kind == "filtered-pd":
+        return FilteredPD(kp, kd, time_constant=args.time_constant, **common)
+    return PD(kp, kd, **common)
+
+
+def name_of(option: str) -> str:
+    """The argparse destination of ``option`` (``--tracking-time`` -> ``tracking_time``)."""
+    return option.lstrip("-").replace("-", "_")

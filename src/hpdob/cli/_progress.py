@@ -68,3 +68,26 @@ class ProgressLine:
             self.stream.write("\n")
             self.stream.flush()
             self.open = False
+
+
+class StagedProgress:
+    """Progress of work in named stages (``progress(stage, done, total)`` of the library):
+    a :class:`ProgressLine` per stage, with its own clock, so each stage's time left is
+    estimated from that stage alone. ``names`` maps a stage to its words on the line."""
+
+    def __init__(self, prefix: str, names: dict, stream=None, clock=time.monotonic):
+        self.prefix, self.names, self.stream, self.clock = prefix, names, stream, clock
+        self.stage, self.line = None, None
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if stage != self.stage:  # a new stage: its own clock and line
+            self.end()
+            label = f"{self.prefix} {self.names.get(stage, stage)}"
+            self.line = ProgressLine(label, self.stream, self.clock)
+            self.stage = stage
+        self.line(done, total)
+
+    def end(self) -> None:
+        """End the current stage's line if it is left open."""
+        if self.line is not None:
+            self.line.end()

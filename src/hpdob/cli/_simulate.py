@@ -170,17 +170,16 @@ def _run(args: argparse.Namespace) -> int:
     # The previous run's <label>.csv/.png (another label, or a figure this --no-plot run does
     # not draw) are removed at the commit: the directory holds one consistent set.
     replaces = [*_previous_files(out), f"{stem}.png"]
-    writing = ProgressLine(f"hpdob simulate: writing {stem}.csv", unit="rows")  # a stage
+    # rows written, chunk by chunk (32768 rows each: the column-wise writer's chunks)
+    writing = ProgressLine(f"hpdob simulate: writing {stem}.csv", unit="rows")
     try:
         if show:
             writing(0, len(result))
         with staged_outputs(out, markers=["metrics.json"], replaces=replaces) as files:
-            result.to_csv(files.path(f"{stem}.csv"))
+            result.to_csv(files.path(f"{stem}.csv"), progress=writing if show else None)
             if not args.no_plot:
                 files.plot(f"{stem}.png", lambda: result.plot())
             files.write_text("metrics.json", metrics_json({stem: metrics}))
-            if show:
-                writing(len(result), len(result))
     finally:
         writing.end()
     for name, value in metrics.items():

@@ -58,7 +58,7 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--resume",
         action="store_true",
-        help="complete an incomplete sweep: read the rows a failed dask run kept in "
+        help="complete an incomplete sweep: read the rows an interrupted or failed run kept in "
         "<out>.partial.csv (or .parquet), run only the missing scenarios and write --out, "
         "equal to a run from scratch",
     )
@@ -72,7 +72,8 @@ def partial_path(out: Path) -> Path:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..simulation import SweepIncomplete, sweep
+    from .._interrupts import Interrupted, acknowledge
+    from ..simulation import SweepIncomplete, SweepInterrupted, sweep
     from ..simulation._scenario import load_sweep
 
     if args.scheduler is not None and not args.scheduler.strip():  # '' used to run locally
@@ -96,17 +97,16 @@ def _run(args: argparse.Namespace) -> int:
             )
     except SweepIncomplete as failure:  # keep the finished rows; say what is missing
         _write(failure.rows, partial)
-        again = ["hpdob", "sweep", str(args.spec), "--out", str(args.out), "--resume"]
-        if args.scheduler is not None:
-            again += ["--scheduler", args.scheduler]
-        print(
-            f"hpdob sweep: error: {failure}; wrote the {len(failure.rows)} finished rows to "
-            f"{partial} ({args.out} was not written); missing: scenarios "
-            f"{_ranges(failure.missing)}; to run only those and write {args.out}: "
-            f"{shlex.join(again)}",
-            file=sys.stderr,
-        )
+        print(f"hpdob sweep: error: {failure}; {_kept(args, failure, partial)}", file=sys.stderr)
         return 1
+    except SweepInterrupted as interrupt:  # the same, then exit as interrupted (130, 143, 129)
+        acknowledge()  # handled here: the partial file may be committed
+        if len(interrupt.rows):
+            _write(interrupt.rows, partial)  # a second signal here: atomic, nothing half-written
+            detail = _kept(args, interrupt, partial)
+        else:
+            detail = f"no scenario had finished; {args.out} was not written"
+        raise Interrupted(interrupt.signum, detail) from None
     elapsed = time.perf_counter() - start
     _write(rows, args.out)
     partial.unlink(missing_ok=True)  # complete now (or stale: this run did every scenario)
@@ -119,6 +119,19 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _kept(args: argparse.Namespace, stopped, partial: Path) -> str:
+    """Where the finished rows of an incomplete sweep went, what is missing, and the command
+    that completes it."""
+    again = ["hpdob", "sweep", str(args.spec), "--out", str(args.out), "--resume"]
+    if args.scheduler is not None:
+        again += ["--scheduler", args.scheduler]
+    return (
+        f"wrote the {len(stopped.rows)} finished rows to {partial} ({args.out} was not "
+        f"written); missing: scenarios {_ranges(stopped.missing)}; to run only those and write "
+        f"{args.out}: {shlex.join(again)}"
+    )
+
+
 def _read_partial(partial: Path):
     """The rows of ``partial`` as written by :func:`_write`, read back exactly (pandas 3 parses
     floats to the nearest double; the resumed file is compared byte for byte with a run from
@@ -129,7 +142,8 @@ def _read_partial(partial: Path):
     if not partial.is_file():
         raise CLIError(
             f"--resume: there is no partial result {partial} to resume (one is written when a "
-            "dask sweep fails part-way; without it, run the sweep without --resume)"
+            "sweep is interrupted or its dask cluster fails part-way; without it, run the "
+            "sweep without --resume)"
         )
     try:
         if partial.suffix == ".parquet":

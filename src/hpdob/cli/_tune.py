@@ -8,7 +8,14 @@ from pathlib import Path
 from typing import ClassVar
 
 from ._errors import CLIError
-from ._options import add_nominal_arguments, finite, output_path, reject_plant_arguments
+from ._options import (
+    add_controller_arguments,
+    add_nominal_arguments,
+    controller_from_args,
+    finite,
+    output_path,
+    reject_plant_arguments,
+)
 from ._progress import ProgressLine, show_progress
 from ._ranges import check_uncertainty_ranges
 
@@ -43,8 +50,7 @@ def register(subparsers) -> None:
     add_nominal_arguments(parser.add_argument_group("nominal model"))
     reject_plant_arguments(parser)
     loop = parser.add_argument_group("loop")
-    loop.add_argument("--kp", type=finite, default=50.0, help="PD gain kp [1/s^2] (50)")
-    loop.add_argument("--kd", type=finite, default=5.0, help="PD gain kd [1/s] (5)")
+    add_controller_arguments(loop)
     loop.add_argument("--counts-per-rev", type=int, default=None, help="encoder counts per rev")
     loop.add_argument("--noise-std", type=finite, default=0.0, help="angle noise std [rad] (0)")
     loop.add_argument("--delay", type=int, default=0, help="actuator delay [samples] (0)")
@@ -80,7 +86,7 @@ def register(subparsers) -> None:
 def _run(args: argparse.Namespace) -> int:
     from .._files import staged_outputs
     from ..models import ServoModel
-    from ..simulation import PD, Actuator, Encoder, scenario_toml
+    from ..simulation import Actuator, Encoder, scenario_toml
     from ..tuning import tune
 
     if args.export_c is not None:  # checked before the search, not after it
@@ -104,7 +110,7 @@ def _run(args: argparse.Namespace) -> int:
         result = tune(
             nominal=ServoModel(args.J_n, args.b_n),
             Ts=args.Ts,
-            controller=PD(args.kp, args.kd, velocity="observer"),
+            controller=controller_from_args(args, velocity="observer"),
             sensor=sensor,
             actuator=Actuator(torque_limit=args.torque_limit, delay_samples=args.delay),
             J_range=args.J_range,

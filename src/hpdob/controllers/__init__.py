@@ -18,7 +18,7 @@ ForceControl, ImpedanceControl
 from ._adrc import ADRC
 from ._base import Controller, controller_system
 from ._force import ForceControl, ImpedanceControl
-from ._pd import PD, FilteredPD
+from ._pd import PD, VELOCITY_SOURCES, FilteredPD
 from ._pid import PID
 from ._program import ControllerProgram
 from ._settings import controller_settings
@@ -35,6 +35,7 @@ __all__ = [
     "LOOP_SIGNALS",
     "PD",
     "PID",
+    "VELOCITY_SOURCES",
     "Controller",
     "ControllerProgram",
     "FilteredPD",

@@ -137,20 +137,24 @@ class EstimationResult:
         """
         return columns_to_pandas(self._columns(), caller="EstimationResult.to_pandas()")
 
-    def to_csv(self, path):
+    def to_csv(self, path, *, progress=None):
         """Write the signals to ``path`` as CSV (header row, full precision), atomically.
 
         Parameters
         ----------
         path : str or os.PathLike
             The file to write (replaced if it exists); the columns of :meth:`to_pandas`.
+        progress : callable, optional
+            Called as ``progress(rows written, rows)`` as the file is written: after each
+            chunk of 32768 rows (the rows are formatted in chunks), or once for a short
+            result. Its return value is ignored. Default: silent.
 
         Returns
         -------
         str or os.PathLike
             ``path``, as given.
         """
-        columns_to_csv(self._columns(), path)  # atomic itself: no temporary of a temporary
+        columns_to_csv(self._columns(), path, progress)  # atomic: no temporary of a temporary
         return path
 
     def plot(self, *, reference=None, reference_label: str = "reference", title=None, axis=None):

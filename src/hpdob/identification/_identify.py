@@ -64,6 +64,10 @@ class IdentificationWarning(RuntimeWarning):
     depend on the filter settings. The message says what to try."""
 
 
+def _silent(stage: str, done: int, total: int) -> None:
+    """The default ``progress`` of :func:`identify`: nothing."""
+
+
 def in_band(signals, settings) -> list:
     """``signals`` low-passed to the band the regression uses: a Butterworth filter (order of
     ``settings``) at the decimation filter's cut-off, forward and backward."""
@@ -110,6 +114,7 @@ def identify(
     max_iterations: int = 20,
     tolerance: float = 0.01,
     time_tolerance: float = DEFAULT_TIME_TOLERANCE,
+    progress=None,
 ) -> Identification:
     r"""Identify inertia, viscous and Coulomb friction and offset of an axis from a logged run.
 
@@ -195,6 +200,15 @@ def identify(
         estimates set to 0.
     time_tolerance : float, optional
         Relative tolerance of the uniform-sampling check (1e-3).
+    progress : callable, optional
+        Called as ``progress(stage, done, total)`` as the identification works, counts only
+        (the caller may time them): ``"filtering"`` (logs filtered and regressed, of
+        ``total``), ``"iterating"`` (IDIM-IV iterations done, of at most ``max_iterations``;
+        when it converges sooner a last call has ``done == total`` = the iterations used),
+        ``"simulating"`` (the simulation fits, one per log) and, with ``diagnostics``,
+        ``"sensitivity"`` (the two re-estimates with the filters' bandwidth doubled and
+        halved). Each stage starts with ``done = 0`` and ends with ``done == total``. Its
+        return value is ignored. Default: silent.
 
     Returns
     -------
@@ -288,14 +302,32 @@ def identify(
     tolerance = positive(tolerance, "tolerance", "a positive relative tolerance")
     if not isinstance(diagnostics, bool):
         raise ParameterTypeError(f"diagnostics must be True or False, got {diagnostics!r}")
+    if progress is None:
+        progress = _silent
+    elif not callable(progress):
+        raise ParameterTypeError(
+            f"progress must be a callable progress(stage, done, total) or None, got "
+            f"{progress!r} of type {type(progress).__name__}"
+        )
     layout = make_layout(friction, fixed, offsets, len(runs))
-    for run in runs:
+    for k, run in enumerate(runs):
+        progress("filtering", k, len(runs))
         where = f" ({run.name})" if len(runs) > 1 else ""
         settings = resolve(
             run, adaptive, bandwidth, cutoff, order, decimation, border, min_speed, zoh
         )
         prepare(run, settings, where)
-    solution = solve(runs, layout, method, own_sign, max_iterations, tolerance)
+    progress("filtering", len(runs), len(runs))
+    iterating = None
+    if method != "idim-ls":
+        progress("iterating", 0, max_iterations)
+
+        def iterating(k):
+            progress("iterating", k, max_iterations)
+
+    solution = solve(runs, layout, method, own_sign, max_iterations, tolerance, iterating)
+    if method != "idim-ls" and solution.converged and solution.iterations < max_iterations:
+        progress("iterating", solution.iterations, solution.iterations)  # converged: done
     caught = []
     if method != "idim-ls" and not solution.converged:
         caught.append(
@@ -306,10 +338,15 @@ def identify(
         )
     per_run = [layout.parameters(solution.estimate, i) for i in range(len(runs))]
     fits, simulation, traces = [], None, None
+    simulated = [
+        per_run[i][0] > 0.0 and (diagnostics or (i == 0 and run.loop is not None))
+        for i, run in enumerate(runs)
+    ]
     for i, run in enumerate(runs):
-        if per_run[i][0] <= 0.0 or not (diagnostics or (i == 0 and run.loop is not None)):
+        if not simulated[i]:
             fits.append(None)
             continue
+        progress("simulating", sum(simulated[:i]), sum(simulated))
         fit = simulate_fit(
             simulated_parameters(per_run[i], run, layout), run.t, run.theta, run.u, run.loop,
             run.settings,
@@ -334,6 +371,8 @@ def identify(
                     f"position by {simulation['position_error_percent']:.3g} % (eq. 11): the "
                     "instruments are poor; check the loop's gains, velocity filter and reference"
                 )
+    if any(simulated):
+        progress("simulating", sum(simulated), sum(simulated))
     moves = {}
     if diagnostics:
         for run, fit in zip(runs, fits, strict=True):
@@ -354,7 +393,8 @@ def identify(
                     "and the units"
                 )
         moves = sensitivity(runs, layout, method, own_sign, solution, border is not None,
-                             max_iterations, tolerance)  # fmt: skip
+                             max_iterations, tolerance,
+                             lambda k, n: progress("sensitivity", k, n))  # fmt: skip
         names = [PARAMETERS[j] for j in layout.free] + (
             ["offset"] if layout.n_offsets == 1 else [f"offset of {r.name}" for r in runs]
         )[: layout.n_offsets]

@@ -350,10 +350,6 @@ def read_log(
     >>> len(log), log.Ts, round(log.input_gain, 2)
     (24841, 0.001, 35.15)
     """
-    if progress is not None and not callable(progress):
-        raise ParameterTypeError(
-            f"progress must be a callable progress(done, total), got {progress!r}"
-        )
     logs = _read(path, time=time, position=position, input=input, input_gain=input_gain,
                  reference=reference, Ts=Ts, axis=axis, time_tolerance=time_tolerance,
                  run=None, columns=columns, progress=progress)  # fmt: skip
@@ -373,6 +369,7 @@ def read_logs(
     axis: str | None = None,
     time_tolerance: float = DEFAULT_TIME_TOLERANCE,
     columns: Mapping | None = None,
+    progress=None,
 ) -> list[Log]:
     r"""Read several runs from one file: a column ``run`` tells which run each row belongs to.
 
@@ -384,8 +381,8 @@ def read_logs(
         Column of the run each row belongs to (numbers; rows of one run need not be
         contiguous but keep their order). Each run's time must increase uniformly; it may
         restart from 0.
-    time, position, input, input_gain, reference, Ts, axis, time_tolerance, columns
-        As :func:`read_log`.
+    time, position, input, input_gain, reference, Ts, axis, time_tolerance, columns, progress
+        As :func:`read_log` (``progress`` counts the bytes of the whole file).
 
     Returns
     -------
@@ -414,12 +411,16 @@ def read_logs(
     """
     return _read(path, time=time, position=position, input=input, input_gain=input_gain,
                  reference=reference, Ts=Ts, axis=axis, time_tolerance=time_tolerance,
-                 run=_name(run, "run"), columns=columns)  # fmt: skip
+                 run=_name(run, "run"), columns=columns, progress=progress)  # fmt: skip
 
 
 def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_tolerance, run,
           columns, progress=None):  # fmt: skip
     """The logs of a file: one, or one per value of the ``run`` column."""
+    if progress is not None and not callable(progress):
+        raise ParameterTypeError(
+            f"progress must be a callable progress(done, total), got {progress!r}"
+        )
     path, wanted, input_gain, axis = _request(path, time=time, position=position, input=input,
                                               input_gain=input_gain, reference=reference, Ts=Ts,
                                               axis=axis, run=run, columns=columns)  # fmt: skip

@@ -82,11 +82,16 @@ def sensitivity_warnings(moves, solution, layout, runs, adaptive, names) -> list
     return out
 
 
-def sensitivity(runs, layout, method, own_sign, solution, border_given, max_iterations, tol):
-    """How far the estimate moves, in standard deviations, with the filters' bandwidth x2, /2."""
+def sensitivity(runs, layout, method, own_sign, solution, border_given, max_iterations, tol,
+                report=None):  # fmt: skip
+    """How far the estimate moves, in standard deviations, with the filters' bandwidth x2, /2
+    (``report(done, 2)`` before each and after the last, if given)."""
     std = np.sqrt(np.diag(solution.covariance))
     moves = {}
-    for factor in (SENSITIVITY_FACTOR, 1.0 / SENSITIVITY_FACTOR):
+    factors = (SENSITIVITY_FACTOR, 1.0 / SENSITIVITY_FACTOR)
+    for k, factor in enumerate(factors):
+        if report is not None:
+            report(k, len(factors))
         copies = []
         try:
             for run in runs:
@@ -102,4 +107,6 @@ def sensitivity(runs, layout, method, own_sign, solution, border_given, max_iter
         except (ParameterValueError, np.linalg.LinAlgError):
             continue
         moves[factor] = (other.estimate - solution.estimate) / np.where(std > 0, std, np.inf)
+    if report is not None:
+        report(len(factors), len(factors))
     return moves

@@ -151,8 +151,10 @@ class Solution:
     converged: bool
 
 
-def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tolerance):
-    """The estimate of one set of regressions: least squares, then the IV iteration."""
+def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tolerance,
+          report=None):  # fmt: skip
+    """The estimate of one set of regressions: least squares, then the IV iteration
+    (``report(k)`` after iteration ``k``, if given)."""
     X = np.vstack([layout.columns(run.regression.X, i) for i, run in enumerate(runs)])
     y = np.concatenate([run.regression.y - layout.known(run.regression.X) for run in runs])
     check_design(runs, layout, X)
@@ -206,6 +208,8 @@ def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tol
             ) from None
         change = np.abs(new - estimate)
         estimate = new
+        if report is not None:
+            report(iteration)
         if np.all(change <= tolerance * np.sqrt(np.diag(covariance))):
             converged = True
             break

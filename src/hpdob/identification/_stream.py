@@ -86,7 +86,7 @@ class LogEstimate:
 
 
 def estimate_log(observer, log, *, csv=None, tau0: float = 0.0, settle: float = 0.0,
-                 keep: bool = True):  # fmt: skip
+                 keep: bool = True, progress=None):  # fmt: skip
     r"""Run an observer over a log a block at a time (:func:`estimate_disturbance`, continued
     from block to block), writing the traces to CSV as it goes.
 
@@ -115,6 +115,9 @@ def estimate_log(observer, log, *, csv=None, tau0: float = 0.0, settle: float = 
         Hold the estimate as ``tau_hat`` (default). False keeps only ``finite``, ``mean``,
         ``std`` and the figure's envelopes (the statistics are computed in the estimate's own
         memory, without a temporary of its size): for a long log written to ``csv``.
+    progress : callable, optional
+        Called as ``progress(done, n)`` with the rows written to ``csv`` (after each chunk of
+        the writer), or the samples estimated without one (after each block).
 
     Returns
     -------
@@ -155,6 +158,10 @@ def estimate_log(observer, log, *, csv=None, tau0: float = 0.0, settle: float = 
             f"t must advance by the observer's sampling period Ts = {float(system.Ts)!r} s, got "
             f"a step of {float(log.Ts)!r} s"
         )
+    if progress is not None and not callable(progress):
+        raise ParameterTypeError(
+            f"progress must be a callable progress(done, total), got {progress!r}"
+        )
     settle = as_real(settle, "settle", "a fraction of the log's duration in [0, 1)")
     if not 0.0 <= settle < 1.0:
         raise ParameterValueError(
@@ -177,7 +184,7 @@ def estimate_log(observer, log, *, csv=None, tau0: float = 0.0, settle: float = 
         if csv is not None:
             handle = files.enter_context(open(files.enter_context(atomic_path(Path(csv))), "wb"))
             handle.write((",".join(columns) + "\r\n").encode())  # the csv module's header row
-            writer = files.enter_context(RowWriter(handle))
+            writer = files.enter_context(RowWriter(handle, progress=progress, rows=n))
         for t, theta, u in blocks:
             m, stop = theta.size, start + theta.size
             if state is None:  # as estimate_disturbance starts (omega_0 = 0: at rest before)
@@ -201,6 +208,8 @@ def estimate_log(observer, log, *, csv=None, tau0: float = 0.0, settle: float = 
                 values = {"t": t, "theta": theta, "omega": omega, "u": u,
                           "tau_hat": tau_hat[start:stop], "omega_hat": omega_hat}  # fmt: skip
                 writer.write([values[name] for name in columns])  # new arrays: none reused
+            elif progress is not None:
+                progress(stop, n)
             start = stop
     finite = bool(np.isfinite(tau_hat).all())
     tail = tau_hat[cut:]

@@ -1,8 +1,9 @@
 """The sampled-data loop and its simulation: sensor, actuator, simulate, sweep.
 
-ServoLoop
+ServoLoop, LOOP_KEYS
     The closed loop as a value (plant, nominal model, Ts, controller, observer, sensor,
-    actuator): the first argument of simulation and analysis.
+    actuator): the first argument of simulation and analysis; its parts as keyword arguments
+    instead (the one alias rule).
 Encoder, Actuator
     Sensor and actuator models (the controllers are in :mod:`hpdob.controllers`).
 simulate, SimulationResult, SimulationDivergedWarning
@@ -19,7 +20,7 @@ sweep
 
 from ._controller import PD as PD  # the PD lives in hpdob.controllers; kept importable here
 from ._devices import Actuator, Encoder
-from ._loop import ServoLoop
+from ._loop import LOOP_KEYS, ServoLoop
 from ._plant_types import (
     PlantType,
     get_plant_type,
@@ -31,9 +32,10 @@ from ._result import SimulationResult
 from ._scenario import Scenario, load_scenario
 from ._scenario_toml import scenario_toml
 from ._simulate import SimulationDivergedWarning, simulate
-from ._sweep import SweepIncomplete, sweep
+from ._sweep import SweepIncomplete, SweepInterrupted, sweep
 
 __all__ = [
+    "LOOP_KEYS",
     "Actuator",
     "Encoder",
     "PlantType",
@@ -42,6 +44,7 @@ __all__ = [
     "SimulationDivergedWarning",
     "SimulationResult",
     "SweepIncomplete",
+    "SweepInterrupted",
     "get_plant_type",
     "load_scenario",
     "plant_types",

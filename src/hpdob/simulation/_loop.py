@@ -25,8 +25,19 @@ from ._devices import Actuator, Encoder
 
 __all__ = ["LOOP_KEYS", "MISSING", "ServoLoop", "accepts_loop", "loop_parts", "resolve_loop"]
 
-#: The keyword arguments that make a :class:`ServoLoop` (and that the loop functions accept
-#: instead of one).
+#: The parts of a :class:`ServoLoop`, and the one alias rule of the functions that take a loop
+#: as their first argument: instead of the loop, its parts may be given as keyword arguments of
+#: these names, each meaning what the :class:`ServoLoop` argument of that name means (the
+#: ``observer`` a family spec, a design or a :class:`~hpdob.LinearObserver`). ``simulate``
+#: and the linear views (``closed_loop``, ``closed_loop_poles``, ``gang_of_four``,
+#: ``loop_transfer``, ``loop_margins``, ``noise_gains``) take all seven; a function that sets
+#: a part itself takes only the others: ``robust_stability_map`` sets the plant (its grid)
+#: and the observer's bandwidth (its ``observer`` is the family spec without it) and reads
+#: the actuator's delay as ``delay_samples``; ``tune`` sets the plant (the uncertainty set)
+#: and the observer (its candidates); ``compare_observers`` the observer;
+#: ``noise_tradeoff`` the plant, observer, sensor and actuator (the observers on the nominal
+#: model). A loop and keyword parts together, or a part the function sets, raise a
+#: ``TypeError`` that names them.
 LOOP_KEYS = ("plant", "nominal", "Ts", "controller", "observer", "sensor", "actuator")
 _PLANTS = "a ServoModel, a TwoMassServo or a MujocoServo (an hpdob Plant)"
 
@@ -68,9 +79,8 @@ class ServoLoop:
         (one without a nominal model must have the same ``Ts``). Each run starts it from
         ``initial_state(x0, 0)`` unless the run is given an ``observer_state``. The loop
         holds values only: a runtime observer (:class:`~hpdob.DisturbanceObserver`, ...) is
-        replaced by its design, and its current state is kept as ``observer_state`` (the
-        run's ``observer_state`` argument is the way to start from a given state).
-        None: PD only.
+        refused (``TypeError``); give its ``.design`` (or ``.system``) here and its state to
+        the run, ``simulate(loop, ..., observer_state=obs.state)``. None: no observer.
     sensor : Encoder, optional
         Default: the ideal state.
     actuator : Actuator, optional
@@ -87,9 +97,6 @@ class ServoLoop:
     observer_spec : dict or None
         The spec the loop designs from, or that of a fixed design of a registered family
         (:func:`hpdob.observers.spec_of`); None for any other observer.
-    observer_state : tuple or None
-        The state of a runtime observer given as ``observer`` at construction (None: reset
-        at the run's ``x0``).
 
     Raises
     ------
@@ -121,7 +128,6 @@ class ServoLoop:
     controller_system: LinearController = field(init=False, repr=False)
     design: object = field(init=False, repr=False)
     observer_spec: dict | None = field(init=False, repr=False)
-    observer_state: tuple | None = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         # python-control systems in: 1/(J s^2 + b s) as a ServoModel, an observer's StateSpace
@@ -141,15 +147,13 @@ class ServoLoop:
         controller = controller_system(self.controller, self.nominal, Ts)
         require_instance(self.sensor, Encoder, "sensor", optional=True)
         actuator = require_instance(self.actuator, Actuator, "actuator", optional=True)
-        observer, system, state, spec = self.observer, None, None, None
+        observer, system, spec = self.observer, None, None
         if isinstance(observer, dict):  # a spec: designed on this loop's nominal model
             spec = check_spec(observer, "observer")
             observer = design_from_spec(self.nominal.discretize(Ts), spec)
             object.__setattr__(self, "observer", spec)
-        elif isinstance(observer, Observer):  # hold its (immutable) design and its state now
-            state = tuple(observer.state.tolist())
-            observer = getattr(observer, "design", None) or observer.system
-            object.__setattr__(self, "observer", observer)
+        elif isinstance(observer, Observer):  # a state is the run's, not the loop's
+            raise ParameterTypeError(runtime_observer_message(observer))
         if observer is not None:
             system = as_system(observer, "observer")
             check_designed_on(system, self.nominal, Ts)
@@ -161,7 +165,6 @@ class ServoLoop:
         object.__setattr__(self, "controller_system", controller)
         object.__setattr__(self, "design", observer)
         object.__setattr__(self, "observer_spec", spec)
-        object.__setattr__(self, "observer_state", state)
 
     def replace(self, **changes) -> ServoLoop:
         """A copy with some of the loop's arguments changed (validated like the constructor).
@@ -186,11 +189,7 @@ class ServoLoop:
             raise ParameterTypeError(
                 f"replace() got unknown argument(s) {unknown}; valid: {', '.join(LOOP_KEYS)}"
             )
-        new = replace(self, **changes)
-        if "observer" not in changes and self.observer_state is not None:
-            # the state was taken when this loop was built, not now
-            object.__setattr__(new, "observer_state", self.observer_state)
-        return new
+        return replace(self, **changes)
 
     def initial_observer_state(self, x0) -> tuple | None:
         """The observer's state at the start of a run.
@@ -203,14 +202,11 @@ class ServoLoop:
         Returns
         -------
         tuple of float or None
-            The state of the runtime observer the loop was built with, as it was then; for a
-            design, the state converged on zero disturbance at ``x0``
-            (:func:`hpdob.initial_state`); None without an observer.
+            The state converged on zero disturbance at ``x0`` (:func:`hpdob.initial_state`);
+            None without an observer. A run given ``observer_state`` starts from that instead.
         """
         if self.system is None:
             return None
-        if self.observer_state is not None:
-            return self.observer_state
         return initial_state(self.system, x0, 0.0)
 
     def keywords(self) -> dict:
@@ -223,6 +219,17 @@ class ServoLoop:
             ``ServoLoop(**loop.keywords())`` builds an equal loop.
         """
         return {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+
+
+def runtime_observer_message(observer) -> str:
+    """The one-line refusal of a runtime observer where a loop's observer is expected: its
+    type, and the call to use instead (its design, and its state as the run's argument)."""
+    part = "design" if getattr(observer, "design", None) is not None else "system"
+    return (
+        f"observer must be a family spec, a design or a LinearObserver (a loop holds values, "
+        f"not state), got a runtime {type(observer).__name__}; pass observer=obs.{part} and "
+        "start the run from its state: simulate(loop, ..., observer_state=obs.state)"
+    )
 
 
 def controller_sources(system) -> tuple:

@@ -230,7 +230,7 @@ class SimulationResult:
         return float(np.max(np.abs(self.position_error))) if len(self) else math.nan
 
     # -- export -----------------------------------------------------------------------------
-    def to_csv(self, path) -> Path:
+    def to_csv(self, path, *, progress=None) -> Path:
         """Write the traces to ``path`` as CSV (header row, full float precision).
 
         The file is written atomically (a temporary name in the same directory, then
@@ -240,6 +240,10 @@ class SimulationResult:
         ----------
         path : str or os.PathLike
             The file to write (replaced if it exists).
+        progress : callable, optional
+            Called as ``progress(rows written, rows)`` as the file is written: after each
+            chunk of 32768 rows (the rows are formatted in chunks), or once for a short
+            result. Its return value is ignored. Default: silent.
 
         Returns
         -------
@@ -249,7 +253,7 @@ class SimulationResult:
             ``tau_ext`` (SI units), then ``omega_hat``, ``theta_load``, ``omega_load``,
             ``tau_contact``, ``in_contact``, ``tau_reac`` where the run has them.
         """
-        return columns_to_csv(self._columns(), path)
+        return columns_to_csv(self._columns(), path, progress)
 
     @classmethod
     def from_csv(cls, path, *, label: str = "") -> SimulationResult:

@@ -25,7 +25,7 @@ from ..controllers import CONTROLLER_TYPES
 from ..models import Environment, MujocoServo
 from ..models._servo import ServoModel
 from ..models._two_mass import TwoMassServo
-from ..observers import Observer, check_spec, design_from_spec, get_family
+from ..observers import check_spec, design_from_spec, get_family
 from ._devices import Actuator, Encoder
 from ._loop import LOOP_KEYS, ServoLoop
 from ._plant_types import PlantType, get_plant_type, register_plant_type
@@ -188,8 +188,9 @@ def metric_windows(data: dict) -> dict:
 def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
     """Keyword arguments of :func:`hpdob.simulate` from a parsed TOML document.
 
-    With ``build_observer=False`` the ``observer`` entry stays a dict of
-    :class:`DisturbanceObserver` arguments (what :func:`hpdob.sweep` takes).
+    The ``observer`` entry is the design of the ``[observer]`` table (a loop resets it at the
+    run's ``x0``); with ``build_observer=False`` it stays the table, a family spec (what
+    :func:`hpdob.sweep` takes).
     """
     if not isinstance(data, dict):
         raise ParameterTypeError(f"a scenario must be a table, got {type(data).__name__}")
@@ -241,7 +242,7 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
                 spec[p.name] = _poles(spec[p.name], f"observer.{p.name}")
         model = kwargs["nominal"].discretize(kwargs["Ts"])
         design = _observer(model, spec)  # validated now, with the file's key names
-        kwargs["observer"] = spec if not build_observer else Observer.of(design)
+        kwargs["observer"] = spec if not build_observer else design
     return kwargs
 
 

@@ -182,9 +182,9 @@ def simulate(
     Parameters
     ----------
     loop : ServoLoop
-        Plant, nominal model, ``Ts``, controller, observer, sensor and actuator. Instead of a
-        loop, its keyword arguments (``plant=..., nominal=..., Ts=..., controller=...,
-        observer=..., sensor=..., actuator=...``) are accepted, as before.
+        Plant, nominal model, ``Ts``, controller, observer, sensor and actuator; or its parts
+        as keyword arguments (the loop functions' one alias rule,
+        :data:`hpdob.simulation.LOOP_KEYS`).
     reference : Signal or callable
         A :class:`~hpdob.signals.Signal`, or a callable taking the array of sampling instants and
         returning ``(r, r_dot, r_ddot)`` arrays [rad, rad/s, rad/s^2].
@@ -234,12 +234,11 @@ def simulate(
 
     Examples
     --------
-    >>> from hpdob import PD, DisturbanceObserver, ServoLoop, ServoModel, simulate
+    >>> from hpdob import PD, ServoLoop, ServoModel, simulate
     >>> from hpdob.signals import Step, SmoothStep
     >>> plant, nominal = ServoModel(3.06e-4, 5e-5), ServoModel(2.8e-4)
-    >>> obs = DisturbanceObserver(nominal.discretize(1e-3), order=1, bandwidth=100.0)
     >>> loop = ServoLoop(plant=plant, nominal=nominal, Ts=1e-3, controller=PD(50, 5),
-    ...                  observer=obs)
+    ...                  observer={"order": 1, "bandwidth": 100.0})
     >>> result = simulate(loop, duration=2.0, reference=SmoothStep(0.2, 1.2, 1.0),
     ...                   disturbance=Step(1.5005, 0.05))
     >>> m = result.metrics(regulation=(1.2, 2.0))

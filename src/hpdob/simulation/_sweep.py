@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import signal
 import sys
 import threading
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
@@ -29,10 +30,10 @@ from ..observers import check_spec, design_from_spec, get_family, spec_of
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import _sample_count, check_run_arguments, run_loop, sample_signals
-from ._sweep_dask import SweepIncomplete, _Incomplete, _run_dask, resumed_rows
+from ._sweep_dask import SweepIncomplete, SweepInterrupted, _Incomplete, _run_dask, resumed_rows
 from ._sweep_spec import check_paths_apply, expand_scenarios, replaced_plant
 
-__all__ = ["SweepIncomplete", "sweep"]
+__all__ = ["SweepIncomplete", "SweepInterrupted", "sweep"]
 
 
 #: Keys of a sweep's ``base``: a ``loop`` (or the loop's keyword arguments) and the run's.
@@ -283,15 +284,15 @@ def _progress_callback(progress, total: int):
     return bar.update, bar.close
 
 
-def _run_local(base, chunks, workers, update) -> list:
-    """Run the chunks on ``workers`` threads (the kernel releases the GIL).
+def _run_local(base, chunks, workers, update, rows) -> list:
+    """Run the chunks on ``workers`` threads (the kernel releases the GIL), appending the
+    finished rows to ``rows`` (the caller keeps them if an interrupt ends the run).
 
     Chunks are submitted lazily, at most two per worker in flight, so that an interrupt
     (KeyboardInterrupt in the main thread) or a failure leaves little to cancel: pending
     chunks are cancelled, running ones stop before their next scenario, and the call returns
     (re-raising) without waiting for the rest of the sweep.
     """
-    rows = []
     stop = threading.Event()
     pending = iter(chunks)
     pool = ThreadPoolExecutor(max_workers=workers)
@@ -305,7 +306,7 @@ def _run_local(base, chunks, workers, update) -> list:
             done, running = wait(running, return_when=FIRST_COMPLETED)
             for future in done:
                 chunk_rows = future.result()
-                rows.extend(chunk_rows)
+                rows.extend(chunk_rows)  # one call: an interrupt cannot split a chunk
                 update(len(chunk_rows))
                 checkpoint("sweep-chunk")  # a test hook (hpdob._interrupts); no-op otherwise
                 chunk = next(pending, None)
@@ -431,6 +432,10 @@ def sweep(
         When a dask cluster fails part-way (the scheduler lost, a task's workers killed
         repeatedly): it carries the finished rows (those of ``resume`` included) and the
         numbers of the missing scenarios; pass its ``rows`` as ``resume`` to complete them.
+    SweepInterrupted
+        When Ctrl-C (a ``KeyboardInterrupt``; under ``hpdob`` also SIGTERM and SIGHUP) ends
+        the sweep, local or on dask: a ``KeyboardInterrupt`` itself, carrying the finished
+        rows and the missing scenarios in the same way.
     ValueError, TypeError
         For a bad ``base``, an unknown path (the valid ones are listed), a bad distribution,
         a bad scheduler, or ``resume`` rows of another sweep. Bad *values* in a scenario (e.g.
@@ -476,25 +481,28 @@ def sweep(
     done = {row["scenario"] for row in finished}
     todo = [(i, params) for i, params in enumerate(scenarios) if i not in done]
     update, close = _progress_callback(progress, len(todo))
-    try:
-        if not todo:
-            rows = []
-        elif mode == "local":
-            rows = _run_local(resolved, _chunks(todo, workers), workers, update)
-        else:
-            rows = _run_dask(
-                resolved, todo, scheduler, update, run_chunk=run_chunk, chunks_of=_chunks
-            )
-    except _Incomplete as failure:  # keep what finished: the caller decides what to write
-        rows = finished + failure.rows
-        rows.sort(key=lambda row: row["scenario"])
+
+    def kept(new):
+        """The finished rows so far, in scenario order, and the numbers of the others."""
+        rows = sorted(finished + new, key=lambda row: row["scenario"])
         done = {row["scenario"] for row in rows}
         missing = [i for i in range(len(scenarios)) if i not in done]
-        raise SweepIncomplete(
-            pd.DataFrame(rows, columns=columns), missing, failure.__cause__
-        ) from None
+        return pd.DataFrame(rows, columns=columns), missing
+
+    rows: list = []  # filled chunk by chunk: what finished survives an interrupt
+    try:
+        if not todo:
+            pass
+        elif mode == "local":
+            _run_local(resolved, _chunks(todo, workers), workers, update, rows)
+        else:
+            _run_dask(
+                resolved, todo, scheduler, update, rows, run_chunk=run_chunk, chunks_of=_chunks
+            )
+    except _Incomplete as failure:  # keep what finished: the caller decides what to write
+        raise SweepIncomplete(*kept(failure.rows), failure.__cause__) from None
+    except KeyboardInterrupt as err:  # Ctrl-C (hpdob: SIGTERM, SIGHUP): keep what finished
+        raise SweepInterrupted(*kept(rows), getattr(err, "signum", int(signal.SIGINT))) from err
     finally:
         close()
-    rows = finished + rows
-    rows.sort(key=lambda row: row["scenario"])
-    return pd.DataFrame(rows, columns=columns)
+    return kept(rows)[0]

@@ -6,10 +6,10 @@ from __future__ import annotations
 import contextlib
 import math
 
-from .._interrupts import checkpoint
+from .._interrupts import Interrupted, checkpoint
 from .._validation import ParameterTypeError, ParameterValueError
 
-__all__ = ["SweepIncomplete", "resumed_rows"]
+__all__ = ["SweepIncomplete", "SweepInterrupted", "resumed_rows"]
 
 
 class SweepIncomplete(RuntimeError):
@@ -30,6 +30,20 @@ class SweepIncomplete(RuntimeError):
         )
 
 
+class SweepInterrupted(Interrupted):
+    """A sweep interrupted by Ctrl-C (or SIGTERM, SIGHUP under ``hpdob``), local or on dask.
+
+    A ``KeyboardInterrupt``: code that catches those still does. ``rows`` is the DataFrame of
+    the scenarios that finished before the interrupt (those of ``resume`` included),
+    ``missing`` the numbers of the others and ``signum`` the signal; as for
+    :class:`SweepIncomplete`, ``sweep(..., resume=rows)`` runs only the missing scenarios.
+    """
+
+    def __init__(self, rows, missing, signum: int):
+        super().__init__(signum)
+        self.rows, self.missing = rows, list(missing)
+
+
 class _Incomplete(Exception):
     """Internal: the rows finished before a dask cluster failed (cause: ``__cause__``)."""
 
@@ -38,8 +52,9 @@ class _Incomplete(Exception):
         self.rows = rows
 
 
-def _run_dask(base, scenarios, scheduler, update, *, run_chunk, chunks_of) -> list:
-    """Run ``scenarios`` in chunks (``chunks_of(scenarios, workers)``) of ``run_chunk`` on dask."""
+def _run_dask(base, scenarios, scheduler, update, rows, *, run_chunk, chunks_of) -> list:
+    """Run ``scenarios`` in chunks (``chunks_of(scenarios, workers)``) of ``run_chunk`` on dask,
+    appending the finished rows to ``rows`` (the caller keeps them if an interrupt ends it)."""
     try:
         from dask.distributed import Client
         from dask.distributed import as_completed as dask_completed
@@ -56,7 +71,6 @@ def _run_dask(base, scenarios, scheduler, update, *, run_chunk, chunks_of) -> li
         # (scattered data lost with a worker cancels its dependants: "lost dependencies").
         # pure=False: never reuse results across sweeps; retries also covers transient failures.
         futures = [client.submit(run_chunk, base, chunk, pure=False, retries=3) for chunk in chunks]
-        rows = []
         try:
             for future in dask_completed(futures):
                 try:

@@ -238,9 +238,9 @@ def tune(
     loop : ServoLoop, optional
         The loop to tune the observer of: its nominal model, ``Ts``, controller, sensor,
         actuator and (unless ``coulomb`` is given) its plant's Coulomb friction; its observer
-        is what the search replaces. Instead of a loop, the keyword arguments ``nominal``,
-        ``Ts``, ``controller``, ``sensor`` and ``actuator`` are accepted (the loop functions'
-        one alias), with the defaults below.
+        is what the search replaces. Instead of a loop, its parts ``nominal``, ``Ts``,
+        ``controller``, ``sensor`` and ``actuator`` as keyword arguments, with the defaults
+        below (the loop functions' one alias rule, :data:`hpdob.simulation.LOOP_KEYS`).
     nominal : ServoModel
         The nominal model (``J_n``, ``b_n``) of controller and observer.
     Ts : float
