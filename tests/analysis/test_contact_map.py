@@ -279,6 +279,7 @@ def test_the_rtobs_own_nominal_inertia():
         design_observer(NOMINAL.discretize(TS), order=0, bandwidth=100.0),
         design_observer(varied, order=0, bandwidth=100.0),
         viscous=PLANT.b,
+        other_nominal=True,  # deliberately: the RTOB's own J_n
     )
     np.testing.assert_allclose(point.system.G, expected.G, rtol=1e-12)
     np.testing.assert_allclose(point.system.H, expected.H, rtol=1e-12)

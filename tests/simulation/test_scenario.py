@@ -66,12 +66,16 @@ def test_examples_run_from_the_command_line(path, tmp_path, capsys):
     if "[plant.environment]" in path.read_text() or re.search(r"^wall = ", path.read_text(), re.M):
         contact = {f"contact_{name}" for name in ("first_contact", "impact_peak", "overshoot",
                                                    "overshoot_ratio")}  # fmt: skip
-    assert set(metrics[label]) == {
-        "rms_estimation_error",
-        "rms_position_error_regulation",
-        "rms_position_error_tracking",
-        *contact,
-    }
+    # a force, impedance or switching controller: the RTOB's error and, with a force reference,
+    # the force error; a force controller's r is tau_ref [N m], so no position errors
+    kind = re.search(r'^\[controller\][^\n]*\ntype = "([a-z-]+)"', path.read_text(), re.M)
+    kind = kind.group(1) if kind else None
+    force = {"force": {"force_rms_reaction_error", "force_rms_force_error"},
+             "position-force": {"force_rms_reaction_error", "force_rms_force_error"},
+             "impedance": {"force_rms_reaction_error"}}.get(kind, set())  # fmt: skip
+    position = set() if kind == "force" else {"rms_position_error_regulation",
+                                              "rms_position_error_tracking"}  # fmt: skip
+    assert set(metrics[label]) == {"rms_estimation_error", *position, *contact, *force}
 
 
 FORCE = ROOT / "examples" / "force_step_stiff_wall.toml"

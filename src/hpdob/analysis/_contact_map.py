@@ -82,7 +82,8 @@ class _ContactSetting:
         dob = design_at_bandwidth(nominal.discretize(self.Ts), self.observer, bandwidth)
         rtob = None if self.reaction is None else design_at_bandwidth(
             reaction_nominal.discretize(self.Ts), self.reaction, bandwidth, "reaction")  # fmt: skip
-        return reaction_torque_observer(dob, rtob, viscous=self.viscous)
+        return reaction_torque_observer(dob, rtob, viscous=self.viscous,
+                                        other_nominal=self.nominal_of == "reaction")  # fmt: skip
 
     def loop_at(self, parameter: str, value: float, bandwidth: float, *, bonded: bool):
         plant, nominal, reaction_nominal = self.parts(parameter, value)

@@ -22,6 +22,7 @@ def reaction_torque_observer(
     coulomb_velocity: float = 0.01,
     friction=None,
     velocity_filter: float | None = None,
+    other_nominal: bool = False,
 ) -> LinearObserver:
     r"""The DOb and a reaction-torque observer as one :class:`LinearObserver`.
 
@@ -75,6 +76,11 @@ def reaction_torque_observer(
         :math:`\tanh(\omega_m/v_n)` of it averages to much less than the friction of the mean
         velocity; low-passed, it does not. Default None (the velocity as measured). Needs a
         non-zero ``coulomb``, a measured velocity and a ``dob`` without ``omega_hat``.
+    other_nominal : bool, optional
+        Accept a ``reaction`` designed on another nominal model than ``dob``'s (the RTOB's own
+        ``J_n/J`` study, ``contact_stability_map(..., nominal_of="reaction")``). Default
+        False: refused, since ``tau^R`` of another ``J_n'`` adds ``(J - J_n') a`` to the
+        estimate.
 
     Returns
     -------
@@ -136,7 +142,11 @@ def reaction_torque_observer(
         )
     if second.Ts != first.Ts:
         raise ParameterValueError(f"reaction.Ts = {second.Ts!r} must equal dob.Ts = {first.Ts!r}")
-    if None not in (first.model, second.model) and second.model != first.model:
+    if (
+        not other_nominal
+        and None not in (first.model, second.model)
+        and second.model != first.model
+    ):
         # tau_reac = tau^R - f: a J_n or b_n other than the DOb's puts (J - J_n') a into it
         raise ParameterValueError(
             f"reaction must be designed on dob's nominal model {first.model!r}, "
