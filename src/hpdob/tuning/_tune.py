@@ -200,13 +200,15 @@ def _radius(loop) -> float:
     return float(np.abs(closed_loop_poles(loop)).max())
 
 
-def _delay_margin(base, corners, plant, delay: int) -> int:
+def _delay_margin(base, corners, delay: int) -> int:
     """Largest d <= MAX_EXTRA_DELAY such that the loop is stable at every corner with every
     extra delay of 0..d samples (a robust candidate is known to be stable with 0 and 1); the
-    scan also stops where the linear loop's delay limit (MAX_DELAY_SAMPLES) does."""
+    scan also stops where the linear loop's delay limit (MAX_DELAY_SAMPLES) does. ``corners``
+    are the corners' plants."""
+    from ..analysis import spectral_radii
+
     for extra in range(2, min(MAX_EXTRA_DELAY, MAX_DELAY_SAMPLES - delay) + 1):
-        actuator = Actuator(delay_samples=delay + extra)
-        if any(_radius(base.replace(plant=plant(*c), actuator=actuator)) >= 1.0 for c in corners):
+        if (spectral_radii(base, corners, [delay + extra]) >= 1.0).any():
             return extra - 1
     return MAX_EXTRA_DELAY
 
@@ -314,6 +316,7 @@ def tune(
     ...               disturbance_frequency=2.0, families=["position"])   # doctest: +SKIP
     >>> print(result.report())                                            # doctest: +SKIP
     """
+    from ..analysis import spectral_radii
     from ..analysis._estimation import estimation_response
     from ..analysis._noise import noise_gains
     from ..analysis._sensitivity import loop_margins
@@ -399,6 +402,7 @@ def tune(
     def plant(J_ratio: float, b: float) -> ServoModel:
         return ServoModel(J_ratio * nominal.J, b)
 
+    corner_plants = [plant(*c) for c in corners]
     rows = []
     for done, (family, m, parameter, value, design) in enumerate(candidates):
         checkpoint("tune-candidate")  # a signal Python ignored ends the search here
@@ -410,10 +414,10 @@ def tune(
                          observer=design, sensor=sensor, actuator=linear_actuator)  # fmt: skip
         error = np.abs(estimation_response(design, frequencies, error=True))
         accuracy = float(np.sqrt(np.mean(error**2)))
-        radius = max(_radius(base.replace(plant=plant(*c))) for c in corners)
-        radius_margin = max(
-            _radius(base.replace(plant=plant(*c), actuator=margin_actuator)) for c in corners
-        )
+        # the corners with the actuator's delay and with one more sample (margin_actuator's)
+        radius, radius_margin = (float(v) for v in spectral_radii(
+            base, corner_plants, [actuator.delay_samples, margin_actuator.delay_samples]
+        ).max(axis=1))  # fmt: skip
         tau_noise = u_noise = 0.0
         if sigma > 0.0 and radius < 1.0:
             try:
@@ -425,7 +429,7 @@ def tune(
             tau_noise = u_noise = math.inf
         robust = radius < 1.0 and radius_margin < 1.0
         if robust:
-            delay_margin = _delay_margin(base, corners, plant, actuator.delay_samples)
+            delay_margin = _delay_margin(base, corner_plants, actuator.delay_samples)
         else:
             delay_margin = 0 if radius < 1.0 else -1
         rows.append({
