@@ -54,6 +54,17 @@ def test_bode(capsys, tmp_path):
     assert (tmp_path / "bode.png").stat().st_size > 0
 
 
+@pytest.mark.parametrize("Ts", ["1e-4", "3e-4"])
+def test_bode_grid_stays_below_nyquist(capsys, tmp_path, Ts):
+    # Issue 27: at Ts = 1e-4 the grid's last point 1/(2 Ts) gave 2 pi f Ts one ulp above pi and
+    # python-control's "evaluation above Nyquist frequency" warning leaked (an error here).
+    code, _, err = run(capsys, "analyze", "bode", "--Ts", Ts, "--out", str(tmp_path), "--dpi", "20")
+    assert code == 0 and err == ""
+    with (tmp_path / "bode.csv").open() as handle:
+        f = np.array([float(row["frequency_Hz"]) for row in csv.DictReader(handle)])
+    assert np.all(2 * np.pi * f * float(Ts) <= np.pi) and f.max() > 0.4999 / float(Ts)
+
+
 def test_noise(capsys, tmp_path):
     code, _, _ = run(
         capsys,

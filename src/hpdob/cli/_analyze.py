@@ -342,6 +342,15 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _below_nyquist(Ts: float) -> float:
+    """The largest frequency [Hz] at or below 1/(2 Ts) whose ``2 pi f Ts`` does not round above
+    pi: python-control warns "evaluation above Nyquist frequency" for one ulp more."""
+    top = 0.5 / Ts
+    while 2.0 * np.pi * top * Ts > np.pi:
+        top = float(np.nextafter(top, 0.0))
+    return top
+
+
 def _bode(args, files) -> list[str]:
     from .._table import columns_to_csv
     from ..analysis._estimation import estimation_response
@@ -357,7 +366,7 @@ def _bode(args, files) -> list[str]:
         )
     model = loop["nominal"].discretize(loop["Ts"])
     designs = [_design(args, model, m, args.bandwidth) for m in args.orders]
-    f = np.geomspace(0.1, nyquist, 400)
+    f = np.geomspace(0.1, _below_nyquist(loop["Ts"]), 400)
     sens = [
         gang_of_four(**loop, observer=d).S.frequency_response(2 * np.pi * f).frdata[0, 0]
         for d in designs
