@@ -285,6 +285,20 @@ def test_a_signal_before_the_imports_is_one_line(tmp_path, entry, signum, code, 
     assert (process.returncode, out, err) == (code, "", line)
 
 
+def test_what_runs_before_the_entry_handler_imports_nothing_heavy():
+    # Issue 27 item 5: before the handler, Python's own Ctrl-C (a traceback) applies. What hpdob
+    # runs there is hpdob/__init__ and hpdob._entry: no numpy, and not even `signal` (it
+    # imports enum; _entry installs its handler through the C module _signal). -S: without
+    # site, whose .pth files (coverage, setuptools) import modules of their own.
+    code = (
+        "import sys; before = set(sys.modules); import hpdob._entry; "
+        "print(sorted(m for m in set(sys.modules) - before if not m.startswith('hpdob')))"
+    )
+    done = subprocess.run([sys.executable, "-S", "-c", code], capture_output=True, text=True,
+                          check=True, timeout=60, env={**os.environ})  # fmt: skip
+    assert done.stdout.strip() == "[]", done.stdout
+
+
 def test_ctrl_c_at_any_moment_after_the_entry_is_clean(tmp_path):
     # Every moment from the entry point on: imports, parsing, the design, printing, the exit.
     # The delays only spread the moments; whatever moment each signal hits, the outcome
