@@ -10,11 +10,14 @@ Target (issue 25): <= 8 s wall and <= 400 MB peak RSS for 1e7 samples.
 
     python benchmarks/bench_estimate_cli.py              # --samples N (default 1e7)
     python benchmarks/bench_estimate_cli.py --no-plot    # without the figure
+    python benchmarks/bench_estimate_cli.py --other ../main   # and another checkout's command,
+                                                              # interleaved (ratio this/other)
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import tempfile
@@ -24,15 +27,26 @@ from pathlib import Path
 import numpy as np
 
 
-def child(command: list) -> tuple[float, float]:
+def child(command: list, source: str | None = None) -> tuple[float, float]:
     """Wall time [s] and peak RSS [MB] of a fresh process running ``command`` (``/usr/bin/time
-    -v`` reports the child's maximum resident set size)."""
+    -v`` reports the child's maximum resident set size), with ``source`` (a checkout's ``src``)
+    first on its path if given."""
+    env = dict(os.environ, PYTHONPATH=source) if source else None
     start = time.perf_counter()
     done = subprocess.run(["/usr/bin/time", "-v", *command], check=True, capture_output=True,
-                          text=True)  # fmt: skip
+                          text=True, env=env)  # fmt: skip
     wall = time.perf_counter() - start
-    line = next(x for x in done.stderr.splitlines() if "Maximum resident set size" in x)
-    return wall, int(line.split(":")[1]) / 1024
+
+    def field(name):
+        return float(next(x for x in done.stderr.splitlines() if name in x).split(": ")[1])
+
+    CPU.append(field("User time (seconds)") + field("System time (seconds)"))
+    return wall, field("Maximum resident set size") / 1024
+
+
+#: CPU seconds (user + system) of each child, in order: less sensitive to a busy machine's load
+#: than the wall time.
+CPU: list = []
 
 
 def main() -> None:
@@ -42,7 +56,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--samples", type=float, default=1e7)
     parser.add_argument("--no-plot", action="store_true")
+    parser.add_argument("--other", metavar="CHECKOUT", help="also time this checkout's command")
+    parser.add_argument("--repeats", type=int, default=1, help="best of N (interleaved)")
     args = parser.parse_args()
+    here = str(Path(__file__).resolve().parents[1] / "src")
+    other = str(Path(args.other).resolve() / "src") if args.other else None
     n = int(args.samples)
     rng = np.random.default_rng(25)
     t = np.arange(n) * 1e-3
@@ -61,9 +79,21 @@ def main() -> None:
                     "--position", "theta", "--input", "u", "--J-n", "2.8e-4",
                     "--out", str(Path(tmp, out)), *options]  # fmt: skip
 
-        child(command("warm"))  # numba's caches
-        wall, rss = child(command("out"))
+        child(command("warm"), here)  # numba's caches
+        if other:
+            child(command("warm-other"), other)
+        runs, others, cpu, other_cpu = [], [], [], []
+        for _ in range(args.repeats):  # interleaved: both see the same load
+            runs.append(child(command("out"), here))
+            cpu.append(CPU[-1])
+            if other:
+                others.append(child(command("out-other"), other))
+                other_cpu.append(CPU[-1])
+        wall, rss = min(w for w, _ in runs), max(r for _, r in runs)
         size = Path(tmp, "out", "estimate.csv").stat().st_size
+        if other:
+            same = Path(tmp, "out", "estimate.csv").read_bytes() == Path(
+                tmp, "out-other", "estimate.csv").read_bytes()  # fmt: skip
     from hpdob import ServoModel, design_observer, estimate_disturbance
 
     design = design_observer(ServoModel(2.8e-4).discretize(1e-3), order=1, bandwidth=100.0)
@@ -76,7 +106,14 @@ def main() -> None:
           f"peak RSS {rss:.0f} MB (targets <= 8 s, <= 400 MB)")  # fmt: skip
     print(f"  (a) estimate_disturbance alone: {api:.3f} s; (b) a process importing hpdob, "
           f"numba, pyarrow, matplotlib: {fixed:.2f} s, {fixed_rss:.0f} MB")  # fmt: skip
-    print(f"  ratio hpdob estimate / (a): {wall / api:.0f}")
+    print(f"  CPU time (user + system) {min(cpu):.2f} s; ratio hpdob estimate / (a): "
+          f"{wall / api:.0f}; load average {os.getloadavg()[0]:.1f}")  # fmt: skip
+    if other:
+        other_wall, other_rss = min(w for w, _ in others), max(r for _, r in others)
+        print(f"  {args.other}: {other_wall:.2f} s wall, peak RSS {other_rss:.0f} MB; ratio "
+              f"this/other {wall / other_wall:.2f} wall, {min(cpu) / min(other_cpu):.2f} CPU, "
+              f"{rss / other_rss:.2f} RSS; "
+              f"estimate.csv {'identical' if same else 'DIFFERENT'}")  # fmt: skip
 
 
 if __name__ == "__main__":

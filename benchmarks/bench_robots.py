@@ -8,19 +8,23 @@ computed-torque peer, the external-force estimates, and the loop's speed.
    bandwidth and at equal noise in tau_hat (each observer's bandwidth chosen so that its
    encoder-noise gain equals that of the DOb at 100 rad/s, joint by joint) -- and computed
    torque on the nominal model (without the payload). 1b: the nominal model's masses and
-   inertias 20 % low instead (no payload).
+   inertias 20 % low instead (no payload). 1c: what rms_estimation_error measures (with the
+   encoder and with ideal sensing).
 2. External force: a 10 N step at the flange, robot at rest and in motion: the momentum
    observer (K_o = 50 1/s) and the per-joint observers' estimates of J^T F after 5/K_o (at rest
    also against the step error of each observer's own 1 - Q, and the HPDOb at 55 and 60 rad/s);
    the false force with no contact during the fast trajectory.
-3. Speed: the 7-joint loop (DOb per joint) against real time, MuJoCo Euler and RK4.
+3. Speed: the 7-joint loop (DOb per joint) against real time, MuJoCo Euler and RK4, in
+   wall-clock and CPU time (with the load average), and against MuJoCo's mj_step alone for
+   the same steps, measured in the same run.
 
-    pip install 'hpdob[mujoco]' && python benchmarks/bench_robots.py [--short]
+    pip install 'hpdob[mujoco]' && python benchmarks/bench_robots.py [--short] [--speed]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from itertools import product
 
@@ -126,6 +130,28 @@ def wrong_inertia(duration: float) -> None:
                   f" N, rms {np.sqrt(np.mean(f**2)):.2f} N")  # fmt: skip
 
 
+def estimation_error(duration: float) -> None:
+    """What rms_estimation_error measures: the estimate against eq. 3's ground truth, whose
+    high-frequency part is the command's encoder noise reflected through M^-1."""
+    plant, nominal = panda(payload=1.0), panda()
+    M = nominal.mass_matrix(Q0)
+    print("1c. rms_estimation_error [N m] per joint (t >= 1 s); J_n,i (M^-1)_ii at q0: "
+          + " ".join(f"{v:.2f}" for v in np.diag(M) * np.diag(np.linalg.inv(M))))  # fmt: skip
+    for (sensor_name, sensor), (name, spec) in product(
+        (("encoder", ENCODER), ("ideal", None)),
+        (("DOb 100", {"order": 0, "bandwidth": 100.0}),
+         ("HPDOb 49", {"order": 1, "bandwidth": 49.0})),
+    ):  # fmt: skip
+        loop = ArmLoop(plant, TS, PD_GAINS, nominal=nominal, q0=Q0, actuator=ACTUATORS,
+                       sensor=sensor, observers=spec)  # fmt: skip
+        res = simulate_arm(loop, duration=duration, reference=REFERENCE, tau0="gravity")
+        err = res.metrics(start=1.0)["rms_estimation_error"]
+        late = res.t >= 1.0
+        hf = np.sqrt(np.mean(np.diff(res.tau_dn[late], 2, axis=0) ** 2, axis=0) / 6)
+        print(f"   {sensor_name:8s} {name:9s}" + "".join(f"{v:7.2f}" for v in err)
+              + "   tau_dn's high-frequency part: " + " ".join(f"{v:.2f}" for v in hf))  # fmt: skip
+
+
 def estimates(nominal, res, loop, name, with_momentum):
     """The momentum observer's and the per-joint observers' external-torque estimates."""
     if with_momentum:
@@ -201,29 +227,71 @@ def external_force(duration: float) -> None:
                   f"{f.max():8.3f} / {np.sqrt(np.mean(f**2)):8.3f}")  # fmt: skip
 
 
+def timed(run, repeats: int = 3) -> tuple[float, float]:
+    """Best of ``repeats`` of ``run()``: (wall-clock [s], CPU time of this process [s]).
+
+    numba and MuJoCo run single-threaded here, so CPU time is the loop's own cost, the wall
+    clock that plus the time other processes on the machine take the core away."""
+    wall = cpu = np.inf
+    for _ in range(repeats):
+        w0, c0 = time.perf_counter(), time.process_time()
+        run()
+        wall = min(wall, time.perf_counter() - w0)
+        cpu = min(cpu, time.process_time() - c0)
+    return wall, cpu
+
+
+def mj_steps_alone(arm, steps: int):
+    """The reference: MuJoCo's ``mj_step`` alone, ``steps`` times on the same compiled model
+    (the arm held at the ready pose by its gravity torque, no observers, no Python loop body)."""
+    mujoco, model, data = arm.compile(TS)
+    data.qpos[:] = Q0
+    mujoco.mj_forward(model, data)
+    data.qfrc_applied[:] = data.qfrc_bias
+
+    def run():
+        for _ in range(steps):
+            mujoco.mj_step(model, data)
+
+    return run
+
+
 def speed(duration: float) -> None:
-    print(f"3. speed: the 7-joint loop (DOb per joint, encoder), {duration:g} s at 1 kHz")
+    print(f"3. speed: the 7-joint loop (DOb per joint, encoder), {duration:g} s at 1 kHz, best "
+          f"of 3; load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")  # fmt: skip
+    steps = round(duration / TS)
     for integrator in ("Euler", "RK4"):
-        loop = ArmLoop(panda(payload=1.0, integrator=integrator), TS, PD_GAINS,
-                       observers={"order": 0, "bandwidth": 100.0}, nominal=panda(), q0=Q0,
-                       actuator=ACTUATORS, sensor=ENCODER)  # fmt: skip
+        plant = panda(payload=1.0, integrator=integrator)
+        loop = ArmLoop(plant, TS, PD_GAINS, observers={"order": 0, "bandwidth": 100.0},
+                       nominal=panda(), q0=Q0, actuator=ACTUATORS, sensor=ENCODER)  # fmt: skip
         simulate_arm(loop, duration=0.01, reference=REFERENCE)  # compile / warm up
-        best = np.inf
-        for _ in range(3):
-            start = time.perf_counter()
-            simulate_arm(loop, duration=duration, reference=REFERENCE, tau0="gravity")
-            best = min(best, time.perf_counter() - start)
-        print(f"   MuJoCo {integrator:5s}: {best:.3f} s wall for {duration:g} s simulated: "
-              f"{duration / best:.1f}x faster than real time")  # fmt: skip
+        wall, cpu = timed(
+            lambda loop=loop: simulate_arm(
+                loop, duration=duration, reference=REFERENCE, tau0="gravity"
+            )
+        )
+        ref_wall, ref_cpu = timed(mj_steps_alone(plant, steps))
+        print(
+            f"   MuJoCo {integrator:5s}: {wall:.3f} s wall, {cpu:.3f} s CPU for {duration:g} s "
+            f"simulated: {duration / wall:.1f}x real time (wall), {duration / cpu:.1f}x (CPU); "
+            f"mj_step alone {ref_cpu:.3f} s CPU ({duration / ref_cpu:.0f}x): the loop costs "
+            f"{cpu / ref_cpu:.2f}x MuJoCo's steps alone (CPU; {wall / ref_wall:.2f}x wall)"
+        )
+    print(f"   load average after: {os.getloadavg()[0]:.1f}")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--short", action="store_true", help="shorter runs (smoke test)")
+    parser.add_argument("--speed", action="store_true", help="only the speed section (3)")
     args = parser.parse_args()
+    if args.speed:
+        speed(2.0 if args.short else 10.0)
+        return
     d = 1.5 if args.short else 4.0
     tracking(d)
     wrong_inertia(d)
+    estimation_error(d)
     external_force(1.5 if args.short else 2.0)
     speed(2.0 if args.short else 10.0)
 

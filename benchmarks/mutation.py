@@ -38,6 +38,7 @@ import dataclasses
 import fcntl
 import hashlib
 import json
+import math
 import os
 import shlex
 import shutil
@@ -69,10 +70,13 @@ class Target:
     select: str = ""  # a pytest -k expression that leaves out the slow, unrelated tests
 
 
+# The files of each command are the fewest fast ones that exercise the module, fastest first:
+# with -x a killed mutant stops at the first failing test (unmutated run times on the shared
+# machine in docs/testing.md). tests/<subpackage>/test_<module>_mutants.py runs first.
 TARGETS = {
     "observers.synthesis": Target(
         "src/hpdob/observers/_synthesis.py",
-        ("tests/observers/test_synthesis.py", "tests/observers/test_core.py"),
+        ("tests/observers/test_core.py", "tests/observers/test_synthesis.py"),
     ),
     "observers.position": Target(
         "src/hpdob/observers/_position.py", ("tests/observers/test_position.py",)
@@ -89,42 +93,96 @@ TARGETS = {
     ),
     "observers.program": Target(
         "src/hpdob/observers/_program.py",
-        ("tests/observers/test_system.py", "tests/observers/test_core.py"),
+        (
+            "tests/observers/test_core.py",
+            "tests/observers/test_program.py",
+            "tests/observers/test_system.py",
+        ),
     ),
     "observers.system": Target(
         "src/hpdob/observers/_system.py",
-        ("tests/observers/test_system.py", "tests/observers/test_core.py"),
+        ("tests/observers/test_core.py", "tests/observers/test_system.py"),
     ),
     "observers.core": Target(
         "src/hpdob/observers/_core.py",
         ("tests/observers/test_core.py", "tests/observers/test_runtime.py"),
     ),
+    "observers.runtime": Target(
+        "src/hpdob/observers/_runtime.py",
+        ("tests/observers/test_runtime.py", "tests/observers/test_core.py"),
+    ),
     "observers.realised": Target(
-        "src/hpdob/observers/_realised.py", ("tests/observers/test_realised.py",)
+        # test_synthesis.py: the state-measuring order-m designs check their realised poles too
+        "src/hpdob/observers/_realised.py",
+        ("tests/observers/test_realised.py", "tests/observers/test_synthesis.py"),
+    ),
+    "observers.error_dynamics": Target(
+        "src/hpdob/observers/_error_dynamics.py",
+        ("tests/observers/test_synthesis.py", "tests/observers/test_realised.py"),
+    ),
+    "observers.poles": Target(
+        "src/hpdob/observers/_poles.py",
+        ("tests/observers/test_synthesis.py", "tests/observers/test_realised.py"),
+    ),
+    "observers.response": Target(
+        "src/hpdob/observers/_response.py",
+        # test_position.py: the factored response with zeros (position-only designs)
+        (
+            "tests/observers/test_statespace.py",
+            "tests/observers/test_system.py",
+            "tests/observers/test_position.py",
+        ),
+    ),
+    "observers.reaction": Target(
+        "src/hpdob/observers/_reaction.py",
+        ("tests/controllers/test_force.py",),
+        "rtob or reac or bad_inputs",
+    ),
+    "observers.external": Target(
+        "src/hpdob/observers/_external.py",
+        ("tests/models/test_lti.py", "tests/robots/test_external.py"),
+        "derived_reset or pyadrc or place_design or test_external",
     ),
     "models.servo": Target("src/hpdob/models/_servo.py", ("tests/models/test_servo.py",)),
     "models.two_mass": Target("src/hpdob/models/_two_mass.py", ("tests/models/test_two_mass.py",)),
     "models.plant": Target(
         "src/hpdob/models/_plant.py",
-        ("tests/models/test_servo.py", "tests/models/test_two_mass.py"),
+        (
+            "tests/models/test_plant.py",
+            "tests/models/test_servo.py",
+            "tests/models/test_two_mass.py",
+        ),
+    ),
+    "models.lti": Target("src/hpdob/models/_lti.py", ("tests/models/test_lti.py",)),
+    "models.environment": Target(
+        "src/hpdob/models/_environment.py", ("tests/models/test_environment.py",)
+    ),
+    "models.contact": Target(
+        "src/hpdob/models/_contact.py",
+        ("tests/models/test_environment.py", "tests/controllers/test_force.py"),
     ),
     "simulation.kernel": Target(
         "src/hpdob/simulation/_kernel.py",
         # the kernel has a rigid, a two-mass and a generic sub-step path: tests for each
-        # (test_plant_paths.py, from issue 20 section 4, reaches the generic one)
+        # (test_plant.py reaches the generic one), the contact force (rigid and two-mass load)
+        # and the force loop (issue 21). Compiled: numba recompiles each mutant (about as
+        # fast as the same tests in plain Python, NUMBA_DISABLE_JIT=1; docs/testing.md).
         (
+            "tests/models/test_plant.py",
+            "tests/models/test_environment.py",
+            "tests/models/test_two_mass.py",
             "tests/simulation/test_kernel.py",
             "tests/simulation/test_simulate.py",
-            "tests/models/test_two_mass.py",
-            "tests/models/test_plant.py",
-            # the contact force (rigid and two-mass load) and the force loop (issue 21)
-            "tests/models/test_environment.py",
             "tests/controllers/test_force.py",
         ),
     ),
     "identification.regression": Target(
         "src/hpdob/identification/_regression.py",
-        ("tests/identification/test_identify.py", "tests/identification/test_identify_defaults.py"),
+        (
+            "tests/identification/test_regression.py",
+            "tests/identification/test_identify.py",
+            "tests/identification/test_identify_defaults.py",
+        ),
         "not example_prints and not plot_labels and not result_exports",
     ),
 }
@@ -211,7 +269,7 @@ def test_command(target: Target, timeout: float) -> str:
     stem = Path(target.path)
     extra = f"tests/{stem.parent.name}/test_{stem.stem.lstrip('_')}_mutants.py"
     # (a file not in this checkout yet, e.g. one another branch adds, is left out)
-    tests = [t for t in (*target.tests, extra) if (ROOT / t).is_file()]
+    tests = [t for t in (extra, *target.tests) if (ROOT / t).is_file()]
     command = f"{sys.executable} {PYTEST.format(timeout=int(timeout))} {' '.join(tests)}"
     if target.select:
         # cosmic-ray splits the command with shlex: quote the -k expression
@@ -279,13 +337,14 @@ def prepare(
 
     ``add=False`` (re-running survivors) leaves the session's mutants as they are.
     """
-    from cosmic_ray.commands.init import init
     from cosmic_ray.config import load_config
     from cosmic_ray.work_db import WorkDB, use_db
 
     target = TARGETS[name]
     config_path, session = _session_paths(workdir, name)
     config_path.parent.mkdir(parents=True, exist_ok=True)
+    sidecar = session.with_suffix(".json")
+    seconds = json.loads(sidecar.read_text()).get("baseline_s") if sidecar.exists() else None
     if config_path.exists():
         timeout = load_config(str(config_path)).timeout
     else:
@@ -313,28 +372,15 @@ def prepare(
         "\n[cosmic-ray.distributor]\n"
         'name = "local"\n'
     )
-    config = load_config(str(config_path))
-    with tempfile.TemporaryDirectory() as scratch:
-        everything = Path(scratch) / "all.sqlite"
-        with use_db(str(everything), WorkDB.Mode.create) as db:
-            cwd = os.getcwd()
-            os.chdir(tree)
-            try:
-                init([Path(target.path)], db, config.operators_config)
-            finally:
-                os.chdir(cwd)
-            items = _ordered(db.work_items)
-    spans = _annotation_spans(tree / target.path)
+    items, spans = enumerate_mutants(name, tree, load_config(str(config_path)).operators_config)
     annotations = sum(_in_annotation(w, spans) for w in items)
-    order = np.random.default_rng(seed).permutation(len(items))
-    # the first N of the permutation of all mutants, less those inside annotations
-    chosen = [items[i] for i in (order if sample is None else order[:sample])]
-    chosen = [w for w in chosen if not _in_annotation(w, spans)]
-    session.with_suffix(".json").write_text(
-        json.dumps(
-            {"mutants": len(items) - annotations, "in_annotations": annotations, "seed": seed}
-        )
-    )
+    chosen = sample_mutants(items, spans, sample=sample, seed=seed)
+    sidecar.write_text(
+        json.dumps({
+            "mutants": len(items) - annotations, "in_annotations": annotations, "seed": seed,
+            "baseline_s": None if seconds is None else round(seconds, 1),
+        })
+    )  # fmt: skip
     with use_db(str(session), WorkDB.Mode.create) as db:
         known = {_key(w) for w in db.work_items}
         if add:
@@ -345,6 +391,48 @@ def prepare(
         + (f"{len(chosen)} sampled (seed {seed}), {pending} to run" if add else "")
     )
     return config_path, session, len(items)
+
+
+def enumerate_mutants(name: str, tree: Path, operators_config=None) -> tuple[list, list]:
+    """Every mutant cosmic-ray makes of a module (in a stable order) and its annotation spans."""
+    from cosmic_ray.commands.init import init
+    from cosmic_ray.work_db import WorkDB, use_db
+
+    target = TARGETS[name]
+    with tempfile.TemporaryDirectory() as scratch:
+        everything = Path(scratch) / "all.sqlite"
+        with use_db(str(everything), WorkDB.Mode.create) as db:
+            cwd = os.getcwd()
+            os.chdir(tree)
+            try:
+                init([Path(target.path)], db, operators_config or {})
+            finally:
+                os.chdir(cwd)
+            items = _ordered(db.work_items)
+    return items, _annotation_spans(tree / target.path)
+
+
+def sample_mutants(items: list, spans: list, *, sample: int | None, seed: int) -> list:
+    """The first ``sample`` mutants of a seeded permutation, those inside annotations left out.
+
+    A larger ``sample`` with the same seed extends the same sample: it is a prefix of one
+    permutation (a sample drawn before annotations were left out, as the first N of the
+    permutation less those in annotations, is a prefix of it too).
+    """
+    order = np.random.default_rng(seed).permutation(len(items))
+    kept = [items[i] for i in order if not _in_annotation(items[i], spans)]
+    return kept if sample is None else kept[:sample]
+
+
+def allocate(total: int, sizes: dict[str, int]) -> dict[str, int]:
+    """A stratified sample of about ``total`` mutants, in proportion to each module's count.
+
+    Each module's share ``total * size / population`` is rounded up (so every module gets at
+    least one, and the counts add up to a little more than ``total``): rounding up is monotone,
+    so a larger ``total`` never takes a module's count down and the samples extend.
+    """
+    population = sum(sizes.values())
+    return {name: math.ceil(total * size / population) for name, size in sizes.items()}
 
 
 def _key(item) -> tuple[str, int]:
@@ -377,10 +465,24 @@ def rerun_survivors(config_path: Path, session: Path, tree: Path, target: Target
             if result.test_outcome == TestOutcome.SURVIVED
             and _verdict(target, item, result) is None
         ]  # fmt: skip
+        # the first pass's survivors are remembered: the report shows both passes
+        first = _first_pass_survivors(session)
+        first |= {_key_text(item) for item in survivors}
+        session.with_suffix(".first-pass.json").write_text(json.dumps(sorted(first), indent=1))
         for item in survivors:
             result = mutate_and_test(item.mutations, config.test_command, config.timeout)
             db.set_result(item.job_id, result)
             print(f"  {_where(item)}: {result.test_outcome}")
+
+
+def _key_text(item) -> str:
+    operator, occurrence = _key(item)
+    return f"{operator}#{occurrence}"
+
+
+def _first_pass_survivors(session: Path) -> set[str]:
+    path = session.with_suffix(".first-pass.json")
+    return set(json.loads(path.read_text())) if path.exists() else set()
 
 
 def _where(item) -> str:
@@ -430,7 +532,10 @@ def report(workdir: Path) -> dict:
         if not session.exists():
             continue
         sidecar = session.with_suffix(".json")
-        counts = dict.fromkeys(["killed", "survived", "incompetent", "timeout", "no-test"], 0)
+        counts = dict.fromkeys(
+            ["killed", "survived", "incompetent", "timeout", "no-test", "killed_on_rerun"], 0
+        )
+        first_pass = _first_pass_survivors(session)
         survivors = []
         with use_db(str(session), WorkDB.Mode.open) as db:
             for item, result in _ordered_pairs(db.completed_work_items):
@@ -456,10 +561,23 @@ def report(workdir: Path) -> dict:
                     counts["timeout"] += 1
                 else:
                     counts["killed"] += 1
+                if result.test_outcome == TestOutcome.KILLED and _key_text(item) in first_pass:
+                    counts["killed_on_rerun"] += 1
+                    mutation = item.mutations[0]
+                    survivors.append({
+                        "where": f"{target.path}:{mutation.start_pos[0]}",
+                        "operator": mutation.operator_name,
+                        "occurrence": mutation.occurrence,
+                        "original": _changed_lines(result.diff or "")[0],
+                        "mutated": _changed_lines(result.diff or "")[1],
+                        "class": "killed on re-run",
+                        "reason": "a test added after the first pass",
+                    })  # fmt: skip
             total = db.num_work_items
         judged = counts["killed"] + counts["timeout"] + counts["survived"]
         equivalent = sum(s["class"] == "equivalent" for s in survivors)
         killed = counts["killed"] + counts["timeout"]
+        low, high = jeffreys_interval(killed, judged - equivalent)
         modules[name] = {
             "path": target.path,
             "tests": " ".join(target.tests) + (f" -k '{target.select}'" if target.select else ""),
@@ -473,17 +591,84 @@ def report(workdir: Path) -> dict:
             "kill_rate_non_equivalent": (
                 killed / (judged - equivalent) if judged - equivalent else None
             ),
+            "interval_95": [low, high],
             "survivors": survivors,
         }
     result = {"commit": commit, "modules": modules}
     killed = sum(m["killed"] + m["timeout"] for m in modules.values())
     judged = sum(m["killed"] + m["timeout"] + m["survived"] for m in modules.values())
     equivalent = sum(m["equivalent"] for m in modules.values())
+    first = killed - sum(m["killed_on_rerun"] for m in modules.values())
     result["total"] = {
-        "killed": killed, "judged": judged, "equivalent": equivalent,
+        "killed": killed, "killed_first_pass": first, "judged": judged, "equivalent": equivalent,
         "kill_rate_non_equivalent": killed / (judged - equivalent) if judged > equivalent else None,
+        "mutants": sum(m["mutants"] or 0 for m in modules.values()),
+        "stratified": stratified_estimate(modules),
+        "stratified_first_pass": stratified_estimate(modules, first_pass=True),
     }  # fmt: skip
     return result
+
+
+def jeffreys_interval(killed: int, n: int, level: float = 0.95) -> tuple[float, float] | None:
+    """The Jeffreys interval of a binomial proportion (Brown, Cai & DasGupta 2001).
+
+    The quantiles of Beta(k + 1/2, n - k + 1/2); it stays inside [0, 1] and is not empty at
+    k = n, where the normal approximation's interval collapses to a point.
+    """
+    from scipy.stats import beta
+
+    if n == 0:
+        return None, None
+    tail = (1.0 - level) / 2.0
+    low = 0.0 if killed == 0 else float(beta.ppf(tail, killed + 0.5, n - killed + 0.5))
+    high = 1.0 if killed == n else float(beta.ppf(1 - tail, killed + 0.5, n - killed + 0.5))
+    return low, high
+
+
+def stratified_estimate(modules: dict, *, first_pass: bool = False) -> dict:
+    """The pooled kill rate of the non-equivalent mutants, estimated from a stratified sample.
+
+    Each module ``h`` (a stratum of ``M_h`` mutants) was sampled at random, ``n_h`` mutants:
+    ``k_h`` killed, ``s_h`` survived, ``e_h`` equivalent. The pooled rate is a ratio of
+    population totals, estimated by
+
+        R = sum_h M_h k_h / n_h  /  sum_h M_h (k_h + s_h) / n_h
+
+    (killed over non-equivalent mutants; unbiased for each stratum's totals whatever the
+    allocation). With the allocation in proportion to ``M_h`` (``allocate``) R is close to the
+    plain count ``sum k / sum (k + s)``, and the stratified sample is at least as precise as a
+    simple random sample of the same size (Cochran, *Sampling Techniques*, 3rd ed., 1977,
+    sec. 5.6): the Jeffreys interval of the plain count is then a conservative 95 % interval.
+    (A per-stratum posterior would be dominated by its prior in the modules of one or two
+    sampled mutants.) The sample is about 1 % of each module, so the finite-population
+    correction, which would narrow it, is left out.
+    """
+    num = den = 0.0
+    killed_all = judged_all = 0
+    used = []
+    for name, m in modules.items():
+        size = m.get("mutants")
+        killed = m["killed"] + m["timeout"] - (m["killed_on_rerun"] if first_pass else 0)
+        equivalent = m["equivalent"]
+        survived = m["killed"] + m["timeout"] + m["survived"] - killed - equivalent
+        n = killed + survived + equivalent
+        if not size or n == 0:
+            continue
+        used.append(name)
+        num += size * killed / n
+        den += size * (killed + survived) / n
+        killed_all += killed
+        judged_all += killed + survived
+    if not used or den == 0.0:
+        return {"rate": None, "pooled": None, "interval_95": [None, None], "modules": used}
+    return {
+        "rate": num / den,
+        "pooled": killed_all / judged_all,
+        "killed": killed_all,
+        "non_equivalent": judged_all,
+        "interval_95": list(jeffreys_interval(killed_all, judged_all)),
+        "modules": used,
+    }
 
 
 def _ordered_pairs(pairs):
@@ -494,26 +679,44 @@ def _percent(x) -> str:
     return "-" if x is None else f"{100 * x:.0f} %"
 
 
+def _percent1(x) -> str:
+    return "-" if x is None else f"{100 * x:.1f} %"
+
+
+def _interval(pair) -> str:
+    low, high = pair
+    return "-" if low is None else f"{100 * low:.1f}-{100 * high:.1f} %"
+
+
 def markdown(result: dict) -> str:
     lines = [
         f"Measured on commit {result['commit']}.",
         "",
-        "| module | mutants | run | killed (timeouts) | survived | equivalent | incompetent "
-        "| kill rate | non-equivalent killed |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| module | mutants | sampled | killed (first pass; timeouts) | survived | equivalent "
+        "| incompetent | non-equivalent killed | 95 % interval | unmutated run [s] |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for name, m in result["modules"].items():
+        killed = m["killed"] + m["timeout"]
         lines.append(
             f"| {name} | {m['mutants']} | {m['run']} "
-            f"| {m['killed'] + m['timeout']} ({m['timeout']}) "
+            f"| {killed} ({killed - m['killed_on_rerun']}; {m['timeout']}) "
             f"| {m['survived']} | {m['equivalent']} | {m['incompetent']} "
-            f"| {_percent(m['kill_rate'])} | {_percent(m['kill_rate_non_equivalent'])} |"
+            f"| {_percent(m['kill_rate_non_equivalent'])} | {_interval(m['interval_95'])} "
+            f"| {m.get('baseline_s') or '-'} |"
         )
     total = result["total"]
+    pooled, first = total["stratified"], total["stratified_first_pass"]
     lines += [
         "",
         f"All modules: {total['killed']} of {total['judged'] - total['equivalent']} "
-        f"non-equivalent mutants killed ({_percent(total['kill_rate_non_equivalent'])}).",
+        f"non-equivalent mutants killed ({_percent(total['kill_rate_non_equivalent'])}; "
+        f"{total['killed_first_pass']} on the first pass).",
+        "",
+        f"Stratified estimate over the {len(pooled['modules'])} modules' {total['mutants']} "
+        f"mutants: {_percent1(pooled['rate'])} of the non-equivalent mutants killed "
+        f"(95 % interval {_interval(pooled['interval_95'])}); on the first pass "
+        f"{_percent1(first['rate'])} ({_interval(first['interval_95'])}).",
         "",
         "| survivor | operator | mutated line | class | reason |",
         "|---|---|---|---|---|",
@@ -532,6 +735,11 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--modules", nargs="+", choices=sorted(TARGETS), default=[])
     parser.add_argument("--sample", type=int, default=None, help="mutants per module")
+    parser.add_argument(
+        "--total", type=int, default=None,
+        help="a stratified sample of about this many mutants over all modules, in proportion "
+        "to each module's mutant count (runs --modules, or every module)",
+    )  # fmt: skip
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--workdir", type=Path, default=ROOT / ".mutation")
     parser.add_argument("--report", action="store_true")
@@ -543,6 +751,10 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if args.sample is not None and args.sample < 1:
         parser.error(f"--sample must be a positive number of mutants, got {args.sample}")
+    if args.total is not None and (args.total < 1 or args.sample is not None):
+        parser.error(
+            f"--total must be a positive number of mutants without --sample, got {args.total}"
+        )
     if args.list:
         for name, target in TARGETS.items():
             print(f"{name}: {target.path}\n    {test_command(target, 600)}")
@@ -550,6 +762,8 @@ def main(argv: list[str] | None = None) -> None:
     tree = args.workdir / "tree"
     tree.mkdir(parents=True, exist_ok=True)
     lock = (args.workdir / "lock").open("w")
+    if args.total is not None and not args.modules:
+        args.modules = list(TARGETS)
     if args.modules or args.planted:
         try:  # one run at a time: a second one would restore the first one's mutant
             fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -557,9 +771,18 @@ def main(argv: list[str] | None = None) -> None:
             parser.error(f"another mutation run holds {args.workdir / 'lock'}")
         sync_tree(tree)
         os.nice(19)  # the machine is shared; the jobs inherit the niceness
+    samples = dict.fromkeys(args.modules, args.sample)
+    if args.total is not None:
+        sizes = {}
+        for name in TARGETS:
+            items, spans = enumerate_mutants(name, tree)
+            sizes[name] = sum(not _in_annotation(w, spans) for w in items)
+        allocation = allocate(args.total, sizes)
+        samples = {name: allocation[name] for name in args.modules}
+        print("stratified sample:", ", ".join(f"{k} {v}/{sizes[k]}" for k, v in samples.items()))
     for name in args.modules:
         config_path, session, _ = prepare(
-            name, workdir=args.workdir, tree=tree, sample=args.sample, seed=args.seed,
+            name, workdir=args.workdir, tree=tree, sample=samples[name], seed=args.seed,
             add=not args.rerun_survivors,
         )  # fmt: skip
         if args.rerun_survivors:

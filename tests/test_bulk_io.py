@@ -25,7 +25,6 @@ def csv_module_text(columns: dict, path) -> bytes:
 
 
 def test_column_wise_csv_is_byte_for_byte_the_csv_modules(tmp_path):
-    pytest.importorskip("pyarrow")
     rng = np.random.default_rng(7)
     n = 70_001  # several chunks and a partial one
     bits = rng.integers(0, 2**64, size=n, dtype=np.uint64).view(np.float64)  # every kind
@@ -41,6 +40,23 @@ def test_column_wise_csv_is_byte_for_byte_the_csv_modules(tmp_path):
         "noise": noise,
         "walk": np.cumsum(rng.standard_normal(n)) * 1e-4,
     }
+    got = columns_to_csv(columns, tmp_path / "fast.csv").read_bytes()
+    assert got == csv_module_text(columns, tmp_path / "reference.csv")
+
+
+def test_shortest_digits_match_repr_where_ryu_takes_its_rare_paths(tmp_path):
+    """The cases of the shortest-digit algorithm that random bit patterns rarely reach: the
+    powers of two (the lower neighbour is half as far), subnormals, exact integers and powers of
+    ten (trailing zeros: Ryu's general case), each with its neighbours, against ``repr``."""
+    powers = np.ldexp(1.0, np.arange(-1074, 1024))
+    tens = np.array([float(f"1e{k}") for k in range(-323, 309)])
+    integers = np.concatenate([np.arange(1.0, 3000.0), 2.0**53 + np.arange(-50.0, 50.0) * 2.0,
+                               np.arange(1, 200) * 1e15, np.arange(1, 200) * 1e16])  # fmt: skip
+    subnormal = np.arange(1, 3000) * 5e-324
+    base = np.concatenate([powers, tens, integers, subnormal, np.arange(1, 3000) * 0.001])
+    values = np.concatenate([base, np.nextafter(base, np.inf), np.nextafter(base, 0.0)])
+    values = np.concatenate([values, -values])
+    columns = {"x": values, "y": values[::-1].copy()}
     got = columns_to_csv(columns, tmp_path / "fast.csv").read_bytes()
     assert got == csv_module_text(columns, tmp_path / "reference.csv")
 
@@ -92,6 +108,23 @@ def test_envelope_keeps_short_traces_and_the_extremes_of_long_ones():
     assert np.array_equal(np.sort(ey[:2000].reshape(1000, 2), axis=1),
                           np.column_stack([runs.min(axis=1), runs.max(axis=1)]))  # fmt: skip
     assert np.array_equal(ey, y[np.searchsorted(t, et)])  # points of the trace itself
+
+
+def test_envelope_of_a_trace_given_in_blocks_is_the_whole_traces():
+    from hpdob._plotting import Envelope
+
+    rng = np.random.default_rng(3)
+    for n, samples in [(1000, 2000), (1000, 100), (1003, 100), (12345, 64), (100_000, 1000)]:
+        t = np.arange(n) * 1e-3
+        y = rng.integers(0, 5, n).astype(float)  # ties: the first extreme wins
+        y[rng.integers(0, n, 3)] = np.nan  # and a NaN, as np.argmin
+        for _ in range(10):
+            cuts = np.sort(rng.integers(0, n, rng.integers(0, 8)))
+            streamed = Envelope(n, samples=samples)
+            for a, b in zip([0, *cuts], [*cuts, n], strict=True):
+                streamed.add(t[a:b], y[a:b])
+            (t1, y1), (t2, y2) = streamed.trace, envelope(t, y, samples=samples)
+            assert np.array_equal(t1, t2) and np.array_equal(y1, y2, equal_nan=True)
 
 
 def test_the_column_wise_writer_reports_rows_written_per_chunk(tmp_path):

@@ -49,6 +49,8 @@ def _commands(tmp_path):
         "simulate": ["simulate", str(ROOT / "examples" / "canonical_hpdob.toml"), *out("sim")],
         "simulate arm": ["simulate", str(ROOT / "examples" / "two_link_observers.toml"),
                          *out("arm")],
+        "simulate panda": ["simulate", str(ROOT / "examples" / "panda_joint_observers.toml"),
+                           *out("panda")],
         "tune": ["tune", "--J-range", "0.9,1.1", "--families", "position", "--frequency", "2",
                  "--counts-per-rev", "16384", *out("tune")],
         "estimate": ["estimate", str(log), "--time", "t", "--position", "q", "--input", "u",
@@ -94,7 +96,7 @@ def test_every_command_that_draws_was_caught(figures):
     commands = {command for command, _ in figures}
     assert commands == {"reproduce", "simulate", "tune", "estimate", "identify", "analyze bode",
                         "analyze noise", "analyze tradeoff", "analyze stability",
-                        "compare", "simulate arm"}  # fmt: skip
+                        "compare", "simulate arm", "simulate panda"}  # fmt: skip
     assert {name for command, name in figures if command == "reproduce"} >= {
         "fig2", "fig3", "fig4", "fig5"}  # fmt: skip
 

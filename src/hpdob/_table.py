@@ -24,17 +24,13 @@ def _cell(value) -> str:
 
 def _float_columns(columns: dict) -> list | None:
     """The columns as float64 vectors of one length if every one is a float array (the traces
-    of a run or a log) and the compiled writer is available; otherwise None."""
+    of a run or a log) of at least ``_COMPILED_ROWS`` rows; otherwise None."""
     values = list(columns.values())
     if not values or not all(
         isinstance(v, np.ndarray) and v.ndim == 1 and v.dtype.kind == "f" for v in values
     ):
         return None
     if len({v.size for v in values}) != 1 or values[0].size < _COMPILED_ROWS:
-        return None
-    try:
-        import pyarrow  # noqa: F401  (the [sweep] extra)
-    except ImportError:
         return None
     return [np.ascontiguousarray(v, dtype=np.float64) for v in values]
 

@@ -352,9 +352,9 @@ def test_estimate_writes_a_staged_set_with_its_json_last(capsys, tmp_path, monke
     assert run_cli(capsys, "estimate", log, *ESTIMATE, "--out", out)[0] == 0
     assert sorted(snapshot(out)) == ["estimate.csv", "estimate.json", "estimate.png"]
     before = previous_outputs(out, ["estimate.csv", "estimate.json", "estimate.png"])
-    import hpdob.identification._estimate as module
+    from hpdob.identification import LogEstimate
 
-    monkeypatch.setattr(module.EstimationResult, "plot", fail_to_draw)  # fails after the CSV
+    monkeypatch.setattr(LogEstimate, "plot", fail_to_draw)  # fails after the CSV
     code, _, err = run_cli(capsys, "estimate", log, *ESTIMATE, "--out", out)
     assert code == 2 and "No space left" in err and err.count("\n") == 1
     assert snapshot(out) == before and no_temporaries(out)

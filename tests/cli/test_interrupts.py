@@ -205,7 +205,7 @@ def test_ctrl_c_during_reproduce_leaves_the_previous_outputs(tmp_path):
     [
         ("compare", "hpdob.analysis", "compare_observers", "comparison.json"),
         ("tune", "hpdob.tuning", "tune", "tune.json"),
-        ("estimate", "hpdob.identification", "estimate_disturbance", "estimate.json"),
+        ("estimate", "hpdob.identification", "estimate_log", "estimate.json"),
     ],
 )
 def test_ctrl_c_in_compare_tune_estimate(capsys, tmp_path, monkeypatch, command, module, name,

@@ -15,7 +15,7 @@ import pytest
 from hpdob import ParameterValueError, ServoModel, design_observer, export_c, paper
 from hpdob.cli import main
 from hpdob.export import FMUBuildError, export_fmu, fixed_point_design
-from hpdob.observers import design_eso
+from hpdob.observers import design_eso, reaction_torque_observer
 
 fmpy = pytest.importorskip("fmpy", reason="fmpy (the test extra) validates and runs the FMU")
 from fmpy import extract, read_model_description  # noqa: E402
@@ -52,7 +52,7 @@ def _cosimulate(fmu_path, theta, omega, u, *, tau0=0.0):
         slave.setReal([vr["omega"]], [omega[0]])
     slave.exitInitializationMode()
     inputs = [vr["theta"], vr["u"]] + ([vr["omega"]] if two else [])
-    outputs = [vr["tau_hat"]] + ([vr["omega_hat"]] if "omega_hat" in vr else [])
+    outputs = [vr[name] for name in ("tau_hat", "omega_hat", "tau_reac") if name in vr]
     ys = []
     for k in range(len(theta)):
         slave.setReal(inputs, [theta[k], u[k]] + ([omega[k]] if two else []))
@@ -199,3 +199,22 @@ def test_export_fmu_help_has_a_description(capsys):
     assert exit_.value.code == 0
     out = " ".join(capsys.readouterr().out.split())  # argparse wraps the description
     assert "FMI 2.0 co-simulation FMU" in out and "docs/deployment.md" in out
+
+
+@pytest.mark.parametrize("coulomb", [False, True])
+def test_fmu_of_a_reaction_torque_observer(coulomb, logged_runs, tmp_path):
+    """An RTOB composition's FMU has the output tau_reac (with the Coulomb term: libm's tanh),
+    bit for bit the Python runtime's, every output, every sample."""
+    dob = design_observer(MODEL, order=1, bandwidth=100.0)
+    friction = {"friction": paper.PLANT, "velocity_filter": 100.0} if coulomb else {}
+    observer = reaction_torque_observer(dob, **friction)
+    fmu = export_fmu(observer, tmp_path / "rtob.fmu", model_identifier="hpdob_rtob")
+    assert validate_fmu(str(fmu)) == []
+    names = [v.name for v in read_model_description(str(fmu)).modelVariables]
+    assert "tau_reac" in names
+    run = logged_runs["virtual-experiment"]
+    theta, omega, u = run.theta_measured, run.omega_measured, run.u
+    got = _cosimulate(fmu, theta, omega, u, tau0=0.01)
+    expected = _python(observer, theta, omega, u, tau0=0.01)
+    assert got.shape == expected.shape == (len(theta), 3 if coulomb else 2)
+    assert np.array_equal(got, expected)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 
 from hpdob import ServoModel, design_observer
@@ -37,4 +38,33 @@ def test_out_of_range_operand_is_refused_with_the_valid_range(part, width):
     rows[0] = (*rows[0], Term(1.0, width))
     program = dataclasses.replace(system.program, **{part: tuple(rows)})
     with pytest.raises(ValueError, match=rf"program\.{part}\[0\] .* operands in 0\.\.{width - 1},"):
+        dataclasses.replace(system, program=program)
+
+
+def test_a_program_off_in_two_entries_is_refused_naming_the_worst():
+    """The refusal names the operand whose sum is furthest off the matrix entry (beyond the
+    rounding allowance): here u's K_u (G B, eq. 21) off by 1e-3 relative, not s_0's 1e-9."""
+    model = ServoModel(2.8e-4, 5e-5).discretize(1e-3)
+    system = design_observer(model, order=1, bandwidth=300.0).system
+    row = [
+        t._replace(coefficient=t.coefficient * (1 + 1e-3)) if t.operand == 4 else t
+        for t in system.program.update[0]
+    ]
+    rows = ((*row, Term(1e-9, 0)), *system.program.update[1:])
+    program = dataclasses.replace(system.program, update=rows)
+    with pytest.raises(ValueError, match=r"program\.update\[0\] sums to \S+ for operand 4 "):
+        dataclasses.replace(system, program=program)
+
+
+def test_rounding_within_the_allowance_is_not_blamed():
+    """A large sum that cancels (1e6 - (1e6 - ulp)) is off by rounding only, within the
+    allowance of 4 eps times the terms' magnitudes: the refusal names the operand that is
+    really wrong, theta's K_x entry off by 1e-12, though its error is smaller."""
+    model = ServoModel(2.8e-4, 5e-5).discretize(1e-3)
+    system = design_observer(model, order=1, bandwidth=300.0).system
+    big = 1e6
+    cancelling = (Term(big, 3), Term(-(big - np.spacing(big)), 3), Term(1e-12, 2))
+    rows = ((*system.program.update[0], *cancelling), *system.program.update[1:])
+    program = dataclasses.replace(system.program, update=rows)
+    with pytest.raises(ValueError, match=r"program\.update\[0\] sums to \S+ for operand 2 "):
         dataclasses.replace(system, program=program)

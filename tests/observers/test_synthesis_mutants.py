@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from hpdob import ServoModel, design_observer
@@ -21,3 +22,23 @@ def test_design_summary_names_the_paper_family_of_each_order(order, kind):
     model = ServoModel(2.8e-4, 5e-5).discretize(1e-3)  # the paper's nominal motor (sec. IV)
     info = dict(design_observer(model, order=order, bandwidth=300.0).system.info)
     assert info["order"] == f"{order} {kind}"
+
+
+def test_a_tiny_inertia_designs_as_the_unit_inertia_scaled():
+    """L_i = k_i d / (d^T D_Dn) (eq. 25): with b_n = 0, D_Dn is proportional to 1 / J_n, so an
+    inertia of 1e-300 kg m^2 (D_Dn ~ 1e297, whose norm overflows a double) has the same k and
+    the unit inertia's gains times 1e-300. The degeneracy test on d^T D_Dn must not read it as
+    orthogonal."""
+    Ts = 1e-3
+    unit = design_observer(ServoModel(1.0, 0.0).discretize(Ts), order=1, bandwidth=300.0)
+    tiny = design_observer(ServoModel(1e-300, 0.0).discretize(Ts), order=1, bandwidth=300.0)
+    np.testing.assert_allclose(tiny.k, unit.k, rtol=1e-13)
+    np.testing.assert_allclose(tiny.gains, unit.gains * 1e-300, rtol=1e-13)
+
+
+def test_everything_but_the_model_is_keyword_only():
+    """design_observer(model, *, order, ...): a positional order is refused (the project's
+    keyword-only rule), so design_observer(model, 1, 2) cannot be read as order and poles."""
+    model = ServoModel(2.8e-4, 5e-5).discretize(1e-3)
+    with pytest.raises(TypeError, match="positional argument"):
+        design_observer(model, 1, bandwidth=300.0)

@@ -7,12 +7,8 @@ import numpy as np
 import pytest
 
 from hpdob import PD, Actuator, Encoder, ServoModel
+from hpdob.controllers import ADRC, PID, FilteredPD  # the controller protocol (issue 20)
 from hpdob.robots import ArmLoop, JointSines, TwoLinkArm, simulate_arm
-
-# The controller protocol (issue 20, branch i-ctrl) is not on main yet: this test runs once it
-# is merged (checked then in a trial merge of i-robots with i-ctrl: 3 passed).
-controllers = pytest.importorskip("hpdob.controllers", reason="the controller protocol (issue 20)")
-ADRC, PID, FilteredPD = controllers.ADRC, controllers.PID, controllers.FilteredPD
 
 ARM = TwoLinkArm(m=(1.3, 0.9), l=(0.5, 0.4), lc=(0.22, 0.17), I=(0.021, 0.013), J=(0.05, 0.03))
 REFERENCE = JointSines(center=(0.0, 0.0), amplitude=0.6, frequency=1.0)

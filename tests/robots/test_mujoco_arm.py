@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -164,3 +166,33 @@ def test_an_unstable_loop_stops_as_diverged(engine, tmp_path, monkeypatch):
         res = simulate_arm(loop, duration=1.0, reference=JointSines((0.0, 0.0), 0.5, 1.0))
     assert res.diverged and len(res) < 1001
     assert np.all(np.isfinite(res.u))
+
+
+def test_the_panda_model_ships_its_license_and_notice():
+    """Apache-2.0 section 4(d): franka_ros's NOTICE travels with the inertial parameters taken
+    from it, beside the model and its license, and the wheel includes all three."""
+    from importlib import resources
+    from pathlib import Path
+
+    tomllib = pytest.importorskip("tomllib" if sys.version_info >= (3, 11) else "tomli")
+
+    data = resources.files("hpdob.robots").joinpath("data")
+    notice = data.joinpath("NOTICE-franka_ros.txt").read_text()
+    assert "Copyright 2017 Franka Emika GmbH" in notice and "Apache License" in notice
+    assert "Apache License" in data.joinpath("LICENSE-APACHE-2.0.txt").read_text()
+    assert "NOTICE-franka_ros.txt" in data.joinpath("README.md").read_text()
+    pyproject = Path(__file__).resolve().parents[2] / "pyproject.toml"
+    shipped = tomllib.loads(pyproject.read_text())["tool"]["setuptools"]["package-data"]
+    assert {"data/panda.xml", "data/LICENSE-APACHE-2.0.txt", "data/NOTICE-franka_ros.txt"} <= set(
+        shipped["hpdob.robots"]
+    )
+
+
+def test_panda_default_integrator_is_the_documented_euler():
+    import mujoco
+
+    _, model, _ = panda().compile()
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_EULER
+    assert '``"Euler"``' in panda.__doc__ and 'RK4"``)' not in panda.__doc__
+    _, model, _ = panda(integrator="RK4").compile()
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4

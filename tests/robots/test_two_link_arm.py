@@ -184,8 +184,35 @@ def test_result_exports_and_plots():
 
     matplotlib.use("Agg")
     fig = res.plot()
-    assert fig.axes[2].get_xlabel() == "time [s]"
-    assert "[N m]" in fig.axes[1].get_ylabel()
+    # one row per joint (error, command, disturbance), the time axis on the last row
+    assert len(fig.axes) == 3 * len(res.joint_names) == 6
+    assert [ax.get_xlabel() for ax in fig.axes[-3:]] == ["time [s]"] * 3
+    assert "[N m]" in fig.axes[1].get_ylabel() and "elbow" in fig.axes[3].get_ylabel()
+    truth, estimate = fig.axes[5].get_lines()  # the estimate drawn over the truth, unlike it
+    assert truth.get_linewidth() > estimate.get_linewidth() and estimate.get_linestyle() == "--"
+    assert not any(ax.get_legend() for ax in fig.axes) and len(fig.legends) == 1  # off the data
+    plt_close(fig)
+
+
+def test_a_numpy_array_of_observer_specs_is_a_list_of_them():
+    """np.array([spec, spec]) is one spec per joint (not one object for every joint), and an
+    array of the wrong length is refused by its length."""
+    spec = {"order": 1, "bandwidth": 100.0}
+    runs = [simulate_arm(ArmLoop(ARM, 1e-3, PD(400.0, 40.0), observers=specs), duration=0.05,
+                         reference=JointSines((0.0, 0.0)), tau0="gravity")
+            for specs in (np.array([spec, spec]), [spec, spec])]  # fmt: skip
+    np.testing.assert_array_equal(runs[0].tau_hat, runs[1].tau_hat)
+    with pytest.raises(ParameterValueError, match=r"observers must have one entry per joint \(2\)"
+                       r", got 3"):  # fmt: skip
+        ArmLoop(ARM, 1e-3, PD(400.0, 40.0), observers=np.array([spec] * 3))
+    with pytest.raises(ParameterValueError, match=r"controller must have one entry per joint"):
+        ArmLoop(ARM, 1e-3, np.array([PD(1.0, 1.0)] * 3, dtype=object))
+
+
+def plt_close(fig):
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
 
 
 @pytest.mark.parametrize(

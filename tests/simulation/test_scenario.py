@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hpdob import ServoModel, paper, simulate
+from hpdob import ParameterValueError, ServoModel, paper, simulate
 from hpdob.cli import main
 from hpdob.simulation import load_scenario
 from hpdob.simulation._scenario import (
@@ -52,6 +52,8 @@ def test_position_only_example_is_the_built_in_run():
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.name)
 def test_examples_run_from_the_command_line(path, tmp_path, capsys):
+    if 'type = "mujoco"' in path.read_text():
+        pytest.importorskip("mujoco")  # the optional extra
     code = main(["simulate", str(path), "--out", str(tmp_path)])
     out = capsys.readouterr().out
     assert code == 0
@@ -60,11 +62,98 @@ def test_examples_run_from_the_command_line(path, tmp_path, capsys):
     assert (tmp_path / f"{label}.csv").exists()
     assert (tmp_path / f"{label}.png").stat().st_size > 10_000
     metrics = json.loads((tmp_path / "metrics.json").read_text())
+    contact = set()  # against a wall: the impact too (docs/force-control.md)
+    if "[plant.environment]" in path.read_text() or re.search(r"^wall = ", path.read_text(), re.M):
+        contact = {f"contact_{name}" for name in ("first_contact", "impact_peak", "overshoot",
+                                                   "overshoot_ratio")}  # fmt: skip
     assert set(metrics[label]) == {
         "rms_estimation_error",
         "rms_position_error_regulation",
         "rms_position_error_tracking",
+        *contact,
     }
+
+
+FORCE = ROOT / "examples" / "force_step_stiff_wall.toml"
+
+
+def test_force_scenario_is_the_loop_built_in_python():
+    """[controller] type = "force" with [reaction_observer] friction = "plant" is the loop
+    written in Python (ForceControl, reaction_torque_observer(friction=plant)), bit for bit."""
+    from hpdob import Encoder, Environment, ServoLoop, ServoModel, design_observer
+    from hpdob.controllers import ForceControl
+    from hpdob.observers import reaction_torque_observer
+    from hpdob.signals import Step
+
+    scenario = load_scenario(FORCE)
+    from_file = scenario.simulate()
+    plant = ServoModel(3.06e-4, 5e-5, coulomb=0.01, coulomb_velocity=0.01,
+                       environment=Environment(10.0))  # fmt: skip
+    nominal = ServoModel(2.8e-4)
+    dob = design_observer(nominal.discretize(1e-3), order=1, bandwidth=100.0)
+    observer = reaction_torque_observer(dob, friction=plant, velocity_filter=100.0)
+    loop = ServoLoop(plant=plant, nominal=nominal, Ts=1e-3, observer=observer,
+                     controller=ForceControl(1000.0, kv=40.0), sensor=Encoder(16384),
+                     actuator=scenario.loop.actuator)  # fmt: skip
+    built = simulate(loop, reference=Step(0.1, 0.05), duration=1.0, x0=(-0.01, 0.0))
+    np.testing.assert_array_equal(from_file.tau_reac, built.tau_reac)
+    np.testing.assert_array_equal(from_file.tau_contact, built.tau_contact)
+    assert abs(from_file.tau_contact[-1] - 0.05) < 0.01 * 0.05
+
+
+def test_mujoco_wall_scenario_and_no_environment_on_mujoco():
+    """[plant] type = "mujoco" with wall = 0.0: the RTOB against MuJoCo's contact torque; an
+    [plant.environment] on that plant is refused in one line naming the key."""
+    pytest.importorskip("mujoco")
+    path = ROOT / "examples" / "mujoco_wall.toml"
+    result = load_scenario(path).simulate()
+    assert result.in_contact[-100:].all()
+    tail = slice(-100, None)
+    assert np.max(np.abs(result.tau_reac[tail] / result.tau_contact[tail] - 1.0)) < 1e-3
+    data = tomllib.loads(path.read_text())
+    data["plant"]["environment"] = {"stiffness": 10.0}
+    with pytest.raises(ParameterValueError,
+                       match=r"^plant.environment: a MuJoCo plant cannot carry an Environment; "
+                             r"give it a wall the link presses \(plant.wall \[rad\] with "
+                             r"plant.link_length\)$"):  # fmt: skip
+        scenario_from_dict(data)
+
+
+def test_force_scenarios_refuse_bad_inputs():
+    data = tomllib.loads(FORCE.read_text())
+
+    def refused(change, match, error=ParameterValueError):
+        edited = json.loads(json.dumps(data))
+        change(edited)
+        with pytest.raises(error, match=match):
+            scenario_from_dict(edited)
+
+    refused(lambda d: d.pop("reaction_observer"),
+            r"^controller.type = 'force' reads the reaction-torque estimate tau_reac: the "
+            r"scenario needs an \[observer\] and a \[reaction_observer\] table$")  # fmt: skip
+    refused(lambda d: d.pop("observer"), r"^reaction_observer needs an \[observer\] table")
+    refused(lambda d: d["plant"]["environment"].update(stiffness=-1.0),
+            r"^plant.environment.stiffness must be a positive finite contact stiffness "
+            r"\[N m/rad\], got -1.0$")  # fmt: skip
+    refused(
+        lambda d: d["reaction_observer"].update(friction="model"),
+        r"^reaction_observer.friction must be 'plant'",
+    )
+    refused(lambda d: (d["reaction_observer"].pop("friction"),
+                       d["reaction_observer"].update(coulomb=-1.0)),
+            r"^reaction_observer.coulomb must be a non-negative finite Coulomb torque")  # fmt: skip
+    refused(
+        lambda d: d["reaction_observer"].update(order=1, bandwidth=-5.0),
+        r"^reaction_observer.bandwidth must be",
+    )
+    refused(
+        lambda d: d["reaction_observer"].update(order=1, bandwidth=50.0, poles=[0.9, 0.9]),
+        r"^reaction_observer",
+    )
+    refused(lambda d: d["controller"].update(kf=-1.0), r"^controller.kf must be a positive")
+    refused(lambda d: d["controller"].update(type="position-force", kp=1.0, kd=1.0,
+                                             tau_ref=0.05),
+            r"^missing required key controller.threshold")  # fmt: skip
 
 
 def edit(change):

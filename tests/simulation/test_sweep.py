@@ -430,3 +430,16 @@ def test_an_interrupted_sweep_keeps_the_finished_rows_and_resume_completes_it():
                                   .reset_index(drop=True))  # fmt: skip
     resumed = sweep(base(0.3), **settings, progress=False, scheduler=2, resume=kept)
     pd.testing.assert_frame_equal(resumed, full)
+
+
+def test_sweep_of_a_force_scenario_keeps_its_reaction_observer():
+    """A scenario with a [reaction_observer] (a fixed composition, read by the force
+    controller's tau_reac input) sweeps over the wall's stiffness; each row is the run."""
+    from hpdob.simulation import load_scenario
+
+    path = Path(__file__).resolve().parents[2] / "examples" / "force_step_stiff_wall.toml"
+    scenario = load_scenario(path)
+    rows = sweep(scenario, grid={"plant.environment.stiffness": [1.0, 10.0]}, progress=False)
+    assert rows["stable"].all()
+    direct = scenario.simulate().metrics()["rms_estimation_error"]
+    assert rows["rms_estimation_error"].iloc[1] == direct

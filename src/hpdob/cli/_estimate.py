@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 from pathlib import Path
@@ -11,7 +12,7 @@ import numpy as np
 
 from ._design import add_observer_arguments, design_on, observer_spec_of_args
 from ._errors import CLIError
-from ._logs import add_log_arguments, log_from_args
+from ._logs import add_log_arguments, log_file_from_args
 from ._options import finite, output_path
 from ._progress import ProgressLine, show_progress
 
@@ -39,7 +40,10 @@ def register(subparsers) -> None:
         help="identification.json written by 'hpdob identify': its J and b",
     )
     model.add_argument(
-        "--b-n", type=finite, default=None, help="nominal viscous friction (default: 0)"
+        "--b-n",
+        type=finite,
+        default=None,
+        help="nominal viscous friction [N m s/rad or N s/m] (default: 0)",
     )
     add_observer_arguments(parser)
     parser.add_argument(
@@ -118,8 +122,7 @@ def _observer_settings(args: argparse.Namespace, design) -> dict:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .._files import check_output, staged_outputs
-    from ..identification import estimate_disturbance
+    from .._files import check_output
 
     # Every option and the output location are checked before the log is read: a log may
     # take minutes to read (up to 256 MiB), and a missing --J-n must not wait for it.
@@ -133,63 +136,30 @@ def _run(args: argparse.Namespace) -> int:
     show = show_progress(args.progress)
     name = "EMPS" if args.log is None else Path(args.log).name
     reading = ProgressLine(f"hpdob estimate: reading {name}", unit="MiB", scale=2**20)
-    try:
-        log = log_from_args(args, progress=reading if show else None)
+    try:  # a Parquet log is checked here and read block by block below, never held whole
+        log = log_file_from_args(args, progress=reading if show else None)
     finally:  # an error or interrupt message starts on its own line
         reading.end()
     if out is None:  # --emps: its name is the shipped file's
         out = Path("hpdob-results") / f"estimate-{Path(log.source).stem}"
         check_output(out)
     design = design_on(args, nominal.discretize(log.Ts))
-    # One call of the compiled loop (well under a second for a log at the 256 MiB limit, once
-    # compiled): a stage, not a bar.
-    estimating = ProgressLine("hpdob estimate: estimating", unit="samples")
-    if show:
-        estimating(0, len(log))
-    try:
-        result = estimate_disturbance(design, theta=log.theta, u=log.u, t=log.t)
-    except BaseException:  # the message starts on its own line
-        estimating.end()
-        raise
-    if show:
-        estimating(len(log), len(log))
-    # t increases strictly: the samples with t >= the cut are a slice (a view, not a copy)
-    cut = np.searchsorted(result.t, result.t[0] + 0.1 * (result.t[-1] - result.t[0]))
-    tail = result.tau_hat[cut:]
-    with np.errstate(all="ignore"):  # a diverged estimate is refused below, not warned about
-        mean, std = float(tail.mean()), float(tail.std())
-    if not (np.all(np.isfinite(result.tau_hat)) and math.isfinite(mean) and math.isfinite(std)):
-        raise CLIError(
-            f"the estimate of {design.system.name} is not finite on {log.source}: the observer "
-            "diverged (or the log's values overflow it); nothing was written"
-        )
-    report = {
-        "log": {"source": log.source, "names": dict(log.names), "samples": len(log),
-                "Ts": log.Ts, "input_gain": log.input_gain},
-        "nominal": {"J": nominal.J, "b": nominal.b, "origin": origin},
-        "observer": {**_observer_settings(args, design), "name": design.system.name},
-        "tau_hat": {"mean": mean, "std": std,
-                    "note": "over the last 90 % of the log (after the observer's transient)"},
-    }  # fmt: skip
+    # One stage: the CSV is written as the estimate runs, rows counted chunk by chunk.
+    writing = ProgressLine("hpdob estimate: estimating, writing estimate.csv", unit="rows")
     written = ["estimate.csv"]
-    # Staged and renamed together, estimate.json last (docs/reliability.md).
-    # With --no-plot a previous run's estimate.png is removed: one consistent set.
-    writing = ProgressLine("hpdob estimate: writing estimate.csv", unit="rows")
-    with staged_outputs(out, markers=["estimate.json"], replaces=["estimate.png"]) as files:
-        try:  # rows written, chunk by chunk (32768 rows each: the column-wise writer's)
-            if show:
-                writing(0, len(result.t))
-            result.to_csv(files.path("estimate.csv"), progress=writing if show else None)
-        finally:
-            writing.end()
-        if not args.no_plot:
-            files.plot(
-                "estimate.png",
-                lambda: result.plot(title=f"{design.system.name} on {log.source}", axis=log.axis),
-            )
-            written.append("estimate.png")
-        files.write_json("estimate.json", report)
-        written.append("estimate.json")
+    created = [p for p in (out, *out.parents) if not p.exists()]  # removed again on a refusal
+    try:
+        if show:
+            writing(0, len(log))
+        mean, std = _estimate(args, log, design, nominal, origin, out, written,
+                              writing if show else None)  # fmt: skip
+    except BaseException:
+        writing.end()  # the message starts on its own line
+        for directory in created:  # innermost first; only what is still empty
+            with contextlib.suppress(OSError):
+                directory.rmdir()
+        raise
+    writing.end()
     print(
         f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s; {design.system.name} on "
         f"J_n = {nominal.J:.6g}, b_n = {nominal.b:.6g} ({origin})"
@@ -197,3 +167,40 @@ def _run(args: argparse.Namespace) -> int:
     print(f"  tau_hat: mean {mean:.6g}, std {std:.6g} (last 90 % of the log)")
     print(f"wrote {', '.join(written)} to {out}")
     return 0
+
+
+def _estimate(args, log, design, nominal, origin, out, written, progress=None) -> tuple:
+    """Run the estimate and write its set of files (``written`` lists them); return the mean
+    and standard deviation of the estimate over the last 90 % of the log."""
+    from .._files import staged_outputs
+    from ..identification import estimate_log
+
+    # Staged and renamed together, estimate.json last (docs/reliability.md): a refused estimate
+    # leaves nothing. With --no-plot a previous run's estimate.png is removed: one consistent set.
+    with staged_outputs(out, markers=["estimate.json"], replaces=["estimate.png"]) as files:
+        # the traces are written as the estimate runs; the statistics skip the first 10 %
+        run = estimate_log(design, log, csv=files.path("estimate.csv"), settle=0.1, keep=False,
+                           progress=progress)  # fmt: skip
+        mean, std = run.mean, run.std
+        if not (run.finite and math.isfinite(mean) and math.isfinite(std)):
+            raise CLIError(
+                f"the estimate of {design.system.name} is not finite on {log.source}: the "
+                "observer diverged (or the log's values overflow it); nothing was written"
+            )
+        report = {
+            "log": {"source": log.source, "names": dict(log.names), "samples": len(log),
+                    "Ts": log.Ts, "input_gain": log.input_gain},
+            "nominal": {"J": nominal.J, "b": nominal.b, "origin": origin},
+            "observer": {**_observer_settings(args, design), "name": design.system.name},
+            "tau_hat": {"mean": mean, "std": std,
+                        "note": "over the last 90 % of the log (after the observer's transient)"},
+        }  # fmt: skip
+        if not args.no_plot:
+            files.plot(
+                "estimate.png",
+                lambda: run.plot(title=f"{design.system.name} on {log.source}", axis=log.axis),
+            )
+            written.append("estimate.png")
+        files.write_json("estimate.json", report)
+        written.append("estimate.json")
+    return mean, std

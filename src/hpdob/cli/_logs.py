@@ -10,7 +10,7 @@ from pathlib import Path
 from ._errors import CLIError
 from ._options import finite
 
-__all__ = ["add_log_arguments", "log_from_args", "logs_from_args"]
+__all__ = ["add_log_arguments", "log_file_from_args", "log_from_args", "logs_from_args"]
 
 
 def add_log_arguments(
@@ -144,3 +144,30 @@ def log_from_args(args: argparse.Namespace, columns=None, progress=None):
         columns=columns,
         progress=progress,
     )
+
+
+def log_file_from_args(args: argparse.Namespace, progress=None):
+    """The log that ``add_log_arguments`` options describe, for a command that reads it block
+    by block: a :class:`~hpdob.identification.LogFile` for a Parquet file (checked, never held
+    whole; ``progress`` is called at the start and the end), else the
+    :class:`~hpdob.identification.Log` of :func:`log_from_args`."""
+    from ..identification import open_log
+
+    if args.emps or args.log is None or Path(args.log).suffix.lower() not in (".parquet", ".pq"):
+        return log_from_args(args, progress=progress)
+    _require_columns(args)
+    total = Path(args.log).stat().st_size if Path(args.log).is_file() else 0
+    if progress is not None:
+        progress(0, total)
+    log = open_log(
+        args.log,
+        time=args.time,
+        position=args.position,
+        input=args.input,
+        input_gain=1.0 if args.input_gain is None else _input_gain(args.input_gain),
+        Ts=args.Ts,
+        axis=args.axis,
+    )
+    if progress is not None:
+        progress(total, total)
+    return log

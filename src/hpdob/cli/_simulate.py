@@ -139,6 +139,18 @@ def _previous_files(out: Path) -> list[str]:
     return names
 
 
+def _contact_metrics(result, controller) -> dict:
+    """``contact_first_contact`` [s], ``contact_impact_peak`` [N m], ``contact_overshoot``
+    [N m] and ``contact_overshoot_ratio`` over the force reference: the switching controller's
+    ``tau_ref``, the force controller's last reference value, else the last contact torque."""
+    from ..controllers import ForceControl
+
+    tau_ref = getattr(controller, "tau_ref", None)
+    if isinstance(controller, ForceControl) and len(result):
+        tau_ref = float(result.r[-1])
+    return {f"contact_{k}": v for k, v in result.contact_metrics(tau_ref).items()}
+
+
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
@@ -166,6 +178,8 @@ def _run(args: argparse.Namespace) -> int:
         finally:  # an error or interrupt message starts on its own line
             line.end()
     metrics = result.metrics(**windows)
+    if result.tau_contact is not None:  # against a wall: the impact (docs/force-control.md)
+        metrics.update(_contact_metrics(result, kwargs["controller"]))
     # Staged: renamed together when all are written, metrics.json last (docs/reliability.md).
     # The previous run's <label>.csv/.png (another label, or a figure this --no-plot run does
     # not draw) are removed at the commit: the directory holds one consistent set.

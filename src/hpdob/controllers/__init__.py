@@ -10,9 +10,12 @@ Controller, controller_system
 PD, FilteredPD, PID, ADRC
     The paper's PD, PD with a filtered derivative, PID with back-calculation anti-windup,
     and linear ADRC (state feedback on its own extended state observer).
-ForceControl, ImpedanceControl
+ForceControl, ImpedanceControl, PositionForceSwitch
     Force control without a force sensor: explicit force and impedance control on the
-    reaction-torque estimate ``tau_reac`` (issue 21).
+    reaction-torque estimate ``tau_reac``, and position control that latches over to force
+    control on contact (issue 21).
+Switch
+    The one nonlinear extension of a controller program: a latching switch of the command.
 """
 
 from ._adrc import ADRC
@@ -20,14 +23,17 @@ from ._base import Controller, controller_system
 from ._force import ForceControl, ImpedanceControl
 from ._pd import PD, VELOCITY_SOURCES, FilteredPD
 from ._pid import PID
-from ._program import ControllerProgram
+from ._program import ControllerProgram, Switch
 from ._settings import controller_settings
+from ._switching import PositionForceSwitch
 from ._system import LOOP_SIGNALS, LinearController, ProgramBuilder
 
-#: The controller types of scenario files (``[controller] type = "pid"``).
-#: (ForceControl and ImpedanceControl are not among them yet: a scenario file cannot describe
-#: the reaction-torque observer they read.)
-CONTROLLER_TYPES = {"pd": PD, "pid": PID, "filtered-pd": FilteredPD, "adrc": ADRC}
+#: The controller types of scenario files (``[controller] type = "pid"``). The last three read
+#: the reaction-torque estimate ``tau_reac``: a servo scenario gives them a
+#: ``[reaction_observer]`` (docs/force-control.md).
+CONTROLLER_TYPES = {"pd": PD, "pid": PID, "filtered-pd": FilteredPD, "adrc": ADRC,
+                    "force": ForceControl, "impedance": ImpedanceControl,
+                    "position-force": PositionForceSwitch}  # fmt: skip
 
 __all__ = [
     "ADRC",
@@ -42,7 +48,9 @@ __all__ = [
     "ForceControl",
     "ImpedanceControl",
     "LinearController",
+    "PositionForceSwitch",
     "ProgramBuilder",
+    "Switch",
     "controller_settings",
     "controller_system",
 ]

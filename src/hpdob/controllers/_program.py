@@ -12,10 +12,50 @@ from .._validation import ParameterTypeError, ParameterValueError
 from ..observers import Program, Term
 from ..observers._program import render_sum
 
-__all__ = ["RESET_OPERANDS", "ControllerProgram", "PythonController", "compile_python"]
+__all__ = ["RESET_OPERANDS", "ControllerProgram", "PythonController", "Switch", "compile_python"]
 
 #: Operands of the reset rows (as for observers).
 RESET_OPERANDS = ("theta0", "omega0", "tau0")
+
+
+@dataclass(frozen=True)
+class Switch:
+    r"""The one nonlinear extension of a controller program: a latching switch of the command.
+
+    At sample ``k``, with :math:`\ell_k` the latch state (0 or 1) and :math:`y` the signals:
+
+    .. math::
+
+        \text{on}_k = (\ell_k \ne 0) \lor (v_{\text{trigger},k} \ge \text{threshold}),\qquad
+        u_k = \begin{cases} y_{\text{after},k} + \text{offset} & \text{on}_k \\
+        y_{\text{last},k} & \text{otherwise,} \end{cases}\qquad
+        \ell_{k+1} = \text{on}_k.
+
+    The signal rows, the other states' updates and the matrices are those of the program
+    without the switch: the linear controller *before* the switch (the analysis views see that
+    mode). The generated Python (:func:`compile_python`) and the compiled kernel evaluate this
+    rule after the signal rows, the same comparisons and the same one addition.
+
+    Attributes
+    ----------
+    trigger : int
+        Operand index of the input that trips the switch (``n <= trigger < n + p``).
+    threshold : float
+        The switch trips at ``input >= threshold``.
+    latch : int
+        Index of the latch state (its update row is empty: 0 in the linear view).
+    after : int
+        Index of the signal that is the command once switched.
+    offset : float
+        Constant added to that signal [N m] (a setpoint the rows cannot hold: they have no
+        constant operand).
+    """
+
+    trigger: int
+    threshold: float
+    latch: int
+    after: int
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -41,6 +81,8 @@ class ControllerProgram:
         Descriptions of named constants (for comments in generated code).
     state_names : tuple of str
         Names of the states (for generated code); default ``c1, c2, ...``.
+    switch : Switch or None
+        A latching switch of the command (:class:`Switch`); None for a linear controller.
     """
 
     signals: tuple
@@ -49,6 +91,7 @@ class ControllerProgram:
     signal_names: tuple
     constants: tuple = ()
     state_names: tuple = ()
+    switch: Switch | None = None
 
     @classmethod
     def from_matrices(cls, F, G, H, E, N) -> ControllerProgram:
@@ -231,10 +274,19 @@ def compile_python(controller) -> PythonController:
     args = "".join(f", {v}" for v in inputs)
     reset = [_render(r, RESET_OPERANDS) for r in program.reset]
     update = [_render(r, operands) for r in program.update]
+    command = signals[-1]
+    switch = program.switch
+    if switch is not None:  # Switch's rule, after the signal rows (as in the kernel)
+        body += (
+            f"    on = {state[switch.latch]} != 0.0 or {operands[switch.trigger]} >= "
+            f"{_py_literal(switch.threshold)}\n"
+        )
+        command = f"({signals[switch.after]} + {_py_literal(switch.offset)}) if on else {command}"
+        update[switch.latch] = "(1.0 if on else 0.0)"
     source = [
         f"def reset(theta0, omega0, tau0):\n    return ({''.join(x + ', ' for x in reset)})\n",
         f"def signals(c{args}):\n{unpack}{body}    return ({', '.join(signals)},)\n",
-        f"def command(c{args}):\n{unpack}{body}    return {signals[-1]}\n",
+        f"def command(c{args}):\n{unpack}{body}    return {command}\n",
         f"def update(c{args}, u_bar):\n{unpack}{body}"
         f"    return ({''.join(x + ', ' for x in update)})\n",
     ]

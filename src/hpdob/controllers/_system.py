@@ -43,7 +43,7 @@ from .._validation import (
     shaped_matrix,
 )
 from ..observers import Term
-from ._program import RESET_OPERANDS, ControllerProgram, compile_python
+from ._program import RESET_OPERANDS, ControllerProgram, Switch, compile_python
 
 __all__ = ["LOOP_SIGNALS", "LinearController", "ProgramBuilder"]
 
@@ -277,6 +277,7 @@ def _check_program(program: ControllerProgram, dense, n: int, p: int) -> None:
     for part, rows in (("update", program.update), ("reset", program.reset)):
         if len(rows) != n:
             raise ParameterValueError(f"program.{part} must have {n} rows, got {len(rows)}")
+    _check_switch(program, n, p, q)
     computed, (size_update, size_u) = program.matrices(n, p)
     F, G, H, E, N = dense
     for name, got, want, size in (
@@ -288,6 +289,37 @@ def _check_program(program: ControllerProgram, dense, n: int, p: int) -> None:
         if not np.all(np.abs(got - want) <= 8 * _EPS * size):
             raise ParameterValueError(
                 f"program {name} rows sum to {_show(got)} but the matrices are {_show(want)}"
+            )
+
+
+def _check_switch(program: ControllerProgram, n: int, p: int, q: int) -> None:
+    switch = program.switch
+    if switch is None:
+        return
+    if not isinstance(switch, Switch):
+        raise ParameterTypeError(
+            f"program.switch must be a Switch or None, got {type(switch).__name__}"
+        )
+    checks = (
+        ("trigger", switch.trigger, n, n + p, "an input's operand index"),
+        ("latch", switch.latch, 0, n, "a state index"),
+        ("after", switch.after, 0, q - 1, "the index of a signal before the command"),
+    )
+    for name, value, low, high, what in checks:
+        if isinstance(value, bool) or not isinstance(value, int) or not low <= value < high:
+            raise ParameterValueError(
+                f"program.switch.{name} must be {what} in [{low}, {high}), got {value!r}"
+            )
+    if program.update[switch.latch]:
+        raise ParameterValueError(
+            f"program.switch.latch = {switch.latch}: the latch state's update row must be empty "
+            "(the switch sets it)"
+        )
+    for name in ("threshold", "offset"):
+        value = getattr(switch, name)
+        if not isinstance(value, float) or not np.isfinite(value):
+            raise ParameterValueError(
+                f"program.switch.{name} must be a finite float, got {value!r}"
             )
 
 
@@ -319,6 +351,7 @@ class ProgramBuilder:
         self._update: dict = {}
         self._reset: dict = {}
         self._constants: list = []
+        self._switch: Switch | None = None
 
     def _index(self, name: str) -> int:
         n, p = len(self.states), len(self.inputs)
@@ -386,6 +419,32 @@ class ProgramBuilder:
             Term(float(c), RESET_OPERANDS.index(x), *rest) for c, x, *rest in terms
         )
 
+    def switch(self, *, trigger: str, threshold: float, latch: str, after: str,
+               offset: float = 0.0) -> None:  # fmt: skip
+        """Latch the command over to another signal when an input crosses a threshold
+        (:class:`~hpdob.controllers.Switch`).
+
+        Parameters
+        ----------
+        trigger : str
+            The input whose value ``>= threshold`` trips the switch.
+        threshold : float
+            The threshold, in the input's unit.
+        latch : str
+            The latch state (0 before, 1 once switched; give it no update row).
+        after : str
+            The signal that is the command once switched (plus ``offset``).
+        offset : float, optional
+            A constant added to it [N m]. Default 0.
+        """
+        if trigger not in self.inputs:
+            raise ParameterValueError(f"unknown input {trigger!r}; the inputs are {self.inputs}")
+        if after not in self._names:
+            raise ParameterValueError(f"unknown signal {after!r}; the signals are {self._names}")
+        self._switch = Switch(self._index(trigger), float(threshold),
+                              self.states.index(self._state(latch)), self._names.index(after),
+                              float(offset))  # fmt: skip
+
     def describe(self, name: str, text: str) -> None:
         """Describe a named constant (a comment in generated code).
 
@@ -421,6 +480,7 @@ class ProgramBuilder:
             signal_names=tuple(self._names),
             constants=tuple(self._constants),
             state_names=self.states,
+            switch=self._switch,
         )
         return LinearController.from_program(
             program, Ts=Ts, inputs=self.inputs, n_states=len(self.states), name=name, info=info

@@ -25,7 +25,15 @@ from ..observers._system import UNITS, LinearObserver, as_system
 from ._c_fixed import design_for, render_fixed
 from ._c_guard import guard_header, guard_helpers, guarded_init, guarded_output, guarded_update
 from ._c_names import _check_directory, _check_prefix
-from ._c_outputs import reaction_declaration, reaction_definition, reaction_steps
+from ._c_outputs import (
+    coulomb_constants,
+    coulomb_expression,
+    coulomb_include,
+    coulomb_note,
+    reaction_declaration,
+    reaction_definition,
+    reaction_steps,
+)
 from ._c_outputs import signature as _signature
 from ._controller_c import render_controller
 from ._fixed import FixedPointDesign
@@ -154,7 +162,7 @@ def _header(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
  * Call {prefix}_init(&s, theta0, omega0, tau0) once before the first sample: it sets the
  * state a constant disturbance tau0 [N m] at rest in (theta0, omega0) would give.
  *
-{guard_doc} * No dynamic memory, no I/O, no library calls: plain C99 arithmetic on {dtype}.
+{guard_doc}{coulomb_note(system, dtype)}
  */
 #ifndef {up}_H
 #define {up}_H
@@ -235,8 +243,15 @@ def _source(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
 
     direct = [f"s->z[{i}]" for i in range(n)] + operands[n:]  # outputs read the state in place
 
+    def velocity_expression():
+        if system.coulomb.velocity == "omega":
+            return "omega"
+        return f"({_expression(program.output[system.outputs.index('omega_hat')], direct, dtype)})"
+
     def output_body(r):
         expression = _expression(program.output[r], direct, dtype)
+        if system.coulomb is not None and system.outputs[r] == "tau_reac":
+            expression = coulomb_expression(system, expression, dtype, velocity_expression())
         if guard:
             return guarded_output(prefix, dtype, expression, system.measures, r)
         line = f"    return {expression};"
@@ -264,7 +279,8 @@ def _source(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
 """
     velocity += reaction_definition(system, prefix, dtype, const, output_body)
     helpers = guard_helpers(prefix, dtype, n) if guard else ""
-    constants = "\n".join(_constants(system, dtype, init + est + upd + velocity))
+    constants = "\n".join(_constants(system, dtype, init + est + upd + velocity)
+                          + coulomb_constants(system, dtype, _literal))  # fmt: skip
     recursion = (
         " * Recursion (docs/theory.md, paper eqs. 11/13 for order 0, 20/21/23 for order 1):\n"
         " *   z_{k+1} = M z_k + (G A - M G) x_k + G B u_k,   "
@@ -283,7 +299,7 @@ def _source(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
  * when the compiler does not contract a*b + c into fused multiply-adds.
  * z[i] here is state s_(i+1) of the observer{_state_note(system)}.
  */
-#include "{prefix}.h"
+#include "{prefix}.h"{coulomb_include(system)}
 
 {constants}
 {helpers}

@@ -1,8 +1,23 @@
-"""Pieces of the exported C observer for its optional outputs (the reaction torque)."""
+"""Pieces of the exported C observer for its optional outputs (the reaction torque).
+
+An RTOB's Coulomb term (``LinearObserver.coulomb``) is printed as the Python runtime and the
+kernel evaluate it (:func:`hpdob.observers.coulomb_torque`): the linear ``tau_reac`` row, then
+``- COULOMB_C * tanh(velocity / COULOMB_V)`` (``tanhf`` in float), the only library call of
+the export (``math.h``, link with ``-lm``).
+"""
 
 from __future__ import annotations
 
-__all__ = ["reaction_declaration", "reaction_definition", "reaction_steps", "signature"]
+__all__ = [
+    "coulomb_constants",
+    "coulomb_expression",
+    "coulomb_include",
+    "coulomb_note",
+    "reaction_declaration",
+    "reaction_definition",
+    "reaction_steps",
+    "signature",
+]
 
 
 def signature(system, dtype: str, *, with_u: bool) -> str:
@@ -43,3 +58,37 @@ def reaction_definition(system, prefix: str, dtype: str, const: str, output_body
 {body}
 }}
 """
+
+
+def coulomb_expression(system, linear: str, dtype: str, velocity: str) -> str:
+    """``tau_reac``'s expression: the linear row minus the Coulomb term, in the runtime's order."""
+    tanh = "tanhf" if dtype == "float" else "tanh"
+    return f"({linear}) - COULOMB_C * {tanh}({velocity} / COULOMB_V)"
+
+
+def coulomb_constants(system, dtype: str, literal) -> list:
+    """The Coulomb term's constants (none without one)."""
+    term = system.coulomb
+    if term is None:
+        return []
+    return [
+        f"static const {dtype} COULOMB_C = {literal(term.c, dtype, 'COULOMB_C')};"
+        " /* Coulomb torque c_n of the friction model [N m] */",
+        f"static const {dtype} COULOMB_V = {literal(term.v, dtype, 'COULOMB_V')};"
+        " /* its velocity scale v_n [rad/s] */",
+    ]
+
+
+def coulomb_include(system) -> str:
+    """``#include <math.h>`` for the Coulomb term's ``tanh`` (nothing without one)."""
+    return "" if system.coulomb is None else "\n#include <math.h>"
+
+
+def coulomb_note(system, dtype: str) -> str:
+    """The header's line on memory and library calls."""
+    if system.coulomb is None:
+        return f" * No dynamic memory, no I/O, no library calls: plain C99 arithmetic on {dtype}."
+    return (
+        f" * No dynamic memory, no I/O: C99 arithmetic on {dtype}, and tanh from math.h for the\n"
+        " * Coulomb term of the reaction torque's friction model (link with -lm)."
+    )

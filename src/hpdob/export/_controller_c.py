@@ -69,6 +69,11 @@ def render_controller(controller, *, prefix: str, dtype: str, nan_guard, literal
             f"nan_guard must be False for a controller (the guard is for observers), got "
             f"{nan_guard!r}"
         )
+    if controller.program.switch is not None:
+        raise ParameterValueError(
+            f"controller {controller.name!r} has a latching switch, which export_c does not "
+            "generate; export the controllers of its two modes instead"
+        )
     n = controller.n_states
     reserved = re.compile(r"(s|c[0-9]+|next[0-9]+|y_.*|theta0|omega0|tau0)\Z")
     clash = [v for v in controller.inputs if reserved.match(v)]

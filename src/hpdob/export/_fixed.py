@@ -337,6 +337,11 @@ def fixed_point_design(
     True
     """
     system = as_system(observer, "observer")
+    if system.coulomb is not None:
+        raise ParameterValueError(
+            f"observer {system.name!r} has a Coulomb term (tanh) in tau_reac, which fixed point "
+            "does not implement; export it with dtype 'double' or 'float'"
+        )
     word_name = check_choice(word, "word", WORDS)
     w = WORDS[word_name]
     cpr, omega_max, u_max, tau_max = _check_ranges(counts_per_rev, omega_max, u_max, tau_max)

@@ -97,6 +97,9 @@ def _variables(system) -> list[dict]:
     if system.has_velocity:
         variables.append({"name": "omega_hat", "causality": "output", "unit": "rad/s",
                           "description": "velocity estimate"})  # fmt: skip
+    if "tau_reac" in system.outputs:
+        variables.append({"name": "tau_reac", "causality": "output", "unit": "N.m",
+                          "description": "reaction-torque estimate"})  # fmt: skip
     variables.append({"name": "tau0", "causality": "parameter", "unit": "N.m", "start": 0.0,
                       "description": "disturbance the observer is initialised with (at rest "
                       "at the first theta, omega)"})  # fmt: skip
@@ -199,10 +202,12 @@ def export_fmu(obs, path, *, model_identifier: str = "dob", compiler=None) -> Pa
 
     Inputs ``theta`` [rad] (and ``omega`` [rad/s] for an observer measuring it) and ``u``
     [N m]; outputs ``tau_hat`` [N m] (and ``omega_hat`` [rad/s] for observers estimating
-    it); parameter ``tau0`` [N m]; the design's ``Ts``, ``J_n``, ``b_n`` and order as
-    constants, its summary in ``VendorAnnotations`` and the description. Use a communication
-    step equal to ``Ts``: at each communication point set the inputs, read the outputs (the
-    estimate of that sample), then ``doStep`` applies the observer's update.
+    it, ``tau_reac`` [N m] for a reaction-torque observer,
+    :func:`hpdob.observers.reaction_torque_observer`); parameter ``tau0`` [N m]; the
+    design's ``Ts``, ``J_n``, ``b_n`` and order as constants, its summary in
+    ``VendorAnnotations`` and the description. Use a communication step equal to ``Ts``: at
+    each communication point set the inputs, read the outputs (the estimate of that sample),
+    then ``doStep`` applies the observer's update.
 
     Parameters
     ----------
@@ -270,7 +275,8 @@ def export_fmu(obs, path, *, model_identifier: str = "dob", compiler=None) -> Pa
             Path(tmp, name).write_text(text, encoding="ascii")
         library = Path(tmp, identifier + suffix)
         sources = [str(Path(tmp, f"{identifier}.c")), str(Path(tmp, f"fmi2_{identifier}.c"))]
-        cmd = [*cc, *FMU_FLAGS, "-o", str(library), *sources]
+        libm = ["-lm"] if system.coulomb is not None else []  # the Coulomb term's tanh
+        cmd = [*cc, *FMU_FLAGS, "-o", str(library), *sources, *libm]
         try:
             done = subprocess.run(cmd, capture_output=True, text=True, check=False)
         except OSError as err:

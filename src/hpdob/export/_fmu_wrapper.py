@@ -33,6 +33,9 @@ def fmi2_wrapper(system, prefix: str, variables, guid: str) -> str:
     if system.has_velocity:
         get_cases.append(f"        case {vr['omega_hat']}: value[i] = "
                          f"{prefix}_velocity(&m->s, {meas}); break;")  # fmt: skip
+    if "tau_reac" in system.outputs:
+        get_cases.append(f"        case {vr['tau_reac']}: value[i] = "
+                         f"{prefix}_reaction(&m->s, {meas}); break;")  # fmt: skip
     for v in variables:
         if v.get("variability") == "constant":
             get_cases.append(f"        case {v['vr']}: value[i] = {v['start']!r}; break;")

@@ -11,6 +11,9 @@ identify, Identification, Validation
     simulates the model on another log and reports MATLAB ``compare``'s fit.
 estimate_disturbance, EstimationResult
     Any observer run offline over a logged run (compiled), its estimates and velocity.
+open_log, LogFile, estimate_log, LogEstimate
+    A long log checked and then read block by block (a Parquet file a row group at a time), and
+    the estimate run over it block by block, its traces written to CSV as they come.
 FeedbackLoop, differentiate
     The controller and reference that produced a log (needed by ``"idim-iv"``), and
     identify's filtered differentiation (for a logged reference's velocity).
@@ -26,10 +29,12 @@ from ._emps import EMPS_FILE, EMPS_PUBLISHED, EMPS_PUBLISHED_STD, emps, emps_loo
 from ._estimate import EstimationResult, estimate_disturbance
 from ._identify import FRICTION_MODELS, METHODS, OFFSETS, IdentificationWarning, identify
 from ._log import Log, read_log, read_logs
+from ._log_file import LogFile, open_log
 from ._loop import FeedbackLoop, simulate_loop
 from ._regression import differentiate
 from ._result import Identification
 from ._simfit import Validation
+from ._stream import LogEstimate, estimate_log
 
 __all__ = [
     "EMPS_FILE",
@@ -43,12 +48,16 @@ __all__ = [
     "Identification",
     "IdentificationWarning",
     "Log",
+    "LogEstimate",
+    "LogFile",
     "Validation",
     "differentiate",
     "emps",
     "emps_loop",
     "estimate_disturbance",
+    "estimate_log",
     "identify",
+    "open_log",
     "read_log",
     "read_logs",
     "simulate_loop",

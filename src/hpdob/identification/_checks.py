@@ -16,8 +16,10 @@ __all__ = [
     "check_lengths",
     "check_time",
     "immutable",
+    "non_finite",
     "sample_vector",
     "sample_view",
+    "uniform_steps",
     "units",
 ]
 
@@ -109,12 +111,17 @@ def sample_vector(values, name: str, what: str) -> np.ndarray:
         raise ParameterValueError(f"{name} must be {what}: a 1-D sequence, got shape {array.shape}")
     bad = np.flatnonzero(~np.isfinite(array))
     if bad.size:
-        i = int(bad[0])
-        raise ParameterValueError(
-            f"{name} has a non-finite sample {float(array[i])!r} at index {i} "
-            f"({bad.size} non-finite in all); every sample of {what} must be finite"
-        )
+        non_finite(name, what, float(array[bad[0]]), int(bad[0]), bad.size)
     return array
+
+
+def non_finite(name: str, what: str, value: float, index: int, count: int):
+    """Raise the error of a signal ``name`` whose first non-finite sample is ``value`` at
+    ``index``, of ``count`` non-finite samples."""
+    raise ParameterValueError(
+        f"{name} has a non-finite sample {value!r} at index {index} "
+        f"({count} non-finite in all); every sample of {what} must be finite"
+    )
 
 
 def sample_view(values, name: str, what: str) -> np.ndarray:
@@ -154,17 +161,24 @@ def check_time(t: np.ndarray, name: str = "t", tolerance: float = DEFAULT_TIME_T
     tolerance = positive(tolerance, "time_tolerance", "a positive relative tolerance")
     if t.size < 2:
         raise ParameterValueError(f"{name} must hold at least 2 samples, got {t.size}")
-    # One array of steps and no other temporaries (logs reach 1e7 samples): the largest
-    # deviation from the median is at the smallest or the largest step; the median partitions
-    # the steps in place, so the index of a bad step is looked up again in _time_error.
-    steps = np.diff(t)
-    low, high = float(steps.min()), float(steps.max())
-    if low <= 0.0:
-        _time_error(t, name, tolerance)
-    median = float(np.median(steps, overwrite_input=True))
-    if max(high - median, median - low) / median > tolerance:
+    if not uniform_steps(np.diff(t), tolerance):
         _time_error(t, name, tolerance)
     return float((t[-1] - t[0]) / (t.size - 1))
+
+
+def uniform_steps(steps: np.ndarray, tolerance: float) -> bool:
+    """Whether the time ``steps`` are all positive and within ``tolerance`` (relative) of their
+    median (:func:`check_time`'s rule); ``steps`` is partitioned in place.
+
+    One array of steps and no other temporaries (logs reach 1e7 samples): the largest deviation
+    from the median is at the smallest or the largest step; the index of a bad step is looked
+    up again from the times when the error is raised.
+    """
+    low, high = float(steps.min()), float(steps.max())
+    if low <= 0.0:
+        return False
+    median = float(np.median(steps, overwrite_input=True))
+    return max(high - median, median - low) / median <= tolerance
 
 
 def _time_error(t: np.ndarray, name: str, tolerance: float):

@@ -45,6 +45,10 @@ class EstimationResult:
         Sampling period [s].
     label : str
         Name of the observer (for plots and tables).
+    state : ndarray or None
+        The observer's state after the last sample: ``state=result.state`` continues the run
+        on the next piece of the log, and the pieces' estimates are the whole run's, bit for
+        bit (give the next piece its ``omega``: a differenced velocity restarts at 0).
     """
 
     t: np.ndarray
@@ -55,6 +59,7 @@ class EstimationResult:
     omega_hat: np.ndarray | None
     Ts: float
     label: str = ""
+    state: np.ndarray | None = None
 
     def __len__(self) -> int:
         return self.t.size
@@ -171,7 +176,7 @@ class EstimationResult:
         Returns
         -------
         matplotlib.figure.Figure
-            Traces longer than 200 000 samples are drawn as their envelope (the minimum and
+            Traces longer than 20 000 samples are drawn as their envelope (the minimum and
             maximum of each run of samples), which spans what the full trace would.
 
         Raises
@@ -179,32 +184,46 @@ class EstimationResult:
         ParameterValueError
             For an unknown ``axis``.
         """
-        import matplotlib.pyplot as plt
+        from .._plotting import envelope
 
-        from .._plotting import PAPER_WIDTH, envelope, style_axes, time_axis
-        from .._validation import check_choice
+        return estimate_figure(
+            envelope(self.t, self.theta),
+            envelope(self.t, self.tau_hat),
+            None if reference is None else envelope(self.t, reference),
+            t_first=float(self.t[0]), n=len(self), Ts=self.Ts, label=self.label, title=title,
+            axis=axis, reference_label=reference_label,
+        )  # fmt: skip
 
-        position, force = {"rotary": ("rad", "N m"), "linear": ("m", "N"),
-                           None: ("rad or m", "N m or N")}[
-            None if axis is None else check_choice(axis, "axis", ("rotary", "linear"))
-        ]  # fmt: skip
 
-        fig, (top, bottom) = plt.subplots(
-            2, 1, figsize=(PAPER_WIDTH, 4.6), sharex=True, layout="constrained"
-        )
-        top.plot(*envelope(self.t, self.theta), color="tab:blue", linewidth=1.0)
-        style_axes(top, xlabel=None, ylabel=f"position [{position}]")
-        if reference is not None:
-            bottom.plot(*envelope(self.t, reference), color="0.4", linewidth=1.0,
-                        label=reference_label)  # fmt: skip
-        bottom.plot(*envelope(self.t, self.tau_hat), color="tab:red", linewidth=0.8,
-                    label=rf"$\hat\tau$ ({self.label or 'observer'})")  # fmt: skip
-        style_axes(bottom, xlabel="time [s]", ylabel=f"disturbance [{force}]")
-        time_axis(bottom, self.t, self.Ts)
-        bottom.legend(loc="upper center", bbox_to_anchor=(0.5, -0.28), ncols=2, fontsize="small")
-        if title:
-            fig.suptitle(title, fontsize="medium")
-        return fig
+def estimate_figure(theta, tau_hat, reference, *, t_first, n, Ts, label, title, axis,
+                    reference_label="reference"):  # fmt: skip
+    """The figure of :meth:`EstimationResult.plot` from the traces to draw, ``(t, values)``
+    each (already reduced to their envelope), for a run of ``n`` samples from ``t_first``."""
+    import matplotlib.pyplot as plt
+
+    from .._plotting import PAPER_WIDTH, style_axes
+    from .._validation import check_choice
+
+    position, force = {"rotary": ("rad", "N m"), "linear": ("m", "N"),
+                       None: ("rad or m", "N m or N")}[
+        None if axis is None else check_choice(axis, "axis", ("rotary", "linear"))
+    ]  # fmt: skip
+
+    fig, (top, bottom) = plt.subplots(
+        2, 1, figsize=(PAPER_WIDTH, 4.6), sharex=True, layout="constrained"
+    )
+    top.plot(*theta, color="tab:blue", linewidth=1.0)
+    style_axes(top, xlabel=None, ylabel=f"position [{position}]")
+    if reference is not None:
+        bottom.plot(*reference, color="0.4", linewidth=1.0, label=reference_label)
+    bottom.plot(*tau_hat, color="tab:red", linewidth=0.8,
+                label=rf"$\hat\tau$ ({label or 'observer'})")  # fmt: skip
+    style_axes(bottom, xlabel="time [s]", ylabel=f"disturbance [{force}]")
+    bottom.set_xlim(t_first, t_first + n * Ts)  # the whole run, as _plotting.time_axis
+    bottom.legend(loc="upper center", bbox_to_anchor=(0.5, -0.28), ncols=2, fontsize="small")
+    if title:
+        fig.suptitle(title, fontsize="medium")
+    return fig
 
 
 def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float = 0.0,
@@ -302,9 +321,7 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
             raise ParameterValueError(
                 f"give tau0 or state, not both: state sets the start, got tau0={tau0!r}"
             )
-    label = getattr(observer, "label", "") or system.name
-    if not isinstance(label, str):
-        raise ParameterTypeError(f"the observer's label must be a str, got {label!r}")
+    label = observer_label(observer, system)
     if position_only:
         mode = kernel.VELOCITY_NONE
     elif omega is not None:
@@ -315,8 +332,8 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
         s0 = np.array(state, dtype=float)
     else:  # one rule for every form of observer: converged at the first sample
         omega0 = float(signals["omega"][0]) if mode == kernel.VELOCITY_GIVEN else 0.0
-        s0 = np.array(initial_state(system, (float(theta[0]), omega0), tau0))
-    theta, velocity, u, tau_hat, omega_hat, t = kernel.run(
+        s0 = start_state(system, float(theta[0]), omega0, tau0)
+    theta, velocity, u, tau_hat, omega_hat, t, final = kernel.run(
         system, s0, theta, signals.get("omega"), u, t, mode
     )
     return EstimationResult(
@@ -328,4 +345,19 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
         omega_hat=None if omega_hat is None else readonly(omega_hat),
         Ts=Ts,
         label=label,
+        state=readonly(final),
     )
+
+
+def observer_label(observer, system) -> str:
+    """The name of a run's observer: its ``label``, else its system's name."""
+    label = getattr(observer, "label", "") or system.name
+    if not isinstance(label, str):
+        raise ParameterTypeError(f"the observer's label must be a str, got {label!r}")
+    return label
+
+
+def start_state(system, theta0: float, omega0: float, tau0: float) -> np.ndarray:
+    """Where a run starts, whatever form the observer was given in: converged at the first
+    sample ``(theta0, omega0)`` with the disturbance ``tau0``."""
+    return np.array(initial_state(system, (theta0, omega0), tau0), dtype=float)

@@ -32,7 +32,14 @@ import numpy as np
 from ..observers._program import program_coefficients, program_structure
 from ._checks import immutable
 
-__all__ = ["VELOCITY_DERIVED", "VELOCITY_GIVEN", "VELOCITY_NONE", "offline_kernel", "run"]
+__all__ = [
+    "VELOCITY_DERIVED",
+    "VELOCITY_GIVEN",
+    "VELOCITY_NONE",
+    "offline_kernel",
+    "run",
+    "run_block",
+]
 
 #: Where the observer's second measured signal comes from: none (position-only observer), the
 #: log's velocity, or the backward difference of the position computed in the loop.
@@ -64,7 +71,8 @@ def kernel_source(structure: tuple, n: int, velocity: int) -> str:
     The loop copies the inputs ``*_in`` into non-empty ``theta``, ``omega`` (or writes the
     backward difference there), ``u`` and ``t`` while it reads them (one pass over the log
     instead of a copy and a run; an empty output is not written: the input is shared); with an
-    empty ``t_in`` it fills ``t`` with ``k * Ts`` (what ``np.arange(n) * Ts`` gives).
+    empty ``t_in`` it fills ``t`` with ``k * Ts`` (what ``np.arange(n) * Ts`` gives). At the end
+    ``s_init`` holds the state after the last sample (a next piece of the log starts there).
     """
     update, output, _ = structure
     p = 1 if velocity == VELOCITY_NONE else 2
@@ -102,6 +110,7 @@ def kernel_source(structure: tuple, n: int, velocity: int) -> str:
     lines += ["        uk = u_in[k]", "        if write_u:", "            u[k] = uk"]
     lines += [f"        n{i} = {row}" for i, row in enumerate(update_rows)]
     lines += [f"        s{i} = n{i}" for i in range(n)]
+    lines += [f"    s_init[{i}] = s{i}" for i in range(n)]  # the state after the last sample
     return "\n".join(lines) + "\n"
 
 
@@ -155,11 +164,12 @@ def run(system, s_init, theta, omega, u, t, velocity: int):
     Returns
     -------
     tuple
-        Arrays ``(theta, omega, u, tau_hat, omega_hat, t)``: the inputs, copied unless they are
-        immutable (:func:`~hpdob.identification._checks.immutable`: then shared; for
+        Arrays ``(theta, omega, u, tau_hat, omega_hat, t, state)``: the inputs, copied unless
+        they are immutable (:func:`~hpdob.identification._checks.immutable`: then shared; for
         ``VELOCITY_DERIVED`` ``omega`` is the backward difference of ``theta``, 0 at the
         first sample; None for ``VELOCITY_NONE``), the outputs (``omega_hat`` None where the
-        observer has none) and the time (``t`` or a copy, or ``k Ts``).
+        observer has none), the time (``t`` or a copy, or ``k Ts``) and the state after the
+        last sample.
     """
     program = system.program
     kernel = offline_kernel(program_structure(program), system.n_states, velocity)
@@ -178,15 +188,31 @@ def run(system, s_init, theta, omega, u, t, velocity: int):
         "omega_hat": np.empty(n) if system.has_velocity else empty,
         "t": new(t),
     }
-    kernel(coefficients, np.asarray(s_init, dtype=np.float64), theta,
+    state = np.array(s_init, dtype=np.float64)  # the kernel leaves the final state in it
+    kernel(coefficients, state, theta,
            empty if omega is None else omega, u, empty if t is None else t, *out.values(),
            float(system.Ts))  # fmt: skip
     given = {"theta": theta, "omega": omega, "u": u, "tau_hat": None, "omega_hat": None, "t": t}
-    return tuple(
+    return (*(
         given[name] if array is empty and given[name] is not None
         else None if array is empty else array
         for name, array in out.items()
-    )  # fmt: skip
+    ), state)  # fmt: skip
+
+
+def run_block(system, state, theta, omega, u, tau_hat, omega_hat) -> None:
+    """Run ``system`` from ``state`` (float64, updated in place to the state after the last
+    sample) over one block of a log, writing only the estimates into ``tau_hat`` and
+    ``omega_hat`` (None where the observer has none): the inputs are neither copied nor
+    derived (``omega`` is the velocity, or None for a position-only observer)."""
+    velocity = VELOCITY_NONE if omega is None else VELOCITY_GIVEN
+    program = system.program
+    kernel = offline_kernel(program_structure(program), system.n_states, velocity)
+    coefficients = np.array(program_coefficients(program)[: _count(program)], dtype=np.float64)
+    empty = np.empty(0)
+    kernel(coefficients, state, theta, empty if omega is None else omega, u, empty, empty, empty,
+           empty, tau_hat, empty if omega_hat is None else omega_hat, empty,
+           float(system.Ts))  # fmt: skip
 
 
 def _count(program) -> int:

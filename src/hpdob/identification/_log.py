@@ -421,17 +421,53 @@ def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_
         raise ParameterTypeError(
             f"progress must be a callable progress(done, total), got {progress!r}"
         )
+    path, wanted, input_gain, axis = _request(path, time=time, position=position, input=input,
+                                              input_gain=input_gain, reference=reference, Ts=Ts,
+                                              axis=axis, run=run, columns=columns)  # fmt: skip
+    if path.is_file() and path.stat().st_size > MAX_LOG_BYTES:  # checked before reading
+        raise ParameterValueError(
+            f"log {str(path)!r} has {path.stat().st_size} bytes; at most {MAX_LOG_BYTES} bytes "
+            f"(256 MiB, some 5 million CSV rows) are read: decimate or split the log"
+        )
+    data = read_columns(path, wanted, progress)
+    if "input_gain" in wanted:
+        input_gain = scalar(data.pop("input_gain"), "input_gain", wanted.pop("input_gain"), path)
+    gain = as_real(input_gain, "input_gain", "a finite non-zero gain")
+    what = signal_kinds(axis)
+    signals = {
+        role: sample_vector(data[role], f"{role} column {name!r}", what.get(role, "samples"))
+        for role, name in wanted.items()
+    }
+    check_lengths({f"{role} {wanted[role]!r}": values for role, values in signals.items()})
+    runs = signals.pop("run", None)
+    if runs is None:
+        return [_build(signals, None, path, wanted, time, Ts, gain, axis, time_tolerance)]
+    values = list(dict.fromkeys(runs.tolist()))
+    return [_build({role: v[runs == value] for role, v in signals.items()}, value, path,
+                   wanted, time, Ts, gain, axis, time_tolerance) for value in values]  # fmt: skip
+
+
+def signal_kinds(axis) -> dict:
+    """What each role's samples are, for messages (``"positions [m]"``)."""
+    unit = units(axis)
+    return {
+        "time": "times [s]",
+        "position": f"positions [{unit['position']}]",
+        "input": "logged inputs",
+        "reference": f"reference positions [{unit['position']}]",
+        "run": "run numbers",
+    }
+
+
+def _request(path, *, time, position, input, input_gain, reference, Ts, axis, run, columns):
+    """The checked arguments of a read: ``(path, {role: column}, input_gain, axis)``; a gain
+    given as a variable's name is in the mapping as ``"input_gain"``."""
     if not isinstance(path, (str, os.PathLike)):
         raise ParameterTypeError(
             f"path must be a file path (str or os.PathLike), got {path!r} of type "
             f"{type(path).__name__}"
         )
     path = Path(path)
-    if path.is_file() and path.stat().st_size > MAX_LOG_BYTES:  # checked before reading
-        raise ParameterValueError(
-            f"log {str(path)!r} has {path.stat().st_size} bytes; at most {MAX_LOG_BYTES} bytes "
-            f"(256 MiB, some 5 million CSV rows) are read: decimate or split the log"
-        )
     wanted = {"position": _name(position, "position"), "input": _name(input, "input")}
     if _name(time, "time", optional=True) is not None:
         wanted["time"] = time
@@ -457,30 +493,7 @@ def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_
             "give the sampling instants as time='column' or, for a log without a time "
             f"column, the sampling period as Ts=...; got time={time!r} and Ts={Ts!r}"
         )
-    axis = check_axis(axis)
-    data = read_columns(path, wanted, progress)
-    if "input_gain" in wanted:
-        input_gain = scalar(data.pop("input_gain"), "input_gain", wanted.pop("input_gain"), path)
-    gain = as_real(input_gain, "input_gain", "a finite non-zero gain")
-    unit = units(axis)
-    what = {
-        "time": "times [s]",
-        "position": f"positions [{unit['position']}]",
-        "input": "logged inputs",
-        "reference": f"reference positions [{unit['position']}]",
-        "run": "run numbers",
-    }
-    signals = {
-        role: sample_vector(data[role], f"{role} column {name!r}", what.get(role, "samples"))
-        for role, name in wanted.items()
-    }
-    check_lengths({f"{role} {wanted[role]!r}": values for role, values in signals.items()})
-    runs = signals.pop("run", None)
-    if runs is None:
-        return [_build(signals, None, path, wanted, time, Ts, gain, axis, time_tolerance)]
-    values = list(dict.fromkeys(runs.tolist()))
-    return [_build({role: v[runs == value] for role, v in signals.items()}, value, path,
-                   wanted, time, Ts, gain, axis, time_tolerance) for value in values]  # fmt: skip
+    return path, wanted, input_gain, check_axis(axis)
 
 
 def _build(signals, run, path, wanted, time, Ts, gain, axis, time_tolerance) -> Log:

@@ -13,7 +13,7 @@ import numpy as np
 
 from .._validation import ParameterValueError
 
-__all__ = ["FORMATS", "read_columns", "scalar"]
+__all__ = ["FORMATS", "parquet_blocks", "parquet_rows", "read_columns", "scalar"]
 
 #: File name suffixes of each format.
 FORMATS = {
@@ -134,7 +134,9 @@ def _number(cell: str, role: str, name: str, line: int, path: Path) -> float:
         ) from None
 
 
-def _read_parquet(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
+def _parquet_file(path: Path, wanted: dict[str, str]):
+    """The ``pyarrow.parquet.ParquetFile`` of ``path``, its ``wanted`` columns checked to exist
+    and hold numbers."""
     try:
         import pyarrow.parquet as pq
     except ImportError as err:  # pragma: no cover - pyarrow is in the [sweep] and [test] extras
@@ -152,20 +154,54 @@ def _read_parquet(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
             raise ParameterValueError(
                 f"{role} column {name!r} of {path.name} is not numeric: its type is {kind}"
             )
-    # Row group by row group into arrays allocated once: a log of 1e7 samples is held once,
-    # not also as pyarrow's decoded chunks and their concatenation.
     try:
-        file = pq.ParquetFile(path)
-        out = {role: np.empty(file.metadata.num_rows) for role in wanted}
-        start = 0
-        for group in range(file.num_row_groups):
-            table = file.read_row_group(group, columns=list(dict.fromkeys(wanted.values())))
-            stop = start + table.num_rows
-            for role, name in wanted.items():
-                out[role][start:stop] = table.column(name).to_numpy(zero_copy_only=False)
-            start = stop
+        return pq.ParquetFile(path, pre_buffer=False, buffer_size=1 << 20)  # pages as needed
     except Exception as err:  # pyarrow raises its own exception types
         raise ParameterValueError(f"cannot read {path.name} as Parquet: {_one_line(err)}") from err
+
+
+def parquet_rows(path: Path, wanted: dict[str, str]) -> int:
+    """The number of rows of the Parquet file ``path`` (its ``wanted`` columns checked)."""
+    return _parquet_file(path, wanted).metadata.num_rows
+
+
+#: Rows per block of :func:`parquet_blocks` (0.5 MB per column).
+PARQUET_BLOCK = 1 << 16
+
+
+def parquet_blocks(path: Path, wanted: dict[str, str]):
+    """The ``wanted`` columns of the Parquet file ``path`` as float64 arrays ``{role: values}``,
+    in blocks of at most :data:`PARQUET_BLOCK` rows (pyarrow reads the pages as they are needed
+    and holds little more than a block)."""
+    import pyarrow as pa
+
+    file = _parquet_file(path, wanted)
+    names = list(dict.fromkeys(wanted.values()))
+    pool = pa.default_memory_pool()
+    try:
+        for group in range(file.num_row_groups):
+            for batch in file.iter_batches(batch_size=PARQUET_BLOCK, row_groups=[group],
+                                           columns=names, use_threads=False):  # fmt: skip
+                columns = [c.to_numpy(zero_copy_only=False) for c in batch.columns]
+                yield {role: np.asarray(columns[names.index(name)], dtype=float)
+                       for role, name in wanted.items()}  # fmt: skip
+            pool.release_unused()  # pyarrow's allocator would keep the row group's pages
+    except ParameterValueError:  # pragma: no cover - raised above, not by pyarrow
+        raise
+    except Exception as err:  # pyarrow raises its own exception types
+        raise ParameterValueError(f"cannot read {path.name} as Parquet: {_one_line(err)}") from err
+
+
+def _read_parquet(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
+    # Row group by row group into arrays allocated once: a log of 1e7 samples is held once,
+    # not also as pyarrow's decoded chunks and their concatenation.
+    out = {role: np.empty(parquet_rows(path, wanted)) for role in wanted}
+    start = 0
+    for block in parquet_blocks(path, wanted):
+        stop = start + next(iter(block.values())).size
+        for role, values in block.items():
+            out[role][start:stop] = values
+        start = stop
     for array in out.values():
         array.setflags(write=False)  # nobody else holds it: a Log takes it without a copy
     return out

@@ -29,6 +29,7 @@ __all__ = [
     "open_handle",
     "read_mjcf",
     "servo_xml",
+    "wall_geometry",
 ]
 
 #: MuJoCo's integrators, by their MJCF name (``<option integrator=...>``).
@@ -62,16 +63,42 @@ class MujocoHandle(NamedTuple):
     ctrl_per_torque: float  # ctrl = u * ctrl_per_torque gives the joint torque u [N m]
 
 
-def servo_xml(J, b, coulomb, link_mass, link_length, integrator) -> str:
+#: Radius of the link's tip (the geom that touches the wall) as a fraction of ``link_length``.
+TIP_RADIUS = 0.1
+#: Names of the wall's two geoms in the built model.
+TIP_GEOM, WALL_GEOM = "tip", "wall"
+
+
+def wall_geometry(link_length: float, wall: float) -> tuple[float, float]:
+    r"""``(tip radius, phi)``: the wall is the radial plane at angle :math:`\phi` (a box face
+    through the hinge axis), so that the tip's sphere (radius :math:`\rho`, centre at
+    ``link_length`` :math:`L`) touches it exactly at :math:`\theta = \theta_e`:
+    :math:`L \sin(\phi - \theta_e) = \rho`."""
+    radius = TIP_RADIUS * link_length
+    return radius, wall + float(np.arcsin(radius / link_length))
+
+
+def servo_xml(J, b, coulomb, link_mass, link_length, integrator, wall=None) -> str:
     body_inertia = min(J * _BODY_INERTIA_FRACTION, 0.5 * J)
     armature = J - body_inertia
-    link = ""
-    if link_mass > 0.0:
-        link = (
-            f'\n      <body name="link" pos="0 0 {-link_length!r}">'
-            f'\n        <inertial pos="0 0 0" mass="{link_mass!r}" diaginertia="0 0 0"/>'
-            "\n      </body>"
-        )
+    link = wall_geom = ""
+    if link_mass > 0.0 or wall is not None:
+        inertial = (f'\n        <inertial pos="0 0 0" mass="{link_mass!r}" diaginertia="0 0 0"/>'
+                    if link_mass > 0.0 else "")  # fmt: skip
+        tip = ""
+        if wall is not None:
+            radius, phi = wall_geometry(link_length, wall)
+            tip = f'\n        <geom name="{TIP_GEOM}" type="sphere" size="{radius!r}" mass="0"/>'
+            # a box whose face x = 0 (in the frame turned by phi about the axis) is the wall
+            half = 2.0 * radius
+            x, z = -half, -link_length  # the box's centre in the turned frame
+            cx, cz = x * np.cos(phi) + z * np.sin(phi), -x * np.sin(phi) + z * np.cos(phi)
+            wall_geom = (
+                f'\n    <geom name="{WALL_GEOM}" type="box" size="{half!r} {half!r} {half!r}"'
+                f' pos="{float(cx)!r} 0 {float(cz)!r}" euler="0 {phi!r} 0"/>'
+            )
+        body = f'\n      <body name="link" pos="0 0 {-link_length!r}">'
+        link = f"{body}{inertial}{tip}\n      </body>"
     i = repr(body_inertia)
     return f"""<mujoco model="hpdob_servo">
   <compiler angle="radian" inertiafromgeom="false"/>
@@ -81,7 +108,7 @@ def servo_xml(J, b, coulomb, link_mass, link_length, integrator) -> str:
       <joint name="hinge" type="hinge" axis="0 1 0" armature="{armature!r}"
              damping="{b!r}" frictionloss="{coulomb!r}"/>
       <inertial pos="0 0 0" mass="{_BODY_MASS!r}" diaginertia="{i} {i} {i}"/>{link}
-    </body>
+    </body>{wall_geom}
   </worldbody>
   <actuator>
     <motor name="motor" joint="hinge" gear="1"/>

@@ -20,6 +20,7 @@ from .._validation import (
 )
 from ._mjcf import (
     INTEGRATORS,
+    TIP_GEOM,
     MujocoHandle,
     compile_model,
     find_joint,
@@ -79,6 +80,14 @@ class MujocoServo(Plant):
     integrator : {'RK4', 'Euler', 'implicit', 'implicitfast'}, optional
         MuJoCo's integrator. Default ``'RK4'``, which makes the cross-validation against hpdob's
         own integrator tight (see docs/mujoco.md).
+    wall : float, optional
+        The angle :math:`\theta_e` [rad] at which the link presses a wall (force control,
+        issue 21): the link gets a sphere tip (radius ``0.1 link_length``, no mass) and the
+        world a fixed box whose face is the radial plane the tip touches at
+        :math:`\theta = \theta_e`; MuJoCo's soft contact then pushes back for
+        :math:`\theta > \theta_e`. Results get ``tau_contact`` (the contact force through
+        the contact Jacobian, ``MujocoSession.contact``) and ``in_contact``. Needs a positive
+        ``link_length`` (``link_mass`` may be 0: no gravity torque). Default None (no wall).
 
     Raises
     ------
@@ -120,6 +129,7 @@ class MujocoServo(Plant):
         link_length=0.0,
         timestep=None,
         integrator="RK4",
+        wall=None,
     ):
         params = {
             "J": positive(J, "J", "a positive finite inertia [kg m^2]"),
@@ -132,7 +142,13 @@ class MujocoServo(Plant):
                 link_length, "link_length", "a non-negative finite length [m]"
             ),
             "integrator": check_choice(integrator, "integrator", INTEGRATORS),
+            "wall": None if wall is None else as_real(wall, "wall", "a finite wall angle [rad]"),
         }
+        if params["wall"] is not None and not params["link_length"] > 0.0:
+            raise ParameterValueError(
+                f"wall = {params['wall']!r} needs a link to press it: link_length must be "
+                f"positive, got {params['link_length']!r}"
+            )
         import_mujoco()  # fail here, not at the first run, if the extra is missing
         source = servo_xml(**params)
         self._set(source, None, "hinge", "motor", _check_timestep(timestep), params, {})
@@ -233,6 +249,17 @@ class MujocoServo(Plant):
         return None if self._params is None else self._params["link_length"]
 
     @property
+    def wall(self) -> float | None:
+        """The angle [rad] at which the link's tip touches the wall (None: no wall)."""
+        return None if self._params is None else self._params["wall"]
+
+    @property
+    def contact_geom(self) -> str | None:
+        """The geom whose contacts give ``tau_contact`` (the link's tip with a wall, else
+        None)."""
+        return TIP_GEOM if self.wall is not None else None
+
+    @property
     def inertia(self) -> float:
         """Total inertia about the axis [kg m^2]: ``J + link_mass * link_length**2``."""
         if self._params is None:
@@ -270,7 +297,7 @@ class MujocoServo(Plant):
     def _replaceable(self) -> tuple[str, ...]:
         if self._params is None:
             return ("b", "coulomb", "timestep")
-        return ("J", "b", "coulomb", "link_mass", "link_length", "timestep", "integrator")
+        return ("J", "b", "coulomb", "link_mass", "link_length", "timestep", "integrator", "wall")
 
     def replace(self, **changes) -> MujocoServo:
         """Return a copy with some parameters changed (validated like the constructor).
@@ -332,7 +359,9 @@ class MujocoServo(Plant):
             return (
                 f"MujocoServo(J={p['J']!r}, b={p['b']!r}, coulomb={p['coulomb']!r}, "
                 f"link_mass={p['link_mass']!r}, link_length={p['link_length']!r}, "
-                f"timestep={self._timestep!r}, integrator={p['integrator']!r})"
+                f"timestep={self._timestep!r}, integrator={p['integrator']!r}"
+                + ("" if p["wall"] is None else f", wall={p['wall']!r}")
+                + ")"
             )
         source = self._path or "<MJCF string>"
         extra = "".join(f", {k}={v!r}" for k, v in sorted(self._overrides.items()))

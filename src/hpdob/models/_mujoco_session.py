@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from ._mjcf import MujocoHandle
 from ._plant import PlantSession
 
@@ -18,7 +20,8 @@ class MujocoSampler:
         self.servo, self.timestep, self.substeps = servo, timestep, substeps
 
     def start(self, x) -> MujocoSession:
-        return MujocoSession(self.servo.open(self.timestep), x, self.substeps)
+        return MujocoSession(self.servo.open(self.timestep), x, self.substeps,
+                             contact_geom=self.servo.contact_geom)  # fmt: skip
 
 
 class MujocoSession(PlantSession):
@@ -28,13 +31,21 @@ class MujocoSession(PlantSession):
     ``qfrc_applied = -tau_ext``; the acceleration for the ground truth is MuJoCo's own ``qacc``
     after ``mj_forward``; each sample takes ``substeps`` calls of ``mj_step`` with the external
     torque at each step's midpoint. An unstable run (MuJoCo warnings, after which it resets its
-    state) counts as diverged.
+    state) counts as diverged. With a ``contact_geom`` (the tip of a link that presses a wall),
+    :meth:`contact` gives the ground-truth contact torque.
     """
 
     engine = "MuJoCo"
 
-    def __init__(self, handle: MujocoHandle, x, substeps: int):
+    def __init__(self, handle: MujocoHandle, x, substeps: int, *, contact_geom=None):
         self.handle, self.substeps = handle, substeps
+        self._geom = -1
+        if contact_geom is not None:
+            mujoco, model = handle.mujoco, handle.model
+            self._geom = int(mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, contact_geom))
+            self._body = int(model.geom_bodyid[self._geom])
+            self._force = np.zeros(6)
+            self._jacp, self._jacr = np.zeros((3, model.nv)), np.zeros((3, model.nv))
         mujoco, data = handle.mujoco, handle.data
         self._forward, self._step = mujoco.mj_forward, mujoco.mj_step
         self._flags = [data.warning[int(getattr(mujoco.mjtWarning, n))] for n in _UNSTABLE]
@@ -63,6 +74,35 @@ class MujocoSession(PlantSession):
         for j in range(self.substeps):
             applied_force[dof] = -tau_mid[j]
             step(model, data)
+
+    def contact(self) -> tuple[float, float] | None:
+        r"""The contact torque on the joint [N m] and the in-contact flag, from the last
+        ``mj_forward`` (:meth:`acceleration`: just after the command is applied).
+
+        Every contact of the contact geom: MuJoCo's contact force (``mj_contactForce``, in the
+        contact frame, the force geom1 exerts on geom2) turned into the world frame, taken as
+        the force on the contact geom, and mapped to the joint through the translational
+        Jacobian of its body at the contact point (``mj_jac``): :math:`\tau = -J_p^T f`, so a
+        wall that pushes back gives a positive torque, as :class:`~hpdob.Environment` does.
+        Not ``qfrc_constraint``, which also holds the joint's friction loss and limits.
+        None without a contact geom.
+        """
+        if self._geom < 0:
+            return None
+        h = self.handle
+        mujoco, model, data = h.mujoco, h.model, h.data
+        torque, touching = 0.0, 0.0
+        for i in range(data.ncon):
+            c = data.contact[i]
+            if self._geom not in (c.geom1, c.geom2):
+                continue
+            mujoco.mj_contactForce(model, data, i, self._force)
+            world = c.frame.reshape(3, 3).T @ self._force[:3]
+            on_geom = -world if c.geom1 == self._geom else world
+            mujoco.mj_jac(model, data, self._jacp, self._jacr, c.pos, self._body)
+            torque -= float(self._jacp[:, h.dof] @ on_geom)
+            touching = 1.0
+        return torque, touching
 
     def diverged(self, limit: float) -> bool:
         th, om = self.motor()

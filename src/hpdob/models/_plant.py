@@ -254,6 +254,12 @@ class PlantSession(ABC):
         """The full plant state, when it is worth recording (None: the motor's only)."""
         return None
 
+    def contact(self) -> tuple[float, float] | None:
+        """The ground-truth contact torque [N m] and in-contact flag (1.0 or 0.0) just after
+        the command of the sample is applied, for a plant that presses something (None: it
+        does not)."""
+        return None
+
 
 class Plant(ABC):
     """Base class of the plants the loop accepts (:class:`~hpdob.ServoModel`,

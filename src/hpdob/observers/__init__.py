@@ -16,6 +16,9 @@ Family, Parameter, register_family, unregister_family, families, get_family
     The family registry: one record per family, read by sweeps, scenario files, the CLI,
     ``tune``, ``compare_observers`` and the robust maps; ``design_from_spec``,
     ``design_at_bandwidth`` and ``spec_of`` design from and back to a spec.
+CoulombFriction, coulomb_torque
+    The one nonlinear observer term: the Coulomb part of a reaction-torque observer's friction
+    model (``reaction_torque_observer(..., coulomb=)``).
 initial_state, estimate, outputs, update
     The pure functional core of the sample loop, for any observer.
 characteristic_polynomial, error_matrix, extrapolation_weights
@@ -25,6 +28,7 @@ characteristic_polynomial, error_matrix, extrapolation_weights
 from . import _families  # noqa: F401  (registers the built-in families)
 from ._core import estimate, initial_state, outputs, update
 from ._eso import ESODesign, ExtendedStateObserver, design_eso
+from ._friction import CoulombFriction, coulomb_torque
 from ._kalman import KalmanDesign, KalmanDisturbanceObserver, design_kalman, kalman_process_noise
 from ._position import PositionObserverDesign
 from ._reaction import reaction_torque_observer
@@ -54,6 +58,7 @@ from ._synthesis import (
 from ._system import ErrorDynamics, LinearObserver, Program, Term, as_system
 
 __all__ = [
+    "CoulombFriction",
     "DisturbanceObserver",
     "ESODesign",
     "ErrorDynamics",
@@ -71,6 +76,7 @@ __all__ = [
     "as_system",
     "characteristic_polynomial",
     "check_spec",
+    "coulomb_torque",
     "design_at_bandwidth",
     "design_eso",
     "design_from_spec",

@@ -2,25 +2,42 @@ r"""The reaction-torque observer (RTOB): a disturbance observer minus a friction
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from .._validation import ParameterValueError, nonnegative
+from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive
+from ._friction import CoulombFriction
 from ._system import LinearObserver, as_system
 
 __all__ = ["reaction_torque_observer"]
 
 
-def reaction_torque_observer(dob, reaction=None, *, viscous: float = 0.0) -> LinearObserver:
+def reaction_torque_observer(
+    dob,
+    reaction=None,
+    *,
+    viscous: float = 0.0,
+    coulomb: float = 0.0,
+    coulomb_velocity: float = 0.01,
+    friction=None,
+    velocity_filter: float | None = None,
+) -> LinearObserver:
     r"""The DOb and a reaction-torque observer as one :class:`LinearObserver`.
 
     .. math::
 
         \hat\tau_{reac,k} = \hat\tau^R_k - \hat f(\omega_k),\qquad
-        \hat f(\omega) = \Delta b\,\omega,
+        \hat f(\omega) = \Delta b\,\omega + c_n\tanh(\omega/v_n),
 
     with :math:`\hat\tau^R` the disturbance estimate of ``reaction`` (an observer of any
     registered family and order on the same nominal model, with its own bandwidth) and
-    :math:`\Delta b` the viscous friction beyond the nominal :math:`b_n` (:math:`b - b_n`).
+    :math:`\Delta b` the viscous friction beyond the nominal :math:`b_n` (:math:`b - b_n`),
+    :math:`c_n\tanh(\omega/v_n)` the Coulomb friction in the plant's smooth shape
+    (:meth:`hpdob.ServoModel.coulomb_torque`). The viscous part is the linear ``tau_reac``
+    row; the Coulomb part is not linear, so it is the observer's :attr:`LinearObserver.coulomb`
+    term, subtracted after the linear outputs of each sample by the Python runtime, the
+    compiled kernel and the exported C (``<prefix>_reaction``) alike.
     The state is the DOb's followed by the RTOB's, the outputs are the DOb's (``tau_hat``
     and, if it has one, ``omega_hat``) then ``tau_reac``: the loop compensates with
     ``tau_hat`` as before and a controller input named ``tau_reac`` reads the reaction-torque
@@ -37,6 +54,27 @@ def reaction_torque_observer(dob, reaction=None, *, viscous: float = 0.0) -> Lin
         :math:`\Delta b` [N m s/rad], non-negative: the viscous friction the RTOB subtracts
         (``identify(...)``'s ``b`` minus the nominal ``b_n``). Default 0. The friction uses the
         measured velocity (``omega``) or, for a position-only ``reaction``, its ``omega_hat``.
+    coulomb : float, optional
+        :math:`c_n` [N m], non-negative: the Coulomb torque the RTOB subtracts (``identify``'s
+        ``coulomb``). Default 0 (no nonlinear term). It reads the measured velocity or, for
+        position-only observers, the composition's ``omega_hat`` (the DOb's).
+    coulomb_velocity : float, optional
+        :math:`v_n` [rad/s], positive: the smoothing's velocity scale (the plant's
+        ``coulomb_velocity``). Default 0.01.
+    friction : ServoModel, optional
+        The friction model as a plant model, e.g. ``identify(...).model()`` or the simulated
+        plant: ``viscous = friction.b - b_n`` (``b_n`` of ``dob``'s nominal model),
+        ``coulomb = friction.coulomb``, ``coulomb_velocity = friction.coulomb_velocity``.
+        Default None; given, ``viscous`` and ``coulomb`` must be left at 0.
+    velocity_filter : float, optional
+        Bandwidth :math:`\omega_f` [rad/s] of a first-order low-pass on the measured velocity
+        that the Coulomb term reads instead of the velocity itself: one more state, and the
+        filtered velocity as the output ``omega_hat`` (before ``tau_reac``). An encoder's
+        backward-difference velocity moves in steps of one count per sample (0.38 rad/s for
+        16384 counts at 1 kHz), far above a smoothing scale such as 0.01 rad/s, so
+        :math:`\tanh(\omega_m/v_n)` of it averages to much less than the friction of the mean
+        velocity; low-passed, it does not. Default None (the velocity as measured). Needs a
+        non-zero ``coulomb``, a measured velocity and a ``dob`` without ``omega_hat``.
 
     Returns
     -------
@@ -47,16 +85,18 @@ def reaction_torque_observer(dob, reaction=None, *, viscous: float = 0.0) -> Lin
     ------
     ParameterValueError
         If the observers measure different signals, were designed at different ``Ts``, or
-        ``viscous`` is negative; if no velocity is available for a non-zero ``viscous``.
+        ``viscous`` or ``coulomb`` is negative; if no velocity is available for a non-zero
+        ``viscous`` or ``coulomb``; if ``friction`` is given with ``viscous`` or ``coulomb``,
+        or its ``b`` is below ``b_n``.
     ParameterTypeError
-        If an argument is not an observer.
+        If an argument is not an observer, or ``friction`` is not a ServoModel.
 
     Notes
     -----
-    The Coulomb part of :math:`\hat f` (``c tanh(omega/v)``) is not linear, so it is not part of
-    this observer: the estimate keeps the Coulomb torque. In steady contact
-    (:math:`\omega = 0`) the smoothed Coulomb torque of the plant is zero, so the steady-state
-    force is unaffected; during motion it is not compensated.
+    Without the Coulomb term the estimate keeps the plant's Coulomb torque: near rest the
+    smoothed friction acts in ``tau_reac`` as a damper :math:`c/v`, which slows a force loop on
+    a soft environment (``docs/force-control.md``). The analysis views (linear) see the linear
+    part only, as they see the plant without its Coulomb friction.
 
     References
     ----------
@@ -73,10 +113,20 @@ def reaction_torque_observer(dob, reaction=None, *, viscous: float = 0.0) -> Lin
     >>> both = reaction_torque_observer(dob, rtob)
     >>> both.outputs, both.n_states
     (('tau_hat', 'tau_reac'), 3)
+    >>> plant = ServoModel(3.06e-4, 5e-5, coulomb=0.01)        # the friction model known
+    >>> full = reaction_torque_observer(dob, friction=plant)
+    >>> full.coulomb.c, full.coulomb.v
+    (0.01, 0.01)
     """
     first = as_system(dob, "dob")
     second = first if reaction is None else as_system(reaction, "reaction")
     viscous = nonnegative(viscous, "viscous", "a non-negative finite viscous friction [N m s/rad]")
+    coulomb = nonnegative(coulomb, "coulomb", "a non-negative finite Coulomb torque [N m]")
+    coulomb_velocity = positive(
+        coulomb_velocity, "coulomb_velocity", "a positive finite velocity scale [rad/s]"
+    )
+    if friction is not None:
+        viscous, coulomb, coulomb_velocity = _from_model(friction, first, viscous, coulomb)
     if "tau_reac" in first.outputs:
         raise ParameterValueError("dob already has a tau_reac output (it is an RTOB composition)")
     if second.measures != first.measures:
@@ -110,9 +160,29 @@ def reaction_torque_observer(dob, reaction=None, *, viscous: float = 0.0) -> Lin
                 f"viscous = {viscous!r} needs a velocity: the observers measure "
                 f"{first.measures} and the reaction observer has no omega_hat"
             )
+    outputs = (*first.outputs, "tau_reac")
+    info = [*first.info, ("reaction observer", second.name),
+            ("viscous friction subtracted", f"{viscous!r} N m s/rad")]  # fmt: skip
+    term = None
+    if coulomb:
+        source = "omega" if "omega" in first.measures else "omega_hat"
+        if source not in outputs and source not in first.measures:
+            raise ParameterValueError(
+                f"coulomb = {coulomb!r} needs a velocity: the observers measure "
+                f"{first.measures} and dob has no omega_hat"
+            )
+        term = CoulombFriction(coulomb, coulomb_velocity, source)
+        info.append(("Coulomb friction subtracted",
+                     f"{term.c!r} N m * tanh({source} / {term.v!r} rad/s)"))  # fmt: skip
     pad = F.shape[0] - n1
     H = np.vstack([np.hstack([first.H, np.zeros((len(first.outputs), pad))]), row_H])
     E = np.vstack([first.E, row_E])
+    if velocity_filter is not None:
+        F, G, H, E, N, outputs = _with_velocity_filter(
+            velocity_filter, first, F, G, H, E, N, outputs, term
+        )
+        term = CoulombFriction(term.c, term.v, "omega_hat")
+        info.append(("Coulomb velocity", f"omega low-passed at {velocity_filter!r} rad/s"))
     return LinearObserver(
         F=F,
         G=G,
@@ -121,12 +191,59 @@ def reaction_torque_observer(dob, reaction=None, *, viscous: float = 0.0) -> Lin
         N=N,
         Ts=first.Ts,
         measures=first.measures,
-        outputs=(*first.outputs, "tau_reac"),
+        outputs=outputs,
         model=first.model,
         name=f"{first.name} + RTOB({second.name})",
-        info=(
-            *first.info,
-            ("reaction observer", second.name),
-            ("viscous friction subtracted", f"{viscous!r} N m s/rad"),
-        ),
+        info=tuple(info),
+        coulomb=term,
     )
+
+
+def _from_model(friction, dob: LinearObserver, viscous: float, coulomb: float) -> tuple:
+    """``(viscous, coulomb, coulomb_velocity)`` from a plant model of the friction."""
+    from ..models import ServoModel
+
+    if not isinstance(friction, ServoModel):
+        raise ParameterTypeError(
+            "friction must be a ServoModel (e.g. identify(...).model()) or None, got "
+            f"{type(friction).__name__}"
+        )
+    if viscous or coulomb:
+        raise ParameterValueError(
+            f"friction is given, so viscous and coulomb must be 0, got viscous={viscous!r}, "
+            f"coulomb={coulomb!r}"
+        )
+    b_n = dob.model.b if dob.model is not None else 0.0
+    if friction.b < b_n:
+        raise ParameterValueError(
+            f"friction.b = {friction.b!r} must be at least the nominal b_n = {b_n!r} (the RTOB "
+            "subtracts the viscous friction beyond b_n)"
+        )
+    return friction.b - b_n, friction.coulomb, friction.coulomb_velocity
+
+
+def _with_velocity_filter(bandwidth, dob: LinearObserver, F, G, H, E, N, outputs, term):
+    r"""Add the Coulomb term's velocity: one state, the measured velocity low-passed,
+    :math:`\hat\omega_k = a\,w_k + (1 - a)\,\omega_k`, :math:`w_{k+1} = \hat\omega_k`,
+    :math:`a = e^{-\omega_f T_s}`, as the output ``omega_hat`` (before ``tau_reac``)."""
+    bandwidth = positive(bandwidth, "velocity_filter", "a positive finite bandwidth [rad/s]")
+    if term is None:
+        raise ParameterValueError(
+            f"velocity_filter = {bandwidth!r} filters the Coulomb term's velocity, but coulomb is 0"
+        )
+    if "omega" not in dob.measures or "omega_hat" in outputs:
+        raise ParameterValueError(
+            f"velocity_filter = {bandwidth!r} needs a measured velocity and no omega_hat "
+            f"output (dob measures {dob.measures}, outputs {dob.outputs}); leave it None"
+        )
+    a = math.exp(-bandwidth * dob.Ts)
+    n, j = F.shape[0], dob.measures.index("omega")
+    gain = np.zeros(G.shape[1])
+    gain[j] = 1.0 - a
+    F = np.block([[F, np.zeros((n, 1))], [np.zeros((1, n)), np.array([[a]])]])
+    G = np.vstack([G, gain])
+    H = np.hstack([H, np.zeros((H.shape[0], 1))])
+    H = np.vstack([H[:-1], np.concatenate([np.zeros(n), [a]]), H[-1]])
+    E = np.vstack([E[:-1], gain, E[-1]])
+    N = np.vstack([N, [0.0, 1.0, 0.0]])
+    return F, G, H, E, N, (*outputs[:-1], "omega_hat", "tau_reac")

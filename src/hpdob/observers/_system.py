@@ -43,6 +43,7 @@ from .._validation import (
     shaped_matrix,
 )
 from ._error_dynamics import ErrorDynamics
+from ._friction import CoulombFriction, coulomb_torque
 from ._program import RESET_OPERANDS, Program, Term, check_program, compile_python
 from ._signals import MEASUREMENTS, OUTPUTS, UNITS
 
@@ -146,6 +147,14 @@ class LinearObserver:
         :func:`hpdob.estimation_response`. None: ``Q`` is computed from the matrices.
     info : tuple of (str, str), optional
         Design summary lines (key, value) for headers of generated code.
+    coulomb : CoulombFriction, optional
+        The one nonlinear term an observer may have: the Coulomb part
+        :math:`c_n\tanh(\omega/v_n)` of a reaction-torque observer's friction model, subtracted
+        from the linear ``tau_reac`` row after the outputs of the sample are computed (the Python
+        runtime, the compiled kernel and exported C alike;
+        :func:`hpdob.observers.reaction_torque_observer`). The matrices, ``to_statespace`` and
+        the (linear) analysis views hold the linear part only. Needs a ``tau_reac`` output and
+        the velocity it reads. Default None.
 
     Raises
     ------
@@ -188,6 +197,7 @@ class LinearObserver:
     program: Program | None = field(default=None, repr=False)
     error_dynamics: ErrorDynamics | None = field(default=None, repr=False)
     info: tuple = field(default=(), repr=False)
+    coulomb: CoulombFriction | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         measures = tuple(self.measures) if isinstance(self.measures, (tuple, list)) else None
@@ -246,6 +256,7 @@ class LinearObserver:
                 "error_dynamics must be an ErrorDynamics or None, got "
                 f"{type(self.error_dynamics).__name__}"
             )
+        _check_coulomb(self.coulomb, measures, outputs)
         object.__setattr__(self, "measures", measures)
         object.__setattr__(self, "outputs", outputs)
         for name, value in (("F", F), ("G", G), ("H", H), ("E", E), ("N", N)):
@@ -289,8 +300,12 @@ class LinearObserver:
     @functools.cached_property
     def python(self):
         """Generated Python functions ``(reset, outputs, estimate, update)`` (see
-        :func:`compile_python`)."""
-        return compile_python(self)
+        :func:`compile_python`); with a :attr:`coulomb` term, ``outputs`` subtracts it from
+        ``tau_reac``."""
+        functions = compile_python(self)
+        if self.coulomb is None:
+            return functions
+        return (functions[0], _with_coulomb(self, functions[1]), *functions[2:])
 
     @functools.cached_property
     def kernel_arrays(self):
@@ -403,6 +418,46 @@ class LinearObserver:
             f"LinearObserver(name={self.name!r}, states={self.n_states}, "
             f"measures={self.measures}, outputs={self.outputs}, Ts={self.Ts:g})"
         )
+
+
+def _check_coulomb(coulomb, measures: tuple, outputs: tuple) -> None:
+    if coulomb is None:
+        return
+    if not isinstance(coulomb, CoulombFriction):
+        raise ParameterTypeError(
+            f"coulomb must be a CoulombFriction or None, got {type(coulomb).__name__}"
+        )
+    if "tau_reac" not in outputs:
+        raise ParameterValueError(
+            f"coulomb needs a tau_reac output to subtract from, got outputs {outputs}"
+        )
+    available = measures if coulomb.velocity == "omega" else outputs
+    if coulomb.velocity not in available:
+        raise ParameterValueError(
+            f"coulomb reads {coulomb.velocity!r}, which the observer (measures {measures}, "
+            f"outputs {outputs}) does not have"
+        )
+
+
+def _with_coulomb(system: LinearObserver, linear):
+    """``outputs`` of ``system`` with its Coulomb term subtracted from ``tau_reac``: the linear
+    row first, then ``- c tanh(omega / v)`` (the kernel's and the C's order)."""
+    c, v = system.coulomb.c, system.coulomb.v
+    r = system.outputs.index("tau_reac")
+    if system.coulomb.velocity == "omega":
+        j = system.measures.index("omega")
+
+        def outputs(s, *values):
+            y = linear(s, *values)
+            return (*y[:r], y[r] - coulomb_torque(c, v, values[j]), *y[r + 1 :])
+    else:
+        j = system.outputs.index("omega_hat")
+
+        def outputs(s, *values):
+            y = linear(s, *values)
+            return (*y[:r], y[r] - coulomb_torque(c, v, y[j]), *y[r + 1 :])
+
+    return outputs
 
 
 def as_system(observer, name: str = "observer") -> LinearObserver:

@@ -26,12 +26,26 @@ from ..models import ServoModel
 from ..observers import as_system, initial_state
 from ..simulation import Actuator, Encoder
 from ._controllers import controller_types, joint_controller
+from ._errors import qualified
 
 __all__ = ["ArmLoop", "JointSines", "per_joint"]
 
 
+def _entries(value, name: str):
+    """A 1-D numpy array of per-joint entries (``np.array([spec] * 7)``) as the list it holds."""
+    if isinstance(value, np.ndarray) and value.dtype == object:
+        if value.ndim != 1:
+            raise ParameterValueError(
+                f"{name} must be one entry for every joint or a list of one per joint, got an "
+                f"array of shape {value.shape}"
+            )
+        return list(value)
+    return value
+
+
 def per_joint(value, n: int, name: str, kinds, *, optional: bool = False) -> tuple:
     """``value`` for every joint: one value for all joints, or a list of ``n``."""
+    value = _entries(value, name)
     if isinstance(value, (list, tuple)):
         values = tuple(value)
         if len(values) != n:
@@ -222,8 +236,9 @@ class ArmLoop:
             if self.observers is not None:
                 raise ParameterValueError(
                     "observers must be None with controller=ComputedTorque: a per-joint "
-                    "observer's nominal model (J_n,i qdd_i = u_i + tau_hat_i) is not the "
-                    "computed-torque model; estimate external torques with momentum_observer"
+                    "observer's nominal model (eq. 3 per joint: J_n qdd = u - b_n qd - tau_dn) "
+                    "is not the computed-torque model; estimate external torques with "
+                    "momentum_observer"
                 )
             set_(self, "controllers", ())
             set_(self, "controller_rows", ())
@@ -237,7 +252,7 @@ class ArmLoop:
             set_(self, "controller_rows", rows)
         set_(self, "sensors", per_joint(self.sensor, n, "sensor", Encoder, optional=True))
         set_(self, "actuators", per_joint(self.actuator, n, "actuator", Actuator))
-        entries = self.observers
+        entries = _entries(self.observers, "observers")
         if entries is None or isinstance(entries, dict) or not isinstance(entries, (list, tuple)):
             entries = (entries,) * n
         elif len(entries) != n:
@@ -266,7 +281,8 @@ class ArmLoop:
                 from ..observers._families import design_from_spec
 
             model = ServoModel(J_n, b_n).discretize(self.Ts)
-            return as_system(design_from_spec(model, entry, where), where)
+            with qualified(where, tuple(entry)):  # "order must be ..." -> "observers[0].order ..."
+                return as_system(design_from_spec(model, entry, where), where)
         system = as_system(entry, where)
         if not math.isclose(system.Ts, self.Ts, rel_tol=1e-12):
             raise ParameterValueError(

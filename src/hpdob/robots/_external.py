@@ -77,10 +77,15 @@ class ExternalEstimate:
 def _check(model, result, name="model"):
     if not isinstance(result, ArmResult):
         raise ParameterTypeError(f"result must be an ArmResult, got {type(result).__name__}")
-    if getattr(model, "n_joints", None) != result.q.shape[1]:
+    n = getattr(model, "n_joints", None)
+    if not isinstance(n, int):
         raise ParameterTypeError(
-            f"{name} must be an arm model with the run's {result.q.shape[1]} joints, got "
-            f"{type(model).__name__}"
+            f"{name} must be an arm model (TwoLinkArm or MujocoArm), got {type(model).__name__}"
+        )
+    if n != result.q.shape[1]:
+        raise ParameterValueError(
+            f"{name} must be an arm model with the run's {result.q.shape[1]} joints, got one "
+            f"with {n}"
         )
 
 
@@ -150,7 +155,10 @@ def momentum_observer(model, result: ArmResult, *, gain: float, measured: bool =
     K_o = positive(gain, "gain", "a positive finite observer gain [1/s]")
     Ts = result.Ts
     if K_o * Ts >= 1.0:
-        raise ParameterTypeError(f"gain must satisfy gain * Ts < 1, got {K_o!r} * {Ts!r}")
+        raise ParameterValueError(
+            f"gain must be a positive finite observer gain [1/s] with gain * Ts < 1 (Ts = {Ts!r}"
+            f" s), got {K_o!r}"
+        )
     q, qd = _signals(result, measured)
     K, N = q.shape
     r = np.zeros((K, N))

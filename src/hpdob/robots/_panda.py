@@ -30,7 +30,9 @@ def panda(*, payload: float = 0.0, inertia_scale: float = 1.0, integrator=None) 
     inertia_scale : float, optional
         Factor on every link's mass and inertia (a wrong nominal model). Default 1.
     integrator : str, optional
-        MuJoCo's integrator (default the file's, ``"RK4"``).
+        MuJoCo's integrator (default the file's, ``"Euler"``: its first step is split around
+        the command so that the ground truth's acceleration costs no extra ``mj_forward``;
+        ``"RK4"`` integrates more accurately at about twice the cost, ``docs/robots.md``).
 
     Returns
     -------

@@ -158,7 +158,12 @@ class ArmResult:
         return pd.DataFrame(self._columns())
 
     def plot(self, *, title: str | None = None):
-        """Position error, torque command, and estimate against ground truth, per joint.
+        """Per joint, one row of three panels: position error, torque command, and the
+        estimate drawn over the ground truth of its disturbance (eq. 3 per joint).
+
+        One row per joint keeps a 7-joint arm legible (each joint on its own scale); the
+        ground truth ``tau_dn`` is a wide light line, the estimate ``tau_hat`` a thin dark
+        dashed one on top; the legend sits below the panels, off the data.
 
         Parameters
         ----------
@@ -173,18 +178,25 @@ class ArmResult:
 
         from .._plotting import style_axes
 
-        fig, axes = plt.subplots(3, 1, figsize=(7.0, 7.5), sharex=True, layout="constrained")
+        n = len(self.joint_names)
+        fig, axes = plt.subplots(n, 3, figsize=(9.0, 1.45 * n + 1.3), sharex=True,
+                                 squeeze=False, layout="constrained")  # fmt: skip
         for j, joint in enumerate(self.joint_names):
-            color = f"C{j % 10}"
-            axes[0].plot(self.t, 1e3 * self.position_error[:, j], color=color, label=joint)
-            axes[1].plot(self.t, self.u[:, j], color=color, label=joint)
-            axes[2].plot(self.t, self.tau_dn[:, j], color=color, label=f"{joint}: tau_dn")
-            axes[2].plot(self.t, self.tau_hat[:, j], color=color, linestyle="--",
-                         label=f"{joint}: tau_hat")  # fmt: skip
-        style_axes(axes[0], xlabel=None, ylabel="position error q - r [mrad]")
-        style_axes(axes[1], xlabel=None, ylabel="torque command u [N m]")
-        style_axes(axes[2], xlabel="time [s]", ylabel="disturbance [N m]")
-        for ax in axes:
-            ax.legend(loc="center left", bbox_to_anchor=(1.01, 0.5), fontsize="x-small")
+            row = axes[j]
+            row[0].plot(self.t, 1e3 * self.position_error[:, j], color="C0", linewidth=1.0)
+            row[1].plot(self.t, self.u[:, j], color="C1", linewidth=1.0)
+            truth = row[2].plot(self.t, self.tau_dn[:, j], color="C2", linewidth=3.0, alpha=0.45,
+                                label="tau_dn: ground truth, eq. (3) per joint")  # fmt: skip
+            estimate = row[2].plot(self.t, self.tau_hat[:, j], color="k", linewidth=0.9,
+                                   linestyle="--", label="tau_hat: its estimate")  # fmt: skip
+            xlabel = "time [s]" if j == n - 1 else None
+            style_axes(row[0], xlabel=xlabel, ylabel=f"{joint}\nq - r [mrad]")
+            style_axes(row[1], xlabel=xlabel, ylabel="u [N m]")
+            style_axes(row[2], xlabel=xlabel, ylabel="disturbance [N m]")
+        axes[0, 0].set_title("position error", fontsize="medium")
+        axes[0, 1].set_title("torque command", fontsize="medium")
+        axes[0, 2].set_title("disturbance", fontsize="medium")
+        fig.legend(handles=[truth[0], estimate[0]], loc="outside lower center", ncol=2,
+                   fontsize="small", frameon=False)  # fmt: skip
         fig.suptitle(title if title is not None else (self.label or "N-joint run"))
         return fig

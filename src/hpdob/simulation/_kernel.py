@@ -11,10 +11,12 @@ Per sample ``k`` (``t_k = k Ts``) the loop runs, for every plant:
    exact velocity);
 2. estimate: the observer's outputs :math:`\hat\tau_k (, \hat\omega_k) = H s_k + E v_k`
    (0 without observer), from its program (:class:`hpdob.observers.Program`), in exactly the
-   operation order of the Python observer and the exported C;
+   operation order of the Python observer and the exported C; then an RTOB's Coulomb term
+   (``LinearObserver.coulomb``) is subtracted from ``tau_reac``;
 3. control: the controller's signal rows in order (:class:`hpdob.controllers.ControllerProgram`),
    from its state and its inputs wired by name (reference, measurement, observer outputs); the
-   last signal is the command :math:`u_k` (the PD:
+   last signal is the command :math:`u_k` (or, for a controller with a latching
+   :class:`~hpdob.controllers.Switch` that is on, its ``after`` signal plus ``offset``; the PD:
    :math:`J_n(k_p(r_k-\theta_{m,k}) + k_d(\dot r_k-\omega_{m,k}) + \ddot r_k) + \hat\tau_k`),
    clipped to the actuator limit;
 4. observer update :math:`s_{k+1} = F s_k + G [v_k, u_k]` and controller update
@@ -64,11 +66,15 @@ import math
 
 import numba
 
+from ..observers import coulomb_torque as _coulomb_torque
 from ._records import PATH_RIGID, PATH_TWO_MASS, SENSOR_ENCODER_EXACT, SENSOR_IDEAL
 
 __all__ = ["ground_truth", "program_row", "run_samples"]
 
 _jit = numba.njit(cache=True, nogil=True)
+
+#: The RTOB's Coulomb term, compiled from its one definition (``hpdob.observers._friction``).
+coulomb_torque = _jit(_coulomb_torque)
 
 
 @_jit
@@ -117,11 +123,14 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
     out_ptr, out_c, out_i = obs.output_pointer, obs.output_coefficient, obs.output_operand
     n, p, q = obs.n, obs.p, obs.q
     has_observer, velocity_row, reaction_row = obs.present, obs.velocity_row, obs.reaction_row
+    c_source, c_n, v_n = obs.coulomb_source, obs.coulomb, obs.coulomb_velocity
     J_n, b_n = ctl.J_n, ctl.b_n
     nc, pc, qc, source = ctl.n, ctl.p, ctl.q, ctl.source
     sig_ptr, sig_c, sig_i = ctl.signal_pointer, ctl.signal_coefficient, ctl.signal_operand
     cup_ptr, cup_c, cup_i = ctl.update_pointer, ctl.update_coefficient, ctl.update_operand
     first = nc + pc + 1  # operand index of the controller's first signal
+    latch, trigger, threshold = ctl.switch_latch, ctl.switch_trigger, ctl.switch_threshold
+    after, offset = ctl.switch_after, ctl.switch_offset
     mode, resolution = sen.mode, sen.resolution
     torque_limit, delay = act.torque_limit, act.delay
     A_h, B_h, D_h = plant.A_h, plant.B_h, plant.D_h
@@ -172,6 +181,9 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
             if q > 1:
                 for j in range(1, q):
                     sv[5 + j] = program_row(out_ptr, out_c, out_i, w, j)
+                if c_source > 0:  # the RTOB's Coulomb term, after the linear rows
+                    speed = omm if c_source == 1 else sv[5 + velocity_row]
+                    sv[5 + reaction_row] = sv[5 + reaction_row] - coulomb_torque(c_n, v_n, speed)
                 if velocity_row > 0:
                     omega_hat[k] = sv[5 + velocity_row]
                 if reaction_row > 0:
@@ -191,6 +203,11 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
         for j in range(qc):
             cw[first + j] = program_row(sig_ptr, sig_c, sig_i, cw, j)
         uk = cw[first + qc - 1]
+        on = False
+        if latch >= 0:  # a latching switch (hpdob.controllers.Switch), after the signal rows
+            on = c_s[latch] != 0.0 or cw[trigger] >= threshold
+            if on:
+                uk = cw[first + after] + offset
         if uk > torque_limit:
             uk = torque_limit
         elif uk < -torque_limit:
@@ -207,6 +224,8 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
             cw[nc + pc] = uk
             for i in range(nc):
                 c_new[i] = program_row(cup_ptr, cup_c, cup_i, cw, i)
+            if latch >= 0:
+                c_new[latch] = 1.0 if on else 0.0
             for i in range(nc):
                 c_s[i] = c_new[i]
         # 5. actuator delay

@@ -5,7 +5,8 @@ Per sample ``k``: the motor's angle and velocity from the plant; steps 1-5 of th
 :func:`~hpdob.simulation._kernel.run_samples` for this one sample (measure, estimate, control,
 limit, observer update, delay) -- the same code the compiled loop runs for hpdob's own plants;
 the ground truth (eq. 3, :func:`~hpdob.simulation._kernel.ground_truth`) from the plant's
-acceleration just after the command; the plant's advance over the sample with the external
+acceleration just after the command, and there the contact torque of a plant that presses a wall
+(``PlantSession.contact``); the plant's advance over the sample with the external
 torque at its sub-steps' midpoints. The run stops after a sample whose end state the plant
 reports as diverged.
 """
@@ -47,6 +48,9 @@ def run_python_plant(session, n_samples, substeps, Ts, records, out, work, limit
                     limit=limit)  # fmt: skip
         a = float(applied[0])
         accel = session.acceleration(a, float(tau_sample[k]))
+        contact = session.contact()
+        if contact is not None:
+            out.tau_contact[k], out.in_contact[k] = contact
         tau_dn[k] = ground_truth(float(u[k]), float(x[1]), accel, ctl.J_n, ctl.b_n)
         base = k * substeps
         session.advance(a, tau_mid[base : base + substeps])

@@ -55,6 +55,11 @@ class ControllerRecord(NamedTuple):
     update_pointer: np.ndarray
     update_coefficient: np.ndarray
     update_operand: np.ndarray
+    switch_latch: int  # the Switch's latch state, -1 without a switch
+    switch_trigger: int  # its trigger's operand index in [c, v]
+    switch_threshold: float
+    switch_after: int  # the signal that is the command once switched
+    switch_offset: float  # [N m]
 
 
 class SensorRecord(NamedTuple):
@@ -76,6 +81,9 @@ class ObserverRecord(NamedTuple):
     q: int  # outputs: tau_hat first, then others by name (wired to controller inputs)
     velocity_row: int  # the row of omega_hat (recorded), -1 without one
     reaction_row: int  # the row of tau_reac (recorded), -1 without one
+    coulomb_source: int  # the Coulomb term's velocity: 0 none, 1 measured omega, 2 omega_hat
+    coulomb: float  # its c_n [N m]
+    coulomb_velocity: float  # its v_n [rad/s]
     update_pointer: np.ndarray
     update_coefficient: np.ndarray
     update_operand: np.ndarray

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .._table import columns_to_csv, columns_to_pandas
-from .._validation import ParameterValueError, numeric_array
+from .._validation import ParameterValueError, as_real, numeric_array
 
 __all__ = [
     "CANONICAL_WINDOWS",
@@ -217,6 +217,64 @@ class SimulationResult:
             "rms_estimation_error": _rms(self.estimation_error),
             "rms_position_error_regulation": window(regulation, "regulation"),
             "rms_position_error_tracking": window(tracking, "tracking"),
+        }
+
+    def contact_metrics(self, tau_ref: float | None = None) -> dict[str, float]:
+        """The impact of a run against an :class:`~hpdob.Environment`.
+
+        Parameters
+        ----------
+        tau_ref : float, optional
+            The force reference [N m] the overshoot is measured against. Default None: the
+            last sample's contact torque (the settled value of a run that settles).
+
+        Returns
+        -------
+        dict
+            ``first_contact`` [s] (the first sample in contact; NaN if never),
+            ``impact_peak`` [N m] (the largest contact torque from then on; NaN if never),
+            ``overshoot`` [N m] (``impact_peak - tau_ref``) and ``overshoot_ratio``
+            (``overshoot / tau_ref``; NaN for ``tau_ref`` 0).
+
+        Raises
+        ------
+        ParameterValueError
+            If the run has no environment (``tau_contact`` is None) or ``tau_ref`` is not
+            finite.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from hpdob import (Environment, PD, ServoLoop, ServoModel, design_observer,
+        ...                    simulate)
+        >>> plant = ServoModel(3.06e-4, 5e-5, environment=Environment(10.0, position=0.01))
+        >>> loop = ServoLoop(plant=plant, nominal=ServoModel(2.8e-4), Ts=1e-3,
+        ...                  controller=PD(400.0, 40.0))
+        >>> result = simulate(loop, reference=lambda t: (0.02 + 0 * t, 0 * t, 0 * t),
+        ...                   duration=1.0)
+        >>> m = result.contact_metrics()
+        >>> bool(m["impact_peak"] >= result.tau_contact[-1] > 0.0)
+        True
+        """
+        if self.tau_contact is None:
+            raise ParameterValueError(
+                "contact_metrics needs a run against an Environment (tau_contact is None)"
+            )
+        contact = np.nonzero(self.in_contact > 0.0)[0]
+        if tau_ref is None:
+            tau_ref = float(self.tau_contact[-1]) if len(self) else math.nan
+        else:
+            tau_ref = as_real(tau_ref, "tau_ref", "a finite force reference [N m]")
+        if contact.size == 0:
+            return {"first_contact": math.nan, "impact_peak": math.nan, "overshoot": math.nan,
+                    "overshoot_ratio": math.nan}  # fmt: skip
+        peak = float(np.max(self.tau_contact[contact[0] :]))
+        overshoot = peak - tau_ref
+        return {
+            "first_contact": float(self.t[contact[0]]),
+            "impact_peak": peak,
+            "overshoot": overshoot,
+            "overshoot_ratio": overshoot / tau_ref if tau_ref != 0.0 else math.nan,
         }
 
     def max_abs_position_error(self) -> float:

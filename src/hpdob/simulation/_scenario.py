@@ -25,7 +25,7 @@ from ..controllers import CONTROLLER_TYPES
 from ..models import Environment, MujocoServo
 from ..models._servo import ServoModel
 from ..models._two_mass import TwoMassServo
-from ..observers import check_spec, design_from_spec, get_family
+from ..observers import check_spec, design_from_spec, get_family, reaction_torque_observer
 from ._devices import Actuator, Encoder
 from ._loop import LOOP_KEYS, ServoLoop
 from ._plant_types import PlantType, get_plant_type, register_plant_type
@@ -69,12 +69,18 @@ TOP_LEVEL = (
     "nominal",
     "controller",
     "observer",
+    "reaction_observer",
     "sensor",
     "actuator",
     "reference",
     "disturbance",
     "metrics",
 )
+#: The keys of ``[reaction_observer]`` that are the friction model
+#: (:func:`hpdob.observers.reaction_torque_observer`); any other key is the RTOB's own observer.
+FRICTION_KEYS = ("viscous", "coulomb", "coulomb_velocity", "velocity_filter", "friction")
+#: Controller types that read ``tau_reac`` (they need a ``[reaction_observer]``).
+REACTION_CONTROLLERS = ("force", "impedance", "position-force")
 REQUIRED = ("Ts", "duration", "plant", "nominal", "controller", "reference")
 SWEEP_KEYS = ("grid", "vary", "n", "seed")
 
@@ -243,21 +249,62 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
         model = kwargs["nominal"].discretize(kwargs["Ts"])
         design = _observer(model, spec)  # validated now, with the file's key names
         kwargs["observer"] = spec if not build_observer else design
+        if "reaction_observer" in data:
+            # the composition is a fixed LinearObserver: sweeps cannot vary observer.* then
+            table = _table(data, "reaction_observer")
+            kwargs["observer"] = _reaction_observer(model, design, table, kwargs["plant"])
+    elif "reaction_observer" in data:
+        raise ParameterValueError(
+            "reaction_observer needs an [observer] table: the DOb it is composed with"
+        )
+    kind = data["controller"].get("type", "pd")
+    if kind in REACTION_CONTROLLERS and "reaction_observer" not in data:
+        raise ParameterValueError(
+            f"controller.type = {kind!r} reads the reaction-torque estimate tau_reac: the "
+            "scenario needs an [observer] and a [reaction_observer] table"
+        )
     return kwargs
 
 
-def _observer(model, spec: dict):
+def _observer(model, spec: dict, key: str = "observer"):
     """The design ``spec`` (an ``[observer]`` table) describes, errors named ``observer.*``."""
-    family = get_family(spec.get("type", "dob"), "observer.type")
-    check_keys(spec, (*family.keys, "type"), "observer")
+    family = get_family(spec.get("type", "dob"), f"{key}.type")
+    check_keys(spec, (*family.keys, "type"), key)
     missing = [name for name in family.required if name not in spec]
     if missing:
-        raise ParameterValueError(f"missing required key observer.{missing[0]}")
-    check_spec(spec, "observer")
+        raise ParameterValueError(f"missing required key {key}.{missing[0]}")
+    check_spec(spec, key)
     try:
         return design_from_spec(model, spec)
     except (ParameterTypeError, ParameterValueError) as err:
-        raise _prefixed("observer", err, ("type", *family.keys)) from None
+        raise _prefixed(key, err, ("type", *family.keys)) from None
+
+
+def _reaction_observer(model, dob, table: dict, plant):
+    """The ``[reaction_observer]`` table: the DOb composed with an RTOB
+    (:func:`hpdob.observers.reaction_torque_observer`). Its :data:`FRICTION_KEYS` are the
+    friction model (``friction = "plant"``: the ``[plant]``'s ``b``, ``coulomb``,
+    ``coulomb_velocity``); any other keys are the RTOB's own observer (a family spec, like
+    ``[observer]``; none: the DOb itself). Errors are named ``reaction_observer.*``."""
+    fields = dict(table)
+    options = {key: fields.pop(key) for key in FRICTION_KEYS if key in fields}
+    if "friction" in options:
+        if options["friction"] != "plant":
+            raise ParameterValueError(
+                "reaction_observer.friction must be 'plant' (the [plant] table's b, coulomb and "
+                f"coulomb_velocity), got {options['friction']!r}"
+            )
+        if not isinstance(plant, ServoModel):
+            raise ParameterValueError(
+                "reaction_observer.friction = 'plant' needs a rigid [plant] (a ServoModel), got "
+                f"{type(plant).__name__}"
+            )
+        options["friction"] = plant
+    reaction = _observer(model, fields, "reaction_observer") if fields else None
+    try:
+        return reaction_torque_observer(dob, reaction, **options)
+    except (ParameterTypeError, ParameterValueError) as err:
+        raise _prefixed("reaction_observer", err, FRICTION_KEYS) from None
 
 
 def _with_environment(fields: dict, key: str) -> dict:
@@ -274,7 +321,8 @@ def _with_environment(fields: dict, key: str) -> dict:
 
 
 #: The keys of ``[plant] type = "mujoco"`` (a :class:`~hpdob.MujocoServo` built from them).
-MUJOCO_SERVO_KEYS = ("J", "b", "coulomb", "link_mass", "link_length", "timestep", "integrator")
+MUJOCO_SERVO_KEYS = ("J", "b", "coulomb", "link_mass", "link_length", "timestep", "integrator",
+                     "wall")  # fmt: skip
 
 
 def _rigid(fields: dict, key: str, base) -> ServoModel:
@@ -286,6 +334,11 @@ def _two_mass(fields: dict, key: str, base) -> TwoMassServo:
 
 
 def _mujoco_servo(fields: dict, key: str, base) -> MujocoServo:
+    if "environment" in fields:  # MuJoCo's own contact instead: a wall the link presses
+        raise ParameterValueError(
+            f"{key}.environment: a MuJoCo plant cannot carry an Environment; give it a wall "
+            f"the link presses ({key}.wall [rad] with {key}.link_length)"
+        )
     return _build(MujocoServo, fields, key, allowed=MUJOCO_SERVO_KEYS, required=("J",))
 
 

@@ -324,12 +324,14 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
 def _observer_record(system) -> ObserverRecord:
     if system is None:
         empty_i, empty_f = np.zeros(1, dtype=np.int64), np.zeros(0)
-        return ObserverRecord(False, 0, 1, 1, -1, -1, empty_i, empty_f, empty_i[:0], empty_i,
-                              empty_f, empty_i[:0])  # fmt: skip
+        return ObserverRecord(False, 0, 1, 1, -1, -1, 0, 0.0, 1.0, empty_i, empty_f, empty_i[:0],
+                              empty_i, empty_f, empty_i[:0])  # fmt: skip
     update, output, _ = system.kernel_arrays
     outputs = system.outputs
     velocity = outputs.index("omega_hat") if "omega_hat" in outputs else -1
     reaction = outputs.index("tau_reac") if "tau_reac" in outputs else -1
+    term = system.coulomb  # the RTOB's Coulomb term, subtracted after the linear outputs
+    source = 0 if term is None else (1 if term.velocity == "omega" else 2)
     return ObserverRecord(
         True,
         system.n_states,
@@ -337,6 +339,9 @@ def _observer_record(system) -> ObserverRecord:
         len(outputs),
         velocity,
         reaction,
+        source,
+        0.0 if term is None else term.c,
+        1.0 if term is None else term.v,
         *update,
         *output,
     )
@@ -346,11 +351,17 @@ def _controller_record(loop) -> ControllerRecord:
     controller = loop.controller_system
     sources = controller_sources(loop.system)
     signals, update, _ = controller.kernel_arrays
+    switch = controller.program.switch
+    switching = (
+        (-1, 0, 0.0, 0, 0.0)
+        if switch is None
+        else (switch.latch, switch.trigger, switch.threshold, switch.after, switch.offset)
+    )
     return ControllerRecord(
         loop.nominal.J, loop.nominal.b, controller.n_states, len(controller.inputs),
         len(controller.program.signals),
         np.array([sources.index(name) for name in controller.inputs], dtype=np.int64),
-        *signals, *update,
+        *signals, *update, *switching,
     )  # fmt: skip
 
 
@@ -462,7 +473,7 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
         extra["omega_hat"] = out.omega_hat[keep]
     if system is not None and "tau_reac" in system.outputs:
         extra["tau_reac"] = out.tau_reac[keep]
-    if environment is not None:
+    if environment is not None or getattr(plant, "contact_geom", None) is not None:
         extra["tau_contact"] = out.tau_contact[keep]
         extra["in_contact"] = out.in_contact[keep]
     names = plant.state_names

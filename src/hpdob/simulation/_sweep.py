@@ -94,7 +94,10 @@ def _resolve_base(base, *, varies_Ts: bool = False) -> dict:
         raise ParameterValueError(f"base is missing the required key {missing[0]!r}")
     spec, observer = _observer_parts(keywords.pop("observer", None))
     # The shared loop is validated here, once, so that a typo fails the call instead of
-    # every scenario (substeps None: per scenario, the default or a MujocoServo's own).
+    # every scenario (substeps None: per scenario, the default or a MujocoServo's own). A fixed
+    # observer object is part of it: a controller may read its outputs (tau_reac).
+    if observer is not None:
+        keywords["observer"] = observer
     loop = ServoLoop(**keywords)
     Ts, duration, substeps, x0 = check_run_arguments(
         loop.Ts, base["duration"], base.get("substeps"), base.get("x0", (0.0, 0.0))
