@@ -65,6 +65,16 @@ def test_bode_grid_stays_below_nyquist(capsys, tmp_path, Ts):
     assert np.all(2 * np.pi * f * float(Ts) <= np.pi) and f.max() > 0.4999 / float(Ts)
 
 
+def test_bode_margins_at_a_short_sampling_period(capsys, tmp_path):
+    # At Ts = 7e-5 s the margin grid's lowest frequency (1e-3 rad/s) put z = exp(j w Ts) on the
+    # loop's double pole at z = 1 to rounding: zI - A was singular (an internal LinAlgError).
+    code, _, err = run(
+        capsys, "analyze", "bode", "--Ts", "7e-5", "--out", str(tmp_path), "--dpi", "20"
+    )
+    assert code == 0 and err == ""
+    assert (tmp_path / "bode.json").exists()
+
+
 def test_noise(capsys, tmp_path):
     code, _, _ = run(
         capsys,
