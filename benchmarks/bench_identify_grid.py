@@ -16,9 +16,10 @@ against their targets, and the lumped offset (the true offset is 0) against Coul
 ``steps pair`` identifies a staircase up and one down together with ``offsets="shared"`` (the
 refusal's other way out), with the targets of the both-ways logs. Run with
 
-    python benchmarks/bench_identify_grid.py            # the 192 logs of the grid (about a minute)
+    python benchmarks/bench_identify_grid.py            # the 192 logs (about 3 minutes, loaded)
     python benchmarks/bench_identify_grid.py --steps    # the step responses (240 logs)
     python benchmarks/bench_identify_grid.py --quick    # 1024 and 65536 counts, 0.25 and 2 ms
+                                                        # (48 logs, about 2 minutes)
 
 It prints one line per log (errors of J, b, Coulomb; ok or --, and the warnings of the default
 identification) and, for comparison, the errors of the benchmark's IDIM-LS with its own

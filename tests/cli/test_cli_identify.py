@@ -9,7 +9,7 @@ import pytest
 import scipy.io
 
 from hpdob.cli import main
-from hpdob.identification import EMPS_PUBLISHED
+from hpdob.identification import EMPS_PUBLISHED, emps, identify
 
 
 def run(capsys, *argv):
@@ -45,12 +45,17 @@ def test_emps_writes_json_csv_and_figure(tmp_path, capsys):
         "identification.png",
     ]  # and no temporary files left behind
     report = json.loads((tmp_path / "identification.json").read_text())
-    # the defaults (filters from the log, IV through the EMPS loop, the input aligned with the
-    # held command, the rests dropped): within 3.5 % of the published IDIM-LS, which keeps
-    # the rests (dropping them moves Fv by -2.6 % and Fc by +3.1 %, as a min_speed of 1 mm/s
-    # does; docs/real-data.md says why)
+    # The defaults (filters from the log, IV through the EMPS loop, the input aligned with the
+    # held command, the rests dropped) against the published IDIM-LS, within a tolerance set
+    # before looking at the defaults' output: 2 standard deviations of the published method's
+    # estimate on these data (the batch-means ones, which allow for the residual's correlation
+    # and match the spread over seeds within 1.4: docs/real-data.md). Two estimators of one
+    # log differing by more would be a real disagreement; within it, these data cannot tell
+    # them apart (the held-out half: tests/identification/test_identify_logs.py).
+    reference = identify(emps(), method="idim-ls", diagnostics=False).std
     for name in ("J", "b", "coulomb"):
-        assert report["parameters"][name] == pytest.approx(EMPS_PUBLISHED[name], rel=0.035)
+        delta = report["parameters"][name] - EMPS_PUBLISHED[name]
+        assert abs(delta) <= 2.0 * reference[name], (name, delta, reference[name])
     assert report["settings"]["rest_rows"] > 0
     assert report["method"] == "idim-iv" and report["settings"]["adaptive"]
     assert report["units"]["J"] == "kg" and report["log"]["names"]["position"] == "qm"

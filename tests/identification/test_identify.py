@@ -394,6 +394,20 @@ def test_idim_iv_with_a_loop_that_is_not_the_logs_is_refused():
         identify(t, q, u, method="idim-iv", loop=resting)
 
 
+def test_the_old_bandwidth_keyword_names_filter_bandwidth():
+    """``bandwidth=`` (an observer's bandwidth [rad/s] everywhere else) was renamed
+    ``filter_bandwidth`` [Hz]: the old keyword is a TypeError naming the new one (issue 23)."""
+    import hpdob
+    from hpdob._validation import ParameterTypeError
+    from hpdob.identification import emps
+
+    log = emps()
+    with pytest.raises(ParameterTypeError, match=r"give filter_bandwidth=20\.0 \(.*\[Hz\]"):
+        hpdob.identify(log, bandwidth=20.0)
+    with pytest.raises(TypeError, match="filter_bandwidth"):
+        log.identify(bandwidth=20.0)
+
+
 def test_progress_reports_each_stage_from_zero_to_its_total_and_changes_nothing():
     # issue 27 (rel4, item 2): counts only, in stage order; the estimate is the same bits
     from hpdob.identification import emps

@@ -99,6 +99,6 @@ def test_a_log_that_rests_most_of_the_time_says_what_to_set():
     message = str(refusal.value)
     assert re.search(r"\d+ of \d+ regression rows are at rest", message)
     assert "min_speed=0" in message
-    bandwidth = float(re.search(r"bandwidth=([0-9.]+)", message).group(1))
-    fit = s.log.identify(bandwidth=bandwidth)
+    bandwidth = float(re.search(r"filter_bandwidth=([0-9.]+)", message).group(1))
+    fit = s.log.identify(filter_bandwidth=bandwidth)
     assert within_targets(fit, s)["J"]

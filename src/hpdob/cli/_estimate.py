@@ -40,7 +40,10 @@ def register(subparsers) -> None:
         help="identification.json written by 'hpdob identify': its J and b",
     )
     model.add_argument(
-        "--b-n", type=finite, default=None, help="nominal viscous friction (default: 0)"
+        "--b-n",
+        type=finite,
+        default=None,
+        help="nominal viscous friction [N m s/rad or N s/m] (default: 0)",
     )
     add_observer_arguments(parser)
     parser.add_argument(

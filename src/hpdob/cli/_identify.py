@@ -11,6 +11,8 @@ import argparse
 import re
 from pathlib import Path
 
+import numpy as np
+
 from .._validation import ParameterTypeError, ParameterValueError
 from ._design import _integer, _number_list
 from ._errors import CLIError
@@ -99,20 +101,30 @@ def register(subparsers) -> None:
     loop.add_argument(
         "--derive-reference", action="store_true",
         help="derive the reference velocity and acceleration from --reference by identify's "
-        "filtered differentiation (Butterworth, forward-backward, then central differences; "
-        "default with --kp/--kd when no column is given)",
+        "filtered differentiation (Butterworth, forward-backward, then central differences). "
+        "Default with --kp/--kd when no column is given, except for a step reference (it "
+        "holds its value exactly between jumps for 95 %% of the samples): zero velocity and "
+        "acceleration, as a PD answering steps uses",
     )  # fmt: skip
     loop.add_argument("--feedforward", metavar="NAME", help="feed-forward torque column [N m or N]")
     loop.add_argument(
         "--velocity-filter", type=_number_list(float), default=None, metavar="C0,C1,...",
         help="the loop's velocity estimate sum c_i y_(k-i) / Ts (default: 1,-1)",
     )  # fmt: skip
-    loop.add_argument("--limit", type=_real, help="the loop's output limit [N m or N]")
+    loop.add_argument("--torque-limit", type=_real,
+                      help="the loop's torque limit [N m or N] (as in tune)")  # fmt: skip
+    loop.add_argument("--limit", type=_real, dest="removed_limit", help=argparse.SUPPRESS)
     filters = parser.add_argument_group("filters (default: from the log, see identify())")
-    filters.add_argument("--bandwidth", type=_real,
-                         help="bandwidth of the motion to keep [Hz] (cutoff 5x)")  # fmt: skip
+    filters.add_argument(
+        "--filter-bandwidth", type=_real,
+        help="bandwidth of the motion the filters keep [Hz] (cutoff 5x)",
+    )  # fmt: skip
+    filters.add_argument("--bandwidth", type=_real, dest="removed_bandwidth",
+                         help=argparse.SUPPRESS)  # fmt: skip
     filters.add_argument("--cutoff", type=_real, help="Butterworth cut-off [Hz]")
-    filters.add_argument("--order", type=_integer, default=4, help="Butterworth order (4)")
+    filters.add_argument("--filter-order", type=_integer, default=4,
+                         help="order of the Butterworth filters (4)")  # fmt: skip
+    filters.add_argument("--order", type=_integer, dest="removed_order", help=argparse.SUPPRESS)
     filters.add_argument("--decimation", type=_integer, help="decimation factor")
     filters.add_argument("--border", type=_integer, help="samples dropped at each end")
     filters.add_argument(
@@ -165,6 +177,17 @@ def _wants_loop(args) -> bool:
     ) or bool(_columns(args))
 
 
+#: A reference whose sample-to-sample changes are exactly 0 this often is a step reference.
+STEP_FRACTION = 0.95
+
+
+def _is_steps(reference) -> bool:
+    """Whether ``reference`` is piecewise constant: it holds its value exactly between jumps
+    for at least :data:`STEP_FRACTION` of its samples (and moves at all)."""
+    changes = np.diff(np.asarray(reference, dtype=float))
+    return bool(changes.size and np.any(changes) and np.mean(changes == 0.0) >= STEP_FRACTION)
+
+
 def _loop(args, log, name: str):
     """The :class:`FeedbackLoop` of ``log`` from the loop options, and how its reference
     velocity was obtained."""
@@ -199,7 +222,16 @@ def _loop(args, log, name: str):
     if derive and (velocity is not None or acceleration is not None):
         raise CLIError("--derive-reference replaces --reference-velocity/acceleration: drop one")
     source = "columns" if velocity is not None else "none (velocity feedback only)"
-    if derive:
+    if derive and not args.derive_reference and _is_steps(log.reference):
+        # A step reference's velocity is zero but at its jumps, and a sampled PD sees a jump
+        # in the error only (hpdob's simulate: r_dot = r_ddot = 0 for steps); filtering the
+        # jump would smear it into a velocity pulse the loop never had.
+        velocity = acceleration = np.zeros_like(log.reference)
+        source = (
+            f"zero: the reference holds between jumps (steps; {STEP_FRACTION:.0%} or more of "
+            "its sample-to-sample changes are exactly 0)"
+        )
+    elif derive:
         velocity, acceleration = differentiate(log.reference, log.Ts, like=log.theta)
         source = "derived from the reference (filtered differentiation, cutoff as identify's)"
     feedforward = log.columns.get("feedforward")
@@ -212,7 +244,7 @@ def _loop(args, log, name: str):
         kp, kd = args.loop_kp, args.loop_kd
     loop = FeedbackLoop(
         log.reference, kp=kp, kd=kd, reference_velocity=velocity, feedforward=feedforward,
-        velocity_filter=tuple(args.velocity_filter or (1.0, -1.0)), limit=args.limit,
+        velocity_filter=tuple(args.velocity_filter or (1.0, -1.0)), limit=args.torque_limit,
     )  # fmt: skip
     return loop, source
 
@@ -272,13 +304,17 @@ _CLI_WORDS = [
     (re.compile(r"\bfriction='([\w+-]+)'"), r"--friction \1"),
     (re.compile(r"\boffsets='(\w+)'"), r"--offsets \1"),
     (re.compile(r"\bfixed=\{[^}]*\}"), "--fix NAME=VALUE"),
+    (
+        re.compile(r"FeedbackLoop\(reference_velocity=\.\.\., feedforward=\.\.\.\)"),
+        "--reference-velocity/--reference-acceleration columns, or --derive-reference",
+    ),
     (re.compile(r"\bloop="), "the loop options (--kp/--kd with --J-n, or --loop-kp/--loop-kd)"),
     (re.compile(r"\bmin_speed=(?=\d)"), "--min-speed "),
     (re.compile(r"\bmin_speed\b"), "--min-speed"),
     (re.compile(r"(?<![-\w])decimation\b(?= ?[=<>]| must)"), "--decimation"),
     (re.compile(r"(?<![-\w])cutoff\b(?= ?[=<>]| must)"), "--cutoff"),
     (re.compile(r"(?<![-\w])border\b(?= ?[=<>]| must)"), "--border"),
-    (re.compile(r"(?<![-\w])bandwidth=(?=\d)"), "--bandwidth "),
+    (re.compile(r"\bfilter_bandwidth=(?=\d)"), "--filter-bandwidth "),
 ]
 
 
@@ -290,12 +326,31 @@ def cli_words(text: str) -> str:
     return text
 
 
+#: identify's option spellings before 0.2 that other commands use with another meaning, and
+#: the option that replaces each (docs/naming.md: one meaning per option name).
+_REMOVED = {
+    "bandwidth": ("--bandwidth", "--filter-bandwidth", "[Hz], the filters' band; --bandwidth is "
+                  "an observer's bandwidth [rad/s] in design, estimate and analyze"),
+    "limit": ("--limit", "--torque-limit", "[N m or N], as in tune"),
+    "order": ("--order", "--filter-order", "the Butterworth filters'; --order is an observer's "
+              "truncation order m in design, estimate and export-c"),
+}  # fmt: skip
+
+
+def _refuse_removed(args) -> None:
+    for key, (old, new, why) in _REMOVED.items():
+        value = getattr(args, f"removed_{key}")
+        if value is not None:
+            raise CLIError(f"identify {old} is now {new}: give {new} {value:g} ({why})")
+
+
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
     from .._files import check_output, staged_outputs
     from ..identification import EMPS_PUBLISHED, IdentificationWarning, identify
 
+    _refuse_removed(args)
     if args.emps and args.validate is not None:
         raise CLIError("--validate takes a LOG with the same columns as LOG; not with --emps")
     show = show_progress(args.progress)
@@ -318,9 +373,10 @@ def _run(args: argparse.Namespace) -> int:
         try:
             result = identify(
                 logs if len(logs) > 1 else logs[0], method=args.method,
-                loop=loops if len(logs) > 1 else loops[0], bandwidth=args.bandwidth,
-                cutoff=args.cutoff, order=args.order, decimation=args.decimation,
-                border=args.border, min_speed=args.min_speed, friction=args.friction,
+                loop=loops if len(logs) > 1 else loops[0],
+                filter_bandwidth=args.filter_bandwidth, cutoff=args.cutoff,
+                order=args.filter_order, decimation=args.decimation, border=args.border,
+                min_speed=args.min_speed, friction=args.friction,
                 fixed=dict(args.fix) or None, offsets=args.offsets,
                 diagnostics=not args.no_diagnostics, axis=args.axis or logs[0].axis,
                 progress=stages if show else None,

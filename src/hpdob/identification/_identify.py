@@ -23,6 +23,7 @@ inertia as the filters let more noise through.
 
 from __future__ import annotations
 
+import functools
 import math
 import warnings
 from collections.abc import Mapping, Sequence
@@ -44,7 +45,12 @@ from ._regression import (
 )
 from ._result import Identification
 from ._runs import as_runs, prepare, resolve
-from ._sensitivity import sensitivity, sensitivity_warnings
+from ._sensitivity import (
+    ADAPTIVE_FACTORS,
+    SENSITIVITY_FACTOR,
+    sensitivity,
+    sensitivity_warnings,
+)
 from ._simfit import MIN_FIT, simulate_fit
 from ._solve import relative_error, solve
 
@@ -92,6 +98,43 @@ def simulated_parameters(parameters: np.ndarray, run, layout) -> np.ndarray:
     return np.array([J, b, way * offset, 0.0])
 
 
+def systematic(moves, solution, layout, names) -> dict:
+    """The spread of each parameter over the three filter settings (as identified, bandwidth
+    x2 and /2), in its units: the systematic uncertainty beside the statistical one (0 where
+    fixed or not checked)."""
+    std = np.sqrt(np.diag(solution.covariance))
+    shifts = np.array([np.zeros_like(std)] + [m * std for m in moves.values()])
+    spread = shifts.max(axis=0) - shifts.min(axis=0)
+    out = dict.fromkeys(PARAMETERS, 0.0)
+    for k, name in enumerate(names):
+        key = "offset" if name.startswith("offset") else name
+        out[key] = max(out[key], float(spread[k]))
+    return out
+
+
+def renamed_keywords(**renamed):
+    """Refuse the keywords of ``renamed`` (old name -> new name and unit) with a
+    :class:`ParameterTypeError` that names the new keyword, instead of Python's bare
+    "unexpected keyword argument" (docs/changelog.md)."""
+
+    def wrap(function):
+        @functools.wraps(function)
+        def call(*args, **kwargs):
+            for old, new in renamed.items():
+                if old in kwargs:
+                    raise ParameterTypeError(
+                        f"{old} was renamed: give {new.split()[0]}={kwargs[old]!r} "
+                        f"(the filters' bandwidth {' '.join(new.split()[1:])}; "
+                        f"{function.__name__}() takes no {old}=)"
+                    )
+            return function(*args, **kwargs)
+
+        return call
+
+    return wrap
+
+
+@renamed_keywords(bandwidth="filter_bandwidth [Hz]")
 def identify(
     t,
     theta=None,
@@ -99,7 +142,7 @@ def identify(
     *,
     method: str = "auto",
     loop=None,
-    bandwidth: float | None = None,
+    filter_bandwidth: float | None = None,
     cutoff: float | None = None,
     order: int = 4,
     decimation: int | None = None,
@@ -150,12 +193,13 @@ def identify(
         None for an open-loop one). Required by ``"idim-iv"``; otherwise it is only
         simulated to report how well the identified model reproduces the run
         (``simulation``, ``fits``).
-    bandwidth : float, optional
-        Bandwidth [Hz] of the motion to keep: it sets ``cutoff = 5 bandwidth`` and
-        ``decimation = round(0.2 fs / bandwidth)`` (the EMPS benchmark's rules, with its
-        closed-loop bandwidth). Default with ``"auto"``: half the log's signal bandwidth
-        (Notes); with the other methods ``fs/50`` (20 Hz at 1 kHz, the EMPS settings:
-        cutoff 100 Hz, decimation 10).
+    filter_bandwidth : float, optional
+        Bandwidth [Hz] of the motion the filters keep (not an observer's bandwidth in rad/s;
+        ``bandwidth=`` before 0.2, now refused with a pointer here): it sets ``cutoff =
+        5 filter_bandwidth`` and ``decimation = round(0.2 fs / filter_bandwidth)`` (the EMPS
+        benchmark's rules, with its closed-loop bandwidth). Default with ``"auto"``: half the
+        log's signal bandwidth (Notes); with the other methods ``fs/50`` (20 Hz at 1 kHz, the
+        EMPS settings: cutoff 100 Hz, decimation 10).
     cutoff : float, optional
         Cut-off [Hz] of the Butterworth low-pass filter on the position (forward-backward).
     order : int, optional
@@ -222,7 +266,7 @@ def identify(
         motion, constant input, motion in one direction only (the message names the calls
         that identify that log: ``friction="viscous"``, ``fixed={"coulomb": ...}``, or a log
         that moves the other way with ``offsets="shared"``), a log that rests most of the
-        time (the message counts the rest rows and names the ``bandwidth`` that works), an
+        time (the message counts the rest rows and names the ``filter_bandwidth`` that works), an
         ill-conditioned regression;
         or if a setting is out of range, or ``loop`` does not match the log (length, or a
         simulation with the IDIM-LS estimate more than 50 % off the logged position).
@@ -314,7 +358,7 @@ def identify(
         progress("filtering", k, len(runs))
         where = f" ({run.name})" if len(runs) > 1 else ""
         settings = resolve(
-            run, adaptive, bandwidth, cutoff, order, decimation, border, min_speed, zoh
+            run, adaptive, filter_bandwidth, cutoff, order, decimation, border, min_speed, zoh
         )
         prepare(run, settings, where)
     progress("filtering", len(runs), len(runs))
@@ -335,6 +379,13 @@ def identify(
             f"{tolerance:g} standard deviations); the last estimate is returned. Stick "
             "phases make the simulated loop jump between iterations: if the log rests "
             "at times, drop them with min_speed"
+            + (
+                "; and check the reference velocity and acceleration the loop used "
+                "(FeedbackLoop(reference_velocity=..., feedforward=...); zero for a step "
+                "reference)"
+                if any(has_loop)
+                else ""
+            )
         )
     per_run = [layout.parameters(solution.estimate, i) for i in range(len(runs))]
     fits, simulation, traces = [], None, None
@@ -369,11 +420,14 @@ def identify(
                 caught.append(
                     "the loop simulated with the IDIM-IV estimate differs from the logged "
                     f"position by {simulation['position_error_percent']:.3g} % (eq. 11): the "
-                    "instruments are poor; check the loop's gains, velocity filter and reference"
+                    "instruments are poor; check the loop's gains, velocity filter and "
+                    "reference, and the reference's velocity and acceleration the loop used "
+                    "(FeedbackLoop(reference_velocity=..., feedforward=...); zero for a step "
+                    "reference)"
                 )
     if any(simulated):
         progress("simulating", sum(simulated), sum(simulated))
-    moves = {}
+    moves, notes = {}, []
     if diagnostics:
         for run, fit in zip(runs, fits, strict=True):
             if fit is None:
@@ -399,6 +453,13 @@ def identify(
             ["offset"] if layout.n_offsets == 1 else [f"offset of {r.name}" for r in runs]
         )[: layout.n_offsets]
         caught.extend(sensitivity_warnings(moves, solution, layout, runs, adaptive, names))
+        for factor, which in ((1.0 / SENSITIVITY_FACTOR, "halved"), (SENSITIVITY_FACTOR,
+                                                                     "doubled")):  # fmt: skip
+            if factor not in moves and (factor in ADAPTIVE_FACTORS or not adaptive):
+                notes.append(
+                    f"the filters' sensitivity with their bandwidth {which} was not checked: "
+                    "the log has too few samples or rows for those filters"
+                )
     for message in caught:
         warnings.warn(message, IdentificationWarning, stacklevel=2)
     T = layout.transform()
@@ -467,6 +528,8 @@ def identify(
         if diagnostics
         else None,
         warnings=tuple(caught),
+        notes=tuple(notes),
+        systematic=systematic(moves, solution, layout, names) if diagnostics else None,
     )
 
 

@@ -151,6 +151,14 @@ class Identification:
         deviations, with the filters' bandwidth doubled and halved.
     warnings : tuple of str
         The :class:`IdentificationWarning` messages of the identification.
+    systematic : mapping or None
+        With ``diagnostics``: a systematic uncertainty of each parameter beside the statistical
+        ``std``: the largest move of the estimate when the filters' bandwidth is doubled or
+        halved (the method's bias under the filters, which ``std`` does not contain; 0 for a
+        fixed parameter). Report ``std`` and ``systematic`` side by side (docs/real-data.md).
+    notes : tuple of str
+        What the diagnostics could not check (e.g. a log too short for the filters' bandwidth
+        halved), printed by :meth:`summary`.
     """
 
     method: str
@@ -181,6 +189,8 @@ class Identification:
     sensitivity: Mapping | None = None
     warnings: tuple = ()
     covariance_iid: np.ndarray | None = field(default=None, repr=False)
+    notes: tuple = ()
+    systematic: Mapping | None = None
 
     def __post_init__(self) -> None:
         if not self.offsets:
@@ -367,8 +377,12 @@ class Identification:
         """
         u = self.units
         linear = self.axis == "linear"
+        periods = sorted({log["Ts"] for log in self.settings.get("logs", ())}) or [
+            self.settings["Ts"]
+        ]
+        ts = ", ".join(f"{value:g}" for value in periods)
         lines = [f"{self.method.upper()}: {self.t.size} regression rows from "
-                 f"{self.n_samples} samples (Ts = {self.settings['Ts']:g} s)"]  # fmt: skip
+                 f"{self.n_samples} samples (Ts = {ts} s)"]  # fmt: skip
         fixed = self.settings.get("fixed", {})
         several = len(self.offsets) > 1
         for name, value in self.parameters.items():
@@ -376,8 +390,13 @@ class Identification:
             label = _LABELS[name][1 if linear else 0]
             if several and name == "offset":
                 label = "mean offset"
+            relative = _relative(value, std, name in fixed)
+            if name == "coulomb" and self.settings.get("friction") == "viscous":
+                relative = "0: friction='viscous' lumps it into the offset"
+            systematic = (self.systematic or {}).get(name)
+            extra = "" if not systematic else f", systematic +- {systematic:.3g}"
             lines.append(f"  {label:<22}{value:>14.6g} +- {std:<11.4g} {u[name]:<16} "
-                         f"({_relative(value, std, name in fixed)})")  # fmt: skip
+                         f"({relative}{extra})")  # fmt: skip
         if several:
             for source, value, std in zip(self.sources, self.offsets, self.offsets_std,
                                           strict=True):  # fmt: skip
@@ -399,15 +418,23 @@ class Identification:
                     f"{fit['position_fit_percent']:.2f} %, velocity fit "
                     f"{fit['velocity_fit_percent']:.2f} % (MATLAB compare)"
                 )
+        adaptive = bool(self.settings.get("adaptive", False))
         for key, which in (("/2", "halved"), ("x2", "doubled")):
             moves = (self.sensitivity or {}).get(key)
             if moves:
                 listed = ", ".join(f"{name} {move:+.2g}" for name, move in moves.items()
                                    if not name.startswith("offset"))  # fmt: skip
+                why = (
+                    "for information only: with the filters read from the log only halving "
+                    "can warn" if adaptive and key == "x2" else
+                    "a change of bias; a warning needs its target's allowance too: 2 % of J, "
+                    "b 10 % or 0.02 J 2 pi B, Coulomb 5 % or 2 % of the input's RMS"
+                )  # fmt: skip
                 lines.append(
-                    f"  filters' bandwidth {which}: moves in standard deviations: {listed} (a "
-                    "change of bias; a warning needs 2 % of J or 25 % of b or Coulomb too)"
+                    f"  filters' bandwidth {which}: moves in standard deviations: {listed} ({why})"
                 )
+        for message in self.notes:
+            lines.append(f"  note: {message}")
         for message in self.warnings:
             lines.append(f"  warning: {message}")
         return "\n".join(lines)
@@ -422,7 +449,8 @@ class Identification:
             ``std``, ``std_iid``, ``units``, ``covariance``, ``relative_error_percent``,
             ``residual_std``, ``rows``, ``n_samples``, ``condition_number``, ``max_speed``,
             ``iterations``, ``converged``, ``simulation``, ``offsets``, ``offsets_std``,
-            ``fits``, ``sensitivity``, ``warnings`` and ``settings``.
+            ``fits``, ``sensitivity``, ``systematic``, ``warnings``, ``notes`` and
+            ``settings``.
         """
         return _json_ready(
             {
@@ -447,6 +475,8 @@ class Identification:
                 "fits": list(self.fits),
                 "sensitivity": None if self.sensitivity is None else dict(self.sensitivity),
                 "warnings": list(self.warnings),
+                "notes": list(self.notes),
+                "systematic": None if self.systematic is None else dict(self.systematic),
                 "settings": dict(self.settings),
             }
         )

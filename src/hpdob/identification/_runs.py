@@ -156,7 +156,7 @@ def check_run(run: Run, where: str) -> None:
             f"are at rest (filtered speed below {run.regression.rest_speed:.3g}, 2 % of its "
             f"largest, for more than {settings.decimation} samples) and are dropped, leaving "
             f"{rows}, fewer than {MIN_ROWS}. Give more rows per move with "
-            f"bandwidth={2 * settings.bandwidth:.3g} (twice the {settings.bandwidth:.3g} Hz "
+            f"filter_bandwidth={2 * settings.bandwidth:.3g} (twice the {settings.bandwidth:.3g} Hz "
             f"read from the log: half the decimation, now {settings.decimation}), or keep "
             "the rest rows with min_speed=0 (the friction at rest is then read as offset), or "
             "log longer moves"

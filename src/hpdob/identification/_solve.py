@@ -57,7 +57,9 @@ def simulable(parameters: np.ndarray, iteration: int, name: str = "") -> np.ndar
         raise ParameterValueError(
             f"IDIM-IV cannot simulate the loop{name}: {source} has J = {parameters[0]:.6g} <= 0; "
             "the regression is dominated by noise: lower cutoff or raise decimation (or leave "
-            "the filters to method='auto')"
+            "the filters to method='auto'); check the loop's reference velocity and "
+            "acceleration (FeedbackLoop(reference_velocity=..., feedforward=...); zero for a "
+            "step reference)"
         )
     return np.array(
         [parameters[0], max(parameters[1], 0.0), max(parameters[2], 0.0), parameters[3]]

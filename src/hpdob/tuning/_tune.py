@@ -129,6 +129,7 @@ def _scenario(nominal, Ts, disturbance_frequency, scenario):
     as the paper's), unless given."""
     from ..signals import Sine, Step
     from ..simulation import _canonical as paper  # the paper's set-up, as data
+    from ..simulation._simulate import MAX_PLANT_STEPS
 
     if scenario is not None:
         if not isinstance(scenario, dict):
@@ -146,7 +147,14 @@ def _scenario(nominal, Ts, disturbance_frequency, scenario):
     f = 2.0 if disturbance_frequency is None else float(np.atleast_1d(disturbance_frequency)[0])
     scale = nominal.J / paper.NOMINAL.J  # the paper's disturbance acceleration at any J_n
     disturbance = Step(1.5005, 0.05 * scale) + Sine(0.02 * scale, f, start=2.5005)
-    duration = Ts * max(1, round(paper.DURATION / Ts))  # the paper's 10 s, in whole samples
+    samples = paper.DURATION / Ts  # inf for a subnormal Ts: round() would overflow
+    if not samples <= MAX_PLANT_STEPS:
+        raise ParameterValueError(
+            f"Ts must be at least {paper.DURATION:g} s / {MAX_PLANT_STEPS:.0e} = "
+            f"{paper.DURATION / MAX_PLANT_STEPS:g} s (tune's {paper.DURATION:g} s verification "
+            f"run holds at most {MAX_PLANT_STEPS:.0e} samples), got {Ts!r}"
+        )
+    duration = Ts * max(1, round(samples))  # the paper's 10 s, in whole samples
     return {"reference": paper.REFERENCE, "disturbance": disturbance, "duration": duration}
 
 
