@@ -56,8 +56,6 @@ read_log, Log, identify, Identification
 # The names are imported on first use (PEP 562), so that ``import hpdob`` (and the ``hpdob``
 # command, which installs its signal handlers first) does not import numpy, scipy and
 # python-control up front: see hpdob._interrupts.
-from __future__ import annotations
-
 from ._version import __version__
 
 #: Public name -> the module that defines it (a module name alone: the subpackage itself).

@@ -8,26 +8,32 @@ reports with a traceback. It covers the import of the command modules, numpy and
 (``hpdob._interrupts.handling_signals``: outputs cleaned up, ``hpdob <command>:
 interrupted``). Once the command has returned, a signal ends the process at once with the
 same code, stdout flushed (a ``SystemExit`` raised while Python exits would be printed as
-"Exception ignored in atexit callback").
+"Exception ignored in atexit callback"). An interrupted command (exit 128 + signal) ends
+the same way once the exit handlers have run, without the interpreter's finalisation.
 
 Importing the module changes nothing (the doctests import every module); only the entry
-points call :func:`main`. What runs before it is outside hpdob's control: the interpreter's
-own start-up and ``site`` (about 3 ms here), the wrapper script pip generates (it imports
-``re`` first, about 30 ms), and ``hpdob/__init__`` (a few assignments: the package imports
-its subpackages lazily). A Ctrl-C there is Python's own: a ``KeyboardInterrupt`` traceback
+points call :func:`main`. What runs before it: the interpreter's own start-up and ``site``
+(with the environment's ``.pth`` files), ``runpy`` for ``python -m`` or the wrapper script
+pip generates (it imports ``re``), ``hpdob/__init__`` (a few assignments: the package
+imports its subpackages lazily) and this module (which imports no ``signal``/``enum``: it
+uses the C module ``_signal``). A Ctrl-C there is Python's own: a ``KeyboardInterrupt``
+traceback; the window is measured by ``benchmarks/bench_startup_window.py``
 (docs/reliability.md, section 3).
 """
 
-import signal
+# The C module under ``signal``: ``signal`` itself imports ``enum`` (1-10 ms before the
+# handler is in place, under load); the handlers and SIG_IGN are the same objects.
+import _signal
 import sys
 
 __all__ = ["main"]
 
-_SIGNALS = [getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)]
+#: signal number -> name, of the signals handled here
+_SIGNALS = {getattr(_signal, n): n for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(_signal, n)}
 
 
 def _line(signum: int) -> str:
-    name = signal.Signals(signum).name
+    name = _SIGNALS.get(signum, str(signum))
     return "hpdob: interrupted\n" if name == "SIGINT" else f"hpdob: interrupted ({name})\n"
 
 
@@ -67,8 +73,8 @@ def _late(signum, frame):
 
 def _install(handler) -> None:
     for signum in _SIGNALS:
-        if signal.getsignal(signum) is not signal.SIG_IGN:  # e.g. SIGHUP under nohup
-            signal.signal(signum, handler)
+        if _signal.getsignal(signum) != _signal.SIG_IGN:  # e.g. SIGHUP under nohup
+            _signal.signal(signum, handler)
 
 
 def main() -> int:
@@ -88,4 +94,23 @@ def main() -> int:
         raise SystemExit(128 + _received[0])
     code = run()
     _install(_late)
+    if code in {128 + signum for signum in _SIGNALS}:
+        _end_interrupted(code)
     return code
+
+
+def _end_interrupted(code: int) -> None:
+    """An interrupted command (its outputs cleaned up, its line printed): the exit handlers,
+    then end the process without the interpreter's finalisation, which tears down numpy,
+    numba and matplotlib for 0.5-1 s after the line (measured in ``hpdob reproduce``)."""
+    import atexit
+    import contextlib
+    import os
+
+    # atexit's own runner (CPython): e.g. coverage of subprocesses saves its data there.
+    with contextlib.suppress(Exception):
+        getattr(atexit, "_run_exitfuncs", lambda: None)()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):  # e.g. a closed pipe: nothing more to say
+            stream.flush()
+    os._exit(code)

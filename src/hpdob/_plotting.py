@@ -9,6 +9,7 @@ __all__ = [
     "envelope",
     "label_points",
     "legend_clear_of_data",
+    "legends_clear_of_data",
     "mark_clipped",
     "plot_force_result",
     "plot_result",
@@ -185,6 +186,25 @@ def legend_clear_of_data(ax, *, ncol: int, pad: float = 0.03, **kwargs):
     lo, hi = ax.get_ylim()
     ax.set_ylim(lo, lo + (hi - lo) / (1.0 - band))
     return legend
+
+
+def legends_clear_of_data(bands, *, pad: float = 0.03) -> list:
+    """:func:`legend_clear_of_data` for several ``(ax, ncol)`` at once: one layout pass per
+    figure (not per legend) measures every band of that figure; returns the legends."""
+    legends, figures = [], {}
+    for ax, ncol in bands:
+        legends.append(ax.legend(loc="upper left", ncol=ncol, fontsize="small"))
+        figures.setdefault(id(ax.figure), ax.figure)
+    for fig in figures.values():
+        fig.draw_without_rendering()
+    spans = []
+    for (ax, _), legend in zip(bands, legends, strict=True):  # measured before any is moved
+        box = legend.get_window_extent().transformed(ax.transAxes.inverted())
+        spans.append(min(1.0 - box.y0 + pad, 0.6))
+    for (ax, _), band in zip(bands, spans, strict=True):
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(lo, lo + (hi - lo) / (1.0 - band))
+    return legends
 
 
 #: Where a point's label may go, tried in this order: offset [points] and alignment.

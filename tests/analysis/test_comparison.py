@@ -201,3 +201,18 @@ def test_a_loop_with_any_controller(controller, expected):
         for end, inside in ((low, 1.001), (high, 0.999)):
             assert interconnect.radius(J=end * inside * NOMINAL.J, **linear) < 1.0
             assert interconnect.radius(J=end / inside * NOMINAL.J, **linear) > 1.0
+
+
+@pytest.mark.parametrize("Ts", [1e-320, 1e-9])
+def test_a_too_small_Ts_is_refused_up_front_naming_the_limit(Ts, capsys):
+    # Issue 27: round(10 s / 1e-320) raised OverflowError (an internal error in `hpdob compare`).
+    from hpdob.paper import PLANT
+
+    loop = ServoLoop(
+        plant=PLANT, nominal=NOMINAL, Ts=Ts, controller=FilteredPD(50.0, 5.0, time_constant=2e-3)
+    )
+    with pytest.raises(ValueError, match=r"^Ts must be at least 10 s / 1e\+08 = 1e-07 s .*got "):
+        compare_observers(loop)
+    assert main(["compare", "--Ts", repr(Ts)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Ts must be at least" in err and "internal" not in err

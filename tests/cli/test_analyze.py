@@ -54,6 +54,27 @@ def test_bode(capsys, tmp_path):
     assert (tmp_path / "bode.png").stat().st_size > 0
 
 
+@pytest.mark.parametrize("Ts", ["1e-4", "3e-4"])
+def test_bode_grid_stays_below_nyquist(capsys, tmp_path, Ts):
+    # Issue 27: at Ts = 1e-4 the grid's last point 1/(2 Ts) gave 2 pi f Ts one ulp above pi and
+    # python-control's "evaluation above Nyquist frequency" warning leaked (an error here).
+    code, _, err = run(capsys, "analyze", "bode", "--Ts", Ts, "--out", str(tmp_path), "--dpi", "20")
+    assert code == 0 and err == ""
+    with (tmp_path / "bode.csv").open() as handle:
+        f = np.array([float(row["frequency_Hz"]) for row in csv.DictReader(handle)])
+    assert np.all(2 * np.pi * f * float(Ts) <= np.pi) and f.max() > 0.4999 / float(Ts)
+
+
+def test_bode_margins_at_a_short_sampling_period(capsys, tmp_path):
+    # At Ts = 7e-5 s the margin grid's lowest frequency (1e-3 rad/s) put z = exp(j w Ts) on the
+    # loop's double pole at z = 1 to rounding: zI - A was singular (an internal LinAlgError).
+    code, _, err = run(
+        capsys, "analyze", "bode", "--Ts", "7e-5", "--out", str(tmp_path), "--dpi", "20"
+    )
+    assert code == 0 and err == ""
+    assert (tmp_path / "bode.json").exists()
+
+
 def test_noise(capsys, tmp_path):
     code, _, _ = run(
         capsys,

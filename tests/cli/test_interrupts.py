@@ -285,6 +285,20 @@ def test_a_signal_before_the_imports_is_one_line(tmp_path, entry, signum, code, 
     assert (process.returncode, out, err) == (code, "", line)
 
 
+def test_what_runs_before_the_entry_handler_imports_nothing_heavy():
+    # Issue 27 item 5: before the handler, Python's own Ctrl-C (a traceback) applies. What hpdob
+    # runs there is hpdob/__init__ and hpdob._entry: no numpy, and not even `signal` (it
+    # imports enum; _entry installs its handler through the C module _signal). -S: without
+    # site, whose .pth files (coverage, setuptools) import modules of their own.
+    code = (
+        "import sys; before = set(sys.modules); import hpdob._entry; "
+        "print(sorted(m for m in set(sys.modules) - before if not m.startswith('hpdob')))"
+    )
+    done = subprocess.run([sys.executable, "-S", "-c", code], capture_output=True, text=True,
+                          check=True, timeout=60, env={**os.environ})  # fmt: skip
+    assert done.stdout.strip() == "[]", done.stdout
+
+
 def test_ctrl_c_at_any_moment_after_the_entry_is_clean(tmp_path):
     # Every moment from the entry point on: imports, parsing, the design, printing, the exit.
     # The delays only spread the moments; whatever moment each signal hits, the outcome
@@ -312,3 +326,35 @@ def test_ctrl_c_at_any_moment_after_the_entry_is_clean(tmp_path):
             assert process.returncode in (130, -signal.SIGINT), (entry, delay, err)
             assert err in lines, (entry, delay, err)
     assert any(code != 0 for code in outcomes)  # the signals did arrive during the run
+
+
+def test_an_interrupted_command_ends_without_the_interpreters_finalisation(tmp_path):
+    # Issue 27 (third round): `hpdob reproduce` took 0.3-1.6 s from the signal to its exit,
+    # nearly all of it Python's finalisation (numpy, numba, matplotlib torn down) after the
+    # line. The entry point now runs the exit handlers (coverage saves its data there) and
+    # ends the process; a finaliser of __main__ would run in the finalisation it skips.
+    marker, flag = tmp_path / "atexit.ran", tmp_path / "startup.reached"
+    script = tmp_path / "run.py"
+    script.write_text(
+        "import atexit, sys\n"
+        f"atexit.register(lambda: open({str(marker)!r}, 'w').close())\n"
+        "class Final:\n"
+        "    def __del__(self):\n"
+        "        sys.stderr.write('finalised\\n')\n"
+        "keep = Final()\n"
+        "sys.argv = ['hpdob', 'design']\n"
+        "from hpdob._entry import main\n"
+        "sys.exit(main())\n"
+    )
+    env = {**os.environ, "HPDOB_TEST_PAUSE": f"startup:{flag}", "PYTHONUNBUFFERED": "1"}
+    process = subprocess.Popen(
+        [sys.executable, str(script)], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True,
+    )  # fmt: skip
+    while not flag.exists():
+        assert process.poll() is None, process.communicate()
+        time.sleep(0.01)
+    process.send_signal(signal.SIGINT)
+    out, err = process.communicate(timeout=60)
+    assert (process.returncode, out, err) == (130, "", "hpdob: interrupted\n")
+    assert marker.exists()  # the exit handlers ran

@@ -424,3 +424,49 @@ def test_simulate_writing_stage_counts_the_chunks(capsys, tmp_path, monkeypatch)
     capsys.readouterr()
     name = "HPDOb-100.csv"
     assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+
+
+def test_noise_tradeoff_reports_counts_per_point_and_result_unchanged():
+    from hpdob import noise_tradeoff
+
+    calls = []
+    kwargs = {"nominal": ServoModel(2.8e-4), "Ts": 1e-3, "frequency": 2.0,
+              "bandwidths": [50.0, 100.0, 200.0], "orders": (0, 1)}  # fmt: skip
+    quiet = noise_tradeoff(**kwargs)
+    loud = noise_tradeoff(**kwargs, progress=lambda done, total: calls.append((done, total)))
+    assert calls == [(k, 6) for k in range(7)]
+    assert np.array_equal(quiet.error_gain, loud.error_gain)
+    assert np.array_equal(quiet.noise_gain, loud.noise_gain)
+    with pytest.raises(ParameterTypeError, match=r"^progress must be a callable"):
+        noise_tradeoff(**kwargs, progress=3)
+
+
+@pytest.mark.parametrize(
+    ("view", "options", "total", "files"),
+    [
+        ("noise", ("--orders", "0,1", "--bandwidths", "50,100,200"), 6,
+         ("noise.csv", "noise.json")),
+        ("tradeoff", ("--orders", "0,1", "--bandwidths", "50,100,200"), 6,
+         ("tradeoff.csv", "tradeoff.json")),
+        ("bode", ("--orders", "0,1"), 4, ("bode.csv", "bode.json")),
+    ],
+)  # fmt: skip
+def test_analyze_grid_views_progress_on_stderr_only(capsys, tmp_path, view, options, total,
+                                                    files):  # fmt: skip
+    # Issue 27 item 13: `analyze noise` over a 10 000-point grid ran for minutes with nothing
+    # on stderr; noise, tradeoff and bode now show done/total and the time left, like stability.
+    common = ("analyze", view, *options, "--dpi", "30")
+    code, out, err = run(capsys, *common, "--out", str(tmp_path / "p"), "--progress")
+    assert code == 0
+    frames = err.split("\r\x1b[K")[1:]
+    assert frames[0] == f"analyze {view}: 0/{total} (0%)"
+    assert frames[-1] == f"analyze {view}: {total}/{total} (100%)\n"
+    assert len(frames) == total + 1 and err.count("\n") == 1
+    assert all(", about " in f and " left" in f for f in frames[1:-1])
+    assert f"analyze {view}:" not in out
+    code, _, quiet = run(capsys, *common, "--out", str(tmp_path / "q"), "--no-progress")
+    assert code == 0 and quiet == ""
+    code, _, default = run(capsys, *common, "--out", str(tmp_path / "d"))  # not a terminal
+    assert code == 0 and default == ""
+    for name in files:
+        assert (tmp_path / "p" / name).read_bytes() == (tmp_path / "q" / name).read_bytes()

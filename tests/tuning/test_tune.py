@@ -165,3 +165,13 @@ def test_cli_writes_the_recommendation_and_c(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["tune", "--J-range", "1"])
     assert "expected LOW,HIGH" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("Ts", [1e-320, 5e-324, 1e-9])
+def test_a_too_small_Ts_is_refused_naming_Ts_and_the_limit(Ts, capsys):
+    # Issue 27: 10 s / 1e-320 is inf and round(inf) raised OverflowError (an internal error).
+    with pytest.raises(ValueError, match=r"^Ts must be at least 10 s / 1e\+08 = 1e-07 s .*got "):
+        tune(nominal=paper.NOMINAL, Ts=Ts)
+    assert main(["tune", "--Ts", repr(Ts), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Ts must be at least" in err and "internal" not in err

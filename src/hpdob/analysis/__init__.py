@@ -4,6 +4,8 @@ estimation_transfer, estimation_response
     Closed-form disturbance-estimation response (the "Q-filter") of an observer.
 closed_loop, closed_loop_poles, gang_of_four, loop_transfer, loop_margins
     The linear sampled-data loop as a python-control system, its poles, sensitivities, margins.
+spectral_radii
+    Closed-loop spectral radii over true plants and actuator delays (one loop checked once).
 noise_gains, observer_noise_gain, noise_tradeoff
     Exact noise gains (discrete Lyapunov equation) and the accuracy/noise trade-off.
 robust_stability_map
@@ -17,7 +19,7 @@ bode_figure, noise_figure
     The figures of docs/analysis.md: estimation response and noise gains against bandwidth.
 """
 
-from ._closed_loop import closed_loop, closed_loop_poles
+from ._closed_loop import closed_loop, closed_loop_poles, spectral_radii
 from ._comparison import Comparison, compare_observers
 from ._contact_map import ContactStabilityMap, contact_stability_map
 from ._estimation import estimation_response, estimation_transfer
@@ -53,4 +55,5 @@ __all__ = [
     "noise_tradeoff",
     "observer_noise_gain",
     "robust_stability_map",
+    "spectral_radii",
 ]

@@ -2,13 +2,22 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .._interrupts import interruptible
 from ..simulation._loop import ServoLoop, accepts_loop
-from ._linear_loop import INPUTS, OUTPUTS, loop_matrices, loop_spec, state_names
+from ._linear_loop import (
+    INPUTS,
+    OUTPUTS,
+    delayed_state_matrix,
+    loop_matrices,
+    loop_spec,
+    state_names,
+)
 
-__all__ = ["closed_loop", "closed_loop_poles"]
+__all__ = ["closed_loop", "closed_loop_poles", "spectral_radii"]
 
 
 @accepts_loop
@@ -126,15 +135,111 @@ def closed_loop_poles(loop: ServoLoop) -> np.ndarray:
     return _poles(spec)
 
 
+def spectral_radii(loop: ServoLoop, plants, delay_samples) -> np.ndarray:
+    """Closed-loop spectral radii of ``loop`` over true plants and actuator delays.
+
+    ``out[i, j]`` is ``max(abs(closed_loop_poles(loop.replace(plant=plants[j],
+    actuator=Actuator(delay_samples=delay_samples[i])))))``, bit for bit, without building and
+    validating a loop per case: the loop is checked once and only the plant's ZOH model
+    (computed once per plant) and the delay change (``tune`` scans thousands of these).
+
+    Parameters
+    ----------
+    loop : ServoLoop
+        The loop; its actuator's ``torque_limit`` must be None (only the delay is replaced).
+    plants : sequence of ServoModel or TwoMassServo
+        True plants (their linear models; Coulomb friction is ignored).
+    delay_samples : sequence of int
+        Actuator delays [samples], each in ``0..MAX_DELAY_SAMPLES`` (1000).
+
+    Returns
+    -------
+    ndarray of float, shape (len(delay_samples), len(plants))
+        The spectral radii (below 1: asymptotically stable).
+
+    Raises
+    ------
+    TypeError, ValueError
+        As for :func:`closed_loop`, or for a delay that is not an integer in range (named).
+
+    Examples
+    --------
+    >>> from hpdob import PD, ServoLoop, ServoModel, design_observer
+    >>> from hpdob.analysis import spectral_radii
+    >>> nominal = ServoModel(2.8e-4)
+    >>> obs = design_observer(nominal.discretize(1e-3), order=1, bandwidth=200.0)
+    >>> loop = ServoLoop(plant=nominal, nominal=nominal, Ts=1e-3, controller=PD(50, 5),
+    ...                  observer=obs)
+    >>> radii = spectral_radii(loop, [ServoModel(2.0e-4), ServoModel(3.6e-4)], [0, 1])
+    >>> radii.shape, bool((radii < 1).all())
+    ((2, 2), True)
+    """
+    import dataclasses
+
+    from .._validation import ParameterValueError
+    from ._linear_loop import MAX_DELAY_SAMPLES
+
+    delays = []
+    for d in delay_samples:
+        if (
+            isinstance(d, bool)
+            or not isinstance(d, (int, np.integer))
+            or not (0 <= d <= MAX_DELAY_SAMPLES)
+        ):
+            raise ParameterValueError(
+                f"delay_samples must be integers in 0..{MAX_DELAY_SAMPLES} [samples], got {d!r}"
+            )
+        delays.append(int(d))
+    spec = loop_spec(loop)
+    models = [_linear_model(plant, loop.Ts) for plant in plants]
+    ones = [dataclasses.replace(spec, plant=model, delay=1) for model in models]
+    templates = [loop_matrices(one)[0] for one in ones] if any(delays) else None
+    out = np.empty((len(delays), len(models)))
+    for i, d in enumerate(delays):
+        if d == 0:
+            A = [loop_matrices(dataclasses.replace(one, delay=0))[0] for one in ones]
+        else:  # bit for bit loop_matrices(...)[0] with d samples, without the assembly
+            A = [delayed_state_matrix(t, one, d) for t, one in zip(templates, ones, strict=True)]
+        sizes = {a.shape for a in A}
+        if len(sizes) == 1 and max(sizes)[0] < INTERRUPTIBLE_STATES:
+            # one stacked call: LAPACK's geev on each matrix, as one call per matrix would
+            out[i] = np.abs(np.linalg.eigvals(np.stack(A))).max(axis=-1) if A else []
+        else:
+            out[i] = [np.abs(_eigenvalues(a)).max() for a in A]
+    return out
+
+
+def _linear_model(plant, Ts: float):
+    """The plant's ZOH model; equal plants share one (frozen, so safe to share)."""
+    from .._validation import ParameterTypeError
+
+    if not callable(getattr(plant, "discretize", None)):
+        raise ParameterTypeError(
+            "plants must be linear plants (ServoModel or TwoMassServo, with discretize), got "
+            f"{type(plant).__name__}"
+        )
+    try:
+        return _discretized(plant, repr(plant), Ts)
+    except TypeError:  # an unhashable plant: no sharing
+        return plant.discretize(Ts)
+
+
+@functools.lru_cache(maxsize=64)
+def _discretized(plant, key: str, Ts: float):  # key: repr tells -0.0 from 0.0
+    return plant.discretize(Ts)
+
+
 #: States from which the eigenvalues are computed off the main thread, so that a signal is
 #: handled while LAPACK works (a long actuator delay: 1000 states, seconds under load).
 INTERRUPTIBLE_STATES = 200
 
 
-def _poles(spec) -> np.ndarray:
-    A = loop_matrices(spec)[0]
+def _eigenvalues(A) -> np.ndarray:
     if A.shape[0] >= INTERRUPTIBLE_STATES:
-        poles = interruptible(np.linalg.eigvals, A)
-    else:
-        poles = np.linalg.eigvals(A)
+        return interruptible(np.linalg.eigvals, A)
+    return np.linalg.eigvals(A)
+
+
+def _poles(spec) -> np.ndarray:
+    poles = _eigenvalues(loop_matrices(spec)[0])
     return poles[np.argsort(-np.abs(poles), kind="stable")]

@@ -353,6 +353,7 @@ def _loop_scenario(loop, scenario: dict, encoder, actuator):
     reference and its disturbance at the same acceleration; the loop's sensor and actuator, if
     any."""
     from ..simulation import ServoLoop
+    from ..simulation._simulate import MAX_PLANT_STEPS
 
     if not isinstance(loop, ServoLoop):
         raise ParameterTypeError(
@@ -361,10 +362,17 @@ def _loop_scenario(loop, scenario: dict, encoder, actuator):
         )
     scale = loop.nominal.J / scenario["nominal"].J
     disturbance = scenario["disturbance"] if scale == 1.0 else scale * scenario["disturbance"]
+    samples = scenario["duration"] / loop.Ts  # inf for a subnormal Ts: round() would overflow
+    if not samples <= MAX_PLANT_STEPS:
+        raise ParameterValueError(
+            f"Ts must be at least {scenario['duration']:g} s / {MAX_PLANT_STEPS:.0e} = "
+            f"{scenario['duration'] / MAX_PLANT_STEPS:g} s (the {scenario['duration']:g} s "
+            f"comparison run holds at most {MAX_PLANT_STEPS:.0e} samples), got {loop.Ts!r}"
+        )
     run = {**scenario, "plant": loop.plant, "nominal": loop.nominal, "Ts": loop.Ts,
            "controller": loop.controller, "disturbance": disturbance,
            "duration": scenario["duration"] if loop.Ts == scenario["Ts"]
-           else loop.Ts * max(1, round(scenario["duration"] / loop.Ts))}  # fmt: skip
+           else loop.Ts * max(1, round(samples))}  # fmt: skip
     if loop.sensor is not None:
         encoder, actuator = loop.sensor, loop.actuator
     return run, encoder, actuator

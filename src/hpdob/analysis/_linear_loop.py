@@ -31,7 +31,15 @@ from ..controllers import LinearController
 from ..observers._system import LinearObserver
 from ..simulation._loop import ServoLoop
 
-__all__ = ["INPUTS", "OUTPUTS", "LoopSpec", "loop_matrices", "loop_spec", "state_names"]
+__all__ = [
+    "INPUTS",
+    "OUTPUTS",
+    "LoopSpec",
+    "delayed_state_matrix",
+    "loop_matrices",
+    "loop_spec",
+    "state_names",
+]
 
 #: Inputs of :func:`hpdob.closed_loop`: reference and its derivatives [rad, rad/s, rad/s^2],
 #: external torque [N m] (opposing the motor, as in :func:`hpdob.simulate`), measurement noise
@@ -204,3 +212,31 @@ def loop_matrices(spec: LoopSpec, *, broken: bool = False):
         inputs,
         [*OUTPUTS, "a"],
     )
+
+
+def delayed_state_matrix(template: np.ndarray, spec: LoopSpec, delay: int) -> np.ndarray:
+    """The state matrix of ``loop_matrices(spec with delay)`` from the one with one sample.
+
+    ``template`` is ``loop_matrices(dataclasses.replace(spec, delay=1))[0]``. With ``d >= 1``
+    samples of delay the loop's rows are the one-sample rows with the ``d - 1`` extra
+    delay-line states inserted: the plant reads the oldest command (the template's delay
+    column), the newest is the template's delay row, and the line shifts by ones. The same
+    numbers at shifted places, so the result equals ``loop_matrices`` bit for bit
+    (``tests/analysis/test_closed_loop.py`` checks); building it this way costs a copy instead
+    of the whole assembly (``tune`` scans up to 20 delays per candidate and corner).
+    """
+    if delay < 1:
+        raise ValueError(f"delay must be at least 1 sample here, got {delay}")
+    i = np.asarray(spec.plant.A).shape[0] + int(spec.backward_difference)  # the delay state
+    extra = delay - 1
+    n = template.shape[0] + extra
+    out = np.zeros((n, n))
+    # old index j -> j before the delay state, j + extra after it; the delay state's row (the
+    # newest command, u) moves to the end of the line, its column (the oldest) stays at i
+    old = np.arange(template.shape[0])
+    rows = np.where(old < i, old, old + extra)
+    cols = np.where(old <= i, old, old + extra)
+    out[np.ix_(rows, cols)] = template
+    line = np.arange(i, i + extra)
+    out[line, line + 1] = 1.0
+    return out

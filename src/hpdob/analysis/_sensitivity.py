@@ -318,8 +318,11 @@ def loop_margins(loop: ServoLoop) -> LoopMargins:
     Ab, Bb, Cb, Db = _broken_loop(spec)
     dt = spec.Ts
     w_nyq = math.pi / dt
-    n = int(_GRID_PER_DECADE * math.log10(w_nyq / _W_MIN)) + 1
-    w = np.geomspace(_W_MIN, w_nyq, n)
+    # Below w Ts ~ 1e-6, z = exp(j w Ts) rounds so close to the loop's poles at z = 1 that
+    # zI - A is singular in double precision (a short Ts); |L| is far outside _L_RANGE there.
+    w_min = max(_W_MIN, 1e-6 / dt)
+    n = int(_GRID_PER_DECADE * math.log10(w_nyq / w_min)) + 1
+    w = np.geomspace(w_min, w_nyq, n)
     w[-1] = w_nyq
     L = _response(Ab, Bb, Cb, Db, w, dt)
 

@@ -348,6 +348,7 @@ def noise_tradeoff(
     measurements=("state",),
     controller: Controller | LinearController | None = MISSING,
     pole_tolerance: float | None = POLE_TOLERANCE,
+    progress=None,
 ) -> NoiseTradeoff:
     r"""Estimation error for a sinusoidal disturbance against noise gain, per order and bandwidth.
 
@@ -392,6 +393,11 @@ def noise_tradeoff(
         be realised in double precision (high orders at low bandwidths) raises. ``None``
         accepts every design; the figures are then those of the rounded gains, i.e. of the
         observer as it would run.
+    progress : callable, optional
+        Called as ``progress(done, total)`` with the grid points computed so far: once with
+        ``done = 0`` before the first and then after each point (``total`` = rows x
+        bandwidths). Counts only: a display with the time left (``hpdob analyze tradeoff
+        --progress``) keeps its own clock. Default: silent.
 
     Returns
     -------
@@ -468,8 +474,16 @@ def noise_tradeoff(
         )
     if controller is not None:
         controller_system(controller, nominal, Ts)  # refuses what is not a controller, named
+    if progress is not None and not callable(progress):
+        raise ParameterTypeError(
+            f"progress must be a callable progress(done, total) or None, got {progress!r} of "
+            f"type {type(progress).__name__}"
+        )
     model = nominal.discretize(Ts)
     rows = [(m, kind) for kind in kinds for m in ms]
+    total = len(rows) * grid.size
+    if progress is not None:
+        progress(0, total)
     err = np.empty((len(rows), grid.size))
     gain = np.empty((len(rows), grid.size))
     u_gain = None if controller is None else np.empty((len(rows), grid.size))
@@ -485,6 +499,8 @@ def noise_tradeoff(
             gain[i, j] = observer_noise_gain(design, noise=noise)
             if u_gain is not None:
                 u_gain[i, j] = _u_noise_gain(design, nominal, Ts, controller, noise)
+            if progress is not None:
+                progress(i * grid.size + j + 1, total)
     if np.any(gain <= 0.0):
         raise ParameterValueError(
             f"noise={noise!r} does not reach the estimate for gain_direction="

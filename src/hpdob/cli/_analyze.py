@@ -8,6 +8,7 @@ b = 5e-5 N m s/rad; nominal J_n = 2.8e-4 kg m^2, b_n = 0; Ts = 1 ms; PD(50, 5).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 from dataclasses import asdict
 from pathlib import Path
@@ -289,14 +290,14 @@ def register(subparsers) -> None:
         help="observer bandwidth [rad/s] of your design: a star marks it at the loop's true "
         "plant (--J/--J-n or --b) on each map (default: no mark)",
     )
-    stab.add_argument(
-        "--progress",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="grid points done and time left on stderr, per order (default: when stderr is "
-        "a terminal)",
-    )
-    for p in (bode, noise, tradeoff, stab):
+    for p, what in ((bode, "orders"), (noise, "grid points"), (tradeoff, "grid points"),
+                    (stab, "grid points")):  # fmt: skip
+        p.add_argument(
+            "--progress",
+            action=argparse.BooleanOptionalAction,
+            default=None,
+            help=f"{what} done and time left on stderr (default: when stderr is a terminal)",
+        )
         p.set_defaults(handler=_run)
 
 
@@ -342,6 +343,29 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+@contextlib.contextmanager
+def _progress_line(label: str, args):
+    """``progress(done, total)`` for ``--progress`` (a :class:`ProgressLine`; a no-op without
+    it), its line ended on leaving, so an error or interrupt message starts on its own line."""
+    from ._progress import ProgressLine, show_progress
+
+    line = ProgressLine(label) if show_progress(args.progress) else None
+    try:
+        yield line if line is not None else (lambda done, total: None)
+    finally:
+        if line is not None:
+            line.end()
+
+
+def _below_nyquist(Ts: float) -> float:
+    """The largest frequency [Hz] at or below 1/(2 Ts) whose ``2 pi f Ts`` does not round above
+    pi: python-control warns "evaluation above Nyquist frequency" for one ulp more."""
+    top = 0.5 / Ts
+    while 2.0 * np.pi * top * Ts > np.pi:
+        top = float(np.nextafter(top, 0.0))
+    return top
+
+
 def _bode(args, files) -> list[str]:
     from .._table import columns_to_csv
     from ..analysis._estimation import estimation_response
@@ -357,11 +381,16 @@ def _bode(args, files) -> list[str]:
         )
     model = loop["nominal"].discretize(loop["Ts"])
     designs = [_design(args, model, m, args.bandwidth) for m in args.orders]
-    f = np.geomspace(0.1, nyquist, 400)
-    sens = [
-        gang_of_four(**loop, observer=d).S.frequency_response(2 * np.pi * f).frdata[0, 0]
-        for d in designs
-    ]
+    f = np.geomspace(0.1, _below_nyquist(loop["Ts"]), 400)
+    sens, margins = [], []  # per order: |S| on the grid, then the margins (the costly part)
+    with _progress_line("analyze bode:", args) as line:
+        line(0, 2 * len(designs))
+        for d in designs:
+            S = gang_of_four(**loop, observer=d).S
+            sens.append(S.frequency_response(2 * np.pi * f).frdata[0, 0])
+            line(2 * len(sens) - 1, 2 * len(designs))
+            margins.append(loop_margins(**loop, observer=d))
+            line(2 * len(sens), 2 * len(designs))
     save_figure(
         bode_figure(designs, f, sensitivities=sens, mark_frequency=args.frequency),
         files,
@@ -382,7 +411,7 @@ def _bode(args, files) -> list[str]:
         "measurement": args.measurement,
         "orders": {},
     }
-    for d, s in zip(designs, sens, strict=True):
+    for d, s, margin in zip(designs, sens, margins, strict=True):
         q = estimation_response(d, f)
         columns["frequency_Hz"] += f.tolist()
         columns["order"] += [d.order] * f.size
@@ -391,7 +420,6 @@ def _bode(args, files) -> list[str]:
         columns["error_abs"] += np.abs(1 - q).tolist()
         columns["S_abs"] += np.abs(s).tolist()
         below = np.nonzero(np.abs(q) < 10 ** (-3 / 20))[0]
-        margins = loop_margins(**loop, observer=d)
         summary["orders"][str(d.order)] = {
             "Q_peak_dB": float(20 * np.log10(np.abs(q).max())),
             "Q_peak_Hz": float(f[np.argmax(np.abs(q))]),
@@ -401,8 +429,8 @@ def _bode(args, files) -> list[str]:
             ),
             "S_peak_dB": float(20 * np.log10(np.abs(s).max())),
             "loop_margins": {
-                **asdict(margins),
-                "inertia_factor_range": list(margins.inertia_factor_range),
+                **asdict(margin),
+                "inertia_factor_range": list(margin.inertia_factor_range),
             },
         }
     columns_to_csv(columns, files.path("bode.csv"))
@@ -417,10 +445,15 @@ def _noise(args, files) -> list[str]:
 
     loop = _loop(args)
     model = loop["nominal"].discretize(loop["Ts"])
-    gains = [
-        [noise_gains(**loop, observer=_design(args, model, m, g)) for g in args.bandwidths]
-        for m in args.orders
-    ]
+    total = len(args.orders) * len(args.bandwidths)
+    with _progress_line("analyze noise:", args) as line:
+        line(0, total)
+        gains = []
+        for m in args.orders:
+            gains.append([])
+            for g in args.bandwidths:
+                gains[-1].append(noise_gains(**loop, observer=_design(args, model, m, g)))
+                line(len(gains[-1]) + (len(gains) - 1) * len(args.bandwidths), total)
     save_figure(noise_figure(args.bandwidths, args.orders, gains), files, "noise.png", args.dpi)
     rows = [
         {"order": m, "bandwidth_rad_s": g, **gain.to_dict()}
@@ -458,16 +491,18 @@ def _tradeoff(args, files) -> list[str]:
     noise = args.noise
     if noise is None:
         noise = "encoder" if "position" in args.measurements else "velocity"
-    result = noise_tradeoff(
-        nominal=ServoModel(args.J_n, args.b_n),
-        Ts=args.Ts,
-        frequency=args.frequency,
-        bandwidths=args.bandwidths,
-        orders=args.orders,
-        noise=noise,
-        measurements=args.measurements,
-        pole_tolerance=args.pole_tolerance,
-    )
+    with _progress_line("analyze tradeoff:", args) as line:
+        result = noise_tradeoff(
+            nominal=ServoModel(args.J_n, args.b_n),
+            Ts=args.Ts,
+            frequency=args.frequency,
+            bandwidths=args.bandwidths,
+            orders=args.orders,
+            noise=noise,
+            measurements=args.measurements,
+            pole_tolerance=args.pole_tolerance,
+            progress=line,
+        )
     save_figure(result.plot(), files, "tradeoff.png", args.dpi)
     result.to_csv(files.path("tradeoff.csv"))
     reference = result.orders[0]

@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
-from .._plotting import PAPER_WIDTH, legend_clear_of_data, mark_clipped, style_axes, time_axis
+from .._plotting import (
+    PAPER_WIDTH,
+    legends_clear_of_data,
+    mark_clipped,
+    style_axes,
+    time_axis,
+)
 
 __all__ = ["paper_figures"]
 
@@ -203,7 +209,7 @@ def paper_figures(results) -> dict:
     for fig in figures.values():  # every panel shows the whole run (10 s, not to 9.999 s)
         for ax in fig.axes:
             time_axis(ax, pd.t, pd.Ts)
-    # The legend bands are measured when each figure has all its labels and titles.
-    for ax, ncol in bands:
-        legend_clear_of_data(ax, ncol=ncol)
+    # The legend bands are measured when each figure has all its labels and titles (one
+    # layout pass per figure for all its bands).
+    legends_clear_of_data(bands)
     return figures

@@ -111,6 +111,9 @@ def reproduce(out_dir="hpdob-results", *, figures: bool = True) -> dict:
             for name, fig in paper_figures(results).items():
                 try:
                     files.save_figure(f"{name}.png", fig, dpi=200)
+                    # the PDF keeps the PNG's constrained layout instead of solving it again
+                    # (its positions differ by < 0.2 % of the figure; the data are the same)
+                    fig.set_layout_engine("none")
                     files.save_figure(f"{name}.pdf", fig)
                 finally:
                     plt.close(fig)

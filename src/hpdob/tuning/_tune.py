@@ -129,6 +129,7 @@ def _scenario(nominal, Ts, disturbance_frequency, scenario):
     as the paper's), unless given."""
     from ..signals import Sine, Step
     from ..simulation import _canonical as paper  # the paper's set-up, as data
+    from ..simulation._simulate import MAX_PLANT_STEPS
 
     if scenario is not None:
         if not isinstance(scenario, dict):
@@ -146,7 +147,14 @@ def _scenario(nominal, Ts, disturbance_frequency, scenario):
     f = 2.0 if disturbance_frequency is None else float(np.atleast_1d(disturbance_frequency)[0])
     scale = nominal.J / paper.NOMINAL.J  # the paper's disturbance acceleration at any J_n
     disturbance = Step(1.5005, 0.05 * scale) + Sine(0.02 * scale, f, start=2.5005)
-    duration = Ts * max(1, round(paper.DURATION / Ts))  # the paper's 10 s, in whole samples
+    samples = paper.DURATION / Ts  # inf for a subnormal Ts: round() would overflow
+    if not samples <= MAX_PLANT_STEPS:
+        raise ParameterValueError(
+            f"Ts must be at least {paper.DURATION:g} s / {MAX_PLANT_STEPS:.0e} = "
+            f"{paper.DURATION / MAX_PLANT_STEPS:g} s (tune's {paper.DURATION:g} s verification "
+            f"run holds at most {MAX_PLANT_STEPS:.0e} samples), got {Ts!r}"
+        )
+    duration = Ts * max(1, round(samples))  # the paper's 10 s, in whole samples
     return {"reference": paper.REFERENCE, "disturbance": disturbance, "duration": duration}
 
 
@@ -200,13 +208,15 @@ def _radius(loop) -> float:
     return float(np.abs(closed_loop_poles(loop)).max())
 
 
-def _delay_margin(base, corners, plant, delay: int) -> int:
+def _delay_margin(base, corners, delay: int) -> int:
     """Largest d <= MAX_EXTRA_DELAY such that the loop is stable at every corner with every
     extra delay of 0..d samples (a robust candidate is known to be stable with 0 and 1); the
-    scan also stops where the linear loop's delay limit (MAX_DELAY_SAMPLES) does."""
+    scan also stops where the linear loop's delay limit (MAX_DELAY_SAMPLES) does. ``corners``
+    are the corners' plants."""
+    from ..analysis import spectral_radii
+
     for extra in range(2, min(MAX_EXTRA_DELAY, MAX_DELAY_SAMPLES - delay) + 1):
-        actuator = Actuator(delay_samples=delay + extra)
-        if any(_radius(base.replace(plant=plant(*c), actuator=actuator)) >= 1.0 for c in corners):
+        if (spectral_radii(base, corners, [delay + extra]) >= 1.0).any():
             return extra - 1
     return MAX_EXTRA_DELAY
 
@@ -314,6 +324,7 @@ def tune(
     ...               disturbance_frequency=2.0, families=["position"])   # doctest: +SKIP
     >>> print(result.report())                                            # doctest: +SKIP
     """
+    from ..analysis import spectral_radii
     from ..analysis._estimation import estimation_response
     from ..analysis._noise import noise_gains
     from ..analysis._sensitivity import loop_margins
@@ -399,6 +410,7 @@ def tune(
     def plant(J_ratio: float, b: float) -> ServoModel:
         return ServoModel(J_ratio * nominal.J, b)
 
+    corner_plants = [plant(*c) for c in corners]
     rows = []
     for done, (family, m, parameter, value, design) in enumerate(candidates):
         checkpoint("tune-candidate")  # a signal Python ignored ends the search here
@@ -410,10 +422,10 @@ def tune(
                          observer=design, sensor=sensor, actuator=linear_actuator)  # fmt: skip
         error = np.abs(estimation_response(design, frequencies, error=True))
         accuracy = float(np.sqrt(np.mean(error**2)))
-        radius = max(_radius(base.replace(plant=plant(*c))) for c in corners)
-        radius_margin = max(
-            _radius(base.replace(plant=plant(*c), actuator=margin_actuator)) for c in corners
-        )
+        # the corners with the actuator's delay and with one more sample (margin_actuator's)
+        radius, radius_margin = (float(v) for v in spectral_radii(
+            base, corner_plants, [actuator.delay_samples, margin_actuator.delay_samples]
+        ).max(axis=1))  # fmt: skip
         tau_noise = u_noise = 0.0
         if sigma > 0.0 and radius < 1.0:
             try:
@@ -425,7 +437,7 @@ def tune(
             tau_noise = u_noise = math.inf
         robust = radius < 1.0 and radius_margin < 1.0
         if robust:
-            delay_margin = _delay_margin(base, corners, plant, actuator.delay_samples)
+            delay_margin = _delay_margin(base, corner_plants, actuator.delay_samples)
         else:
             delay_margin = 0 if radius < 1.0 else -1
         rows.append({

@@ -1,0 +1,85 @@
+"""``spectral_radii`` against ``closed_loop_poles`` of each loop built and validated in full."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from hpdob import (
+    PD,
+    PID,
+    Actuator,
+    Encoder,
+    ParameterTypeError,
+    ParameterValueError,
+    ServoLoop,
+    ServoModel,
+    TwoMassServo,
+    closed_loop_poles,
+    design_observer,
+)
+from hpdob.analysis import spectral_radii
+from hpdob.analysis._linear_loop import delayed_state_matrix, loop_matrices, loop_spec
+from hpdob.observers import design_kalman
+
+NOMINAL = ServoModel(2.8e-4, 1e-4)
+TS = 1e-3
+MODEL = NOMINAL.discretize(TS)
+PLANTS = [ServoModel(0.7 * 2.8e-4, 0.0), ServoModel(1.3 * 2.8e-4, 2e-4), NOMINAL]
+DELAYS = [0, 1, 2, 3, 7, 20]
+
+
+def _loops():
+    yield ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=PD(50.0, 5.0),
+                    observer=design_observer(MODEL, order=1, bandwidth=300.0))  # fmt: skip
+    yield ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS,
+                    controller=PD(50.0, 5.0, velocity="observer"),
+                    observer=design_observer(MODEL, order=2, bandwidth=150.0,
+                                             measurement="position"),
+                    sensor=Encoder(16384, velocity="backward-difference"))  # fmt: skip
+    yield ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=PID(50.0, 100.0, 5.0),
+                    observer=design_kalman(MODEL, order=1, position_noise_std=1e-4,
+                                           process_noise_std=1e-2),
+                    sensor=Encoder(4096))  # fmt: skip
+    yield ServoLoop(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=PD(50.0, 5.0),
+                    observer=None)  # fmt: skip
+
+
+@pytest.mark.parametrize("index", range(4))
+def test_radii_are_those_of_each_loop_built_in_full(index):
+    loop = list(_loops())[index]
+    plants = [*PLANTS, TwoMassServo(1.4e-4, 1.4e-4, 20.0)]
+    radii = spectral_radii(loop, plants, DELAYS)
+    assert radii.shape == (len(DELAYS), len(plants))
+    for i, d in enumerate(DELAYS):
+        for j, plant in enumerate(plants):
+            full = loop.replace(plant=plant, actuator=Actuator(delay_samples=d))
+            assert radii[i, j] == np.abs(closed_loop_poles(full)).max()  # bit for bit
+
+
+@pytest.mark.parametrize("index", range(4))
+def test_delayed_state_matrix_is_loop_matrices_bit_for_bit(index):
+    spec = loop_spec(list(_loops())[index])
+    for plant in (*PLANTS, TwoMassServo(1.4e-4, 1.4e-4, 20.0)):
+        one = dataclasses.replace(spec, plant=plant.discretize(TS), delay=1)
+        template = loop_matrices(one)[0]
+        for d in range(1, 25):
+            expected = loop_matrices(dataclasses.replace(one, delay=d))[0]
+            got = delayed_state_matrix(template, one, d)
+            assert got.shape == expected.shape
+            assert np.array_equal(got.view(np.uint64), expected.view(np.uint64))  # bits too
+
+
+def test_bad_arguments_are_named():
+    loop = next(_loops())
+    with pytest.raises(ParameterValueError, match="delay_samples must be integers"):
+        spectral_radii(loop, PLANTS, [-1])
+    with pytest.raises(ParameterValueError, match="delay_samples must be integers"):
+        spectral_radii(loop, PLANTS, [1.5])
+    with pytest.raises(ParameterTypeError, match="plants must be linear plants"):
+        spectral_radii(loop, ["motor"], [0])
+    saturated = loop.replace(actuator=Actuator(torque_limit=0.4))
+    with pytest.raises(ParameterValueError, match="torque_limit must be None"):
+        spectral_radii(saturated, PLANTS, [0])
