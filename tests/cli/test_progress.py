@@ -16,7 +16,7 @@ from hpdob.cli import _simulate as cli_simulate
 from hpdob.cli import _tune as cli_tune
 from hpdob.cli import main
 from hpdob.cli._progress import ProgressLine, format_seconds
-from hpdob.simulation._scenario import _read_toml, scenario_from_dict
+from hpdob.simulation._scenario import read_toml, scenario_from_dict
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -150,7 +150,7 @@ def test_tune_progress_has_time_left_per_stage():
 
 
 def _canonical(duration):
-    data = _read_toml(EXAMPLES / "canonical_hpdob.toml")
+    data = read_toml(EXAMPLES / "canonical_hpdob.toml")
     data["duration"] = duration
     return scenario_from_dict(data)
 

@@ -20,16 +20,20 @@ bode_figure, noise_figure
 """
 
 from ._closed_loop import closed_loop, closed_loop_poles, spectral_radii
+from ._comparison import DEFAULT_NOISE_GAIN as DEFAULT_NOISE_GAIN
 from ._comparison import Comparison, compare_observers
 from ._contact_map import ContactStabilityMap, contact_stability_map
 from ._estimation import estimation_response, estimation_transfer
 from ._figures import bode_figure, noise_figure
 from ._force_response import ForceResponse, force_response
+from ._linear_loop import MAX_DELAY_SAMPLES as MAX_DELAY_SAMPLES
 from ._noise import NoiseGains, noise_gains, observer_noise_gain
 from ._robust import StabilityMap, robust_stability_map
 from ._sensitivity import GangOfFour, LoopMargins, gang_of_four, loop_margins, loop_transfer
 from ._tradeoff import NoiseTradeoff, noise_tradeoff
 
+# Names imported "as" themselves and absent from __all__ are hpdob-internal: for the other
+# subpackages, not part of the public API (docs/architecture.md, "Dependency order").
 __all__ = [
     "Comparison",
     "ContactStabilityMap",

@@ -7,7 +7,7 @@ import functools
 import numpy as np
 
 from .._interrupts import interruptible
-from ..simulation._loop import ServoLoop, accepts_loop
+from ..simulation import ServoLoop, accepts_loop
 from ._linear_loop import (
     INPUTS,
     OUTPUTS,

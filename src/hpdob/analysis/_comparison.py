@@ -20,7 +20,7 @@ import numpy as np
 
 from .._table import columns_to_csv, columns_to_pandas
 from .._validation import ParameterTypeError, ParameterValueError, check_choice, positive
-from ..simulation._loop import MISSING, loop_parts
+from ..simulation import MISSING, loop_parts
 
 __all__ = ["Comparison", "compare_observers", "default_candidates"]
 
@@ -227,7 +227,7 @@ class Comparison:
             ``rule`` (how the observers were matched), ``noise_gain`` [N m/rad],
             ``angle_noise`` [rad] and ``rows``.
         """
-        from ..simulation._result import json_ready
+        from ..simulation import json_ready
 
         return json_ready(
             {
@@ -352,8 +352,7 @@ def _loop_scenario(loop, scenario: dict, encoder, actuator):
     """The comparison's run in ``loop``: its plant, nominal, Ts and controller; the paper's
     reference and its disturbance at the same acceleration; the loop's sensor and actuator, if
     any."""
-    from ..simulation import ServoLoop
-    from ..simulation._simulate import MAX_PLANT_STEPS
+    from ..simulation import MAX_PLANT_STEPS, ServoLoop
 
     if not isinstance(loop, ServoLoop):
         raise ParameterTypeError(
@@ -458,9 +457,8 @@ def compare_observers(
     ...     for row in table.rows if row["tuning"] == "matched")   # all at the same noise
     True
     """
-    from ..simulation import ServoLoop, simulate
-    from ..simulation import _canonical as paper  # the paper's set-up, as data
-    from ..simulation._simulate import _sample_count
+    from ..simulation import ServoLoop, sample_count, simulate
+    from ..simulation import canonical as paper  # the paper's set-up, as data
     from ._noise import noise_gains
     from ._sensitivity import loop_margins
 
@@ -493,7 +491,7 @@ def compare_observers(
         scenario, encoder, actuator = _loop_scenario(loop, scenario, encoder, actuator)
     if duration is not None:
         scenario["duration"] = positive(duration, "duration", "a positive duration [s]")
-        _sample_count(scenario["Ts"], scenario["duration"])  # before the tuning, not after
+        sample_count(scenario["Ts"], scenario["duration"])  # before the tuning, not after
     nominal, Ts = scenario["nominal"], scenario["Ts"]
     model = nominal.discretize(Ts)
     sigma = encoder.resolution / math.sqrt(12.0)

@@ -29,10 +29,8 @@ import math
 import numpy as np
 
 from .._validation import ParameterTypeError, as_grid
-from ..observers._error_dynamics import unit_root_polynomial
-from ..observers._response import estimation_frequency_response, nominal_loop
-from ..observers._response import observer_matrices as _matrices
-from ..observers._system import as_system
+from ..observers import as_system, estimation_frequency_response, nominal_loop, unit_root_polynomial
+from ..observers import observer_matrices as _matrices
 
 __all__ = [
     "estimation_response",

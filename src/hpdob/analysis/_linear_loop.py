@@ -28,8 +28,8 @@ import numpy as np
 
 from .._validation import ParameterValueError
 from ..controllers import LinearController
-from ..observers._system import LinearObserver
-from ..simulation._loop import ServoLoop
+from ..observers import LinearObserver
+from ..simulation import ServoLoop
 
 __all__ = [
     "INPUTS",

@@ -23,8 +23,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .._validation import ParameterValueError, check_choice
-from ..observers._system import as_system
-from ..simulation._loop import ServoLoop, accepts_loop
+from ..observers import as_system
+from ..simulation import ServoLoop, accepts_loop
 from ._estimation import observer_matrices
 from ._linear_loop import INPUTS, OUTPUTS, loop_matrices, loop_spec
 

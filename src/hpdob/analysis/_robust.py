@@ -25,11 +25,9 @@ from .._validation import (
     positive,
 )
 from ..controllers import Controller, LinearController, controller_system
-from ..models._servo import ServoModel
-from ..observers import design_at_bandwidth, spec_label
-from ..observers._system import MEASUREMENTS
-from ..simulation._devices import Encoder
-from ..simulation._loop import MISSING, ServoLoop, loop_parts
+from ..models import ServoModel
+from ..observers import MEASUREMENTS, design_at_bandwidth, spec_label
+from ..simulation import MISSING, Encoder, ServoLoop, loop_parts
 from ._linear_loop import MAX_DELAY_SAMPLES, LoopSpec, loop_matrices
 
 __all__ = ["StabilityMap", "robust_stability_map"]

@@ -28,7 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..simulation._loop import ServoLoop, accepts_loop
+from ..simulation import ServoLoop, accepts_loop
 from ._linear_loop import INPUTS, loop_matrices, loop_spec
 
 __all__ = ["GangOfFour", "LoopMargins", "gang_of_four", "loop_margins"]

@@ -26,12 +26,9 @@ from .._validation import (
     readonly,
 )
 from ..controllers import Controller, LinearController, controller_system
-from ..models._servo import ServoModel
-from ..observers._realised import POLE_TOLERANCE
-from ..observers._synthesis import design_observer
-from ..observers._system import MEASUREMENTS
-from ..simulation._devices import Encoder
-from ..simulation._loop import MISSING, loop_parts
+from ..models import ServoModel
+from ..observers import MEASUREMENTS, POLE_TOLERANCE, design_observer
+from ..simulation import MISSING, Encoder, loop_parts
 from ._estimation import estimation_response
 from ._noise import OBSERVER_CHANNELS, noise_gains, observer_noise_gain
 

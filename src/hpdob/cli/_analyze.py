@@ -153,7 +153,7 @@ def _add_measurement(parser: argparse.ArgumentParser, *, loop: bool = True) -> N
 
 
 def _design(args, model, order: int, bandwidth: float):
-    from ..observers._synthesis import design_observer
+    from ..observers import design_observer
 
     return design_observer(
         model, order=order, bandwidth=bandwidth, measurement=getattr(args, "measurement", "state")
@@ -302,8 +302,8 @@ def register(subparsers) -> None:
 
 
 def _loop(args):
-    from ..models._servo import ServoModel
-    from ..simulation._devices import Actuator
+    from ..models import ServoModel
+    from ..simulation import Actuator
 
     velocity = getattr(args, "pd_velocity", "measured")
     return {
@@ -368,9 +368,7 @@ def _below_nyquist(Ts: float) -> float:
 
 def _bode(args, files) -> list[str]:
     from .._table import columns_to_csv
-    from ..analysis._estimation import estimation_response
-    from ..analysis._figures import bode_figure
-    from ..analysis._sensitivity import gang_of_four, loop_margins
+    from ..analysis import bode_figure, estimation_response, gang_of_four, loop_margins
 
     loop = _loop(args)
     nyquist = 0.5 / loop["Ts"]
@@ -440,8 +438,7 @@ def _bode(args, files) -> list[str]:
 
 def _noise(args, files) -> list[str]:
     from .._table import columns_to_csv
-    from ..analysis._figures import noise_figure
-    from ..analysis._noise import noise_gains
+    from ..analysis import noise_figure, noise_gains
 
     loop = _loop(args)
     model = loop["nominal"].discretize(loop["Ts"])
@@ -485,8 +482,8 @@ def _describe(args) -> dict:
 
 
 def _tradeoff(args, files) -> list[str]:
-    from ..analysis._tradeoff import noise_tradeoff
-    from ..models._servo import ServoModel
+    from ..analysis import noise_tradeoff
+    from ..models import ServoModel
 
     noise = args.noise
     if noise is None:

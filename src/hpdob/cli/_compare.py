@@ -95,8 +95,7 @@ def _loop(args: argparse.Namespace):
 def _run(args: argparse.Namespace) -> int:
 
     from .._files import staged_outputs
-    from ..analysis import compare_observers
-    from ..analysis._comparison import DEFAULT_NOISE_GAIN
+    from ..analysis import DEFAULT_NOISE_GAIN, compare_observers
 
     sensors = ("ideal", "encoder") if args.sensor == "both" else (args.sensor,)
     gain = DEFAULT_NOISE_GAIN if args.noise_gain is None else args.noise_gain

@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 
-from ..models._servo import ServoModel
+from ..models import ServoModel
 from ._options import add_nominal_arguments, finite, reject_plant_arguments
 
 __all__ = ["register"]

@@ -85,7 +85,7 @@ def register(subparsers) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..export._c import export_c
+    from ..export import export_c
 
     ranges = ranges_from_args(args)
     design = design_from_args(args)

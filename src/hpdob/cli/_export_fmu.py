@@ -38,7 +38,7 @@ def register(subparsers) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..export._fmu import FMUBuildError, export_fmu
+    from ..export import FMUBuildError, export_fmu
     from ._errors import CLIError
 
     design = design_from_args(args)

@@ -11,7 +11,7 @@ import argparse
 import math
 from pathlib import Path
 
-from ..paper._scenario import CONTROLLER, NOMINAL, PLANT, TS
+from ..paper import CONTROLLER, NOMINAL, PLANT, TS
 
 __all__ = [
     "add_controller_arguments",

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from ..simulation._result import json_ready
+from ..simulation import json_ready
 from ._errors import CLIError
 
 __all__ = ["MAX_DPI", "MAX_PIXELS", "dpi_argument", "save_figure", "write_json"]

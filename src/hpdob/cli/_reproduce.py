@@ -32,7 +32,7 @@ def register(subparsers) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..paper._reproduce import reproduce, summary_table
+    from ..paper import reproduce, summary_table
 
     start = time.perf_counter()
     results = reproduce(args.out)

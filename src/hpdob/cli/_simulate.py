@@ -58,10 +58,10 @@ def register(subparsers) -> None:
 
 def _scenario(args):
     """The scenario's simulate() arguments and metric windows, with the command's overrides."""
-    from ..simulation._scenario import _read_toml, metric_windows, scenario_from_dict
+    from ..simulation import metric_windows, read_toml, scenario_from_dict
     from ._errors import CLIError
 
-    data = _read_toml(args.scenario)
+    data = read_toml(args.scenario)
     if args.measurement is not None:
         table = data.get("observer")
         if not isinstance(table, dict):
@@ -173,11 +173,15 @@ def _run(args: argparse.Namespace) -> int:
     import warnings
 
     from .._files import check_file_stem, check_output, staged_outputs
-    from ..simulation._result import metrics_json
-    from ..simulation._scenario import _read_toml, plant_type_of
-    from ..simulation._simulate import SimulationDivergedWarning, simulate
+    from ..simulation import (
+        SimulationDivergedWarning,
+        metrics_json,
+        plant_type_of,
+        read_toml,
+        simulate,
+    )
 
-    data = _read_toml(args.scenario)
+    data = read_toml(args.scenario)
     kind = plant_type_of(data)  # the registry: a type with a loop of its own runs that loop
     if kind is not None and kind.scenario is not None:
         return _run_own_loop(args, data, kind)
@@ -242,11 +246,11 @@ MAX_SAMPLES = 2_000_000
 def _check_size(kwargs, *, showing: bool = False) -> None:
     """Refuse a run beyond :data:`MAX_SAMPLES`, and state the size of a long one before it
     when its progress is not shown (``showing``)."""
-    from ..simulation._simulate import MAX_PLANT_STEPS, _sample_count
+    from ..simulation import MAX_PLANT_STEPS, sample_count
     from ._errors import CLIError
 
     try:
-        n = _sample_count(kwargs["Ts"], kwargs["duration"])
+        n = sample_count(kwargs["Ts"], kwargs["duration"])
         substeps = kwargs["plant"].substeps(kwargs["Ts"], kwargs.get("substeps"))
     except (TypeError, ValueError):
         return  # simulate() reports it with its own message

@@ -73,8 +73,7 @@ def partial_path(out: Path) -> Path:
 
 def _run(args: argparse.Namespace) -> int:
     from .._interrupts import Interrupted, acknowledge
-    from ..simulation import SweepIncomplete, SweepInterrupted, sweep
-    from ..simulation._scenario import load_sweep
+    from ..simulation import SweepIncomplete, SweepInterrupted, load_sweep, sweep
 
     if args.scheduler is not None and not args.scheduler.strip():  # '' used to run locally
         raise CLIError(

@@ -91,11 +91,11 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.export_c is not None:  # checked before the search, not after it
         from .._validation import check_choice
-        from ..export._c import DTYPES, _check_directory, _check_prefix
+        from ..export import DTYPES, check_directory, check_prefix
 
-        _check_prefix(args.prefix)
+        check_prefix(args.prefix)
         check_choice(args.dtype, "dtype", DTYPES)
-        _check_directory(args.export_c)
+        check_directory(args.export_c)
     elif (args.prefix, args.dtype) != ("dob", "double"):
         raise CLIError("--prefix and --dtype apply to --export-c only")
     if args.counts_per_rev is not None and args.counts_per_rev < 1:

@@ -9,8 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError
-from ..observers import Program, Term
-from ..observers._program import render_sum
+from ..observers import Program, Term, render_sum
 
 __all__ = ["RESET_OPERANDS", "ControllerProgram", "PythonController", "Switch", "compile_python"]
 

@@ -8,12 +8,17 @@ fixed_point_design, FixedPointDesign, FixedPointObserver, fixed_point_error_boun
     fixed-point C, and its error bound against the exact observer.
 """
 
+from ._c import DTYPES as DTYPES
+from ._c import check_directory as check_directory
+from ._c import check_prefix as check_prefix
 from ._c import export_c, render_c
 from ._fixed import FixedPointDesign, fixed_point_design
 from ._fixed_runtime import FixedPointObserver, fixed_point_error_bound
 from ._fixed_tables import FixedPointRow
 from ._fmu import FMUBuildError, export_fmu
 
+# Names imported "as" themselves and absent from __all__ are hpdob-internal: for the other
+# subpackages, not part of the public API (docs/architecture.md, "Dependency order").
 __all__ = [
     "FMUBuildError",
     "FixedPointDesign",

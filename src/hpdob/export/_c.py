@@ -20,11 +20,10 @@ from .._files import staged_outputs
 from .._validation import ParameterTypeError, ParameterValueError, check_choice
 from .._version import __version__
 from ..controllers import LinearController
-from ..observers._program import RESET_OPERANDS, render_sum
-from ..observers._system import UNITS, LinearObserver, as_system
+from ..observers import RESET_OPERANDS, UNITS, LinearObserver, as_system, render_sum
 from ._c_fixed import design_for, render_fixed
 from ._c_guard import guard_header, guard_helpers, guarded_init, guarded_output, guarded_update
-from ._c_names import _check_directory, _check_prefix
+from ._c_names import check_directory, check_prefix
 from ._c_outputs import (
     coulomb_constants,
     coulomb_expression,
@@ -371,7 +370,7 @@ def render_c(
         return render_controller(obs, prefix=prefix, dtype=dtype, nan_guard=nan_guard,
                                  literal=_literal, ranges=ranges)  # fmt: skip
     dtype = check_choice(dtype, "dtype", DTYPES)
-    prefix = _check_prefix(prefix)
+    prefix = check_prefix(prefix)
     guard = _check_guard(nan_guard)
     if dtype in FIXED:
         if guard:
@@ -491,7 +490,7 @@ def export_c(
     axis1.h axis1.c
     True
     """
-    path = _check_directory(directory)
+    path = check_directory(directory)
     header, source = render_c(obs, prefix=prefix, dtype=dtype, nan_guard=nan_guard, ranges=ranges)
     names = (f"{prefix}.h", f"{prefix}.c")
     for name in names:  # refused before anything is written, the other file untouched

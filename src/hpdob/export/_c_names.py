@@ -26,7 +26,7 @@ STANDARD_HEADERS = (
 )  # fmt: skip
 
 
-def _check_prefix(prefix) -> str:
+def check_prefix(prefix) -> str:
     if not isinstance(prefix, str):
         raise ParameterTypeError(
             f"prefix must be a str (a C identifier such as 'dob'), got {prefix!r} of type "
@@ -51,7 +51,7 @@ def _check_prefix(prefix) -> str:
     return prefix
 
 
-def _check_directory(directory) -> Path:
+def check_directory(directory) -> Path:
     if not isinstance(directory, (str, os.PathLike)):
         raise ParameterTypeError(
             f"directory must be a path (str or os.PathLike), got {type(directory).__name__}"

@@ -18,7 +18,7 @@ import re
 
 from .._validation import ParameterTypeError, ParameterValueError, check_choice
 from .._version import __version__
-from ..observers._program import render_sum
+from ..observers import render_sum
 
 __all__ = ["render_controller"]
 
@@ -53,12 +53,12 @@ def render_controller(controller, *, prefix: str, dtype: str, nan_guard, literal
     """Text of ``<prefix>.h`` and ``<prefix>.c`` for a :class:`LinearController` (the
     arguments as for :func:`hpdob.export.render_c`; floating point only: ``nan_guard`` False,
     no ``ranges``; ``literal(value, dtype, name)`` prints a constant, from ``_c.py``)."""
-    from ._c_names import _check_prefix
+    from ._c_names import check_prefix
 
     _literal = literal
 
     dtype = check_choice(dtype, "dtype", ("double", "float"))
-    prefix = _check_prefix(prefix)
+    prefix = check_prefix(prefix)
     if ranges is not None:
         raise ParameterValueError(
             "ranges are for the fixed-point export of observers; a controller is exported in "

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._validation import ParameterValueError, check_choice
-from ..observers._system import LinearObserver, as_system
+from ..observers import LinearObserver, as_system
 from ._fixed_tables import (
     _check_ranges,
     _frac_bits,

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._validation import ParameterValueError, as_int, positive
-from ..observers._system import LinearObserver
+from ..observers import LinearObserver
 
 __all__ = ["FixedPointRow"]
 

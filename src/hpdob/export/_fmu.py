@@ -26,8 +26,8 @@ from xml.sax.saxutils import escape, quoteattr
 from .._files import atomic_path
 from .._validation import ParameterTypeError, ParameterValueError
 from .._version import __version__
-from ..observers._system import as_system
-from ._c import _check_prefix, render_c
+from ..observers import as_system
+from ._c import check_prefix, render_c
 from ._fmu_wrapper import fmi2_wrapper
 
 __all__ = ["FMUBuildError", "export_fmu", "fmu_platform"]
@@ -250,7 +250,7 @@ def export_fmu(obs, path, *, model_identifier: str = "dob", compiler=None) -> Pa
     True
     """
     system = as_system(obs, "obs")
-    identifier = _check_prefix(model_identifier)
+    identifier = check_prefix(model_identifier)
     if not isinstance(path, (str, os.PathLike)):
         raise ParameterTypeError(f"path must be a path (str or os.PathLike), got {path!r}")
     path = Path(path)

@@ -15,8 +15,7 @@ from .._validation import (
     as_real_vector,
     readonly,
 )
-from ..observers._core import initial_state
-from ..observers._system import as_system
+from ..observers import as_system, initial_state
 from ._checks import check_lengths, check_time, sample_view
 
 __all__ = ["EstimationResult", "estimate_disturbance"]

@@ -29,7 +29,7 @@ from pathlib import Path
 import numba
 import numpy as np
 
-from ..observers._program import program_coefficients, program_structure
+from ..observers import program_coefficients, program_structure
 from ._checks import immutable
 
 __all__ = [

@@ -17,15 +17,23 @@ MujocoServo
 from ._contact import InContact
 from ._environment import Environment
 from ._lti import is_lti as is_lti
+
+# Names imported "as" themselves and absent from __all__ are hpdob-internal: for the other
+# subpackages, not part of the public API (docs/architecture.md, "Dependency order").
+from ._mjcf import INTEGRATORS as INTEGRATORS
+from ._mjcf import compile_model as compile_model
+from ._mjcf import import_mujoco as import_mujoco
+from ._mjcf import object_names as object_names
+from ._mjcf import read_mjcf as read_mjcf
 from ._mujoco import MujocoServo
+from ._plant import DEFAULT_SUBSTEPS as DEFAULT_SUBSTEPS
+from ._plant import MAX_PLANT_STEPS as MAX_PLANT_STEPS
 from ._plant import ExactSubsteps, Plant, PlantSession
 from ._servo import DiscreteServoModel, ServoModel
 from ._servo import as_discrete_model as as_discrete_model
 from ._servo import as_servo_model as as_servo_model
 from ._two_mass import DiscreteTwoMassServo, TwoMassServo
 
-# Names imported "as" themselves and absent from __all__ are hpdob-internal: for the other
-# subpackages, not part of the public API (docs/architecture.md, "Dependency order").
 __all__ = [
     "DiscreteServoModel",
     "DiscreteTwoMassServo",

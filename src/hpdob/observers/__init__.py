@@ -27,11 +27,17 @@ characteristic_polynomial, error_matrix, extrapolation_weights
 
 from . import _families  # noqa: F401  (registers the built-in families)
 from ._core import estimate, initial_state, outputs, update
+from ._error_dynamics import unit_root_polynomial as unit_root_polynomial
 from ._eso import ESODesign, ExtendedStateObserver, design_eso
 from ._friction import CoulombFriction, coulomb_torque
 from ._kalman import KalmanDesign, KalmanDisturbanceObserver, design_kalman, kalman_process_noise
 from ._position import PositionObserverDesign
+from ._program import RESET_OPERANDS as RESET_OPERANDS
+from ._program import program_coefficients as program_coefficients
+from ._program import program_structure as program_structure
+from ._program import render_sum as render_sum
 from ._reaction import reaction_torque_observer
+from ._realised import POLE_TOLERANCE as POLE_TOLERANCE
 from ._registry import (
     Family,
     Parameter,
@@ -47,6 +53,9 @@ from ._registry import (
     tuned_value,
     unregister_family,
 )
+from ._response import estimation_frequency_response as estimation_frequency_response
+from ._response import nominal_loop as nominal_loop
+from ._response import observer_matrices as observer_matrices
 from ._runtime import DisturbanceObserver, Observer
 from ._synthesis import (
     ObserverDesign,
@@ -55,8 +64,13 @@ from ._synthesis import (
     error_matrix,
     extrapolation_weights,
 )
+from ._system import MEASUREMENTS as MEASUREMENTS
+from ._system import UNITS as UNITS
 from ._system import ErrorDynamics, LinearObserver, Program, Term, as_system
+from ._system import check_designed_on as check_designed_on
 
+# Names imported "as" themselves and absent from __all__ are hpdob-internal: for the other
+# subpackages, not part of the public API (docs/architecture.md, "Dependency order").
 __all__ = [
     "CoulombFriction",
     "DisturbanceObserver",

@@ -50,8 +50,7 @@ from .._validation import (
     positive,
     readonly,
 )
-from ..models import as_discrete_model
-from ..models._servo import DiscreteServoModel
+from ..models import DiscreteServoModel, as_discrete_model
 from ._error_dynamics import schur_cohn_stable
 from ._realised import POLE_TOLERANCE, check_realised, matrix_characteristic_polynomial
 from ._runtime import _DesignedObserver

@@ -32,8 +32,7 @@ from .._validation import (
     positive,
     readonly,
 )
-from ..models import as_discrete_model
-from ..models._servo import DiscreteServoModel
+from ..models import DiscreteServoModel, as_discrete_model
 from ._error_dynamics import (
     characteristic_basis,
     characteristic_polynomial,

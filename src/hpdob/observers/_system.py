@@ -227,7 +227,7 @@ class LinearObserver:
         Ts = positive(self.Ts, "Ts", "a positive finite sampling period [s]")
         model = self.model
         if model is not None:
-            from ..models._servo import DiscreteServoModel
+            from ..models import DiscreteServoModel
 
             if not isinstance(model, DiscreteServoModel):
                 raise ParameterTypeError(

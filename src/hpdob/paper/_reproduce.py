@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from .._files import check_output, staged_outputs
 from .._interrupts import checkpoint
-from ..simulation._result import metrics_json
+from ..simulation import metrics_json
 from ._scenario import RUNS, run
 
 __all__ = ["reproduce", "summary_table"]

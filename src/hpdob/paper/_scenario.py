@@ -12,8 +12,9 @@ from t = 4 s. External disturbance: 0.05 N m step at t = 1.5005 s plus
 from __future__ import annotations
 
 from .._validation import check_choice
-from ..observers._runtime import DisturbanceObserver
-from ..simulation._canonical import (
+from ..controllers import PD
+from ..observers import DisturbanceObserver
+from ..simulation import (
     CONTROLLER,
     DISTURBANCE,
     DURATION,
@@ -23,9 +24,8 @@ from ..simulation._canonical import (
     TS,
     VIRTUAL_ACTUATOR,
     VIRTUAL_SENSOR,
+    simulate,
 )
-from ..simulation._controller import PD
-from ..simulation._simulate import simulate
 
 __all__ = [
     "CONTROLLER",

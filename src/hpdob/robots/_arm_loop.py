@@ -278,7 +278,7 @@ class ArmLoop:
             try:  # the family registry's public name (issue 20)
                 from ..observers import design_from_spec
             except ImportError:  # before it: the spec table of hpdob.observers._families
-                from ..observers._families import design_from_spec
+                from ..observers import design_from_spec
 
             model = ServoModel(J_n, b_n).discretize(self.Ts)
             with qualified(where, tuple(entry)):  # "order must be ..." -> "observers[0].order ..."

@@ -30,7 +30,7 @@ import math
 
 import numba
 
-from ..simulation._kernel import program_row as _row
+from ..simulation import program_row as _row
 from ._two_link import two_link_derivative, two_link_rk4
 
 __all__ = ["PHASE_CONTROL", "PHASE_MEASURE", "PLANT_PYTHON", "PLANT_TWO_LINK", "run_arm"]

@@ -17,7 +17,7 @@ from dataclasses import KW_ONLY, dataclass, field
 import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive
-from ..models._mjcf import compile_model, import_mujoco, object_names, read_mjcf
+from ..models import compile_model, import_mujoco, object_names, read_mjcf
 
 __all__ = ["MujocoArm"]
 
@@ -218,7 +218,7 @@ class MujocoArm:
                               "site": sites.index(site), "source": (source, path)})  # fmt: skip
         if self.integrator is not None:
             from .._validation import check_choice
-            from ..models._mjcf import INTEGRATORS
+            from ..models import INTEGRATORS
 
             check_choice(self.integrator, "integrator", INTEGRATORS)
 

@@ -388,10 +388,10 @@ def load_arm_scenario(path) -> tuple[ArmLoop, dict]:
     ParameterTypeError, ParameterValueError
         A key or value is wrong (named), or the file cannot be read.
     """
-    from ..simulation._scenario import _read_toml
+    from ..simulation import read_toml
 
     path = Path(path)
-    data = _read_toml(path)
+    data = read_toml(path)
     plant = data.get("plant")
     kind = get_plant_type(plant.get("type", "rigid")) if isinstance(plant, dict) else None
     if kind is None or kind.scenario is not _scenario:

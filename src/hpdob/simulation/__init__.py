@@ -18,9 +18,23 @@ sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
 """
 
-from ._controller import PD as PD  # the PD lives in hpdob.controllers; kept importable here
+from ..controllers import PD as PD  # the PD lives in hpdob.controllers; kept importable here
+from . import _canonical as canonical  # noqa: F401 (the paper's set-up as one namespace)
+from ._canonical import CONTROLLER as CONTROLLER
+from ._canonical import DISTURBANCE as DISTURBANCE
+from ._canonical import DURATION as DURATION
+from ._canonical import NOMINAL as NOMINAL
+from ._canonical import PLANT as PLANT
+from ._canonical import REFERENCE as REFERENCE
+from ._canonical import TS as TS
+from ._canonical import VIRTUAL_ACTUATOR as VIRTUAL_ACTUATOR
+from ._canonical import VIRTUAL_SENSOR as VIRTUAL_SENSOR
 from ._devices import Actuator, Encoder
+from ._kernel import program_row as program_row
 from ._loop import LOOP_KEYS, ServoLoop
+from ._loop import MISSING as MISSING
+from ._loop import accepts_loop as accepts_loop
+from ._loop import loop_parts as loop_parts
 from ._plant_types import (
     PlantType,
     get_plant_type,
@@ -29,11 +43,24 @@ from ._plant_types import (
     unregister_plant_type,
 )
 from ._result import SimulationResult
+from ._result import json_ready as json_ready
+from ._result import metrics_json as metrics_json
 from ._scenario import Scenario, load_scenario
+from ._scenario import load_sweep as load_sweep
+from ._scenario import metric_windows as metric_windows
+from ._scenario import plant_type_of as plant_type_of
+from ._scenario import read_toml as read_toml
+from ._scenario import scenario_from_dict as scenario_from_dict
 from ._scenario_toml import scenario_toml
+from ._simulate import MAX_PLANT_STEPS as MAX_PLANT_STEPS
 from ._simulate import SimulationDivergedWarning, simulate
+from ._simulate import run_loop as run_loop
+from ._simulate import sample_count as sample_count
+from ._simulate import sample_signals as sample_signals
 from ._sweep import SweepIncomplete, SweepInterrupted, sweep
 
+# Names imported "as" themselves and absent from __all__ are hpdob-internal: for the other
+# subpackages, not part of the public API (docs/architecture.md, "Dependency order").
 __all__ = [
     "LOOP_KEYS",
     "Actuator",

@@ -14,8 +14,8 @@ import math
 
 from .._signals import SmoothStep, Step
 from .._waveforms import Sine
-from ..models._servo import ServoModel
-from ._controller import PD
+from ..controllers import PD
+from ..models import ServoModel
 from ._devices import Actuator, Encoder
 
 __all__ = [

@@ -8,19 +8,17 @@ from dataclasses import dataclass, field, fields, replace
 
 from .._validation import ParameterTypeError, ParameterValueError, positive, require_instance
 from ..controllers import LOOP_SIGNALS, Controller, LinearController, controller_system
-from ..models import as_servo_model, is_lti
-from ..models._plant import Plant
-from ..models._servo import ServoModel
+from ..models import Plant, ServoModel, as_servo_model, is_lti
 from ..observers import (
     LinearObserver,
     Observer,
     as_system,
+    check_designed_on,
     check_spec,
     design_from_spec,
     initial_state,
     spec_of,
 )
-from ..observers._system import check_designed_on
 from ._devices import Actuator, Encoder
 
 __all__ = ["LOOP_KEYS", "MISSING", "ServoLoop", "accepts_loop", "loop_parts", "resolve_loop"]

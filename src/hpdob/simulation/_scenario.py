@@ -22,9 +22,7 @@ from .._validation import (
 )
 from .._waveforms import Chirp, Noise, Sine
 from ..controllers import CONTROLLER_TYPES
-from ..models import Environment, MujocoServo
-from ..models._servo import ServoModel
-from ..models._two_mass import TwoMassServo
+from ..models import Environment, MujocoServo, ServoModel, TwoMassServo
 from ..observers import check_spec, design_from_spec, get_family, reaction_torque_observer
 from ._devices import Actuator, Encoder
 from ._loop import LOOP_KEYS, ServoLoop
@@ -376,7 +374,7 @@ def _plant(table: dict):
 MAX_SCENARIO_BYTES = 1 << 20
 
 
-def _read_toml(path: Path) -> dict:
+def read_toml(path: Path) -> dict:
     try:
         with open(path, "rb") as handle:  # at most one byte more than allowed: FIFOs too
             data = handle.read(MAX_SCENARIO_BYTES + 1)
@@ -413,7 +411,7 @@ def _read_toml(path: Path) -> dict:
 def load_sweep(path) -> tuple[dict, dict]:
     """Read a sweep spec: a scenario plus a ``[sweep]`` table (``grid``, ``vary``, ``n``,
     ``seed``). Returns ``(base, options)`` for ``hpdob.sweep(base, **options)``."""
-    data = dict(_read_toml(Path(path)))
+    data = dict(read_toml(Path(path)))
     options = data.pop("sweep", None)
     if not isinstance(options, dict):
         raise ParameterValueError(
@@ -533,7 +531,7 @@ def load_scenario(path) -> Scenario:
     >>> result = simulate(scenario.loop, **scenario.run)                   # doctest: +SKIP
     """
     path = Path(path)
-    data = _read_toml(path)
+    data = read_toml(path)
     kind = plant_type_of(data)
     if kind is not None and kind.scenario is not None:  # a loop of its own (an N-joint arm)
         return kind.scenario(data, path)
@@ -545,4 +543,4 @@ def load_scenario(path) -> Scenario:
 def load_metric_windows(path) -> dict:
     """The metric windows of a TOML scenario file (its ``[metrics]`` table, see
     :func:`metric_windows`), as keyword arguments of :meth:`SimulationResult.metrics`."""
-    return metric_windows(_read_toml(Path(path)))
+    return metric_windows(read_toml(Path(path)))

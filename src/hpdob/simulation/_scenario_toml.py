@@ -16,8 +16,7 @@ import numpy as np
 from .._signals import Sum
 from .._validation import ParameterTypeError, ParameterValueError
 from ..controllers import CONTROLLER_TYPES
-from ..models._servo import ServoModel
-from ..models._two_mass import TwoMassServo
+from ..models import ServoModel, TwoMassServo
 from ._loop import ServoLoop
 
 __all__ = ["scenario_toml"]

@@ -16,7 +16,7 @@ from .._validation import (
     as_real_vector,
     positive,
 )
-from ..models._plant import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, ExactSubsteps
+from ..models import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, ExactSubsteps
 from ._loop import ServoLoop, accepts_loop, controller_sources
 from ._records import (
     SENSOR_ENCODER_DIFFERENCE,
@@ -71,7 +71,7 @@ def check_run_arguments(Ts, duration, substeps=None, x0=(0.0, 0.0)):
     return Ts, duration, substeps, x0
 
 
-def _sample_count(Ts: float, duration: float) -> int:
+def sample_count(Ts: float, duration: float) -> int:
     ratio = duration / Ts
     if not ratio <= MAX_PLANT_STEPS:  # also inf: duration/Ts beyond the float range
         raise ParameterValueError(
@@ -248,7 +248,7 @@ def simulate(
     0.0064 rad
     """
     Ts, duration, substeps, x0 = check_run_arguments(loop.Ts, duration, substeps, x0)
-    n = _sample_count(Ts, duration)
+    n = sample_count(Ts, duration)
     S = loop.plant.substeps(Ts, substeps)
     if not isinstance(label, str):
         raise ParameterTypeError(f"label must be a str, got {type(label).__name__}")

@@ -29,7 +29,7 @@ from .._validation import (
 from ..observers import check_spec, design_from_spec, get_family, spec_of
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
-from ._simulate import _sample_count, check_run_arguments, run_loop, sample_signals
+from ._simulate import check_run_arguments, run_loop, sample_count, sample_signals
 from ._sweep_dask import SweepIncomplete, SweepInterrupted, _Incomplete, _run_dask, resumed_rows
 from ._sweep_spec import check_paths_apply, expand_scenarios, replaced_plant
 
@@ -103,7 +103,7 @@ def _resolve_base(base, *, varies_Ts: bool = False) -> dict:
         loop.Ts, base["duration"], base.get("substeps"), base.get("x0", (0.0, 0.0))
     )
     if not varies_Ts:  # else checked per scenario, against that scenario's Ts
-        _sample_count(Ts, duration)
+        sample_count(Ts, duration)
     return {
         "loop": loop,
         "observer_spec": spec,
@@ -209,7 +209,7 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
     try:
         loop = scenario_loop(base, params, cache)
         S = loop.plant.substeps(loop.Ts, base["substeps"])
-        n = _sample_count(loop.Ts, base["duration"])
+        n = sample_count(loop.Ts, base["duration"])
         x0 = np.array(base["x0"])  # checked once in _resolve_base
         key = (loop.Ts, n, S)
         signals = None if cache is None else cache.get(key)

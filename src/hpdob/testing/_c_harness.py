@@ -188,7 +188,7 @@ def _as_trace(theta, omega, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _outputs(observer) -> tuple:
-    from ..observers._system import as_system
+    from ..observers import as_system
 
     return as_system(observer).outputs
 
@@ -196,7 +196,7 @@ def _outputs(observer) -> tuple:
 def _shape(order, observer) -> tuple[int, tuple]:
     """``(states, measures)`` of the exported observer, from ``observer`` or ``order``."""
     if observer is not None:
-        from ..observers._system import as_system
+        from ..observers import as_system
 
         system = as_system(observer)
         return system.n_states, system.measures

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._validation import check_choice
-from ..observers._system import as_system
+from ..observers import as_system
 
 __all__ = ["UNIT_ROUNDOFF", "error_amplification", "export_error_bound", "impulse_rows"]
 

@@ -79,7 +79,7 @@ class TuningResult:
     @property
     def observer(self):
         """A runtime object of the recommended design, reset at rest."""
-        from ..observers._runtime import Observer
+        from ..observers import Observer
 
         return Observer.of(self.design)
 
@@ -114,7 +114,7 @@ class TuningResult:
             delay): ``simulate(result.loop(), **result.scenario)`` repeats the run that ranked
             it. The corners are ``loop.replace(plant=...)``.
         """
-        from ..simulation._devices import Actuator
+        from ..simulation import Actuator
 
         base, s = self.recommended["_base"], self.settings  # the linear figures' loop
         actuator = Actuator(torque_limit=s["torque_limit"], delay_samples=s["delay_samples"])
@@ -202,7 +202,7 @@ class TuningResult:
             JSON-ready (non-finite values as None): ``settings``, ``recommendation``,
             ``verification``, ``candidates`` (every row) and ``notes``.
         """
-        from ..simulation._result import json_ready
+        from ..simulation import json_ready
 
         rows = [{k: v for k, v in row.items() if not k.startswith("_")} for row in self.rows]
         return json_ready({

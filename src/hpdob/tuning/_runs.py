@@ -7,9 +7,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from ..models._servo import ServoModel
-from ..simulation._loop import ServoLoop
-from ..simulation._simulate import _sample_count, run_loop, sample_signals
+from ..models import ServoModel
+from ..simulation import ServoLoop, run_loop, sample_count, sample_signals
 
 __all__ = ["VerificationRuns"]
 
@@ -25,7 +24,7 @@ class VerificationRuns:
     def __init__(self, *, nominal, Ts, sensor, actuator, coulomb, run):
         self.nominal, self.Ts, self.coulomb, self.run = nominal, Ts, coulomb, run
         self.devices = {"sensor": sensor, "actuator": actuator}
-        self.n = _sample_count(Ts, run["duration"])
+        self.n = sample_count(Ts, run["duration"])
         self.sampled: dict = {}
 
     def loop(self, r, J_ratio, b):

@@ -41,11 +41,10 @@ from .._validation import (
     positive,
     require_instance,
 )
-from ..analysis._linear_loop import MAX_DELAY_SAMPLES
+from ..analysis import MAX_DELAY_SAMPLES
 from ..controllers import PD, Controller, controller_settings, controller_system
-from ..models._servo import ServoModel
-from ..simulation._devices import Actuator, Encoder
-from ..simulation._loop import MISSING, loop_parts
+from ..models import ServoModel
+from ..simulation import MISSING, Actuator, Encoder, loop_parts
 from ._blas import one_blas_thread
 from ._result import TuningResult
 from ._runs import VerificationRuns
@@ -128,8 +127,8 @@ def _scenario(nominal, Ts, disturbance_frequency, scenario):
     disturbance frequency and the amplitudes scaled by J_n (the same disturbance acceleration
     as the paper's), unless given."""
     from ..signals import Sine, Step
-    from ..simulation import _canonical as paper  # the paper's set-up, as data
-    from ..simulation._simulate import MAX_PLANT_STEPS
+    from ..simulation import MAX_PLANT_STEPS
+    from ..simulation import canonical as paper  # the paper's set-up, as data
 
     if scenario is not None:
         if not isinstance(scenario, dict):
@@ -203,7 +202,7 @@ def _candidates(model, families, sigma, notes):
 
 
 def _radius(loop) -> float:
-    from ..analysis._closed_loop import closed_loop_poles
+    from ..analysis import closed_loop_poles
 
     return float(np.abs(closed_loop_poles(loop)).max())
 
@@ -324,12 +323,8 @@ def tune(
     ...               disturbance_frequency=2.0, families=["position"])   # doctest: +SKIP
     >>> print(result.report())                                            # doctest: +SKIP
     """
-    from ..analysis import spectral_radii
-    from ..analysis._estimation import estimation_response
-    from ..analysis._noise import noise_gains
-    from ..analysis._sensitivity import loop_margins
-    from ..simulation._loop import ServoLoop
-    from ..simulation._simulate import _sample_count, sample_signals
+    from ..analysis import estimation_response, loop_margins, noise_gains, spectral_radii
+    from ..simulation import ServoLoop, sample_count, sample_signals
 
     legacy = {"nominal": nominal, "Ts": Ts, "controller": controller, "sensor": sensor,
               "actuator": actuator}  # fmt: skip
@@ -386,7 +381,7 @@ def tune(
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
     if coulomb is None:
-        from ..simulation._canonical import NOMINAL, PLANT
+        from ..simulation import NOMINAL, PLANT
 
         # The paper scenario's Coulomb friction (the paper's model has viscous friction only;
         # hpdob's scenario adds it), at the same acceleration for any J_n.
@@ -395,7 +390,7 @@ def tune(
     run = _scenario(nominal, Ts, disturbance_frequency, scenario)
     # The verification run, checked before the search (not after it): duration, size, signals
     duration = positive(run["duration"], "scenario duration", "a positive finite duration [s]")
-    _sample_count(Ts, duration)
+    sample_count(Ts, duration)
     sample_signals(run["reference"], run.get("disturbance"), Ts=Ts, n=2, substeps=1)
 
     model = nominal.discretize(Ts)
