@@ -294,8 +294,13 @@ def test_what_runs_before_the_entry_handler_imports_nothing_heavy():
         "import sys; before = set(sys.modules); import hpdob._entry; "
         "print(sorted(m for m in set(sys.modules) - before if not m.startswith('hpdob')))"
     )
+    # Without site an editable install's .pth is not read either: put the package's own
+    # directory on the path (the one this test imports).
+    import hpdob
+
+    env = {**os.environ, "PYTHONPATH": str(Path(hpdob.__file__).resolve().parent.parent)}
     done = subprocess.run([sys.executable, "-S", "-c", code], capture_output=True, text=True,
-                          check=True, timeout=60, env={**os.environ})  # fmt: skip
+                          check=True, timeout=60, env=env)  # fmt: skip
     assert done.stdout.strip() == "[]", done.stdout
 
 
