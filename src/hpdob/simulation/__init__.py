@@ -20,15 +20,6 @@ sweep
 
 from ..controllers import PD as PD  # the PD lives in hpdob.controllers; kept importable here
 from . import _canonical as canonical  # noqa: F401 (the paper's set-up as one namespace)
-from ._canonical import CONTROLLER as CONTROLLER
-from ._canonical import DISTURBANCE as DISTURBANCE
-from ._canonical import DURATION as DURATION
-from ._canonical import NOMINAL as NOMINAL
-from ._canonical import PLANT as PLANT
-from ._canonical import REFERENCE as REFERENCE
-from ._canonical import TS as TS
-from ._canonical import VIRTUAL_ACTUATOR as VIRTUAL_ACTUATOR
-from ._canonical import VIRTUAL_SENSOR as VIRTUAL_SENSOR
 from ._devices import Actuator, Encoder
 from ._kernel import program_row as program_row
 from ._loop import LOOP_KEYS, ServoLoop

@@ -381,11 +381,11 @@ def tune(
     if noise_limit is not None:
         noise_limit = positive(noise_limit, "noise_limit", "a positive RMS noise [N m]")
     if coulomb is None:
-        from ..simulation import NOMINAL, PLANT
+        from ..simulation import canonical as paper
 
         # The paper scenario's Coulomb friction (the paper's model has viscous friction only;
         # hpdob's scenario adds it), at the same acceleration for any J_n.
-        coulomb = PLANT.coulomb * nominal.J / NOMINAL.J
+        coulomb = paper.PLANT.coulomb * nominal.J / paper.NOMINAL.J
     coulomb = nonnegative(coulomb, "coulomb", "a non-negative Coulomb friction [N m]")
     run = _scenario(nominal, Ts, disturbance_frequency, scenario)
     # The verification run, checked before the search (not after it): duration, size, signals
