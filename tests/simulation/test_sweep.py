@@ -464,8 +464,9 @@ def _force_rows(grid, duration=0.6, errors=False):
         model = nominal.discretize(paper.TS)
         dob = design_observer(model, **{"order": 1, "bandwidth": 100.0, **(dob or {})})
         rtob = None if rtob is None else design_observer(model, **rtob)
-        observer = design_reaction_observer(dob, rtob, **{"viscous": 5e-5, "coulomb": 0.01,
-                                                          "velocity_filter": 100.0, **friction})
+        observer = design_reaction_observer(
+            dob, rtob, **{"viscous": 5e-5, "coulomb": 0.01, "velocity_filter": 100.0, **friction}
+        )
         loop = scenario.loop.replace(nominal=nominal, observer=observer)
         return simulate(loop, **run).metrics()["rms_estimation_error"]
 
@@ -516,8 +517,11 @@ def test_reaction_observer_paths_that_cannot_apply_are_refused():
     from hpdob.observers import design_eso, design_reaction_observer
     from hpdob.simulation import load_scenario
 
-    with pytest.raises(ValueError, match=r"^sweep path 'reaction_observer\.bandwidth' does not "
-                                         r"apply to this base: the base has no reaction-torque"):
+    with pytest.raises(
+        ValueError,
+        match=r"^sweep path 'reaction_observer\.bandwidth' does not "
+        r"apply to this base: the base has no reaction-torque",
+    ):
         sweep(base(), grid={"reaction_observer.bandwidth": [50.0]}, progress=False)
     scenario = load_scenario(FORCE_STEP)
     run = {k: v for k, v in scenario.run.items() if k != "label"}
@@ -525,12 +529,18 @@ def test_reaction_observer_paths_that_cannot_apply_are_refused():
     dob = design_observer(model, order=1, bandwidth=100.0, measurement="position")
     eso = design_reaction_observer(dob, design_eso(model, bandwidth=200.0), viscous=5e-5)
     loop = scenario.loop.replace(observer=eso, sensor=paper.VIRTUAL_SENSOR)
-    with pytest.raises(ValueError, match=r"'reaction_observer\.order' does not apply to this "
-                                         r"base: an observer spec of type 'eso' has no design "
-                                         r"argument 'order'"):
+    with pytest.raises(
+        ValueError,
+        match=r"'reaction_observer\.order' does not apply to this "
+        r"base: an observer spec of type 'eso' has no design "
+        r"argument 'order'",
+    ):
         sweep({"loop": loop, **run}, grid={"reaction_observer.order": [1]}, progress=False)
-    rows = sweep({"loop": loop, **run, "duration": 0.3},
-                 grid={"reaction_observer.extended_order": [0, 1]}, progress=False)
+    rows = sweep(
+        {"loop": loop, **run, "duration": 0.3},
+        grid={"reaction_observer.extended_order": [0, 1]},
+        progress=False,
+    )
     assert (rows["error"] == "").all() and rows["stable"].all()
 
 
