@@ -561,3 +561,27 @@ def test_sweep_spec_of_a_force_scenario_varies_its_observers(tmp_path):
     again = sweep({"loop": scenario.loop, **run}, grid=options["grid"], progress=False)
     assert rows["error"].tolist() == ["", ""]
     np.testing.assert_array_equal(rows["rms_estimation_error"], again["rms_estimation_error"])
+
+
+def test_a_composition_of_a_handmade_dob_sweeps_its_friction_only():
+    """A composition whose DOb is of no registered family: its design paths are refused, its
+    friction model sweeps, and another nominal model is that row's error (the loop refuses a
+    DOb designed on another one)."""
+    from hpdob import LinearObserver
+    from hpdob.observers import design_reaction_observer
+    from hpdob.simulation import load_scenario
+
+    scenario = load_scenario(FORCE_STEP)
+    run = {k: v for k, v in scenario.run.items() if k != "label"}
+    run["duration"] = 0.3
+    system = scenario.loop.design.dob.system
+    handmade = LinearObserver(F=system.F, G=system.G, H=system.H, E=system.E, N=system.N,
+                              Ts=system.Ts, model=system.model)  # fmt: skip
+    loop = scenario.loop.replace(observer=design_reaction_observer(handmade, viscous=5e-5))
+    with pytest.raises(ValueError, match="the composition's dob is not a design of a known"):
+        sweep({"loop": loop, **run}, grid={"observer.bandwidth": [50.0]}, progress=False)
+    rows = sweep({"loop": loop, **run}, grid={"reaction_observer.viscous": [0.0, 1e-4]},
+                 progress=False)  # fmt: skip
+    assert rows["error"].tolist() == ["", ""]
+    rows = sweep({"loop": loop, **run}, grid={"nominal.J": [3e-4]}, progress=False)
+    assert "must be designed on nominal.discretize(Ts)" in rows["error"].iloc[0]

@@ -195,12 +195,16 @@ def _recomposed(composition: ReactionObserverDesign, params: dict, nominal, Ts, 
     friction = {name: getattr(composition, name) for name in FRICTION_PARAMETERS}
     friction.update({k: v for k, v in reaction.items() if k in FRICTION_PARAMETERS})
     own = {k: v for k, v in reaction.items() if k not in FRICTION_PARAMETERS}
-    dob_spec = _varied_spec(spec_of(composition.dob), sub("observer."))
-    dob = _designed(dob_spec, nominal, Ts, cache)
-    rtob = None
-    if composition.reaction is not None:
-        rtob = _designed(_varied_spec(spec_of(composition.reaction), own), nominal, Ts, cache)
-    elif own:
+    # a part of no registered family is kept as it is (check_paths_apply refused its design
+    # paths; on another nominal model the loop refuses it, in that row's error)
+    dob, dob_spec = composition.dob, spec_of(composition.dob)
+    if dob_spec is not None:
+        dob_spec = _varied_spec(dob_spec, sub("observer."))
+        dob = _designed(dob_spec, nominal, Ts, cache)
+    rtob = composition.reaction
+    if rtob is not None and spec_of(rtob) is not None:
+        rtob = _designed(_varied_spec(spec_of(rtob), own), nominal, Ts, cache)
+    elif rtob is None and own:
         rtob = _designed(_varied_spec(dob_spec, own), nominal, Ts, cache)
     return ReactionObserverDesign(dob, rtob, **friction)
 
