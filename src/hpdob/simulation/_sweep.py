@@ -441,7 +441,12 @@ def sweep(
         ``nominal.b``, ``observer.order``, ``observer.bandwidth``,
         ``observer.velocity_bandwidth``, ``observer.measurement`` (``"state"`` or
         ``"position"``; the other family's ``gain_direction`` or ``velocity_bandwidth`` is
-        dropped), ``controller.kp``, ``controller.kd``, ``controller.ki``,
+        dropped; every sweepable design argument of every registered family),
+        ``reaction_observer.*`` of a base whose observer is a
+        :class:`~hpdob.observers.ReactionObserverDesign` (its friction model ``viscous``,
+        ``coulomb``, ``coulomb_velocity``, ``velocity_filter``, and the RTOB's own design
+        arguments; ``observer.*`` is then the DOb's), ``controller.kp``, ``controller.kd``,
+        ``controller.ki``,
         ``controller.time_constant``, ``controller.tracking_time``, ``controller.bandwidth``,
         ``controller.observer_bandwidth`` (the parameters of the base's controller, through
         its constructor), ``Ts``, ``disturbance_scale`` (multiplies the disturbance).
