@@ -376,3 +376,82 @@ def test_quantisation_hides_a_sub_count_instability():
     errors = [np.max(np.abs(r.tau_contact[-500:] - TAU_REF)) / TAU_REF for r in runs]
     assert np.ptp(runs[0].theta_measured[-500:]) == 0.0  # the encoder sees no motion
     assert errors[0] < 0.2 and errors[1] > 0.5
+
+
+def test_the_rtobs_own_bandwidth():
+    """bandwidth_of="reaction": the DOb stays at 100 rad/s, the axis is a separate RTOB's own
+    bandwidth (docs/force-control.md). A faster RTOB lowers the tolerated stiffness (DOb-type
+    RTOB: 164 N m/rad at 100 rad/s, 75 at 400 measured) and, from about 700 rad/s, opens a
+    band of stability again above ~620 N m/rad. The point's loop holds exactly the DOb at
+    100 rad/s and the RTOB at its own bandwidth, its radius is closed_loop_poles' of the bonded
+    loop, and each boundary at 400 and 1000 rad/s is verified by the unilateral simulation
+    10 % on either side."""
+    from hpdob import closed_loop_poles
+
+    loop = _loop(order=0)
+    cmap = contact_stability_map(loop, stiffness=np.geomspace(10.0, 1000.0, 21),
+                                 bandwidth=[100.0, 400.0, 1000.0], observer={"order": 0},
+                                 reaction={"order": 0}, viscous=PLANT.b,
+                                 bandwidth_of="reaction", fixed_bandwidth=100.0)  # fmt: skip
+    assert (cmap.bandwidth_of, cmap.fixed_bandwidth) == ("reaction", 100.0)
+    edges = cmap.boundary()
+    kinds = [(e["bandwidth"], e["kind"]) for e in edges]
+    assert kinds == [(100.0, "upper"), (400.0, "upper"), (1000.0, "upper"), (1000.0, "lower")]
+    shared = contact_stability_map(loop, stiffness=np.geomspace(10.0, 1000.0, 21),
+                                   bandwidth=[100.0], observer={"order": 0}, viscous=PLANT.b)
+    assert edges[0]["stiffness"] == pytest.approx(shared.boundary()[0]["stiffness"], rel=1e-9)
+    assert edges[1]["stiffness"] < 0.6 * edges[0]["stiffness"]  # a faster RTOB: a lower edge
+    point = cmap.loop_at(50.0, 400.0)
+    expected = reaction_torque_observer(
+        design_observer(NOMINAL.discretize(TS), order=0, bandwidth=100.0),
+        design_observer(NOMINAL.discretize(TS), order=0, bandwidth=400.0),
+        viscous=PLANT.b,
+    )
+    np.testing.assert_allclose(point.system.F, expected.F, rtol=1e-12)
+    np.testing.assert_allclose(point.system.H, expected.H, rtol=1e-12)
+    bonded = cmap.loop_at(50.0, 400.0, bonded=True).replace(actuator=Actuator(delay_samples=1))
+    rho = np.max(np.abs(closed_loop_poles(bonded)))
+    assert cmap.radius_at(50.0, 400.0) == pytest.approx(rho, rel=1e-12)
+    for edge in edges[1:]:
+        stable_side = (0.9, 1.1) if edge["kind"] == "upper" else (1.1, 0.9)
+        for factor, stable in zip(stable_side, (True, False)):
+            value = edge["stiffness"] * factor
+            assert abs(cmap.radius_at(value, edge["bandwidth"]) - 1.0) >= BOUNDARY_BAND
+            assert _settles(cmap.loop_at(value, edge["bandwidth"]))[0] == stable, (edge, factor)
+
+
+def test_the_dobs_own_bandwidth_and_bad_inputs():
+    """bandwidth_of="dob" holds the RTOB at fixed_bandwidth instead; at the shared bandwidth
+    the three maps agree. Refused: a fixed bandwidth with "both", a one-observer axis without
+    a separate RTOB, a non-positive fixed bandwidth, viscous and friction both."""
+    loop = _loop(order=1)
+    grid = {"stiffness": [10.0, 100.0], "observer": {"order": 1}}
+    both = contact_stability_map(loop, bandwidth=[50.0, 100.0], reaction={"order": 1}, **grid)
+    for of in ("dob", "reaction"):
+        one = contact_stability_map(loop, bandwidth=[100.0], reaction={"order": 1},
+                                    bandwidth_of=of, fixed_bandwidth=100.0, **grid)  # fmt: skip
+        np.testing.assert_allclose(one.spectral_radius[:, 0], both.spectral_radius[:, 1],
+                                   rtol=1e-12)  # fmt: skip
+    dob_axis = contact_stability_map(loop, bandwidth=[50.0], reaction={"order": 1},
+                                     bandwidth_of="dob", fixed_bandwidth=100.0, **grid)
+    assert not np.allclose(dob_axis.spectral_radius[:, 0], both.spectral_radius[:, 0])
+    fig = dob_axis.plot()
+    assert "the DOb's bandwidth" in fig.axes[0].get_xlabel()
+    assert "RTOB at 100 rad/s" in fig.axes[0].get_title()
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    g = {"bandwidth": [100.0], **grid}
+    with pytest.raises(ParameterValueError, match=r"^fixed_bandwidth is the bandwidth .* 5.0$"):
+        contact_stability_map(loop, fixed_bandwidth=5.0, **g)
+    with pytest.raises(ParameterValueError, match=r"^bandwidth_of='reaction' .* reaction=None$"):
+        contact_stability_map(loop, bandwidth_of="reaction", fixed_bandwidth=5.0, **g)
+    with pytest.raises(ParameterTypeError, match=r"^fixed_bandwidth must be a positive.*None"):
+        contact_stability_map(loop, bandwidth_of="dob", reaction={"order": 0}, **g)
+    with pytest.raises(ParameterValueError, match=r"^fixed_bandwidth must be a positive.*-1"):
+        contact_stability_map(loop, bandwidth_of="dob", reaction={"order": 0},
+                              fixed_bandwidth=-1.0, **g)  # fmt: skip
+    with pytest.raises(ValueError, match=r"^bandwidth_of must be one of"):
+        contact_stability_map(loop, bandwidth_of="rtob", **g)
+    with pytest.raises(ParameterValueError, match=r"^give the RTOB's friction as viscous or"):
+        contact_stability_map(loop, viscous=1e-5, friction=paper.PLANT, **g)
