@@ -397,8 +397,13 @@ def test_the_rtobs_own_bandwidth():
     edges = cmap.boundary()
     kinds = [(e["bandwidth"], e["kind"]) for e in edges]
     assert kinds == [(100.0, "upper"), (400.0, "upper"), (1000.0, "upper"), (1000.0, "lower")]
-    shared = contact_stability_map(loop, stiffness=np.geomspace(10.0, 1000.0, 21),
-                                   bandwidth=[100.0], observer={"order": 0}, viscous=PLANT.b)
+    shared = contact_stability_map(
+        loop,
+        stiffness=np.geomspace(10.0, 1000.0, 21),
+        bandwidth=[100.0],
+        observer={"order": 0},
+        viscous=PLANT.b,
+    )
     assert edges[0]["stiffness"] == pytest.approx(shared.boundary()[0]["stiffness"], rel=1e-9)
     assert edges[1]["stiffness"] < 0.6 * edges[0]["stiffness"]  # a faster RTOB: a lower edge
     point = cmap.loop_at(50.0, 400.0)
@@ -414,7 +419,7 @@ def test_the_rtobs_own_bandwidth():
     assert cmap.radius_at(50.0, 400.0) == pytest.approx(rho, rel=1e-12)
     for edge in edges[1:]:
         stable_side = (0.9, 1.1) if edge["kind"] == "upper" else (1.1, 0.9)
-        for factor, stable in zip(stable_side, (True, False)):
+        for factor, stable in zip(stable_side, (True, False), strict=True):
             value = edge["stiffness"] * factor
             assert abs(cmap.radius_at(value, edge["bandwidth"]) - 1.0) >= BOUNDARY_BAND
             assert _settles(cmap.loop_at(value, edge["bandwidth"]))[0] == stable, (edge, factor)
@@ -432,8 +437,14 @@ def test_the_dobs_own_bandwidth_and_bad_inputs():
                                     bandwidth_of=of, fixed_bandwidth=100.0, **grid)  # fmt: skip
         np.testing.assert_allclose(one.spectral_radius[:, 0], both.spectral_radius[:, 1],
                                    rtol=1e-12)  # fmt: skip
-    dob_axis = contact_stability_map(loop, bandwidth=[50.0], reaction={"order": 1},
-                                     bandwidth_of="dob", fixed_bandwidth=100.0, **grid)
+    dob_axis = contact_stability_map(
+        loop,
+        bandwidth=[50.0],
+        reaction={"order": 1},
+        bandwidth_of="dob",
+        fixed_bandwidth=100.0,
+        **grid,
+    )
     assert not np.allclose(dob_axis.spectral_radius[:, 0], both.spectral_radius[:, 0])
     fig = dob_axis.plot()
     assert "the DOb's bandwidth" in fig.axes[0].get_xlabel()
