@@ -538,3 +538,65 @@ def test_the_dobs_own_bandwidth_and_bad_inputs():
         contact_stability_map(loop, bandwidth_of="rtob", **g)
     with pytest.raises(ParameterValueError, match=r"^give the RTOB's friction as viscous or"):
         contact_stability_map(loop, viscous=1e-5, friction=paper.PLANT, **g)
+
+
+def _slope_radius(point) -> float:
+    """The loop linearised at the in-contact equilibrium (omega = 0): the plant's Coulomb
+    friction c tanh(omega/v) by its slope c/v, the RTOB's Coulomb term c_n tanh(w/v_n) by its
+    slope on the velocity it reads (the low-passed omega_hat)."""
+    from hpdob import closed_loop_poles
+    from hpdob.models import InContact
+    from hpdob.observers import LinearObserver
+
+    plant, system = point.plant, point.system
+    linear = plant.replace(b=plant.b + plant.coulomb / plant.coulomb_velocity, coulomb=0.0)
+    H, E = np.array(system.H), np.array(system.E)
+    r, w = system.outputs.index("tau_reac"), system.outputs.index("omega_hat")
+    assert system.coulomb.velocity == "omega_hat"
+    H[r] -= system.coulomb.c / system.coulomb.v * H[w]
+    E[r] -= system.coulomb.c / system.coulomb.v * E[w]
+    observer = LinearObserver(F=system.F, G=system.G, H=H, E=E, N=system.N, Ts=system.Ts,
+                              measures=system.measures, outputs=system.outputs,
+                              model=system.model)  # fmt: skip
+    bonded = point.replace(plant=InContact(linear), observer=observer,
+                           actuator=Actuator(delay_samples=1))  # fmt: skip
+    return float(np.max(np.abs(closed_loop_poles(bonded))))
+
+
+def _perturbed(point, k_e: float, counts: int = 3) -> float:
+    """From the settled contact (at rest at tau_ref/k_e, observers converged on tau_ref)
+    displaced by ``counts`` encoder counts into the wall: the worst |tau_contact - tau_ref|
+    over the last 0.5 s of 2 s over that over 0.05-0.3 s (< 1: the deviation decays)."""
+    theta = TAU_REF / k_e + counts * 2 * np.pi / paper.VIRTUAL_SENSOR.counts_per_rev
+    state = np.asarray(point.system.N) @ np.array([theta, 0.0, TAU_REF])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SimulationDivergedWarning)
+        result = simulate(point, reference=lambda t: (np.full_like(t, TAU_REF), 0 * t, 0 * t),
+                          duration=2.0, x0=(theta, 0.0), observer_state=state)  # fmt: skip
+    deviation = np.abs(result.tau_contact - TAU_REF)
+    return float(deviation[-500:].max() / deviation[50:300].max())
+
+
+def test_the_friction_slope_does_not_decide_the_stiff_rows_either():
+    """docs/force-control.md: why the stiff rows are not judged. Judged locally (a 3-count
+    perturbation from the settled contact), the paper's motor holds the 1000 N m/rad wall at
+    100 rad/s, where the Coulomb-free map says unstable (1.032; the friction holds the weak
+    instability), and does not at 400 rad/s, where the map linearised with the friction's slope
+    at rest says stable (0.910; the perturbation's velocity is far beyond v = 0.01 rad/s,
+    where the slope holds). And that linearisation says unstable on the soft rows of the
+    HPDOb at 25 rad/s (1.0010 at 3.16 N m/rad), where the step run settles."""
+    cases = ((0, 100.0, 1000.0), (0, 400.0, 1000.0), (1, 25.0, 3.16))
+    found = []
+    for order, g, k_e in cases:
+        cmap = contact_stability_map(_papers_loop(order), stiffness=[k_e], bandwidth=[g],
+                                     observer={"order": order}, **PAPERS_FRICTION)  # fmt: skip
+        point = cmap.loop_at(k_e, g)
+        found.append((cmap.spectral_radius[0, 0], _slope_radius(point)))
+        if k_e == 1000.0:
+            found[-1] += (_perturbed(point, k_e),)
+        else:
+            found[-1] += (_papers_verdict(point)[1],)
+    (free, slope, local), (free4, slope4, local4), (free25, slope25, step25) = found
+    assert free > 1.02 and slope < 0.98 and local < 1e-6  # held: the free map says unstable
+    assert free4 > 1.05 and slope4 < 0.95 and local4 > 0.5  # not held: the slope says stable
+    assert free25 < 0.995 and slope25 > 1.0005 and step25 < 1e-3  # settles: slope unstable
