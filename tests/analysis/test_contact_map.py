@@ -148,8 +148,8 @@ def test_near_the_bandwidth_boundary_the_papers_motor_does_not_decide():
     """docs/force-control.md: the points the verdict check leaves out. At 700 rad/s the HPDOb's
     map is barely unstable at 3.16 and 10 N m/rad (radius 1.0023, 1.0126) and barely stable
     at 0.1-1 (0.9976-0.9990); on the paper's motor all four hold a bounded oscillation of
-    10-35 % of tau_ref (Coulomb friction bounds the weak instability, quantisation drives the
-    weakly damped loop), in contact: no threshold on the deviation separates them."""
+    10-35 % of tau_ref, in contact: no threshold on the deviation separates them. Coulomb
+    friction bounds the weak instability (without it the 10 N m/rad point loses contact)."""
     cmap = contact_stability_map(_papers_loop(1), stiffness=[0.1, 1.0, 3.16, 10.0],
                                  bandwidth=[700.0], observer={"order": 1},
                                  **PAPERS_FRICTION)  # fmt: skip
@@ -157,6 +157,13 @@ def test_near_the_bandwidth_boundary_the_papers_motor_does_not_decide():
     errors = [_papers_verdict(cmap.loop_at(k_e, 700.0)) for k_e in cmap.values]
     assert all(stable for stable, _ in errors)  # the rule says stable at all four
     assert all(0.05 < error < 0.45 for _, error in errors), errors
+    # the friction bounds it: the same point at 10 N m/rad without Coulomb friction (plant and
+    # RTOB model) loses contact
+    free = cmap.loop_at(10.0, 700.0)
+    dob = design_observer(NOMINAL.discretize(TS), order=1, bandwidth=700.0)
+    free = free.replace(plant=free.plant.replace(coulomb=0.0),
+                        observer=reaction_torque_observer(dob, viscous=PLANT.b))  # fmt: skip
+    assert not _papers_verdict(free)[0]
 
 
 def test_radius_is_the_growth_rate_of_the_simulated_linear_loop():
