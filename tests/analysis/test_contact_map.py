@@ -504,7 +504,7 @@ def test_the_rtobs_own_bandwidth():
             assert _settles(cmap.loop_at(value, edge["bandwidth"]))[0] == stable, (edge, factor)
 
 
-def test_the_dobs_own_bandwidth_and_bad_inputs():
+def test_the_dobs_own_bandwidth_and_bad_inputs(tmp_path):
     """bandwidth_of="dob" holds the RTOB at fixed_bandwidth instead; at the shared bandwidth
     the three maps agree. Refused: a fixed bandwidth with "both", a one-observer axis without
     a separate RTOB, a non-positive fixed bandwidth, viscous and friction both."""
@@ -525,6 +525,8 @@ def test_the_dobs_own_bandwidth_and_bad_inputs():
         **grid,
     )
     assert not np.allclose(dob_axis.spectral_radius[:, 0], both.spectral_radius[:, 0])
+    header = dob_axis.to_csv(tmp_path / "map.csv").read_text().splitlines()[0]
+    assert header.startswith("stiffness,dob_bandwidth_rad_s,reaction_bandwidth_rad_s,")
     fig = dob_axis.plot()
     assert "the DOb's bandwidth" in fig.axes[0].get_xlabel()
     assert "RTOB at 100 rad/s" in fig.axes[0].get_title()

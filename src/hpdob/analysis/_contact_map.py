@@ -275,9 +275,17 @@ class ContactStabilityMap:
     def _columns(self) -> dict:
         n_v, n_g = self.spectral_radius.shape
         fixed = "nominal_ratio" if self.parameter == "stiffness" else "stiffness"
+        if self.bandwidth_of == "both":
+            bandwidths = {"bandwidth_rad_s": np.tile(self.bandwidths, n_v)}
+        else:  # the varied observer's bandwidth, then the other's (fixed)
+            other = "reaction" if self.bandwidth_of == "dob" else "dob"
+            bandwidths = {
+                f"{self.bandwidth_of}_bandwidth_rad_s": np.tile(self.bandwidths, n_v),
+                f"{other}_bandwidth_rad_s": np.full(n_v * n_g, self.fixed_bandwidth),
+            }
         return {
             self.parameter: np.repeat(self.values, n_g),
-            "bandwidth_rad_s": np.tile(self.bandwidths, n_v),
+            **bandwidths,
             fixed: np.full(n_v * n_g, getattr(self, fixed)),
             "delay_samples": np.full(n_v * n_g, self.delay_samples),
             "spectral_radius": self.spectral_radius.ravel(),
@@ -290,8 +298,10 @@ class ContactStabilityMap:
         Returns
         -------
         pandas.DataFrame
-            One row per grid point: the varied parameter, ``bandwidth_rad_s``, the fixed
-            parameter, ``delay_samples``, ``spectral_radius`` and ``stable``.
+            One row per grid point: the varied parameter, ``bandwidth_rad_s`` (with
+            ``bandwidth_of="dob"`` or ``"reaction"``: ``dob_bandwidth_rad_s`` and
+            ``reaction_bandwidth_rad_s``, the varied one first), the fixed parameter,
+            ``delay_samples``, ``spectral_radius`` and ``stable``.
 
         Raises
         ------
