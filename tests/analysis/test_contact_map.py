@@ -609,3 +609,26 @@ def test_the_friction_slope_does_not_decide_the_stiff_rows_either():
     assert free > 1.02 and slope < 0.98 and local < 1e-6  # held: the free map says unstable
     assert free4 > 1.05 and slope4 < 0.95 and local4 > 0.5  # not held: the slope says stable
     assert free25 < 0.995 and slope25 > 1.0005 and step25 < 1e-3  # settles: slope unstable
+
+
+def test_a_slow_hpdob_type_rtob_is_weakly_unstable_on_the_stiff_wall():
+    """docs/force-control.md: an HPDOb-type RTOB at 25 rad/s beside the HPDOb at 100 rad/s is
+    unstable between 7.6 and 43.7 N m/rad (radius up to 1.0003, the stiff wall of 10 N m/rad
+    included). Too slow a growth for the unilateral step run; the bonded, linear loop simulated
+    for 20 s grows or decays per sample as the radius says, to 1e-5 (3e-7 measured), at 5, 10,
+    20 and 60 N m/rad: both sides of both boundaries."""
+    cmap = contact_stability_map(_loop(), stiffness=np.geomspace(3.0, 100.0, 31),
+                                 bandwidth=[25.0], observer={"order": 1}, reaction={"order": 1},
+                                 viscous=PLANT.b, bandwidth_of="reaction",
+                                 fixed_bandwidth=100.0)  # fmt: skip
+    edges = cmap.boundary()
+    assert [e["kind"] for e in edges] == ["upper", "lower"]
+    assert 7.0 < edges[0]["stiffness"] < 8.0 and 40.0 < edges[1]["stiffness"] < 47.0
+    for k_e, unstable in ((5.0, False), (10.0, True), (20.0, True), (60.0, False)):
+        rho = cmap.radius_at(k_e, 25.0)
+        assert (rho > 1.0) == unstable and abs(rho - 1.0) > 5e-5
+        loop = cmap.loop_at(k_e, 25.0, bonded=True).replace(actuator=Actuator(delay_samples=1))
+        result = simulate(loop, reference=lambda t: (0 * t, 0 * t, 0 * t), duration=20.0,
+                          x0=(1.0, 0.0))  # fmt: skip
+        envelope = [np.max(np.abs(result.theta[n - 500 : n])) for n in (10_000, 20_000)]
+        assert (envelope[1] / envelope[0]) ** 1e-4 == pytest.approx(rho, abs=1e-5), k_e
