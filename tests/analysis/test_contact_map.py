@@ -457,38 +457,42 @@ def test_quantisation_hides_a_sub_count_instability():
     assert errors[0] < 0.2 and errors[1] > 0.5
 
 
-def test_the_rtobs_own_bandwidth():
+@pytest.mark.parametrize("order", [0, 1])
+def test_the_rtobs_own_bandwidth(order):
     """bandwidth_of="reaction": the DOb stays at 100 rad/s, the axis is a separate RTOB's own
     bandwidth (docs/force-control.md). A faster RTOB lowers the tolerated stiffness (DOb-type
     RTOB: 164 N m/rad at 100 rad/s, 75 at 400 measured) and, from about 700 rad/s, opens a
     band of stability again above ~620 N m/rad. The point's loop holds exactly the DOb at
     100 rad/s and the RTOB at its own bandwidth, its radius is closed_loop_poles' of the bonded
     loop, and each boundary at 400 and 1000 rad/s is verified by the unilateral simulation
-    10 % on either side."""
+    10 % on either side (for the HPDOb-type RTOB the second band starts at 942 N m/rad already
+    at 400 rad/s)."""
     from hpdob import closed_loop_poles
 
-    loop = _loop(order=0)
+    loop = _loop(order=order)
     cmap = contact_stability_map(loop, stiffness=np.geomspace(10.0, 1000.0, 21),
-                                 bandwidth=[100.0, 400.0, 1000.0], observer={"order": 0},
-                                 reaction={"order": 0}, viscous=PLANT.b,
+                                 bandwidth=[100.0, 400.0, 1000.0], observer={"order": order},
+                                 reaction={"order": order}, viscous=PLANT.b,
                                  bandwidth_of="reaction", fixed_bandwidth=100.0)  # fmt: skip
     assert (cmap.bandwidth_of, cmap.fixed_bandwidth) == ("reaction", 100.0)
     edges = cmap.boundary()
     kinds = [(e["bandwidth"], e["kind"]) for e in edges]
-    assert kinds == [(100.0, "upper"), (400.0, "upper"), (1000.0, "upper"), (1000.0, "lower")]
+    second = [(400.0, "lower")] if order == 1 else []
+    assert kinds == [(100.0, "upper"), (400.0, "upper"), *second,
+                     (1000.0, "upper"), (1000.0, "lower")]  # fmt: skip
     shared = contact_stability_map(
         loop,
         stiffness=np.geomspace(10.0, 1000.0, 21),
         bandwidth=[100.0],
-        observer={"order": 0},
+        observer={"order": order},
         viscous=PLANT.b,
     )
     assert edges[0]["stiffness"] == pytest.approx(shared.boundary()[0]["stiffness"], rel=1e-9)
     assert edges[1]["stiffness"] < 0.6 * edges[0]["stiffness"]  # a faster RTOB: a lower edge
     point = cmap.loop_at(50.0, 400.0)
     expected = reaction_torque_observer(
-        design_observer(NOMINAL.discretize(TS), order=0, bandwidth=100.0),
-        design_observer(NOMINAL.discretize(TS), order=0, bandwidth=400.0),
+        design_observer(NOMINAL.discretize(TS), order=order, bandwidth=100.0),
+        design_observer(NOMINAL.discretize(TS), order=order, bandwidth=400.0),
         viscous=PLANT.b,
     )
     np.testing.assert_allclose(point.system.F, expected.F, rtol=1e-12)
