@@ -551,6 +551,12 @@ def test_the_dobs_own_bandwidth_and_bad_inputs(tmp_path):
         contact_stability_map(loop, bandwidth_of="rtob", **g)
     with pytest.raises(ParameterValueError, match=r"^give the RTOB's friction as viscous or"):
         contact_stability_map(loop, viscous=1e-5, friction=paper.PLANT, **g)
+    with pytest.raises(ParameterValueError, match=r"^velocity_filter low-passes .* friction=None$"):
+        contact_stability_map(loop, velocity_filter=100.0, **g)
+    with pytest.raises(ParameterTypeError, match=r"^friction must be a ServoModel"):
+        contact_stability_map(loop, friction="plant", **g)
+    with pytest.raises(ParameterValueError, match=r"^velocity_filter must be a positive"):
+        contact_stability_map(loop, friction=paper.PLANT, velocity_filter=-1.0, **g)
 
 
 def _slope_radius(point) -> float:

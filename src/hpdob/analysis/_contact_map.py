@@ -532,6 +532,11 @@ def contact_stability_map(
             )
         fixed_bandwidth = positive(fixed_bandwidth, "fixed_bandwidth",
                                    "a positive finite observer bandwidth [rad/s]")  # fmt: skip
+    if friction is None and velocity_filter is not None:
+        raise ParameterValueError(
+            "velocity_filter low-passes the velocity of the RTOB's Coulomb term: give it with "
+            f"friction, got velocity_filter={velocity_filter!r} and friction=None"
+        )
     if friction is not None and viscous:
         raise ParameterValueError(
             f"give the RTOB's friction as viscous or as friction, not both, got viscous={viscous!r}"
