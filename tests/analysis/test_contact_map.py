@@ -122,10 +122,11 @@ def test_verdict_agrees_with_simulation_on_the_papers_motor(order):
     the map's verdict agrees with the simulated one at every point of a 3 x 5 grid, stiffness
     0.1-10 N m/rad x bandwidth 25-2000 rad/s. The rows are where the encoder resolves the
     0.05 N m deflection (at least 13 counts: 10 N m/rad is 5e-3 rad; docs/force-control.md
-    says why the stiffer rows are not judged); the HPDOb's bandwidth boundary (between 700
-    and 1000 rad/s) has points on both sides, the DOb has none in these rows. Margins: the
-    stable runs stay within 25 % of tau_ref (18 % measured: the quantisation's limit cycle at
-    high bandwidth; within 2 % up to 100 rad/s), the unstable ones are off by more than 80 %
+    says why the stiffer rows are not judged); the HPDOb's bandwidth boundary (between 400
+    and 1000 rad/s; 700 rad/s, within 1.3 % of it, is the next test's) has points on both
+    sides, the DOb has none in these rows. Margins: the stable runs stay within 25 % of
+    tau_ref (18 % measured: the limit cycle of friction and quantisation at high bandwidth;
+    within 2 % up to 100 rad/s), the unstable ones are off by more than 80 %
     or lose contact (91 % or more measured)."""
     cmap = contact_stability_map(_papers_loop(order), stiffness=[0.1, 1.0, 10.0],
                                  bandwidth=[25.0, 100.0, 400.0, 1000.0, 2000.0],
