@@ -193,11 +193,51 @@ def stiff_rows() -> None:
                       f"{slope_radius(point):.4f} | {perturbed(point, k_e, 3):.2g} |")  # fmt: skip
 
 
+def soft_rows() -> None:
+    """The friction-slope radius where it says unstable: the HPDOb at 25 rad/s on soft walls."""
+    print("\n| k_e [N m/rad] | radius (Coulomb-free) | radius (friction slope) | step run: "
+          "worst error |\n|---:|---:|---:|---:|")  # fmt: skip
+    stiffness = (1.0, 1.78, 3.16, 5.62, 10.0)
+    cmap = contact_stability_map(loop(1, friction=FRICTION), stiffness=stiffness,
+                                 bandwidth=[25.0], observer={"order": 1}, **FRICTION)  # fmt: skip
+    for i, k_e in enumerate(stiffness):
+        point = cmap.loop_at(k_e, 25.0)
+        print(f"| {k_e:g} | {cmap.spectral_radius[i, 0]:.4f} | {slope_radius(point):.4f} | "
+              f"{verdict(point)[1]:.2g} |")  # fmt: skip
+
+
+def causes() -> None:
+    """What bounds or drives the oscillations of the undecided and the limit-cycle points: the
+    step run's worst error on the paper's motor, without the friction (plant and RTOB model,
+    quantised) and with it but an unquantised encoder."""
+    from hpdob import Encoder
+
+    fine = Encoder(2**52, velocity="backward-difference")
+    print("\n| order | g [rad/s] | k_e [N m/rad] | paper's motor | no friction | friction, "
+          "unquantised |\n|---|---:|---:|---:|---:|---:|")  # fmt: skip
+    for order, g, k_e in ((1, 400.0, 10.0), (0, 2000.0, 10.0), (1, 700.0, 10.0),
+                          (0, 2000.0, 100.0)):  # fmt: skip
+        cmap = contact_stability_map(loop(order, friction=FRICTION), stiffness=[k_e],
+                                     bandwidth=[g], observer={"order": order},
+                                     **FRICTION)  # fmt: skip
+        point = cmap.loop_at(k_e, g)
+        dob = design_observer(paper.NOMINAL.discretize(paper.TS), order=order, bandwidth=g)
+        free = point.replace(plant=point.plant.replace(coulomb=0.0),
+                             observer=reaction_torque_observer(dob, viscous=DELTA_B))  # fmt: skip
+        cells = []
+        for case in (point, free, point.replace(sensor=fine)):
+            stable, error = verdict(case)
+            cells.append(f"{100 * error:.3g} %" + ("" if stable else " (unstable)"))
+        print(f"| {order} | {g:g} | {k_e:g} | " + " | ".join(cells) + " |")
+
+
 def main(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
     rtob_bandwidth(out)
     papers_motor()
     stiff_rows()
+    soft_rows()
+    causes()
 
 
 if __name__ == "__main__":
