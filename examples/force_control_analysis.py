@@ -187,7 +187,8 @@ def tracking(out: Path) -> None:
     axes[0].legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), ncols=2, fontsize="small",
                    frameon=False)  # fmt: skip
     axes[0].set_title("tau_ref = 0.05 + 0.02 sin(2 pi 2 t) N m on the 10 N m/rad wall "
-                      "\n(friction model known; 16384-count encoder, 1-sample delay, 0.444 N m limit)",
+                      "\n(friction model known; 16384-count encoder, 1-sample delay, "
+                      "0.444 N m limit)",
                       fontsize="medium", pad=40)  # fmt: skip
     save(fig, out, "force_tracking.png")
 
