@@ -149,44 +149,17 @@ def _previous_files(out: Path) -> list[str]:
     return names
 
 
-def _contact_metrics(result, controller) -> dict:
-    """``contact_first_contact`` [s], ``contact_impact_peak`` [N m], ``contact_overshoot``
-    [N m] and ``contact_overshoot_ratio`` over the force reference: the switching controller's
-    ``tau_ref``, the force controller's last reference value, else the last contact torque."""
-    from ..controllers import ForceControl
-
-    tau_ref = getattr(controller, "tau_ref", None)
-    if isinstance(controller, ForceControl) and len(result):
-        tau_ref = float(result.r[-1])
-    return {f"contact_{k}": v for k, v in result.contact_metrics(tau_ref).items()}
-
-
-def _force_reference(result, controller):
-    """``(kind, tau_ref)`` of a run: ``kind`` "force", "impedance" or "position-force" for
-    such a controller with an RTOB output (else None); ``tau_ref`` per sample [N m] (the
-    force controller's reference signal ``r``, the switching controller's ``tau_ref``), or
-    None for impedance control (its target is a position)."""
-    import numpy as np
-
-    from ..controllers import ForceControl, ImpedanceControl, PositionForceSwitch
-
-    if result.tau_contact is None or result.tau_reac is None:
-        return None, None
-    if isinstance(controller, ForceControl):
-        return "force", np.asarray(result.r, dtype=float)
-    if isinstance(controller, PositionForceSwitch):
-        return "position-force", np.full(len(result), float(controller.tau_ref))
-    return ("impedance" if isinstance(controller, ImpedanceControl) else None), None
-
-
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
     from .._files import check_file_stem, check_output, staged_outputs
     from ..simulation import (
         SimulationDivergedWarning,
+        force_reference,
+        force_run_metrics,
         metrics_json,
         plant_type_of,
+        position_metrics_apply,
         read_toml,
         simulate,
     )
@@ -211,18 +184,14 @@ def _run(args: argparse.Namespace) -> int:
         finally:  # an error or interrupt message starts on its own line
             line.end()
     metrics = result.metrics(**windows)
-    if result.tau_contact is not None:  # against a wall: the impact (docs/force-control.md)
-        metrics.update(_contact_metrics(result, kwargs["controller"]))
-    force_kind, tau_ref = _force_reference(result, kwargs["controller"])
-    if force_kind is not None:  # tau_reac vs tau_contact, tau_contact vs tau_ref
-        metrics.update({f"force_{k}": v for k, v in result.force_metrics(tau_ref).items()})
-        # and over the steady state only (without the approach, the impact and the step)
-        steady = result.force_metrics(tau_ref, window=window)
-        metrics.update({f"force_{k}_steady": v for k, v in steady.items() if k != "window_start"})
-        metrics["force_steady_start"] = steady["window_start"]
-        if force_kind == "force":  # r is tau_ref [N m]: theta - r means nothing
-            for window in ("regulation", "tracking"):
-                metrics.pop(f"rms_position_error_{window}", None)
+    controller = kwargs["controller"]
+    if not position_metrics_apply(controller):  # r is tau_ref [N m]: theta - r means nothing
+        for name in ("regulation", "tracking"):
+            metrics.pop(f"rms_position_error_{name}", None)
+    # against a wall: the impact, tau_reac vs tau_contact, tau_contact vs tau_ref
+    # (docs/force-control.md); the same function gives a sweep's rows
+    metrics.update(force_run_metrics(result, controller, window=window))
+    force_kind, tau_ref = force_reference(result, controller)
     # Staged: renamed together when all are written, metrics.json last (docs/reliability.md).
     # The previous run's <label>.csv/.png (another label, or a figure this --no-plot run does
     # not draw) are removed at the commit: the directory holds one consistent set.
