@@ -54,7 +54,8 @@ def register(subparsers) -> None:
         metavar=("START", "STOP"),
         help="the window [s] of the steady-state force metrics (force_rms_*_steady) of a run "
         "against a wall with a reaction-torque observer: the samples with START <= t < STOP "
-        "(STOP may be inf); default: from 0.5 s after the first contact to the end",
+        "(STOP may be inf); default: from 0.5 s after the first contact to the end. Refused "
+        "on a scenario without such metrics and for a window that holds no sample of the run",
     )
     parser.add_argument(
         "--progress",
@@ -170,6 +171,8 @@ def _run(args: argparse.Namespace) -> int:
         return _run_own_loop(args, data, kind)
     kwargs, windows = _scenario(args)
     window = "steady" if args.force_window is None else _force_window(args.force_window)
+    if args.force_window is not None:
+        _check_force_window(window, kwargs, args.scenario)
     out = args.out or Path("hpdob-results") / args.scenario.stem
     # The label names the output files: never a path (e.g. "../escaped") nor a hidden name.
     stem = check_file_stem(kwargs.get("label") or args.scenario.stem, "label")
@@ -228,6 +231,37 @@ def _force_window(bounds) -> tuple[float, float]:
         return metric_window(bounds, "--force-window")
     except ParameterValueError as err:
         raise CLIError(str(err)) from None
+
+
+def _check_force_window(window, kwargs, path) -> None:
+    """Refuse ``--force-window`` where it would be ignored (no steady force metrics: no wall,
+    no reaction-torque observer or no force controller) or would hold no sample (NaN)."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from ..simulation import force_run_columns, sample_count
+    from ._errors import CLIError
+
+    parts = SimpleNamespace(plant=kwargs["plant"], observer=kwargs.get("observer"),
+                            controller=kwargs["controller"])  # fmt: skip
+    if "force_steady_start" not in force_run_columns(parts):
+        raise CLIError(
+            f"--force-window: {path} reports no steady force metrics to window (they need a "
+            "wall, [plant.environment], a [reaction_observer] and a force, impedance or "
+            "switching controller); drop --force-window"
+        )
+    try:
+        n = sample_count(kwargs["Ts"], kwargs["duration"])
+    except (TypeError, ValueError):
+        return  # simulate() reports it with its own message
+    t = np.arange(n) * kwargs["Ts"]  # the sampling instants of the run, as simulate's
+    start, stop = window
+    if not np.any((t >= start) & (t < stop)):
+        raise CLIError(
+            f"--force-window [{start:g}, {stop:g}] s holds no sample of the run (t = 0 to "
+            f"{t[-1] if n else 0.0:g} s): the window must overlap the run"
+        )
 
 
 #: Plant steps above which ``hpdob simulate`` says on stderr how big the run is before it.
