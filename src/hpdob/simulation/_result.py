@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 from dataclasses import dataclass
@@ -164,6 +165,25 @@ class SimulationResult:
                 )
             array.setflags(write=False)
             object.__setattr__(self, name, array)
+
+    @classmethod
+    def _of_arrays(cls, **values) -> SimulationResult:
+        """A result of float arrays a run just made (``run_loop``), held as they are, made
+        read-only, without the constructor's copies and checks: each is a fresh view with one
+        entry per sample whose data nobody else writes (a non-contiguous one, a two-mass
+        plant's load column, is copied)."""
+        missing = _REQUIRED_FIELDS - values.keys()
+        unknown = values.keys() - _DEFAULTS.keys() - _REQUIRED_FIELDS
+        if missing or unknown:
+            raise TypeError(f"result fields missing {sorted(missing)}, unknown {sorted(unknown)}")
+        for name, value in values.items():
+            if isinstance(value, np.ndarray):
+                if not value.flags.c_contiguous:
+                    value = values[name] = np.ascontiguousarray(value)
+                value.flags.writeable = False
+        result = object.__new__(cls)
+        result.__dict__.update(_DEFAULTS, **values)  # a frozen dataclass: filled directly
+        return result
 
     def __len__(self) -> int:
         return len(self.t)
@@ -500,3 +520,14 @@ class SimulationResult:
         from .._plotting import plot_result
 
         return plot_result(self, title=title)
+
+
+#: The optional fields of a result and their defaults; the traces and ``Ts`` are required.
+_DEFAULTS = {
+    f.name: f.default
+    for f in dataclasses.fields(SimulationResult)
+    if f.default is not dataclasses.MISSING
+}
+_REQUIRED_FIELDS = frozenset(f.name for f in dataclasses.fields(SimulationResult)).difference(
+    _DEFAULTS
+)
