@@ -67,10 +67,13 @@ def metrics_json(metrics: dict) -> str:
 def metric_window(bounds, name: str) -> tuple[float, float]:
     """``bounds`` as a ``(start, stop)`` window [s] with ``start < stop`` (stop may be inf)."""
     what = "a (start, stop) pair of times [s]"
-    pair = numeric_array(bounds, name, what)
-    if pair.shape != (2,):
-        raise ParameterValueError(f"{name} must be {what}, got {bounds!r}")
-    lo, hi = float(pair[0]), float(pair[1])
+    if type(bounds) is tuple and len(bounds) == 2 and all(type(b) is float for b in bounds):
+        lo, hi = bounds  # already what the generic check below would make of it
+    else:
+        pair = numeric_array(bounds, name, what)
+        if pair.shape != (2,):
+            raise ParameterValueError(f"{name} must be {what}, got {bounds!r}")
+        lo, hi = float(pair[0]), float(pair[1])
     if not lo < hi:
         raise ParameterValueError(f"{name} must have start < stop [s], got {bounds!r}")
     return lo, hi
@@ -83,7 +86,9 @@ def _rms(values: np.ndarray) -> float:
     scale = float(np.max(np.abs(values)))
     if not 0.0 < scale < math.inf:
         return scale  # all zero, or inf/nan in the trace
-    return scale * float(np.sqrt(np.mean((values / scale) ** 2)))
+    scaled = values / scale
+    np.square(scaled, out=scaled)  # what ``** 2`` computes, without a second temporary
+    return scale * float(np.sqrt(np.mean(scaled)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -228,10 +233,12 @@ class SimulationResult:
             (``theta - r`` in each window; NaN if the window holds no sample).
         """
 
+        error = self.position_error  # once for both windows
+
         def window(bounds, name):
             lo, hi = metric_window(bounds, name)
             mask = (self.t >= lo) & (self.t < hi)
-            return _rms(self.position_error[mask])
+            return _rms(error[mask])
 
         return {
             "rms_estimation_error": _rms(self.estimation_error),
