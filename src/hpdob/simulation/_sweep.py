@@ -179,8 +179,14 @@ def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoL
     with the same plant parameters one plant (both immutable).
     """
 
+    groups: dict = {}  # "plant.J" -> groups["plant"]["J"], in one pass over the parameters
+    for name, value in params.items():
+        head, dot, tail = name.partition(".")
+        if dot:
+            groups.setdefault(head, {})[tail] = value
+
     def sub(prefix):
-        return {k[len(prefix) :]: v for k, v in params.items() if k.startswith(prefix)}
+        return groups.get(prefix[:-1], {})
 
     loop: ServoLoop = base["loop"]
     changes = {}
