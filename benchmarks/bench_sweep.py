@@ -7,7 +7,8 @@ The canonical scenario family (1 kHz, default sub-steps, Coulomb friction): orde
 its inputs prepared before the clock starts) over the same scenarios on 1 and 2 threads, its
 rows first checked against hpdob's. Interleaved, best of ``--repeat``; printed: wall time,
 Msamples/s, the CPU time per scenario (all threads; robust on a loaded machine) and the
-ratios sweep / minimal kernel.
+ratios sweep / minimal kernel; then, on one thread, how much of a scenario's CPU time is the
+compiled kernel (the GIL released) and how much holds the GIL (what bounds 2 threads).
 
 Targets (issue 25): >= 6 M samples/s on 2 threads for the 10 s family and >= 90 % of the
 minimal kernel's throughput. (Issue 11's: >= 3 M samples/s on 2 workers.)
@@ -65,11 +66,42 @@ def run_minimal(inputs: list, workers: int) -> list:
         return list(pool.map(lambda args: minimal_row(*args), inputs, chunksize=8))
 
 
-def timed(function) -> tuple[float, float]:
+def timed_call(function) -> tuple[float, float]:
     """``(wall, CPU of the process)`` of ``function()`` [s]."""
     wall, cpu = time.perf_counter(), time.process_time()
     function()
     return time.perf_counter() - wall, time.process_time() - cpu
+
+
+def kernel_share(base: dict, repeat: int) -> tuple[float, float] | None:
+    """``(CPU per scenario, of it in the compiled kernel)`` [s] of the sweep on one thread:
+    the rest holds the GIL, which caps what a second thread can add. None if the kernel's
+    entry point is not ``hpdob.simulation._kernel.run_samples`` (it may have moved)."""
+    from hpdob.simulation import _kernel
+
+    inner = getattr(_kernel, "run_samples", None)
+    if inner is None:
+        return None
+    spent = [0.0]
+
+    def timed(*args, **kwargs):
+        start = time.thread_time()
+        try:
+            return inner(*args, **kwargs)
+        finally:
+            spent[0] += time.thread_time() - start
+
+    best = (np.inf, 0.0)
+    _kernel.run_samples = timed
+    try:
+        for _ in range(repeat):
+            spent[0] = 0.0
+            _, cpu = timed_call(lambda: sweep(base, grid=GRID, scheduler=1, progress=False))
+            best = min(best, (cpu, spent[0]))
+    finally:
+        _kernel.run_samples = inner
+    scenarios = len(expand_scenarios(GRID, None, None, 0))
+    return best[0] / scenarios, best[1] / scenarios
 
 
 def main() -> None:
@@ -97,7 +129,7 @@ def main() -> None:
         best = dict.fromkeys(cases, (np.inf, np.inf))
         for _ in range(args.repeat):  # interleaved
             for key, call in cases.items():
-                wall, cpu = timed(call)
+                wall, cpu = timed_call(call)
                 best[key] = (min(best[key][0], wall), min(best[key][1], cpu))
         print(f"\n{duration:g} s scenarios ({len(inputs)}, {samples / 1e6:g} M samples; minimal "
               f"kernel's rows within {worst:.1e} of hpdob's)")  # fmt: skip
@@ -105,6 +137,14 @@ def main() -> None:
         for (name, workers), (wall, cpu) in best.items():
             print(f"{duration:>8g}  {name:>14}  {workers:>7}  {wall:>8.3f}  "
                   f"{samples / wall / 1e6:>10.2f}  {cpu / len(inputs) * 1e3:>17.3f}")  # fmt: skip
+        share = kernel_share(base, args.repeat)
+        if share is not None:
+            cpu, kernel = share
+            print(f"  one thread, per scenario: {cpu * 1e3:.3f} ms CPU, {kernel * 1e3:.3f} ms "
+                  f"of it in the kernel (GIL released), {(cpu - kernel) * 1e3:.3f} ms holding "
+                  "the GIL; "
+                  f"2-thread bound {inputs[0][0] / max(cpu - kernel, cpu / 2) / 1e6:.2f} "
+                  "M samples/s")  # fmt: skip
         for workers in (1, 2):
             ours, ref = best["hpdob.sweep", workers], best["minimal kernel", workers]
             print(
