@@ -19,7 +19,7 @@ import numba
 import numpy as np
 from scipy.linalg import expm
 
-__all__ = ["check", "minimal_row", "scenario_inputs"]
+__all__ = ["check", "minimal_row", "sampled", "scenario_inputs"]
 
 
 @numba.njit(cache=True, nogil=True)
@@ -88,19 +88,31 @@ def _zoh(J: float, b: float, h: float):
     return np.ascontiguousarray(E[:2, :2]), np.ascontiguousarray(E[:2, 2])
 
 
-def scenario_inputs(loop, signals, windows) -> tuple:
+def sampled(reference, disturbance, *, Ts: float, n: int, S: int) -> dict:
+    """The reference ``(r, r_dot, r_ddot)`` at ``k Ts`` and the disturbance there and at the
+    sub-step midpoints ``k Ts + (j + 1/2) Ts/S`` (what ``hpdob.simulate`` documents)."""
+    from hpdob.signals import trajectory
+
+    t = np.arange(n) * Ts
+    r, r_dot, r_ddot = (np.asarray(x, dtype=float) for x in trajectory(reference)(t))
+    t_mid = (t[:, None] + (np.arange(S) + 0.5) * (Ts / S)).ravel()
+    return {"Ts": Ts, "S": S, "n": n, "r": r, "r_dot": r_dot, "r_ddot": r_ddot,
+            "tau_sample": disturbance(t), "tau_mid": disturbance(t_mid)}  # fmt: skip
+
+
+def scenario_inputs(loop, signals: dict, windows: dict) -> tuple:
     """The arguments of :func:`minimal_row` for ``loop`` (an hpdob ``ServoLoop`` of the
-    canonical family) on ``signals`` (``hpdob.simulation.sample_signals``)."""
+    canonical family) on ``signals`` (:func:`sampled`)."""
     plant, system, pd = loop.plant, loop.system, loop.controller
-    Ts, S = signals.Ts, signals.substeps
+    Ts, S = signals["Ts"], signals["S"]
     h = Ts / S
     Ah, Bh = _zoh(plant.J, plant.b, h)
     Aq, Bq = _zoh(plant.J, plant.b, h / 2)
     win = np.array([*windows["regulation"], *windows["tracking"]])
-    return (signals.t.size, S, Ts, Ah, Bh, Aq, Bq, plant.b, plant.J, plant.coulomb,
+    return (signals["n"], S, Ts, Ah, Bh, Aq, Bq, plant.b, plant.J, plant.coulomb,
             plant.coulomb_velocity, system.F, system.G, system.H, system.E, loop.nominal.J,
-            pd.kp, pd.kd, signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample,
-            signals.tau_mid, win)  # fmt: skip
+            pd.kp, pd.kd, signals["r"], signals["r_dot"], signals["r_ddot"],
+            signals["tau_sample"], signals["tau_mid"], win)  # fmt: skip
 
 
 def check(rows, inputs, *, rtol: float = 1e-6) -> float:

@@ -7,8 +7,7 @@ The canonical scenario family (1 kHz, default sub-steps, Coulomb friction): orde
 its inputs prepared before the clock starts) over the same scenarios on 1 and 2 threads, its
 rows first checked against hpdob's. Interleaved, best of ``--repeat``; printed: wall time,
 Msamples/s, the CPU time per scenario (all threads; robust on a loaded machine) and the
-ratios sweep / minimal kernel; then, on one thread, how much of a scenario's CPU time is the
-compiled kernel (the GIL released) and how much holds the GIL (what bounds 2 threads).
+ratios sweep / minimal kernel.
 
 Targets (issue 25): >= 6 M samples/s on 2 threads for the 10 s family and >= 90 % of the
 minimal kernel's throughput. (Issue 11's: >= 3 M samples/s on 2 workers.)
@@ -20,6 +19,8 @@ from __future__ import annotations
 
 import argparse
 import functools
+import itertools
+import math
 import os
 import sys
 import time
@@ -30,13 +31,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _minimal_kernel import check, minimal_row, scenario_inputs
+from _minimal_kernel import check, minimal_row, sampled, scenario_inputs
 
-from hpdob import paper, sweep
-from hpdob.simulation import sample_signals
-from hpdob.simulation._result import CANONICAL_WINDOWS
-from hpdob.simulation._sweep import _resolve_base, scenario_loop
-from hpdob.simulation._sweep_spec import expand_scenarios
+from hpdob import ServoLoop, design_observer, paper, sweep
 
 GRID = {
     "observer.order": [0, 1],
@@ -45,18 +42,24 @@ GRID = {
 }
 
 
+#: The canonical windows of the position metrics [s] (``SimulationResult.metrics``' defaults).
+WINDOWS = {"regulation": (1.2, 4.0), "tracking": (4.0, math.inf)}
+
+
 def minimal_inputs(base: dict) -> list:
-    """The minimal kernel's arguments for every scenario of the grid (made before timing)."""
-    resolved = _resolve_base(base)
-    loop0 = resolved["loop"]
-    S = loop0.plant.substeps(loop0.Ts, None)
-    n = round(base["duration"] / loop0.Ts)
-    signals = sample_signals(base["reference"], base["disturbance"], Ts=loop0.Ts, n=n, substeps=S)
-    cache: dict = {}
-    return [
-        scenario_inputs(scenario_loop(resolved, params, cache), signals, CANONICAL_WINDOWS)
-        for params in expand_scenarios(GRID, None, None, 0)
-    ]
+    """The minimal kernel's arguments for every scenario of the grid, in the sweep's order
+    (the grid's Cartesian product in its key order), made before timing."""
+    Ts, nominal = base["Ts"], base["nominal"]
+    S = base["plant"].substeps(Ts, None)
+    signals = sampled(base["reference"], base["disturbance"], Ts=Ts,
+                      n=round(base["duration"] / Ts), S=S)  # fmt: skip
+    inputs = []
+    for order, bandwidth, J in itertools.product(*GRID.values()):
+        design = design_observer(nominal.discretize(Ts), order=order, bandwidth=bandwidth)
+        loop = ServoLoop(plant=base["plant"].replace(J=J), nominal=nominal, Ts=Ts,
+                         controller=base["controller"], observer=design)  # fmt: skip
+        inputs.append(scenario_inputs(loop, signals, WINDOWS))
+    return inputs
 
 
 def run_minimal(inputs: list, workers: int) -> list:
@@ -73,37 +76,6 @@ def timed_call(function) -> tuple[float, float]:
     return time.perf_counter() - wall, time.process_time() - cpu
 
 
-def kernel_share(base: dict, repeat: int) -> tuple[float, float] | None:
-    """``(CPU per scenario, of it in the compiled kernel)`` [s] of the sweep on one thread:
-    the rest holds the GIL, which caps what a second thread can add. None if the kernel's
-    entry point is not ``hpdob.simulation._kernel.run_samples`` (it may have moved)."""
-    from hpdob.simulation import _kernel
-
-    inner = getattr(_kernel, "run_samples", None)
-    if inner is None:
-        return None
-    spent = [0.0]
-
-    def timed(*args, **kwargs):
-        start = time.thread_time()
-        try:
-            return inner(*args, **kwargs)
-        finally:
-            spent[0] += time.thread_time() - start
-
-    best = (np.inf, 0.0)
-    _kernel.run_samples = timed
-    try:
-        for _ in range(repeat):
-            spent[0] = 0.0
-            _, cpu = timed_call(lambda: sweep(base, grid=GRID, scheduler=1, progress=False))
-            best = min(best, (cpu, spent[0]))
-    finally:
-        _kernel.run_samples = inner
-    scenarios = len(expand_scenarios(GRID, None, None, 0))
-    return best[0] / scenarios, best[1] / scenarios
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
@@ -118,6 +90,8 @@ def main() -> None:
         inputs = minimal_inputs(base)
         rows = sweep(base, grid=GRID, progress=False)  # warm the kernels, check the reference
         assert len(rows) == len(inputs) and rows["stable"].all()
+        order = list(zip(*(rows[path] for path in GRID), strict=True))
+        assert order == list(itertools.product(*GRID.values()))  # the inputs' order
         worst = check(rows, inputs)
         samples = len(inputs) * inputs[0][0]
         cases = {}
@@ -137,14 +111,6 @@ def main() -> None:
         for (name, workers), (wall, cpu) in best.items():
             print(f"{duration:>8g}  {name:>14}  {workers:>7}  {wall:>8.3f}  "
                   f"{samples / wall / 1e6:>10.2f}  {cpu / len(inputs) * 1e3:>17.3f}")  # fmt: skip
-        share = kernel_share(base, args.repeat)
-        if share is not None:
-            cpu, kernel = share
-            print(f"  one thread, per scenario: {cpu * 1e3:.3f} ms CPU, {kernel * 1e3:.3f} ms "
-                  f"of it in the kernel (GIL released), {(cpu - kernel) * 1e3:.3f} ms holding "
-                  "the GIL; "
-                  f"2-thread bound {inputs[0][0] / max(cpu - kernel, cpu / 2) / 1e6:.2f} "
-                  "M samples/s")  # fmt: skip
         for workers in (1, 2):
             ours, ref = best["hpdob.sweep", workers], best["minimal kernel", workers]
             print(
