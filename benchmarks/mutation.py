@@ -143,6 +143,9 @@ TARGETS = {
         ("tests/models/test_lti.py", "tests/robots/test_external.py"),
         "derived_reset or pyadrc or place_design or test_external",
     ),
+    "observers.friction": Target(
+        "src/hpdob/observers/_friction.py", ("tests/observers/test_friction.py",)
+    ),
     "models.servo": Target("src/hpdob/models/_servo.py", ("tests/models/test_servo.py",)),
     "models.two_mass": Target("src/hpdob/models/_two_mass.py", ("tests/models/test_two_mass.py",)),
     "models.plant": Target(
