@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from hpdob import identify
+from hpdob.identification._regression import rest_rows_mask
 
 
 def _analytic_log(Ts: float = 1e-3):
@@ -29,3 +30,13 @@ def test_reported_decimation_cutoff_is_that_of_scipy_decimate(decimation):
     fit = identify(t, q, u, method="idim-ls", decimation=decimation, diagnostics=False)
     assert fit.settings["decimation"] == decimation
     assert fit.settings["decimation_cutoff"] == pytest.approx(0.8 * 500.0 / decimation)
+
+
+def test_a_rest_at_either_end_of_the_log_is_dropped():
+    """Rests that start at the first sample or last through the last one: their rows and the
+    margin inside the log are dropped, the moving middle kept (the marker of a rest's end
+    sits one past the last sample)."""
+    velocity = np.concatenate([np.zeros(100), np.ones(400), np.zeros(100)])
+    index = np.arange(0, 600, 10)
+    resting, _ = rest_rows_mask(velocity, index, 10, 20)
+    np.testing.assert_array_equal(index[~resting], np.arange(120, 480, 10))
