@@ -55,3 +55,11 @@ def test_a_design_on_a_damped_nominal_model_runs_in_its_loop():
     with pytest.raises(ParameterValueError, match=r"must be designed on nominal\.discretize"):
         ServoLoop(plant=nominal, nominal=ServoModel(2.8e-4, 1e-4), Ts=1e-3,
                   controller=PD(50.0, 5.0), observer=design)  # fmt: skip
+
+
+@pytest.mark.parametrize("measurement", ["state", "position"])
+def test_the_system_says_what_it_measures(measurement):
+    model = ServoModel(2.8e-4).discretize(1e-3)
+    system = design_observer(model, order=1, bandwidth=100.0, measurement=measurement).system
+    assert system.measurement == measurement
+    assert system.measures == (("theta", "omega") if measurement == "state" else ("theta",))
