@@ -33,7 +33,10 @@ class _RadiusMap:
         pandas.DataFrame
             One row per grid point: the varied parameter, ``bandwidth_rad_s``, the fixed
             parameters (``order`` too for a :class:`~hpdob.StabilityMap`),
-            ``delay_samples``, ``spectral_radius`` and ``stable``.
+            ``delay_samples``, ``spectral_radius`` and ``stable``. A
+            :class:`~hpdob.ContactStabilityMap` with ``bandwidth_of="dob"`` or
+            ``"reaction"`` has ``dob_bandwidth_rad_s`` and ``reaction_bandwidth_rad_s``
+            instead of ``bandwidth_rad_s``, the varied one first.
 
         Raises
         ------
