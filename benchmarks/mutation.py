@@ -134,9 +134,15 @@ TARGETS = {
         ),
     ),
     "observers.reaction": Target(
+        # the composition as a design (test_reaction_design.py) and its Coulomb term with the
+        # velocity filter (test_friction.py), then the force loop's RTOB tests
         "src/hpdob/observers/_reaction.py",
-        ("tests/controllers/test_force.py",),
-        "rtob or reac or bad_inputs",
+        (
+            "tests/observers/test_reaction_design.py",
+            "tests/observers/test_friction.py",
+            "tests/controllers/test_force.py",
+        ),
+        "rtob or reac or bad_inputs or friction or design or replace_pickle",
     ),
     "observers.external": Target(
         "src/hpdob/observers/_external.py",
