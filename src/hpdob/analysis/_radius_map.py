@@ -10,7 +10,7 @@ __all__ = ["_RadiusMap"]
 
 
 class _RadiusMap:
-    """The base of :class:`~hpdob.StabilityMap` and :class:`~hpdob.ContactStabilityMap`: a
+    """The base of :class:`~hpdob.StabilityMap` and :class:`~hpdob.analysis.ContactStabilityMap`: a
     ``spectral_radius`` array over ``values`` x ``bandwidths`` and its table, one row per grid
     point, whose columns the subclass's ``_columns`` gives."""
 
@@ -34,7 +34,7 @@ class _RadiusMap:
             One row per grid point: the varied parameter, ``bandwidth_rad_s``, the fixed
             parameters (``order`` too for a :class:`~hpdob.StabilityMap`),
             ``delay_samples``, ``spectral_radius`` and ``stable``. A
-            :class:`~hpdob.ContactStabilityMap` with ``bandwidth_of="dob"`` or
+            :class:`~hpdob.analysis.ContactStabilityMap` with ``bandwidth_of="dob"`` or
             ``"reaction"`` has ``dob_bandwidth_rad_s`` and ``reaction_bandwidth_rad_s``
             instead of ``bandwidth_rad_s``, the varied one first.
 
