@@ -323,10 +323,45 @@ def a_priori_rule() -> None:
               f", of them agreeing: {counts['agree']}")  # fmt: skip
 
 
+def a_priori_causes() -> None:
+    """What drives the disagreements of the a-priori rule: each decidable point that disagrees,
+    simulated on the paper's motor, without the friction (plant and RTOB model), with an
+    unquantised encoder, with neither, and without the torque limit (the tight rule)."""
+    from hpdob import Encoder
+
+    fine = Encoder(2**52, velocity="backward-difference")
+    cases = ((0, 0, 6), (0, 1, 5), (0, 1, 6), (0, 2, 5), (0, 2, 6), (1, 0, 4), (1, 1, 4),
+             (1, 2, 3), (1, 2, 4), (1, 0, 5), (1, 1, 5))  # fmt: skip
+    print(
+        "\n| order | k_e [N m/rad] | g [rad/s] | radius | paper's motor | no friction | "
+        "unquantised | neither | no torque limit |\n|---|---:|---:|---:|---|---|---|---|---|"
+    )
+    for order, i, j in cases:
+        k_e, g = GRID_STIFFNESS[i], GRID_BANDWIDTH[j]
+        cmap = contact_stability_map(loop(order, friction=FRICTION), stiffness=[k_e],
+                                     bandwidth=[g], observer={"order": order},
+                                     **FRICTION)  # fmt: skip
+        point = cmap.loop_at(k_e, g)
+        dob = design_observer(paper.NOMINAL.discretize(paper.TS), order=order, bandwidth=g)
+        free = point.replace(plant=point.plant.replace(coulomb=0.0),
+                             observer=reaction_torque_observer(dob, viscous=DELTA_B))  # fmt: skip
+        cells = []
+        for case in (point, free, point.replace(sensor=fine), free.replace(sensor=fine),
+                     point.replace(actuator=Actuator(delay_samples=1))):  # fmt: skip
+            verdict, last = simulated(case)
+            cells.append(f"{verdict} ({100 * last:.2g} %)")
+        print(
+            f"| {NAMES[order]} | {k_e:.3g} | {g:.4g} | {cmap.spectral_radius[0, 0]:.4f} | "
+            + " | ".join(cells)
+            + " |"
+        )
+
+
 def main(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
     rtob_bandwidth(out)
     a_priori_rule()
+    a_priori_causes()
     papers_motor()
     stiff_rows()
     soft_rows()

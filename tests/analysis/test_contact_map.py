@@ -177,7 +177,10 @@ def test_no_a_priori_rule_decides_the_papers_motor():
     not: the DOb at 3 N m/rad, 781.5 rad/s (map stable, radius 0.971, predicted quantisation
     noise 0.4 % of tau_ref; the run holds a limit cycle 8 % off), and the HPDOb at 0.949
     N m/rad, 781.5 rad/s (map unstable, radius 1.025, 48x the friction bound; the run swings
-    by the torque limit, 94 % off, and stays in contact: bounded, not growing)."""
+    by the torque limit, 94 % off, and stays in contact: bounded, not growing). The causes, as
+    the page states them: the first limit cycle needs both the Coulomb friction and the
+    quantisation (it settles within 5 % without either), the second swing is the torque
+    limit's (without it the run diverges)."""
     k_grid, g_grid = np.geomspace(0.3, 300.0, 7), np.geomspace(30.0, 1500.0, 7)
     cases = ((1, 3, 2, "stable"), (1, 3, 6, "unstable"), (0, 2, 5, "bounded"),
              (1, 1, 5, "bounded"))  # fmt: skip
@@ -190,8 +193,19 @@ def test_no_a_priori_rule_decides_the_papers_motor():
         assert decidable and rho == pytest.approx(cmap.spectral_radius[0, 0], rel=1e-9)
         verdict, last = _simulated(point)
         assert verdict == expected, (order, k_e, g, rho, verdict, last)
-        if expected == "bounded":  # a disagreement by a clear margin, not at a threshold
-            assert 0.06 < last < 0.5 if rho < 1.0 else 0.6 < last < 1.0, (k_e, g, last)
+        if expected != "bounded":
+            continue
+        # a disagreement by a clear margin, not at a threshold
+        assert 0.06 < last < 0.5 if rho < 1.0 else 0.6 < last < 1.0, (k_e, g, last)
+        if rho < 1.0:
+            dob = design_observer(NOMINAL.discretize(TS), order=order, bandwidth=g)
+            rtob = reaction_torque_observer(dob, viscous=PLANT.b)
+            free = point.replace(plant=point.plant.replace(coulomb=0.0), observer=rtob)
+            assert _simulated(free)[0] == "stable"
+            assert _simulated(point.replace(sensor=FINE_ENCODER))[0] == "stable"
+        else:
+            unlimited = point.replace(actuator=Actuator(delay_samples=1))
+            assert _simulated(unlimited) == ("unstable", np.inf)
 
 
 def test_near_the_bandwidth_boundary_the_papers_motor_does_not_decide():
