@@ -138,6 +138,43 @@ def test_rms_of_huge_values_does_not_overflow():
     assert math.isnan(_rms(np.array([])))
 
 
+def test_rms_is_the_scaled_formula_bit_for_bit():
+    # _rms writes the square in place; the value is that of the formula written out
+    from hpdob.simulation._result import _rms
+
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 7, 8, 9, 1000, 12345):
+        for exponent in (-300, -3, 0, 3, 300):
+            v = rng.standard_normal(n + 1)[1:] * 10.0**exponent  # an offset view too
+            scale = float(np.max(np.abs(v)))
+            assert _rms(v) == scale * float(np.sqrt(np.mean((v / scale) ** 2)))
+    assert _rms(np.zeros(3)) == 0.0 and math.isnan(_rms(np.zeros(0)))
+    assert _rms(np.array([1.0, math.inf])) == math.inf
+
+
+@pytest.mark.parametrize(
+    "bounds", [(1.2, 4.0), (4.0, math.inf), [1.0, 2.0], np.array([0.5, 1.5]), (1, 2)]
+)
+def test_a_window_of_floats_reads_as_the_generic_check_would(bounds):
+    from hpdob.simulation._result import metric_window
+
+    lo, hi = metric_window(bounds, "w")
+    assert (lo, hi) == (float(bounds[0]), float(bounds[1]))
+    assert type(lo) is float and type(hi) is float
+
+
+@pytest.mark.parametrize(
+    ("bounds", "pattern"),
+    [((2.0, 1.0), "start < stop"), ((math.nan, 1.0), "start < stop"), ((1.0,), "pair"),
+     ("ab", "pair"), ((True, 2.0), "bool")],
+)  # fmt: skip
+def test_a_bad_window_is_refused_whatever_its_type(bounds, pattern):
+    from hpdob.simulation._result import metric_window
+
+    with pytest.raises((ValueError, TypeError), match=pattern):
+        metric_window(bounds, "w")
+
+
 def _force_run(duration=1.5):
     from hpdob import Environment, ServoLoop, ServoModel, design_observer, simulate
     from hpdob.controllers import ForceControl

@@ -355,10 +355,13 @@ def test_scenarios_that_share_a_design_design_it_once(monkeypatch):
 
     monkeypatch.setattr(sweep_module, "design_from_spec", counted)
     grid = {"plant.J": list(np.linspace(2e-4, 4e-4, 100))}
-    rows = sweep(base(0.2), grid=grid, scheduler=1, progress=False)
-    assert rows["stable"].all()
-    # one check up front, then one design per chunk (one worker: 8 chunks of 13 scenarios)
-    assert len(calls) == 1 + 8
+    for workers in (1, 2):
+        calls.clear()
+        rows = sweep(base(0.2), grid=grid, scheduler=workers, progress=False)
+        assert rows["stable"].all()
+        # one check up front, then one design for the whole sweep (its cache is shared by
+        # every chunk and thread; 8 or 16 chunks here), never one per scenario
+        assert len(calls) == 1 + 1
 
 
 def test_resume_runs_only_the_missing_scenarios_and_equals_a_run_from_scratch(monkeypatch):
@@ -443,6 +446,42 @@ def test_sweep_of_a_force_scenario_keeps_its_reaction_observer():
     assert rows["stable"].all()
     direct = scenario.simulate().metrics()["rms_estimation_error"]
     assert rows["rms_estimation_error"].iloc[1] == direct
+
+
+def test_scenarios_with_the_same_plant_parameters_share_one_plant(monkeypatch):
+    import hpdob.simulation._sweep as sweep_module
+
+    made = []
+    real = sweep_module.replaced_plant
+
+    def counted(plant, changes):
+        made.append(dict(changes))
+        return real(plant, changes)
+
+    monkeypatch.setattr(sweep_module, "replaced_plant", counted)
+    grid = {"plant.J": [2.5e-4, 3.5e-4], "observer.bandwidth": [60.0, 90.0, 120.0]}
+    rows = sweep(base(0.2), grid=grid, scheduler=2, progress=False)
+    assert rows["stable"].all() and len(rows) == 6
+    assert sorted(c["J"] for c in made) == [2.5e-4, 3.5e-4]  # once each, not per scenario
+    # the rows are those of runs that make their plant themselves
+    single = [
+        sweep(base(0.2), grid={"plant.J": [J], "observer.bandwidth": [g]}, progress=False)
+        for J in grid["plant.J"]
+        for g in grid["observer.bandwidth"]
+    ]
+    for i, one in enumerate(single):
+        for column in METRICS:  # bit for bit (NaN: a window past the run's end)
+            assert np.array_equal(rows[column][i], one[column][0], equal_nan=True)
+        assert np.isfinite(rows["rms_estimation_error"][i])
+
+
+def test_cache_keys_tell_signed_zeros_apart():
+    from hpdob.simulation._sweep import _frozen
+
+    assert _frozen({"b": 0.0}) != _frozen({"b": -0.0})
+    assert _frozen({"b": 1.0}) == _frozen({"b": 1.0}) and _frozen({"b": [1.0]}) is not None
+    assert _frozen({"x": frozenset({1, 2})}) is not None and _frozen({"x": {1, 2}}) is None
+    assert _frozen({"x": object.__new__(type("U", (), {"__hash__": None}))}) is None
 
 
 FORCE_STEP = Path(__file__).resolve().parents[2] / "examples" / "force_step_stiff_wall.toml"

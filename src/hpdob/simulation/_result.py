@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 from dataclasses import dataclass
@@ -73,10 +74,13 @@ def metrics_json(metrics: dict) -> str:
 def metric_window(bounds, name: str) -> tuple[float, float]:
     """``bounds`` as a ``(start, stop)`` window [s] with ``start < stop`` (stop may be inf)."""
     what = "a (start, stop) pair of times [s]"
-    pair = numeric_array(bounds, name, what)
-    if pair.shape != (2,):
-        raise ParameterValueError(f"{name} must be {what}, got {bounds!r}")
-    lo, hi = float(pair[0]), float(pair[1])
+    if type(bounds) is tuple and len(bounds) == 2 and all(type(b) is float for b in bounds):
+        lo, hi = bounds  # already what the generic check below would make of it
+    else:
+        pair = numeric_array(bounds, name, what)
+        if pair.shape != (2,):
+            raise ParameterValueError(f"{name} must be {what}, got {bounds!r}")
+        lo, hi = float(pair[0]), float(pair[1])
     if not lo < hi:
         raise ParameterValueError(f"{name} must have start < stop [s], got {bounds!r}")
     return lo, hi
@@ -89,7 +93,9 @@ def _rms(values: np.ndarray) -> float:
     scale = float(np.max(np.abs(values)))
     if not 0.0 < scale < math.inf:
         return scale  # all zero, or inf/nan in the trace
-    return scale * float(np.sqrt(np.mean((values / scale) ** 2)))
+    scaled = values / scale
+    np.square(scaled, out=scaled)  # what ``** 2`` computes, without a second temporary
+    return scale * float(np.sqrt(np.mean(scaled)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,6 +178,25 @@ class SimulationResult:
             array.setflags(write=False)
             object.__setattr__(self, name, array)
 
+    @classmethod
+    def _of_arrays(cls, **values) -> SimulationResult:
+        """A result of float arrays a run just made (``run_loop``), held as they are, made
+        read-only, without the constructor's copies and checks: each is a fresh view with one
+        entry per sample whose data nobody else writes (a non-contiguous one, a two-mass
+        plant's load column, is copied)."""
+        missing = _REQUIRED_FIELDS - values.keys()
+        unknown = values.keys() - _DEFAULTS.keys() - _REQUIRED_FIELDS
+        if missing or unknown:
+            raise TypeError(f"result fields missing {sorted(missing)}, unknown {sorted(unknown)}")
+        for name, value in values.items():
+            if isinstance(value, np.ndarray):
+                if not value.flags.c_contiguous:
+                    value = values[name] = np.ascontiguousarray(value)
+                value.flags.writeable = False
+        result = object.__new__(cls)
+        result.__dict__.update(_DEFAULTS, **values)  # a frozen dataclass: filled directly
+        return result
+
     def __len__(self) -> int:
         return len(self.t)
 
@@ -215,10 +240,12 @@ class SimulationResult:
             (``theta - r`` in each window; NaN if the window holds no sample).
         """
 
+        error = self.position_error  # once for both windows
+
         def window(bounds, name):
             lo, hi = metric_window(bounds, name)
             mask = (self.t >= lo) & (self.t < hi)
-            return _rms(self.position_error[mask])
+            return _rms(error[mask])
 
         return {
             "rms_estimation_error": _rms(self.estimation_error),
@@ -541,3 +568,14 @@ class SimulationResult:
         from .._plotting import plot_result
 
         return plot_result(self, title=title)
+
+
+#: The optional fields of a result and their defaults; the traces and ``Ts`` are required.
+_DEFAULTS = {
+    f.name: f.default
+    for f in dataclasses.fields(SimulationResult)
+    if f.default is not dataclasses.MISSING
+}
+_REQUIRED_FIELDS = frozenset(f.name for f in dataclasses.fields(SimulationResult)).difference(
+    _DEFAULTS
+)

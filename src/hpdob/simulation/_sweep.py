@@ -34,6 +34,7 @@ from ..observers import (
     get_family,
     spec_of,
 )
+from ._derived import frozen, run_substeps
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import check_run_arguments, run_loop, sample_count, sample_signals
@@ -148,11 +149,33 @@ def _frozen(value):
             _frozen(v) for v in (value.tolist() if isinstance(value, np.ndarray) else value)
         )
         return None if any(v is None for v in items) else items
+    if isinstance(value, float):  # by its bits: -0.0 and 0.0 are different scenarios
+        return ("float", value.hex())
     try:
         hash(value)
     except TypeError:
         return None
     return (type(value).__name__, value)
+
+
+#: Held while a sweep's cache is filled: a design (or plant, or time grid) is made once even
+#: when two threads ask for it together. Filling holds the GIL anyway, so this costs no overlap.
+_FILLING = threading.RLock()
+
+
+def _cached(cache: dict | None, key, make):
+    """``cache[key]``, made by ``make()`` on the first request (no cache, or a key with an
+    unhashable part, ``None`` inside: ``make()`` each time)."""
+    if cache is None or key is None or key[-1] is None:
+        return make()
+    value = cache.get(key)
+    if value is None:
+        with _FILLING:
+            value = cache.get(key)
+            if value is None:
+                value = make()
+                cache[key] = value
+    return value
 
 
 def _varied_spec(spec: dict, varied: dict) -> dict:
@@ -170,14 +193,8 @@ def _varied_spec(spec: dict, varied: dict) -> dict:
 
 def _designed(spec: dict, nominal, Ts, cache):
     """The design of ``spec`` on ``nominal.discretize(Ts)``, shared through ``cache``."""
-    key = _frozen({"spec": spec, "nominal": nominal, "Ts": Ts})
-    key = None if key is None or cache is None else ("design", key)
-    design = None if key is None else cache.get(key)
-    if design is None:
-        design = design_from_spec(nominal.discretize(Ts), spec)
-        if key is not None:
-            cache[key] = design
-    return design
+    key = ("design", _frozen({"spec": spec, "nominal": nominal, "Ts": Ts}))
+    return _cached(cache, key, lambda: design_from_spec(nominal.discretize(Ts), spec))
 
 
 def _recomposed(composition: ReactionObserverDesign, params: dict, nominal, Ts, cache):
@@ -212,17 +229,26 @@ def _recomposed(composition: ReactionObserverDesign, params: dict, nominal, Ts, 
 def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoLoop:
     """The validated loop of one scenario (raises Parameter*Error on bad values).
 
-    ``cache`` (a dict) keeps the observer designs of a chunk: scenarios that vary only the
-    plant, the gains or the disturbance share one design (designs are immutable).
+    ``cache`` (a dict) keeps the observer designs and the plants of a chunk or a sweep:
+    scenarios that vary only the plant, the gains or the disturbance share one design, those
+    with the same plant parameters one plant (both immutable).
     """
+    groups: dict = {}  # "plant.J" -> groups["plant"]["J"], in one pass over the parameters
+    for name, value in params.items():
+        head, dot, tail = name.partition(".")
+        if dot:
+            groups.setdefault(head, {})[tail] = value
 
     def sub(prefix):
-        return {k[len(prefix) :]: v for k, v in params.items() if k.startswith(prefix)}
+        return groups.get(prefix[:-1], {})
 
     loop: ServoLoop = base["loop"]
     changes = {}
     if sub("plant."):
-        changes["plant"] = replaced_plant(loop.plant, sub("plant."))
+        # one plant object per parameter set: a frozen one keeps its sub-step matrices
+        varied = sub("plant.")
+        key = ("plant", _frozen(varied)) if frozen(loop.plant) else None
+        changes["plant"] = _cached(cache, key, lambda: replaced_plant(loop.plant, varied))
     if sub("nominal."):
         changes["nominal"] = loop.nominal.replace(**sub("nominal."))
     if sub("controller."):
@@ -254,23 +280,23 @@ def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoL
 def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
     """Simulate one scenario and return its row (metrics, ``stable``, ``error``).
 
-    ``base`` comes from :func:`_resolve_base`. ``cache`` maps ``(Ts, n, substeps)`` to the
-    sampled reference and disturbance, shared by scenarios with the same time grid.
+    ``base`` comes from :func:`_resolve_base`. ``cache`` keeps, besides the designs and
+    plants of :func:`scenario_loop`, the sampled reference and disturbance per ``(Ts, n,
+    substeps)``, shared by scenarios with the same time grid.
     """
     row = dict(params)
     try:
         loop = scenario_loop(base, params, cache)
-        S = loop.plant.substeps(loop.Ts, base["substeps"])
+        S = run_substeps(loop.plant, loop.Ts, base["substeps"])
         n = sample_count(loop.Ts, base["duration"])
         x0 = np.array(base["x0"])  # checked once in _resolve_base
-        key = (loop.Ts, n, S)
-        signals = None if cache is None else cache.get(key)
-        if signals is None:
-            signals = sample_signals(
+        signals = _cached(
+            cache,
+            ("signals", loop.Ts, n, S),
+            lambda: sample_signals(
                 base["reference"], base["disturbance"], Ts=loop.Ts, n=n, substeps=S
-            )
-            if cache is not None:
-                cache[key] = signals
+            ),
+        )
         scale = float(params.get("disturbance_scale", 1.0))
         result = run_loop(loop, signals.scaled(scale), x0)
     except (ParameterValueError, ParameterTypeError) as err:
@@ -287,13 +313,17 @@ class SweepCancelled(Exception):
     """Raised inside a local chunk when the sweep was cancelled (e.g. by Ctrl-C)."""
 
 
-def run_chunk(base: dict, chunk: list, stop: threading.Event | None = None) -> list:
+def run_chunk(
+    base: dict, chunk: list, stop: threading.Event | None = None, cache: dict | None = None
+) -> list:
     """Rows of ``chunk``, a list of ``(index, params)``; runs anywhere (local or a worker).
 
     ``stop`` (local runs): checked before every scenario, so a cancelled sweep ends within one
-    scenario instead of one chunk.
+    scenario instead of one chunk. ``cache`` (local runs): the sweep's, shared by all chunks
+    and threads (designs, plants and sampled signals are immutable and a pure function of
+    their key; :func:`_cached` makes each once); default a new one for this chunk.
     """
-    cache: dict = {}
+    cache = {} if cache is None else cache
     rows = []
     for index, params in chunk:
         if stop is not None and stop.is_set():
@@ -349,12 +379,13 @@ def _run_local(base, chunks, workers, update, rows) -> list:
     (re-raising) without waiting for the rest of the sweep.
     """
     stop = threading.Event()
+    cache: dict = {}  # one for the whole sweep: each design, plant and time grid made once
     pending = iter(chunks)
     pool = ThreadPoolExecutor(max_workers=workers)
     running = set()
     try:
         for chunk in pending:
-            running.add(pool.submit(run_chunk, base, chunk, stop))
+            running.add(pool.submit(run_chunk, base, chunk, stop, cache))
             if len(running) >= 2 * workers:
                 break
         while running:
@@ -366,7 +397,7 @@ def _run_local(base, chunks, workers, update, rows) -> list:
                 checkpoint("sweep-chunk")  # a test hook (hpdob._interrupts); no-op otherwise
                 chunk = next(pending, None)
                 if chunk is not None:
-                    running.add(pool.submit(run_chunk, base, chunk, stop))
+                    running.add(pool.submit(run_chunk, base, chunk, stop, cache))
     except BaseException:
         stop.set()
         for future in running:
