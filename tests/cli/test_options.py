@@ -111,3 +111,23 @@ def test_tune_writes_the_controller_into_its_scenario(capsys, tmp_path):
     assert table == {"type": "pid", "kp": 50.0, "ki": 100.0, "kd": 5.0, "velocity": "observer"}
     settings = json.loads((tmp_path / "tune.json").read_text())["settings"]["controller"]
     assert settings["type"] == "PID" and settings["ki"] == 100.0
+
+
+@pytest.mark.parametrize("kind", ["force", "impedance", "position-force"])
+@pytest.mark.parametrize("command", ["analyze stability", "analyze noise", "compare", "tune"])
+def test_force_controllers_are_refused_not_run_as_a_pd(capsys, tmp_path, command, kind):
+    # issue 20 audit: these fell through to PD(kp, kd) (compare's CSV was the PD's)
+    out = tmp_path / "out"
+    code, _, err = run(capsys, *command.split(), "--controller", kind, "--out", str(out))
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"--controller: {kind!r} needs a wall and a reaction-torque observer" in err, err
+    assert "it runs pd, pid, filtered-pd, adrc" in err and "hpdob simulate" in err, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("command", ["analyze stability", "compare", "tune"])
+def test_help_offers_only_the_controllers_the_command_runs(capsys, command):
+    code, out, _ = run(capsys, *command.split(), "--help")
+    assert code == 0
+    assert "--controller {pd,pid,filtered-pd,adrc}" in out
+    assert "impedance" not in out and "position-force" not in out

@@ -18,6 +18,7 @@ __all__ = [
     "add_loop_arguments",
     "add_nominal_arguments",
     "controller_from_args",
+    "controller_type",
     "finite",
     "output_path",
     "reject_plant_arguments",
@@ -105,16 +106,40 @@ CONTROLLER_OPTIONS = {
 }  # fmt: skip
 
 
-def add_controller_arguments(group) -> None:
-    """``--controller`` (a scenario file's ``[controller] type``), ``--kp``, ``--kd`` and the
-    options of each type (:data:`CONTROLLER_OPTIONS`); see :func:`controller_from_args`."""
+#: The ``--controller`` types a command line builds: the servo loop's. The force controllers
+#: (force, impedance, position-force) read a reaction-torque estimate and push on a wall, which
+#: only a scenario file describes (``hpdob simulate``, docs/force-control.md).
+SERVO_CONTROLLERS = ("pd", "pid", "filtered-pd", "adrc")
+
+
+def controller_type(text: str) -> str:
+    """argparse type of ``--controller``: a :data:`SERVO_CONTROLLERS` name; a force controller
+    is refused with a pointer to ``hpdob simulate``, not run as a PD."""
     from ..controllers import CONTROLLER_TYPES
 
+    if text in SERVO_CONTROLLERS:
+        return text
+    accepted = ", ".join(SERVO_CONTROLLERS)
+    if text in CONTROLLER_TYPES:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} needs a wall and a reaction-torque observer, which this command does not "
+            f"build; it runs {accepted}. Run {text!r} with 'hpdob simulate SCENARIO.toml' "
+            f'([controller] type = "{text}" and a [reaction_observer], docs/force-control.md)'
+        )
+    raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from {accepted})")
+
+
+def add_controller_arguments(group) -> None:
+    """``--controller`` (a scenario file's ``[controller] type``, of :data:`SERVO_CONTROLLERS`),
+    ``--kp``, ``--kd`` and the options of each type (:data:`CONTROLLER_OPTIONS`); see
+    :func:`controller_from_args`."""
     group.add_argument(
         "--controller",
-        choices=tuple(CONTROLLER_TYPES),
+        type=controller_type,
         default="pd",
-        help="the outer loop, as a scenario file's [controller] type (default: %(default)s)",
+        metavar="{" + ",".join(SERVO_CONTROLLERS) + "}",
+        help="the outer loop, as a scenario file's [controller] type (default: %(default)s; "
+        "the force controllers: 'hpdob simulate' with a scenario file)",
     )
     group.add_argument(
         "--kp",
@@ -144,6 +169,8 @@ def controller_from_args(args, *, velocity: str = "measured", feedforward: bool 
     from ._errors import CLIError
 
     kind = args.controller
+    if kind not in SERVO_CONTROLLERS:  # never a PD in its place (argparse refused it already)
+        raise CLIError(f"--controller must be one of {', '.join(SERVO_CONTROLLERS)}, got {kind!r}")
     for option, (owner, _) in CONTROLLER_OPTIONS.items():
         if getattr(args, name_of(option)) is not None and owner != kind:
             raise CLIError(f"{option} applies to --controller {owner} only, not {kind}")
