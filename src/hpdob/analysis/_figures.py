@@ -15,7 +15,7 @@ def order_name(order: int) -> str:
     return {0: "DOb (m=0)", 1: "HPDOb (m=1)"}.get(order, f"order m={order}")
 
 
-def bode_figure(designs, frequency, *, sensitivities=None, mark_frequency=None):
+def bode_figure(designs, frequency, *, sensitivities=None, mark_frequency=None, labels=None):
     """Magnitude of ``Q`` and ``1 - Q``, phase of ``Q``, optionally ``|S|`` of the loop.
 
     Parameters
@@ -27,6 +27,9 @@ def bode_figure(designs, frequency, *, sensitivities=None, mark_frequency=None):
         Input sensitivity of each design's closed loop at ``frequency`` (a fourth panel).
     mark_frequency : float, optional
         A disturbance frequency [Hz] to mark with a vertical line.
+    labels : sequence of str, optional
+        The legend entry of each design. Default: its order and bandwidth (designs of the
+        paper's family; any other family's design needs ``labels``).
 
     Returns
     -------
@@ -55,7 +58,10 @@ def bode_figure(designs, frequency, *, sensitivities=None, mark_frequency=None):
     for i, design in enumerate(designs):
         q = estimation_response(design, frequency)
         e = estimation_response(design, frequency, error=True)
-        label = f"{order_name(design.order)}, g = {design.bandwidth:g} rad/s"
+        if labels is not None:
+            label = labels[i]
+        else:
+            label = f"{order_name(design.order)}, g = {design.bandwidth:g} rad/s"
         axes[0].semilogx(frequency, 20 * np.log10(np.abs(q)), label=label)
         axes[1].semilogx(frequency, np.degrees(np.unwrap(np.angle(q))))
         axes[2].semilogx(frequency, 20 * np.log10(np.abs(e)))
@@ -78,7 +84,7 @@ def bode_figure(designs, frequency, *, sensitivities=None, mark_frequency=None):
     return fig
 
 
-def noise_figure(bandwidths, orders, gains):
+def noise_figure(bandwidths, orders, gains, *, labels=None):
     """Noise gains against bandwidth: estimate and command, position and velocity noise.
 
     Parameters
@@ -90,6 +96,8 @@ def noise_figure(bandwidths, orders, gains):
     gains : sequence of sequences of NoiseGains
         ``gains[i][j]`` is the :class:`~hpdob.NoiseGains` of ``orders[i]`` at
         ``bandwidths[j]`` (from :func:`hpdob.noise_gains`).
+    labels : sequence of str, optional
+        The legend entry of each curve. Default: the paper's name of each order.
 
     Returns
     -------
@@ -123,7 +131,8 @@ def noise_figure(bandwidths, orders, gains):
     ]
     for ax, (name, ylabel) in zip(axes.ravel(), panels, strict=True):
         for i, m in enumerate(orders):
-            ax.loglog(bandwidths, [getattr(g, name) for g in gains[i]], label=order_name(m))
+            label = order_name(m) if labels is None else labels[i]
+            ax.loglog(bandwidths, [getattr(g, name) for g in gains[i]], label=label)
         style_axes(ax, xlabel=None, ylabel=ylabel)
         ax.yaxis.label.set_fontsize("small")
     for ax in axes[1]:

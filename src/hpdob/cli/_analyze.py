@@ -139,9 +139,10 @@ def _add_measurement(parser: argparse.ArgumentParser, *, loop: bool = True) -> N
         "--measurement",
         choices=("state", "position"),
         default="state",
-        help="observer family: angle and velocity measured (state) or the angle only "
+        help="--type dob: angle and velocity measured (state) or the angle only "
         "(position; every pole at exp(-g Ts)) (default: %(default)s)",
     )
+    _add_family(parser)
     if loop:
         parser.add_argument(
             "--pd-velocity",
@@ -152,12 +153,101 @@ def _add_measurement(parser: argparse.ArgumentParser, *, loop: bool = True) -> N
         )
 
 
-def _design(args, model, order: int, bandwidth: float):
-    from ..observers import design_observer
+#: Family parameters ``analyze`` sets itself: the bandwidth (its grid or ``--bandwidth``), the
+#: order (``--orders``), the paper's family's measurement (``--measurement``).
+_SET_BY_ANALYZE = ("bandwidth", "poles", "measurement")
 
-    return design_observer(
-        model, order=order, bandwidth=bandwidth, measurement=getattr(args, "measurement", "state")
+
+def _family_options() -> dict:
+    """``{name: [(family, Parameter), ...]}`` of the registered families' parameters an
+    analysis takes as options (not its order, bandwidth or what a design at a bandwidth sets)."""
+    from ..observers import families
+    from ._design import _observer_options
+
+    set_here = set(_SET_BY_ANALYZE)
+    for family in families():
+        set_here |= {family.order, *family.set_at_bandwidth} - {None}
+    return {k: v for k, v in _observer_options().items() if k not in set_here}
+
+
+def _add_family(parser: argparse.ArgumentParser) -> None:
+    """``--type`` (any registered family, as ``hpdob design --type``) and one option per
+    family parameter (:func:`_family_options`): ``--orders`` sweep the family's order key."""
+    from ..observers import families
+    from ._design import _KIND_TYPES, _option
+
+    group = parser.add_argument_group(
+        "observer family", "as 'hpdob design'; --orders are the family's order key and each "
+        "bandwidth designs it (a Kalman observer's process noise is chosen for it)",
+    )  # fmt: skip
+    group.add_argument(
+        "--type",
+        choices=[f.name for f in families()],
+        default="dob",
+        help="observer family (default: %(default)s, the paper's)",
     )
+    for name, owners in _family_options().items():
+        parameter = owners[0][1]
+        described = "; ".join(f"{f.name}: {p.help}" for f, p in owners)
+        kwargs = {"choices": parameter.choices} if parameter.kind == "choice" else {
+            "type": _KIND_TYPES[parameter.kind]}  # fmt: skip
+        group.add_argument(_option(name), default=None, help=described, **kwargs)
+
+
+def _spec(args, order) -> dict:
+    """The family spec ``--type`` and its options describe, at ``order`` (the family's order
+    key; ``None`` for a family without one), without the bandwidth the analysis sets."""
+    from ..observers import get_family
+    from ._design import _option
+
+    family = get_family(getattr(args, "type", "dob"), "--type")
+    given = {k: getattr(args, k) for k in _family_options() if getattr(args, k, None) is not None}
+    foreign = [_option(k) for k in given if k not in family.keys]
+    if foreign:
+        verb = "applies" if len(foreign) == 1 else "apply"
+        raise CLIError(f"{', '.join(foreign)} {verb} to another family, not --type {family.name}")
+    measurement = getattr(args, "measurement", "state")
+    if "measurement" not in family.keys and measurement != "state":
+        raise CLIError(f"--measurement applies to --type dob, not --type {family.name}")
+    spec = {"type": family.name, **family.defaults, **given}
+    for key in (family.order, "bandwidth", "poles", *family.set_at_bandwidth):
+        spec.pop(key, None)
+    if "measurement" in family.keys:
+        spec["measurement"] = measurement
+    if family.order is not None and order is not None:
+        spec[family.order] = order
+    missing = [k for k in family.required
+               if k not in spec and k not in (family.order, *family.set_at_bandwidth)]  # fmt: skip
+    if missing:
+        raise CLIError(f"--type {family.name} needs {_option(missing[0])} "
+                       f"({family.parameter(missing[0]).help})")  # fmt: skip
+    return spec
+
+
+def _is_paper_family(args) -> bool:
+    return getattr(args, "type", "dob") == "dob"
+
+
+def _label(args, order) -> str:
+    from ..observers import spec_label
+
+    return spec_label(_spec(args, order))
+
+
+def _design(args, model, order: int, bandwidth: float):
+    """The ``--type`` family's design of ``order`` at ``bandwidth`` [rad/s] on ``model``."""
+    from ..observers import design_at_bandwidth, design_observer
+
+    if _is_paper_family(args) and not _family_given(args):  # the paper's, as it always was
+        return design_observer(
+            model, order=order, bandwidth=bandwidth,
+            measurement=getattr(args, "measurement", "state"),
+        )  # fmt: skip
+    return design_at_bandwidth(model, _spec(args, order), bandwidth)
+
+
+def _family_given(args) -> bool:
+    return any(getattr(args, k, None) is not None for k in _family_options())
 
 
 def _add_orders(parser: argparse.ArgumentParser, default: str) -> None:
@@ -389,8 +479,11 @@ def _bode(args, files) -> list[str]:
             line(2 * len(sens) - 1, 2 * len(designs))
             margins.append(loop_margins(**loop, observer=d))
             line(2 * len(sens), 2 * len(designs))
+    labels = None  # the paper's family: its order names, as always
+    if not _is_paper_family(args):
+        labels = [f"{_label(args, m)}, g = {args.bandwidth:g} rad/s" for m in args.orders]
     save_figure(
-        bode_figure(designs, f, sensitivities=sens, mark_frequency=args.frequency),
+        bode_figure(designs, f, sensitivities=sens, mark_frequency=args.frequency, labels=labels),
         files,
         "bode.png",
         args.dpi,
@@ -407,18 +500,19 @@ def _bode(args, files) -> list[str]:
         "bandwidth_rad_s": args.bandwidth,
         "frequency_Hz": args.frequency,
         "measurement": args.measurement,
+        "observer": _spec(args, None),
         "orders": {},
     }
-    for d, s, margin in zip(designs, sens, margins, strict=True):
+    for m, d, s, margin in zip(args.orders, designs, sens, margins, strict=True):
         q = estimation_response(d, f)
         columns["frequency_Hz"] += f.tolist()
-        columns["order"] += [d.order] * f.size
+        columns["order"] += [m] * f.size
         columns["Q_abs"] += np.abs(q).tolist()
         columns["Q_phase_deg"] += np.degrees(np.unwrap(np.angle(q))).tolist()
         columns["error_abs"] += np.abs(1 - q).tolist()
         columns["S_abs"] += np.abs(s).tolist()
         below = np.nonzero(np.abs(q) < 10 ** (-3 / 20))[0]
-        summary["orders"][str(d.order)] = {
+        summary["orders"][str(m)] = {
             "Q_peak_dB": float(20 * np.log10(np.abs(q).max())),
             "Q_peak_Hz": float(f[np.argmax(np.abs(q))]),
             "Q_minus3dB_Hz": float(f[below[0]]) if below.size else None,
@@ -451,7 +545,9 @@ def _noise(args, files) -> list[str]:
             for g in args.bandwidths:
                 gains[-1].append(noise_gains(**loop, observer=_design(args, model, m, g)))
                 line(len(gains[-1]) + (len(gains) - 1) * len(args.bandwidths), total)
-    save_figure(noise_figure(args.bandwidths, args.orders, gains), files, "noise.png", args.dpi)
+    labels = None if _is_paper_family(args) else [_label(args, m) for m in args.orders]
+    figure = noise_figure(args.bandwidths, args.orders, gains, labels=labels)
+    save_figure(figure, files, "noise.png", args.dpi)
     rows = [
         {"order": m, "bandwidth_rad_s": g, **gain.to_dict()}
         for m, row in zip(args.orders, gains, strict=True)
@@ -477,6 +573,7 @@ def _describe(args) -> dict:
         "kd": getattr(controller, "kd", None),
         "delay_samples": args.delay,
         "measurement": args.measurement,
+        "observer": _spec(args, None),
         "pd_velocity": args.pd_velocity,
     }
 
@@ -580,20 +677,26 @@ def _stability_map(args, files, grid, bandwidths, loop, J_ratio, summary, *, ord
     from ..models import ServoModel
 
     m = order
+    family = (  # the paper's family as it always was; any other by its spec
+        {"order": m, "measurement": args.measurement}
+        if _is_paper_family(args) and not _family_given(args)
+        else {"observer": _spec(args, m)}
+    )
     smap = robust_stability_map(
         **grid,
+        **family,
         bandwidth=bandwidths,
-        order=m,
         nominal=ServoModel(args.J_n, args.b_n),
         Ts=args.Ts,
         controller=loop["controller"],
         delay_samples=args.delay,
-        measurement=args.measurement,
         progress=progress,
     )
     stem = f"stability_{args.parameter}_m{m}" + (f"_delay{args.delay}" if args.delay else "")
     if args.measurement == "position":
         stem += "_position"
+    if not _is_paper_family(args):  # another family's maps beside the paper's, not over them
+        stem = f"stability_{args.type}_{args.parameter}_m{m}" + stem.split(f"_m{m}", 1)[1]
     # Mark the user's design (--bandwidth) at the loop's own plant if it lies on the map.
     point = None
     if args.bandwidth is not None:
@@ -608,6 +711,7 @@ def _stability_map(args, files, grid, bandwidths, loop, J_ratio, summary, *, ord
     summary["maps"].append(
         {
             "order": m,
+            "observer": _spec(args, m),
             "parameter": args.parameter,
             "delay_samples": args.delay,
             "stable_fraction": float(smap.stable.mean()),

@@ -36,6 +36,35 @@ def _frequency(text: str):
     return _pair(text) if "," in text else finite(text)
 
 
+def families_of(text: str) -> list[str]:
+    """The tuner's variants (:func:`hpdob.tuning.candidate_families`) ``--families`` names.
+
+    Each item is a registered family's type (``hpdob design --type``: ``dob``, ``eso``,
+    ``kalman``, any family registered since), which stands for all its variants (``dob``: the
+    observers measuring the state and their position-only versions), or one variant by its
+    name (``state``, ``position``, ``eso``, ``kalman``: the names ``tune(families=...)`` takes,
+    kept on the command line). Anything else is refused with both spellings listed.
+    """
+    from ..tuning import candidate_families
+
+    variants = candidate_families()
+    of_type: dict = {}
+    for name, (family, _, _) in variants.items():
+        of_type.setdefault(family.name, []).append(name)
+    chosen = []
+    for item in (part.strip() for part in text.split(",")):
+        if item in of_type:
+            chosen += of_type[item]
+        elif item in variants:
+            chosen.append(item)
+        else:
+            raise CLIError(
+                f"--families takes family types {', '.join(of_type)} or their variants "
+                f"{', '.join(variants)}, got {item!r}"
+            )
+    return list(dict.fromkeys(chosen))
+
+
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "tune",
@@ -65,7 +94,9 @@ def register(subparsers) -> None:
     search.add_argument("--frequency", type=_frequency, default=None, metavar="F|LOW,HIGH",
                         help="disturbance frequency [Hz] or band (default: 0.1,10)")  # fmt: skip
     search.add_argument("--families", default=None, metavar="LIST",
-                        help="state,position,eso,kalman (default: all)")  # fmt: skip
+                        help="comma-separated observer family types, as 'hpdob design --type' "
+                        "(e.g. dob,eso,kalman: each with its tuner variants), or variants by "
+                        "name (state, position: the dob's) (default: all)")  # fmt: skip
     search.add_argument("--objective", choices=("estimation", "position"),
                         default="estimation", help="rank by (default: %(default)s)")  # fmt: skip
     search.add_argument("--noise-limit", type=finite, default=None,
@@ -104,7 +135,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.counts_per_rev is not None or args.noise_std != 0:  # Encoder checks the values
         sensor = Encoder(args.counts_per_rev or 2**31, noise_std=args.noise_std)
     check_uncertainty_ranges(args.J_range, args.b_range, J_n=args.J_n, b_n=args.b_n)
-    families = None if args.families is None else [f.strip() for f in args.families.split(",")]
+    families = None if args.families is None else families_of(args.families)
     progress = _Progress(sys.stderr) if show_progress(args.progress) else None
     try:
         result = tune(

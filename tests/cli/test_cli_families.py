@@ -1,0 +1,202 @@
+"""``hpdob analyze`` and ``hpdob tune --families`` read the family registry (issue 20 audit):
+``analyze --type`` takes any registered family with its options, as ``hpdob design`` does;
+``tune --families`` takes the registry's family types (and the tuner's variant names).
+
+A family defined only here, registered at run time (the DOb followed by a first-order low-pass
+of its estimate, as in tests/observers/test_registered_family.py), works in both with no edit
+under src/; the expected values come from the library's functions on the family's own design
+function, not from the command line.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+
+from hpdob import (
+    PD,
+    LinearObserver,
+    ServoLoop,
+    ServoModel,
+    design_observer,
+    estimation_response,
+    noise_gains,
+    robust_stability_map,
+)
+from hpdob.cli import main
+from hpdob.observers import Family, Parameter, register_family, unregister_family
+
+TS = 1e-3
+NOMINAL, PLANT = ServoModel(2.8e-4), ServoModel(3.06e-4, 5e-5)  # canonical
+MODEL = NOMINAL.discretize(TS)
+
+
+@dataclass(frozen=True, eq=False)
+class LowPassDesign:
+    model: object
+    order: int
+    bandwidth: float
+    lp_bandwidth: float
+    system: LinearObserver
+
+
+def design_low_pass(model, *, order: int = 0, bandwidth: float, lp_bandwidth: float):
+    """The DOb of ``order`` at ``bandwidth`` [rad/s], its estimate low-pass filtered:
+    ``tau_f[k+1] = a tau_f[k] + (1 - a) tau_hat[k]``, ``a = exp(-lp_bandwidth Ts)``."""
+    dob = design_observer(model, order=order, bandwidth=bandwidth).system
+    a = math.exp(-lp_bandwidth * model.Ts)
+    n = dob.F.shape[0]
+    F = np.block([[dob.F, np.zeros((n, 1))], [(1 - a) * dob.H, np.array([[a]])]])
+    G = np.vstack([dob.G, (1 - a) * dob.E])
+    H = np.hstack([np.zeros((1, n)), [[1.0]]])
+    N = np.vstack([dob.N, [0.0, 0.0, 1.0]])
+    system = LinearObserver(F=F, G=G, H=H, E=np.zeros((1, 3)), N=N, Ts=model.Ts, model=model,
+                            name=f"DOb m={order} + LP")  # fmt: skip
+    return LowPassDesign(model, order, bandwidth, lp_bandwidth, system)
+
+
+LOW_PASS = Family(
+    name="cli_lp",
+    design=design_low_pass,
+    parameters=(
+        Parameter("order", "int", "truncation order of the DOb"),
+        Parameter("bandwidth", "float", "DOb bandwidth [rad/s]"),
+        Parameter("lp_bandwidth", "float", "low-pass bandwidth [rad/s]"),
+    ),
+    required=("bandwidth", "lp_bandwidth"),
+    order="order",
+    tuned="bandwidth",
+    designs=(LowPassDesign,),
+    spec_of=lambda d: {"order": d.order, "bandwidth": d.bandwidth, "lp_bandwidth": d.lp_bandwidth},
+    label=lambda spec: f"DOb m={spec.get('order', 0)} + LP",
+    title="a DOb followed by a first-order low-pass (defined in a test)",
+    variants={"cli-filtered": {"lp_bandwidth": 2000.0}},
+    orders=(0, 1),
+)
+
+
+@pytest.fixture
+def registered():
+    register_family(LOW_PASS)
+    yield LOW_PASS
+    unregister_family("cli_lp")
+
+
+def run(capsys, *argv):
+    try:
+        code = main(list(argv))
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def rows(path) -> list[dict]:
+    with open(path, newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_analyze_stability_of_the_eso_and_of_a_registered_family(capsys, tmp_path, registered):
+    # the audit: "analyze stability --type eso" was "unrecognized arguments"
+    common = ["analyze", "stability", "--orders", "1", "--bandwidths", "50,200", "--values",
+              "0.5,1,2", "--no-progress", "--dpi", "40"]  # fmt: skip
+    cases = [
+        (["--type", "eso", "--form", "current"], {"type": "eso", "extended_order": 1,
+                                                  "form": "current"}, "eso"),
+        (["--type", "cli_lp", "--lp-bandwidth", "300"], {"type": "cli_lp", "order": 1,
+                                                         "lp_bandwidth": 300.0}, "cli_lp"),
+    ]  # fmt: skip
+    for options, spec, stem in cases:
+        out = tmp_path / stem
+        code, _, err = run(capsys, *common, *options, "--out", str(out))
+        assert code == 0 and err == "", err
+        loop = ServoLoop(plant=PLANT, nominal=NOMINAL, Ts=TS, controller=PD(50.0, 5.0),
+                         observer={**spec, "bandwidth": 100.0})  # fmt: skip
+        expected = robust_stability_map(loop, J_ratio=[0.5, 1.0, 2.0], b=PLANT.b,
+                                        bandwidth=[50.0, 200.0])  # fmt: skip
+        got = [float(r["spectral_radius"]) for r in rows(out / f"stability_{stem}_J_ratio_m1.csv")]
+        np.testing.assert_array_equal(got, expected.spectral_radius.ravel())
+        summary = json.loads((out / "stability.json").read_text())
+        assert summary["maps"][0]["observer"] == spec
+
+
+def test_analyze_noise_and_bode_of_a_registered_family(capsys, tmp_path, registered):
+    options = ["--type", "cli_lp", "--lp-bandwidth", "300", "--orders", "0,1", "--dpi", "40",
+               "--no-progress"]  # fmt: skip
+    code, _, err = run(capsys, "analyze", "noise", *options, "--bandwidths", "50,200",
+                       "--out", str(tmp_path / "n"))  # fmt: skip
+    assert code == 0 and err == "", err
+    table = rows(tmp_path / "n" / "noise.csv")
+    assert [(int(r["order"]), float(r["bandwidth_rad_s"])) for r in table] == [
+        (0, 50.0), (0, 200.0), (1, 50.0), (1, 200.0)]  # fmt: skip
+    for r in table:
+        m, g = int(r["order"]), float(r["bandwidth_rad_s"])
+        design = design_low_pass(MODEL, order=m, bandwidth=g, lp_bandwidth=300.0)
+        gains = noise_gains(plant=PLANT, nominal=NOMINAL, Ts=TS, controller=PD(50.0, 5.0),
+                            observer=design)  # fmt: skip
+        assert float(r["tau_hat_position"]) == pytest.approx(gains.tau_hat_position, rel=1e-12)
+        assert float(r["u_velocity"]) == pytest.approx(gains.u_velocity, rel=1e-12)
+    code, _, err = run(capsys, "analyze", "bode", *options, "--out", str(tmp_path / "b"))
+    assert code == 0 and err == "", err
+    bode = rows(tmp_path / "b" / "bode.csv")
+    f = np.array([float(r["frequency_Hz"]) for r in bode if r["order"] == "1"])
+    q = np.array([float(r["Q_abs"]) for r in bode if r["order"] == "1"])
+    # Q of the family is the DOb's times the low-pass (1 - a)/(z - a): independent of the CLI
+    z, a = np.exp(2j * np.pi * f * TS), math.exp(-300.0 * TS)
+    dob = design_observer(MODEL, order=1, bandwidth=100.0)
+    np.testing.assert_allclose(q, np.abs(estimation_response(dob, f) * (1 - a) / (z - a)),
+                               rtol=1e-9)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--type", "cli_lp"], r"--type cli_lp needs --lp-bandwidth \(low-pass bandwidth"),
+        (["--lp-bandwidth", "300"], "--lp-bandwidth applies to another family, not --type dob"),
+        (["--type", "eso", "--measurement", "position"],
+         "--measurement applies to --type dob, not --type eso"),
+        (["--type", "kalman"], "--type kalman needs --position-noise-std"),
+        (["--type", "nope"], "invalid choice: 'nope'"),
+    ],
+)  # fmt: skip
+@pytest.mark.parametrize("analysis", ["bode", "noise", "stability"])
+def test_analyze_family_options_refused_before_any_work(
+    capsys, tmp_path, registered, analysis, options, message
+):
+    out = tmp_path / "out"
+    code, _, err = run(capsys, "analyze", analysis, *options, "--no-progress", "--out", str(out))
+    assert code == 2 and err.count("\n") == 1, err
+    assert re.search(message, err), err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("families", "variants"),
+    [("cli_lp", ["cli-filtered"]),  # a registered type: its variants
+     ("dob", ["state", "position"]),  # the paper's type: both its variants
+     ("position,cli-filtered,cli_lp", ["position", "cli-filtered"])],  # old names kept
+)  # fmt: skip
+def test_tune_families_takes_the_registry_types(capsys, tmp_path, registered, families, variants):
+    # the audit: "--families dob" was refused (only the tuner's own names were accepted)
+    argv = ["tune", "--families", families, "--J-range", "0.9,1.1", "--counts-per-rev",
+            "16384", "--no-plot", "--no-progress", "--out", str(tmp_path)]  # fmt: skip
+    code, _, err = run(capsys, *argv)
+    assert code == 0 and err == "", err
+    result = json.loads((tmp_path / "tune.json").read_text())
+    assert result["settings"]["families"] == variants
+    assert {r["family"] for r in rows(tmp_path / "tune.csv")} == set(variants)
+
+
+def test_tune_families_refuses_an_unknown_name_up_front(capsys, tmp_path):
+    out = tmp_path / "out"
+    code, _, err = run(capsys, "tune", "--families", "dob,lqg", "--out", str(out))
+    assert code == 2 and err.count("\n") == 1, err
+    assert "--families takes family types dob, eso, kalman or their variants state, " in err
+    assert "got 'lqg'" in err
+    assert not out.exists()
