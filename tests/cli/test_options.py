@@ -131,3 +131,31 @@ def test_help_offers_only_the_controllers_the_command_runs(capsys, command):
     assert code == 0
     assert "--controller {pd,pid,filtered-pd,adrc}" in out
     assert "impedance" not in out and "position-force" not in out
+
+
+@pytest.mark.parametrize(
+    ("options", "families", "text", "velocity"),
+    [
+        (("--controller", "pid", "--ki", "100"), "state",
+         "the PID's derivative uses the measured velocity (velocity 'observer' was asked for; "
+         "HPDOb (order 1) gives no velocity estimate)", "measured"),
+        (("--controller", "filtered-pd", "--time-constant", "0.002"), "position",
+         "the filtered PD's derivative uses the observer's velocity estimate omega_hat",
+         "observer"),
+    ],
+    ids=["pid-state", "filtered-pd-position"],
+)  # fmt: skip
+def test_tune_summary_names_the_controller_and_the_velocity_it_ran(
+    capsys, tmp_path, options, families, text, velocity
+):
+    # the audit: "the PD's derivative" for a PID, and "measured" beside tune.json's "observer"
+    argv = ["tune", *options, "--families", families, "--J-range", "0.9,1.1", "--counts-per-rev",
+            "16384", "--no-plot", "--no-progress", "--out", str(tmp_path)]  # fmt: skip
+    code, out, err = run(capsys, *argv)
+    assert code == 0 and err == "", err
+    assert text in out and "the PD's derivative" not in out
+    data = json.loads((tmp_path / "tune.json").read_text())
+    assert data["recommendation"]["velocity"] == velocity  # the loop that was verified
+    assert data["settings"]["controller"]["velocity"] == "observer"  # what was asked for
+    scenario = tomllib.loads((tmp_path / "scenario.toml").read_text())["controller"]
+    assert scenario.get("velocity", "measured") == velocity

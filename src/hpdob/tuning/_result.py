@@ -164,9 +164,6 @@ class TuningResult:
         if r["delay_margin_samples"] >= s["max_extra_delay"]:
             margin = f"at least {margin}"
         qualified = sum(row["robust"] and row["within_noise"] for row in self.rows)
-        velocity = "the measured velocity"
-        if getattr(self.controller, "velocity", None) == "observer":  # (a PD-like controller)
-            velocity = "the observer's velocity estimate omega_hat"
         lines = [
             f"Recommended: {r['name']}, {r['parameter']} = {r['value']:.4g} {unit}".rstrip(),
             f"  searched {len(self.rows)} candidates ({', '.join(s['families'])}); "
@@ -179,7 +176,7 @@ class TuningResult:
             f"  worst spectral radius {r['radius']:.5f} (with one more sample of delay "
             f"{r['radius_margin']:.5f}); stable at every corner with up to {margin} extra "
             "samples of delay",
-            f"  the PD's derivative uses {velocity}",
+            f"  {self._velocity_text()}",
             f"  simulated at the centre: RMS estimation error {r['simulated_estimation']:.3g} N m, "
             f"RMS position error {r['simulated_position']:.3g} rad",
             "  verified by nonlinear simulation at every corner:",
@@ -192,6 +189,23 @@ class TuningResult:
                 f"{c['rms_position_error']:.3g} rad"
             )
         return "\n".join(lines + [f"  note: {n}" for n in self.notes[:5]])
+
+    def _velocity_text(self) -> str:
+        """Which velocity the verified loop's controller takes, named by its type (the loop
+        that ran: a controller asked for the observer's estimate takes the measured velocity
+        with an observer that gives none)."""
+        ran = getattr(self.controller, "velocity", None)
+        if ran is None:  # ADRC: state feedback on its own ESO's estimates
+            return f"the {type(self.controller).__name__} controller uses its own estimates"
+        name = {"FilteredPD": "filtered PD"}.get(type(self.controller).__name__,
+                                                 type(self.controller).__name__)  # fmt: skip
+        if ran == "observer":
+            return f"the {name}'s derivative uses the observer's velocity estimate omega_hat"
+        text = f"the {name}'s derivative uses the measured velocity"
+        if (self.settings.get("controller") or {}).get("velocity") == "observer":
+            text += (f" (velocity 'observer' was asked for; {self.recommended['name']} gives no "
+                     "velocity estimate)")  # fmt: skip
+        return text
 
     def to_dict(self) -> dict:
         """The tuning run as plain Python data.
@@ -206,7 +220,9 @@ class TuningResult:
 
         rows = [{k: v for k, v in row.items() if not k.startswith("_")} for row in self.rows]
         return json_ready({
-            "settings": self.settings, "recommendation": self.recommendation,
+            "settings": self.settings,
+            "recommendation": {**self.recommendation,  # the velocity the verified loop took
+                               "velocity": getattr(self.controller, "velocity", None)},
             "verification": self.verification, "candidates": rows, "notes": list(self.notes),
         })  # fmt: skip
 
