@@ -369,9 +369,9 @@ def _controller_record(loop) -> ControllerRecord:
 
 def _sensor_record(sensor, n: int) -> tuple[SensorRecord, np.ndarray]:
     if sensor is None:
-        return SensorRecord(SENSOR_IDEAL, 1.0), np.zeros(n)
+        return SensorRecord(SENSOR_IDEAL, 1.0), np.zeros(0)
     mode = SENSOR_ENCODER_EXACT if sensor.velocity == "exact" else SENSOR_ENCODER_DIFFERENCE
-    noise = np.zeros(n)
+    noise = np.zeros(0)  # no noise: the compiled loop reads none
     if sensor.noise_std > 0:
         seed = 0 if sensor.seed is None else sensor.seed
         noise = sensor.noise_std * np.random.default_rng(seed).standard_normal(n)
@@ -415,12 +415,20 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     }  # fmt: skip
     x = plant.initial_state(x0)
     nx = x.size
+    sampler = plant.sampler(Ts, S)
+    compiled = isinstance(sampler, ExactSubsteps)
+
+    def optional(present):  # an output the run records, else an empty array the loop never reads
+        return np.zeros(n) if present else np.zeros(0)
+
+    contact = not compiled or sampler.environment is not None
     out = Outputs(
-        *(np.zeros(n) for _ in range(8)),
+        *(np.zeros(n) for _ in range(7)),
+        optional(system is not None and system.has_velocity),
         np.zeros((n if nx > 2 else 0, nx)),
-        np.zeros(n),
-        np.zeros(n),
-        np.zeros(n),
+        optional(contact),
+        optional(contact),
+        optional(system is not None and "tau_reac" in system.outputs),
     )
     state = observer_state if observer_state is not None else loop.initial_observer_state(x0)
     s = np.array(state if state is not None else (), dtype=float)
@@ -428,9 +436,8 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     work = Work(s, s.copy(), np.zeros(s.size + 3), c, c.copy(),
                 np.zeros(ctl.n + ctl.p + 1 + ctl.q), np.zeros(5 + records["obs"].q),
                 np.zeros(1), x, x.copy(), np.zeros(1))  # fmt: skip
-    sampler = plant.sampler(Ts, S)
     environment = getattr(plant, "environment", None)
-    if isinstance(sampler, ExactSubsteps):
+    if compiled:
         wall = sampler.environment
         record = LinearPlantRecord(
             True, sampler.path_index, sampler.velocity_index, sampler.A_h, sampler.B_h, sampler.D_h,
