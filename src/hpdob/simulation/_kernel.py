@@ -1,9 +1,18 @@
-r"""The compiled sample loop: one definition of the sample step, for every plant.
+r"""The compiled sample loop: one generator writes it per run structure, for every plant.
 
-:func:`run_samples` is compiled by numba (``cache=True``: the machine code is cached on disk, so
-only the first run on a machine pays the compilation); ``NUMBA_DISABLE_JIT=1`` runs the same
-code as plain Python. This module is imported on the first simulation, never by
-``import hpdob``.
+:func:`loop_source` writes the loop's source for a run's *structure* (:func:`loop_structure`:
+the plant's sub-step path, its state size and contact, the sensor mode and whether it has
+noise, the observer's and the controller's program structure and wiring, a latching switch,
+the outputs recorded, the disturbance's form), with only the steps the run uses, the programs'
+rows as straight-line sums over local variables (:func:`hpdob._generated.sum_source`: the
+sums :func:`program_row` computes, term by term left to right, so the results are bit for bit
+those of one generic loop, the runtime objects and the exported C) and the states in locals.
+:func:`sample_loop` compiles it once per structure and process with numba (``cache=True``,
+the source kept under the numba cache directory as ``hpdob._generated`` does for the offline
+estimation loops, so only the first process on a machine compiles a structure); the
+coefficients are read from the run's records, so a sweep over bandwidths or inertias compiles
+nothing after its first scenario. ``NUMBA_DISABLE_JIT=1`` runs the same source as plain
+Python. This module is imported on the first simulation, never by ``import hpdob``.
 
 Per sample ``k`` (``t_k = k Ts``) the loop runs, for every plant:
 
@@ -24,7 +33,10 @@ Per sample ``k`` (``t_k = k Ts``) the loop runs, for every plant:
 5. the plant receives :math:`u_{k-d}` (``d`` samples of delay; 0 before the first command);
 6. ground truth (eq. 3) just after :math:`u_{k-d}` is applied:
    :math:`\tau_{dn,k} = u_k - b_n\omega_k - J_n\ddot\theta(t_k^+)` (:func:`ground_truth`);
-7. the plant's advance over :math:`[t_k, t_{k+1})`.
+7. the plant's advance over :math:`[t_k, t_{k+1})`, with the external torque at the sub-step
+   midpoints evaluated in the loop from the disturbance's coefficient table
+   (:mod:`hpdob.simulation._signal_table`: hpdob's constants, steps, ramps, sines and their
+   sums, numpy's operations in numpy's order) or read from the array sampled in numpy.
 
 A plant with an :class:`~hpdob.Environment` records the contact torque and the in-contact flag
 at :math:`t_k` with step 1 (``Outputs.tau_contact``, ``in_contact``); the contact torque is part
@@ -51,13 +63,15 @@ boundaries (the canonical ones are at half samples, so any even ``S`` aligns the
 sampler names the path that advances it (``ExactSubsteps.path``): ``"rigid"`` and
 ``"two-mass"`` hold the state in registers, ``"generic"`` loops over any state size
 (``tests/models/test_plant.py`` checks it against the exact ZOH recurrence). A plant
-advanced from Python (MuJoCo) calls :func:`run_samples` for one sample at a time, which then
-stops after step 5 and leaves steps 6-7 to the plant
+advanced from Python (MuJoCo) calls :func:`run_samples` for one sample at a time, whose loop
+(path ``PATH_PYTHON``) stops after step 5 and leaves steps 6-7 to the plant
 (``hpdob.simulation._python_plant``).
 
-The step is written once, inline in the loop: a per-sample call of a numba function taking
-the run's records costs more than the step itself (their arrays are reference-counted at every
-call boundary).
+The step is generated inline in the loop: a per-sample call of a numba function taking the
+run's records costs more than the step itself (their arrays are reference-counted at every call
+boundary). The generated module carries a hash of this module and of the Coulomb term's
+definition, so a change of either gives new sources and numba never loads machine code compiled
+from older ones.
 """
 
 from __future__ import annotations
@@ -69,6 +83,7 @@ import sys
 from pathlib import Path
 
 import numba
+import numpy as np
 
 from .._generated import compiled_function, sum_source
 from ..observers import coulomb_torque as _coulomb_torque
@@ -80,6 +95,7 @@ from ._records import (
     SENSOR_ENCODER_EXACT,
     SENSOR_IDEAL,
 )
+from ._signal_table import midpoint_source
 
 __all__ = [
     "contact_torque",
@@ -134,19 +150,24 @@ PATH_PYTHON = -1
 
 
 def _shape(pointer, coefficient, operand) -> tuple:
-    """Per row, per term: its operand and +1/-1 for a unit term (written without a factor), 0
-    for a term with a factor -- what the generated code depends on (as
-    :func:`hpdob.observers.program_structure`), read from the arrays the loop reads."""
-    p, c, o = pointer.tolist(), coefficient.tolist(), operand.tolist()
-    return tuple(
-        tuple(
-            (o[t], 1 if c[t] == 1.0 else -1 if c[t] == -1.0 else 0) for t in range(p[i], p[i + 1])
-        )
-        for i in range(len(p) - 1)
-    )
+    """What the generated code depends on in a program's rows (as
+    :func:`hpdob.observers.program_structure`), read from the arrays the loop reads: the row
+    pointers, each term's operand and +1/-1 for a unit term (written without a factor), 0 for a
+    term with a factor; as bytes (hashed without a Python loop over the terms, see
+    :func:`_rows`)."""
+    unit = tuple([1 if c == 1.0 else -1 if c == -1.0 else 0 for c in coefficient.tolist()])
+    return pointer.tobytes(), operand.tobytes(), unit
 
 
-def loop_structure(plant, ctl, sen, obs, sig, nx: int) -> tuple:
+def _rows(shape) -> tuple:
+    """``shape`` (:func:`_shape`) as rows of ``(operand, unit)`` terms."""
+    p = np.frombuffer(shape[0], dtype=np.int64).tolist()
+    o = np.frombuffer(shape[1], dtype=np.int64).tolist()
+    u = shape[2]
+    return tuple(tuple((o[t], u[t]) for t in range(p[i], p[i + 1])) for i in range(len(p) - 1))
+
+
+def loop_structure(plant, ctl, sen, obs, sig, nx: int, midpoint=None) -> tuple:
     """What the generated sample loop depends on, apart from the values it reads: the plant's
     path (and state size, velocity and contact indices, whether it has a contact), the sensor
     mode and whether it has noise, the observer's and the controller's program structure and
@@ -171,7 +192,7 @@ def loop_structure(plant, ctl, sen, obs, sig, nx: int) -> tuple:
         ctl.n,
         ctl.p,
         ctl.q,
-        tuple(ctl.source.tolist()),
+        ctl.source.tobytes(),
         _shape(ctl.signal_pointer, ctl.signal_coefficient, ctl.signal_operand),
         _shape(ctl.update_pointer, ctl.update_coefficient, ctl.update_operand),
         switch,
@@ -188,6 +209,7 @@ def loop_structure(plant, ctl, sen, obs, sig, nx: int) -> tuple:
         sig.noise.shape[0] > 0,
         observer,
         controller,
+        midpoint if plant.linear else None,
     )
 
 
@@ -220,8 +242,10 @@ def loop_source(structure: tuple) -> str:
     (:func:`hpdob._generated.sum_source`) over local variables, their coefficients read once
     from the records; the states are kept in locals and written back to ``work`` on return.
     """
-    path, nx, v, ci, wall, mode, noisy, observer, controller = structure
+    path, nx, v, ci, wall, mode, noisy, observer, controller, midpoint = structure
     nc, _, qc, source, c_signals, c_update, switch = controller
+    source = np.frombuffer(source, dtype=np.int64).tolist()
+    c_signals, c_update = _rows(c_signals), _rows(c_update)
     rigid, two_mass, generic, python = (
         path == p for p in (PATH_RIGID, PATH_TWO_MASS, PATH_GENERIC, PATH_PYTHON)
     )
@@ -242,7 +266,7 @@ def loop_source(structure: tuple) -> str:
     )
     put(
         1,
-        "r_in, r_dot_in, r_ddot_in, tau_sample, tau_mid, noise = sig",
+        "r_in, r_dot_in, r_ddot_in, tau_sample, tau_mid, noise = sig[:6]",
         "theta, omega, theta_m, omega_m, u, tau_hat, tau_dn, omega_hat, states = out[:9]",
         "tau_contact, in_contact, tau_reac = out[9], out[10], out[11]",
         "x = work.x",
@@ -254,6 +278,7 @@ def loop_source(structure: tuple) -> str:
     signals = list(_SIGNALS)
     if observer is not None:
         n, p, q, velocity_row, reaction_row, coulomb_source, o_update, o_output = observer
+        o_update, o_output = _rows(o_update), _rows(o_output)
         signals += [f"y{j}" for j in range(1, q)]
         o_update_names, o_output_names = _names("ou", o_update), _names("oo", o_output)
         put(1, "ou = obs.update_coefficient", "oo = obs.output_coefficient", "s_ = work.s")
@@ -288,6 +313,9 @@ def loop_source(structure: tuple) -> str:
                 "k_e, c_e, th_e = plant.contact_stiffness, plant.contact_damping, "
                 "plant.contact_position",
             )
+        if midpoint is not None:  # the disturbance's table: [factor, coefficients]
+            loads, evaluate = midpoint_source(midpoint, "t_mid", "table", "tau_e")
+            put(1, "table = sig.table", "factor = table[0]", "h = Ts / substeps", *loads)
     if rigid:
         put(
             1,
@@ -451,11 +479,13 @@ def loop_source(structure: tuple) -> str:
         "    accel -= tau + f_env",
         "tau_dn[k] = ground_truth(uk, om, accel / J_motor, J_n, b_n)",
         "# 7. the plant over [t_k, t_{k+1}): exponential midpoint sub-steps",
-        "base = k * substeps",
-        "for j in range(substeps):",
-        "    tau_e = tau_mid[base + j]",
-        "    start = tau_e",
     )
+    if midpoint is None:
+        put(2, "base = k * substeps", "for j in range(substeps):", "    tau_e = tau_mid[base + j]")
+    else:  # the disturbance at t_k + (j + 1/2) h, as sample_signals' numpy would give it
+        put(2, "t_k = k * Ts", "for j in range(substeps):", "    t_mid = t_k + (j + 0.5) * h")
+        put(3, *evaluate, "tau_e = factor * tau_e")
+    put(3, "start = tau_e")
     for text in _substep(path, wall):
         put(3, text)
     if rigid or two_mass:
@@ -571,7 +601,9 @@ def sample_loop(structure: tuple):
     return compiled_function(loop_source(structure), kind="sample-loops", prefix="hpdob_loop_")
 
 
-def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, out, work, limit):
+def run_samples(
+    k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, out, work, limit, midpoint=None
+):
     """Run samples ``k_start <= k < k_stop``; return the number of samples completed.
 
     With a linear plant the plant is advanced here and a return value below ``k_stop`` means
@@ -580,5 +612,6 @@ def run_samples(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, o
     caller) and ``work.applied[0]`` holds the torque to apply. The loop is the one compiled
     for the run's structure (:func:`sample_loop`).
     """
-    kernel = sample_loop(loop_structure(plant, ctl, sen, obs, sig, work.x.shape[0]))
+    structure = loop_structure(plant, ctl, sen, obs, sig, work.x.shape[0], midpoint)
+    kernel = sample_loop(structure)
     return kernel(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, out, work, limit)

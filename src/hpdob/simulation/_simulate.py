@@ -32,6 +32,7 @@ from ._records import (
     Work,
 )
 from ._result import SimulationResult
+from ._signal_table import midpoint_table
 
 __all__ = [
     "DEFAULT_SUBSTEPS",
@@ -279,7 +280,12 @@ def check_observer_state(loop: ServoLoop, state) -> tuple:
 
 
 class SampledSignals(NamedTuple):
-    """Reference and disturbance evaluated on a run's time grids (see :func:`simulate`)."""
+    """Reference and disturbance evaluated on a run's time grids (see :func:`simulate`).
+
+    ``midpoint`` is the disturbance as a table the compiled loop evaluates at the sub-step
+    midpoints (``(form, table)`` of :func:`~hpdob.simulation._signal_table.midpoint_table`,
+    ``tau_mid`` then empty), or None: ``tau_mid`` holds its ``n * substeps`` values. The
+    midpoint values are multiplied by ``factor`` (:meth:`scaled`)."""
 
     Ts: float
     substeps: int
@@ -289,17 +295,46 @@ class SampledSignals(NamedTuple):
     r_ddot: np.ndarray
     tau_sample: np.ndarray
     tau_mid: np.ndarray
+    midpoint: tuple | None = None
+    factor: float = 1.0
+    disturbance: object = None
 
     def scaled(self, factor: float) -> SampledSignals:
         """The same signals with the disturbance multiplied by ``factor``."""
         if factor == 1.0:
             return self
-        return self._replace(tau_sample=factor * self.tau_sample, tau_mid=factor * self.tau_mid)
+        if self.midpoint is not None and self.factor != 1.0:  # f2 (f1 v), as twice in numpy
+            return self._replace(
+                tau_sample=factor * self.tau_sample, tau_mid=factor * self.midpoints(),
+                midpoint=None, factor=1.0,
+            )  # fmt: skip
+        return self._replace(
+            tau_sample=factor * self.tau_sample, tau_mid=factor * self.tau_mid,
+            factor=factor if self.midpoint is not None else 1.0,
+        )  # fmt: skip
+
+    def midpoints(self) -> np.ndarray:
+        """The disturbance at the ``n * substeps`` sub-step midpoints (sampled in numpy where
+        the compiled loop would evaluate it: a plant advanced from Python reads the array)."""
+        if self.midpoint is None:
+            return self.tau_mid
+        n, S, Ts = self.t.size, self.substeps, self.Ts
+        if self.disturbance is None:
+            values = np.zeros(n * S)
+        else:
+            t_mid = (self.t[:, None] + (np.arange(S) + 0.5) * (Ts / S)).ravel()
+            values = _disturbance(self.disturbance, t_mid)
+        return values if self.factor == 1.0 else self.factor * values
 
 
 def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) -> SampledSignals:
     """Evaluate ``reference`` at ``k Ts`` and ``disturbance`` at ``k Ts`` and the sub-step
-    midpoints ``k Ts + (j + 1/2) Ts / substeps``, ``0 <= k < n``, with validation."""
+    midpoints ``k Ts + (j + 1/2) Ts / substeps``, ``0 <= k < n``, with validation.
+
+    hpdob's built-in signals that the compiled loop evaluates itself
+    (:func:`~hpdob.simulation._signal_table.midpoint_table`: constants, steps, ramps, sines
+    and their sums) are not evaluated at the midpoints here: their table is kept instead.
+    """
     if n * substeps > MAX_PLANT_STEPS:
         raise ParameterValueError(
             f"duration/Ts * substeps = {n} * {substeps} = {n * substeps:.3g} plant steps exceeds "
@@ -309,18 +344,25 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
         )
     t = np.arange(n) * Ts
     r, r_dot, r_ddot = _reference(reference, t)
+    midpoint = None
     if disturbance is None:
-        tau_sample, tau_mid = np.zeros(n), np.zeros(n * substeps)
+        tau_sample, tau_mid = np.zeros(n), np.zeros(0)
+        midpoint = ((True, ()), np.zeros(0))  # 0.0 at every midpoint
     elif callable(disturbance):
         tau_sample = _disturbance(disturbance, t)
-        t_mid = (t[:, None] + (np.arange(substeps) + 0.5) * (Ts / substeps)).ravel()
-        tau_mid = _disturbance(disturbance, t_mid)
+        midpoint = midpoint_table(disturbance, n * Ts)
+        if midpoint is None:
+            t_mid = (t[:, None] + (np.arange(substeps) + 0.5) * (Ts / substeps)).ravel()
+            tau_mid = _disturbance(disturbance, t_mid)
+        else:
+            tau_mid = np.zeros(0)
     else:
         raise ParameterTypeError(
             "disturbance must be a callable of time (e.g. an hpdob Signal) "
             f"or None, got {type(disturbance).__name__}"
         )
-    return SampledSignals(Ts, substeps, t, r, r_dot, r_ddot, tau_sample, tau_mid)
+    return SampledSignals(Ts, substeps, t, r, r_dot, r_ddot, tau_sample, tau_mid, midpoint,
+                          1.0, disturbance)  # fmt: skip
 
 
 def _observer_record(system) -> ObserverRecord:
@@ -410,13 +452,19 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
         "sen": sensor,
         "act": ActuatorRecord(limit, actuator.delay_samples),
         "obs": _observer_record(system),
-        "sig": SignalRecord(signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample,
-                            signals.tau_mid, noise),
-    }  # fmt: skip
+    }
     x = plant.initial_state(x0)
     nx = x.size
     sampler = plant.sampler(Ts, S)
     compiled = isinstance(sampler, ExactSubsteps)
+    # the disturbance at the sub-step midpoints: evaluated by the compiled loop from its table
+    # (factor first), else read from the sampled array
+    midpoint = signals.midpoint if compiled else None
+    table = np.zeros(0) if midpoint is None else np.concatenate(([signals.factor], midpoint[1]))
+    records["sig"] = SignalRecord(
+        signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample,
+        signals.tau_mid if compiled else signals.midpoints(), noise, table,
+    )  # fmt: skip
 
     def optional(present):  # an output the run records, else an empty array the loop never reads
         return np.zeros(n) if present else np.zeros(0)
@@ -453,7 +501,16 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
         while done < n:  # one call without progress: the chunk is the whole run
             stop = min(n, done + chunk)
             done = _kernel.run_samples(
-                done, stop, S, Ts, record, **records, out=out, work=work, limit=DIVERGENCE_LIMIT
+                done,
+                stop,
+                S,
+                Ts,
+                record,
+                **records,
+                out=out,
+                work=work,
+                limit=DIVERGENCE_LIMIT,
+                midpoint=None if midpoint is None else midpoint[0],
             )
             if progress is not None:
                 progress(done, n)
