@@ -105,3 +105,48 @@ def test_numpy_and_numba_sines_agree():
     same function on this platform (0 differences measured over 6 million arguments)."""
     x = np.random.default_rng(0).uniform(-1e4, 1e4, 200_000)
     np.testing.assert_array_equal(np.sin(x), _numba_sin(x))
+
+
+def test_signals_are_sampled_once_per_time_grid():
+    """hpdob's Signals on one grid are sampled once and shared read-only (equal signals give
+    equal samples); a plain callable is evaluated on every call; a new grid is sampled anew."""
+    disturbance = Step(0.1005, 0.05) + Sine(0.02, 2.0)
+    first = sample_signals(REFERENCE, disturbance, Ts=1e-3, n=300, substeps=8)
+    again = sample_signals(Sine(0.3, 1.5), Step(0.1005, 0.05) + Sine(0.02, 2.0), Ts=1e-3, n=300,
+                           substeps=8)  # fmt: skip
+    assert again is first and not first.r.flags.writeable
+    other = sample_signals(REFERENCE, disturbance, Ts=1e-3, n=200, substeps=8)
+    assert other is not first
+    calls = []
+
+    def counted(t):
+        calls.append(t.size)
+        return disturbance(t)
+
+    for _ in range(2):
+        sample_signals(REFERENCE, counted, Ts=1e-3, n=300, substeps=8)
+    assert calls == [300, 2400, 300, 2400]
+    a = simulate(LOOP, reference=REFERENCE, disturbance=disturbance, duration=0.3)
+    b = simulate(LOOP, reference=REFERENCE, disturbance=disturbance, duration=0.3)
+    _assert_identical(a, b)
+
+
+def test_the_grid_cache_is_bounded():
+    from hpdob.simulation import _simulate
+
+    for i in range(_simulate.SAMPLED_GRIDS + 5):
+        sample_signals(REFERENCE, Step(0.001 * i, 1.0), Ts=1e-3, n=50, substeps=2)
+    assert len(_simulate._SAMPLED) <= _simulate.SAMPLED_GRIDS
+
+
+def test_a_signal_class_written_elsewhere_is_sampled_on_every_call():
+    class Counting(Step):
+        calls = 0
+
+        def derivative(self, t, n=0):
+            Counting.calls += 1
+            return super().derivative(t, n)
+
+    for _ in range(2):
+        sample_signals(REFERENCE, Counting(0.1, 1.0), Ts=1e-3, n=30, substeps=2)
+    assert Counting.calls == 4  # instants and midpoints, twice

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import collections
 import math
+import threading
 import warnings
 from typing import NamedTuple
 
 import numpy as np
 
-from .._signals import Signal, trajectory
+from .._signals import Constant, Ramp, Signal, SmoothStep, Step, Sum, _Trajectory, trajectory
 from .._validation import (
     ParameterTypeError,
     ParameterValueError,
@@ -16,6 +18,7 @@ from .._validation import (
     as_real_vector,
     positive,
 )
+from .._waveforms import Chirp, Noise, Sine
 from ..models import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, ExactSubsteps
 from ._loop import ServoLoop, accepts_loop, controller_sources
 from ._records import (
@@ -327,6 +330,32 @@ class SampledSignals(NamedTuple):
         return values if self.factor == 1.0 else self.factor * values
 
 
+#: Signals sampled on a time grid, by (reference, disturbance, Ts, n, substeps), for hpdob's
+#: Signals (frozen values: equal signals give equal samples); least recently used first.
+_SAMPLED: collections.OrderedDict = collections.OrderedDict()
+_SAMPLED_LOCK = threading.Lock()
+_BUILT_IN = (Constant, Step, Ramp, SmoothStep, Sine, Chirp, Noise)
+#: At most this many grids and bytes are kept (the canonical 10 s run's take 0.4 MB).
+SAMPLED_GRIDS, SAMPLED_BYTES = 16, 64 << 20
+
+
+def _built_in(signal) -> bool:
+    """Whether ``signal`` is made of hpdob's own (frozen) signal classes only: a subclass
+    written elsewhere may hold state, so its samples are not kept."""
+    if type(signal) is Sum:
+        return all(_built_in(term) for _, term in signal.terms)
+    return type(signal) in _BUILT_IN
+
+
+def _grid_key(reference, disturbance, Ts, n, substeps):
+    """The cache key of a run's signals, or None unless both are hpdob's own signals (the
+    disturbance may be None)."""
+    signal = reference.signal if type(reference) is _Trajectory else reference
+    if not _built_in(signal) or not (disturbance is None or _built_in(disturbance)):
+        return None
+    return (signal, disturbance, float(Ts), int(n), int(substeps))
+
+
 def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) -> SampledSignals:
     """Evaluate ``reference`` at ``k Ts`` and ``disturbance`` at ``k Ts`` and the sub-step
     midpoints ``k Ts + (j + 1/2) Ts / substeps``, ``0 <= k < n``, with validation.
@@ -334,7 +363,32 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
     hpdob's built-in signals that the compiled loop evaluates itself
     (:func:`~hpdob.simulation._signal_table.midpoint_table`: constants, steps, ramps, sines
     and their sums) are not evaluated at the midpoints here: their table is kept instead.
+    hpdob's Signals are evaluated once per time grid: the read-only arrays of the last
+    :data:`SAMPLED_GRIDS` grids are kept and shared (a repeated run, ``tune``'s candidates, a
+    sweep's scenarios of one grid); other callables are evaluated on every call.
     """
+    key = _grid_key(reference, disturbance, Ts, n, substeps)
+    if key is not None:
+        with _SAMPLED_LOCK:
+            cached = _SAMPLED.get(key)
+            if cached is not None:
+                _SAMPLED.move_to_end(key)
+                return cached
+    signals = _sample_signals(reference, disturbance, Ts=Ts, n=n, substeps=substeps)
+    if key is not None:
+        arrays = [a for a in signals if isinstance(a, np.ndarray)]
+        for array in arrays:
+            array.setflags(write=False)
+        with _SAMPLED_LOCK:
+            _SAMPLED[key] = signals
+            while _SAMPLED and (len(_SAMPLED) > SAMPLED_GRIDS or sum(
+                sum(a.nbytes for a in v if isinstance(a, np.ndarray)) for v in _SAMPLED.values()
+            ) > SAMPLED_BYTES):  # fmt: skip
+                _SAMPLED.popitem(last=False)
+    return signals
+
+
+def _sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) -> SampledSignals:
     if n * substeps > MAX_PLANT_STEPS:
         raise ParameterValueError(
             f"duration/Ts * substeps = {n} * {substeps} = {n * substeps:.3g} plant steps exceeds "
