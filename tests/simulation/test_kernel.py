@@ -57,7 +57,8 @@ def _canonical_structure(**changes):
 def test_kernel_is_numba_compiled_with_cache():
     from hpdob.simulation import _kernel
 
-    loop = _kernel.sample_loop(_canonical_structure())
+    loop, fields = _kernel.sample_loop(_canonical_structure())
+    assert ("sig", "r") in fields and ("out", "tau_reac") not in fields  # what the run uses
     for function in (loop, _kernel.ground_truth, _kernel.contact_torque):
         assert function.targetoptions.get("nogil") is True
         assert function._cache.__class__.__name__ != "NullCache"  # cache=True

@@ -79,6 +79,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import inspect
+import re
 import sys
 from pathlib import Path
 
@@ -235,12 +236,14 @@ _SIGNALS = ("r_k", "r_dot_k", "r_ddot_k", "thm", "omm", "est")
 
 
 def loop_source(structure: tuple) -> str:
-    """The source of the sample loop ``run(k_start, k_stop, substeps, Ts, plant, ctl, sen,
-    act, obs, sig, out, work, limit)`` for ``structure`` (:func:`loop_structure`).
+    """The source of the sample loop ``run(k_start, k_stop, substeps, Ts, limit, ...)`` for
+    ``structure`` (:func:`loop_structure`), whose further parameters are the record fields its
+    body reads (:data:`PARAMETERS`).
 
     The observer's and the controller's rows are written as straight-line sums
     (:func:`hpdob._generated.sum_source`) over local variables, their coefficients read once
-    from the records; the states are kept in locals and written back to ``work`` on return.
+    from the records' arrays; the states are kept in locals and written back to ``work``'s
+    arrays on return.
     """
     path, nx, v, ci, wall, mode, noisy, observer, controller, midpoint = structure
     nc, _, qc, source, c_signals, c_update, switch = controller
@@ -262,17 +265,7 @@ def loop_source(structure: tuple) -> str:
         "from hpdob.simulation._kernel import contact_torque, coulomb_torque, ground_truth",
         "",
         "",
-        "def run(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, out, work, limit):",
-    )
-    put(
-        1,
-        "r_in, r_dot_in, r_ddot_in, tau_sample, tau_mid, noise = sig[:6]",
-        "theta, omega, theta_m, omega_m, u, tau_hat, tau_dn, omega_hat, states = out[:9]",
-        "tau_contact, in_contact, tau_reac = out[9], out[10], out[11]",
-        "x = work.x",
-        "resolution = sen.resolution",
-        "torque_limit, delay = act.torque_limit, act.delay",
-        "J_n, b_n = ctl.J_n, ctl.b_n",
+        "SIGNATURE",
     )
     store = []  # the state written back to ``work`` before every return
     signals = list(_SIGNALS)
@@ -281,41 +274,22 @@ def loop_source(structure: tuple) -> str:
         o_update, o_output = _rows(o_update), _rows(o_output)
         signals += [f"y{j}" for j in range(1, q)]
         o_update_names, o_output_names = _names("ou", o_update), _names("oo", o_output)
-        put(1, "ou = obs.update_coefficient", "oo = obs.output_coefficient", "s_ = work.s")
         put(1, *_loads("ou", o_update_names), *_loads("oo", o_output_names))
         put(1, *(f"s{i} = s_[{i}]" for i in range(n)))
         store += [f"s_[{i}] = s{i}" for i in range(n)]
-        if coulomb_source:
-            put(1, "c_n, v_n = obs.coulomb, obs.coulomb_velocity")
     c_signal_names, c_update_names = _names("cs", c_signals), _names("cu", c_update)
-    put(1, "cs = ctl.signal_coefficient", "cu = ctl.update_coefficient", "c_ = work.c")
     put(1, *_loads("cs", c_signal_names), *_loads("cu", c_update_names))
     put(1, *(f"c{i} = c_[{i}]" for i in range(nc)))
     store += [f"c_[{i}] = c{i}" for i in range(nc)]
-    if switch is not None:
-        put(1, "threshold, offset = ctl.switch_threshold, ctl.switch_offset")
     if mode == SENSOR_ENCODER_DIFFERENCE:
-        put(1, "previous = work.previous", "prev = previous[0]")
+        put(1, "prev = previous[0]")
         store.append("previous[0] = prev")
     if python:
-        put(1, "applied_out = work.applied", "record = states.shape[0] > 0")
+        put(1, "record = states.shape[0] > 0")
     else:
-        put(
-            1,
-            "A_h, B_h, D_h = plant.A_h, plant.B_h, plant.D_h",
-            "A_half, B_half, D_half = plant.A_half, plant.B_half, plant.D_half",
-            "internal, shared = plant.internal, plant.shared",
-            "c, c_scale, J_motor = plant.coulomb, plant.coulomb_velocity, plant.J_motor",
-        )
-        if wall:
-            put(
-                1,
-                "k_e, c_e, th_e = plant.contact_stiffness, plant.contact_damping, "
-                "plant.contact_position",
-            )
         if midpoint is not None:  # the disturbance's table: [factor, coefficients]
             loads, evaluate = midpoint_source(midpoint, "t_mid", "table", "tau_e")
-            put(1, "table = sig.table", "factor = table[0]", "h = Ts / substeps", *loads)
+            put(1, "factor = table[0]", "h = Ts / substeps", *loads)
     if rigid:
         put(
             1,
@@ -338,13 +312,7 @@ def loop_source(structure: tuple) -> str:
         store.append("x[0], x[1], x[2], x[3] = x0, x1, x2, x3")
         state = ["x0", "x1", "x2", "x3"]
     elif generic:
-        put(
-            1,
-            "x_next = work.x_next",
-            "nx = x.shape[0]",
-            "record = states.shape[0] > 0",
-            "v, ci = plant.velocity_index, plant.contact_index",
-        )
+        put(1, "nx = x.shape[0]", "record = states.shape[0] > 0")
     put(1, "for k in range(k_start, k_stop):")
     if rigid:
         pass
@@ -455,7 +423,7 @@ def loop_source(structure: tuple) -> str:
     if python:
         put(2, "applied_out[0] = applied", *store, "return k + 1")
         put(1, *store, "return k_stop")
-        return "\n".join(lines) + "\n"
+        return _with_signature(lines)
     put(
         2,
         "# 6. ground truth just after u is applied: the motor's acceleration",
@@ -500,7 +468,49 @@ def loop_source(structure: tuple) -> str:
             "        return k + 1",
         )
     put(1, *store, "return k_stop")
-    return "\n".join(lines) + "\n"
+    return _with_signature(lines)
+
+
+#: The loop's parameters after ``k_start, k_stop, substeps, Ts, limit``: its local name, the
+#: record and the field it is read from; a loop takes those its body uses, in this order (flat
+#: arguments: numba compiles and calls a function of records' fields far faster than one of
+#: the records).
+PARAMETERS = (
+    ("r_in", "sig", "r"), ("r_dot_in", "sig", "r_dot"), ("r_ddot_in", "sig", "r_ddot"),
+    ("tau_sample", "sig", "tau_sample"), ("tau_mid", "sig", "tau_mid"), ("noise", "sig", "noise"),
+    ("table", "sig", "table"),
+    *((name, "out", name) for name in ("theta", "omega", "theta_m", "omega_m", "u", "tau_hat",
+                                       "tau_dn", "omega_hat", "states", "tau_contact",
+                                       "in_contact", "tau_reac")),
+    ("x", "work", "x"), ("x_next", "work", "x_next"), ("s_", "work", "s"), ("c_", "work", "c"),
+    ("previous", "work", "previous"), ("applied_out", "work", "applied"),
+    ("resolution", "sen", "resolution"),
+    ("torque_limit", "act", "torque_limit"), ("delay", "act", "delay"),
+    ("J_n", "ctl", "J_n"), ("b_n", "ctl", "b_n"), ("cs", "ctl", "signal_coefficient"),
+    ("cu", "ctl", "update_coefficient"), ("threshold", "ctl", "switch_threshold"),
+    ("offset", "ctl", "switch_offset"),
+    ("ou", "obs", "update_coefficient"), ("oo", "obs", "output_coefficient"),
+    ("c_n", "obs", "coulomb"), ("v_n", "obs", "coulomb_velocity"),
+    *((name, "plant", name) for name in ("A_h", "B_h", "D_h", "A_half", "B_half", "D_half",
+                                         "internal", "shared")),
+    ("c", "plant", "coulomb"), ("c_scale", "plant", "coulomb_velocity"),
+    ("J_motor", "plant", "J_motor"), ("k_e", "plant", "contact_stiffness"),
+    ("c_e", "plant", "contact_damping"), ("th_e", "plant", "contact_position"),
+    ("v", "plant", "velocity_index"), ("ci", "plant", "contact_index"),
+)  # fmt: skip
+
+
+def _used(lines) -> tuple:
+    """The :data:`PARAMETERS` the body ``lines`` reads."""
+    words = set(re.findall(r"[A-Za-z_][A-Za-z_0-9]*", "\n".join(lines)))
+    return tuple(p for p in PARAMETERS if p[0] in words)
+
+
+def _with_signature(lines) -> str:
+    body = [line for line in lines if line != "SIGNATURE"]
+    names = ", ".join(p[0] for p in _used(body))
+    signature = f"def run(k_start, k_stop, substeps, Ts, limit, {names}):"
+    return "\n".join(signature if line == "SIGNATURE" else line for line in lines) + "\n"
 
 
 def _substep(path: int, wall: bool) -> list:
@@ -596,9 +606,16 @@ def _digest() -> str:
 
 @functools.lru_cache(maxsize=256)
 def sample_loop(structure: tuple):
-    """The compiled sample loop of ``structure`` (:func:`loop_structure`): generated and
-    compiled once per structure and process, its machine code cached on disk by numba."""
-    return compiled_function(loop_source(structure), kind="sample-loops", prefix="hpdob_loop_")
+    """The compiled sample loop of ``structure`` (:func:`loop_structure`) and the record
+    fields it takes after ``k_start, k_stop, substeps, Ts, limit`` (``(record, field)`` pairs,
+    :data:`PARAMETERS`): generated and compiled once per structure and process, its machine
+    code cached on disk by numba."""
+    source = loop_source(structure)
+    signature = next(line for line in source.splitlines() if line.startswith("def run("))
+    names = signature[len("def run(") : -len("):")].split(", ")[5:]
+    where = {name: (record, field) for name, record, field in PARAMETERS}
+    kernel = compiled_function(source, kind="sample-loops", prefix="hpdob_loop_")
+    return kernel, tuple(where[name] for name in names)
 
 
 def run_samples(
@@ -613,5 +630,8 @@ def run_samples(
     for the run's structure (:func:`sample_loop`).
     """
     structure = loop_structure(plant, ctl, sen, obs, sig, work.x.shape[0], midpoint)
-    kernel = sample_loop(structure)
-    return kernel(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, out, work, limit)
+    kernel, fields = sample_loop(structure)
+    records = {"plant": plant, "ctl": ctl, "sen": sen, "act": act, "obs": obs, "sig": sig,
+               "out": out, "work": work}  # fmt: skip
+    arguments = [getattr(records[record], field) for record, field in fields]
+    return kernel(k_start, k_stop, substeps, Ts, limit, *arguments)
