@@ -33,7 +33,7 @@ import tempfile
 import time
 from pathlib import Path
 
-CASES = ("PD", "HPDOb-100", "sweep", "estimate", "tune")
+CASES = ("PD", "HPDOb-100", "1s", "sweep", "sweep10", "estimate", "tune")
 
 
 def case(package: str, name: str):
@@ -46,6 +46,21 @@ def case(package: str, name: str):
 
         def run():
             return hpdob.sweep(base, grid=grid, scheduler=1, progress=False)
+
+    elif name == "sweep10":  # the canonical family of bench_sweep.py, 10 s, one thread
+        import numpy as np
+
+        base = {**paper.scenario(), "observer": {"order": 1, "bandwidth": 100.0}}
+        grid = {"observer.order": [0, 1], "observer.bandwidth": list(np.linspace(40.0, 280.0, 5)),
+                "plant.J": [2.5e-4, 3.06e-4, 3.5e-4, 4e-4]}  # fmt: skip
+
+        def run():
+            return hpdob.sweep(base, grid=grid, scheduler=1, progress=False)
+
+    elif name == "1s":  # the canonical HPDOb-100 run over 1 s: the per-call overhead
+
+        def run():
+            return paper.run("HPDOb-100", duration=1.0)
 
     elif name == "estimate":
         import numpy as np

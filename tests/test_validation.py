@@ -89,3 +89,36 @@ def test_readonly():
     array = readonly(np.zeros(2))
     with pytest.raises(ValueError, match="read-only"):
         array[0] = 1.0
+
+
+@pytest.mark.parametrize(
+    "value",
+    [np.arange(6.0).reshape(2, 3), np.asfortranarray(np.arange(6.0).reshape(2, 3)),
+     np.array([np.nan, np.inf, -0.0]), np.zeros(0), np.float64(2.5) * np.ones(()),
+     np.arange(8.0)[::2]],
+)  # fmt: skip
+def test_numeric_array_of_a_float_array_is_the_generic_copy(value):
+    # the fast path for float arrays (the matrices hpdob computes) returns what the generic
+    # path returns: a new, writeable array with the same values, shape and memory layout
+    from hpdob._validation import numeric_array
+
+    out = numeric_array(value, "x", "numbers")
+    generic = np.array(np.asarray(value), dtype=float)
+    assert out is not value and not np.shares_memory(out, value) and out.flags.writeable
+    assert out.shape == generic.shape and out.tobytes() == generic.tobytes()
+    assert out.flags.c_contiguous == generic.flags.c_contiguous
+    assert out.flags.f_contiguous == generic.flags.f_contiguous
+
+
+@pytest.mark.parametrize(
+    ("value", "dtype", "pattern"),
+    [(np.ma.masked_array([1.0, 2.0], mask=[False, True]), float, "masked"),
+     (np.array([True, False]), float, "bool"), (np.array([1j]), float, "complex"),
+     (np.array(["1.0"]), float, "str")],
+)  # fmt: skip
+def test_numeric_array_still_refuses_what_is_not_a_float_array(value, dtype, pattern):
+    from hpdob._validation import numeric_array
+
+    with pytest.raises(TypeError, match=pattern):
+        numeric_array(value, "x", "numbers", dtype=dtype)
+    assert numeric_array(np.array([1.0, 2.0]), "x", "numbers", dtype=complex).dtype == complex

@@ -193,6 +193,8 @@ def numeric_array(value: object, name: str, what: str, *, dtype=float) -> np.nda
     Strings, bytes, booleans and (for ``dtype=float``) complex numbers are rejected rather
     than parsed or silently truncated.
     """
+    if type(value) is np.ndarray and value.dtype == dtype:  # e.g. a matrix hpdob computed:
+        return np.array(value, dtype=dtype)  # none of the checks below can refuse it
     if value is None or isinstance(value, (str, bytes)):
         raise ParameterTypeError(
             f"{name} must be {what}, got {_show(value)} of type {type(value).__name__}"

@@ -87,6 +87,86 @@ def test_verdict_agrees_with_simulation_at_every_grid_point(order):
     assert checked == 25
 
 
+#: The paper's motor as issue 21's target states it: its Coulomb friction, the 16384-count
+#: backward-difference encoder, one sample of delay, the 0.444 N m limit, and the friction model
+#: known to the RTOB (Coulomb term on the velocity low-passed at 100 rad/s).
+PAPERS_FRICTION = {"friction": paper.PLANT, "velocity_filter": 100.0}
+
+
+def _papers_loop(order):
+    dob = design_observer(NOMINAL.discretize(TS), order=order, bandwidth=100.0)
+    return ServoLoop(plant=paper.PLANT.replace(environment=Environment(10.0)), nominal=NOMINAL,
+                     Ts=TS, controller=ForceControl(1000.0, kv=40.0),
+                     observer=reaction_torque_observer(dob, **PAPERS_FRICTION),
+                     sensor=paper.VIRTUAL_SENSOR, actuator=paper.VIRTUAL_ACTUATOR)  # fmt: skip
+
+
+def _papers_verdict(loop) -> tuple[bool, float]:
+    """The stated rule on the paper's motor: ``(stable, worst relative error)``, stable unless
+    over the last 0.5 s of 5 s (a 0.05 N m step from rest at the wall) the axis loses contact
+    or its contact torque is off tau_ref by more than 50 % (a stable loop's quantisation limit
+    cycle stays inside that, an unstable one bounces off the wall or swings by the limit)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SimulationDivergedWarning)
+        result = simulate(loop, reference=_step, duration=5.0)
+    tail = slice(-500, None)
+    error = float(np.max(np.abs(result.tau_contact[tail] - TAU_REF)) / TAU_REF)
+    if not np.isfinite(error) or result.theta.size < 5000:
+        return False, np.inf
+    return bool(error <= 0.5 and result.in_contact[tail].all()), error
+
+
+@pytest.mark.parametrize("order", [0, 1])
+def test_verdict_agrees_with_simulation_on_the_papers_motor(order):
+    """Issue 21 target, on the paper's motor (PAPERS_FRICTION, the encoder, delay and limit):
+    the map's verdict agrees with the simulated one at every point of a 3 x 5 grid, stiffness
+    0.1-10 N m/rad x bandwidth 25-2000 rad/s. The rows are where the encoder resolves the
+    0.05 N m deflection (at least 13 counts: 10 N m/rad is 5e-3 rad; docs/force-control.md
+    says why the stiffer rows are not judged); the HPDOb's bandwidth boundary (between 400
+    and 1000 rad/s; 700 rad/s, within 1.3 % of it, is the next test's) has points on both
+    sides, the DOb has none in these rows. Margins: the stable runs stay within 25 % of
+    tau_ref (18 % measured: the limit cycle of friction and quantisation at high bandwidth;
+    within 2 % up to 100 rad/s), the unstable ones are off by more than 80 %
+    or lose contact (91 % or more measured)."""
+    cmap = contact_stability_map(_papers_loop(order), stiffness=[0.1, 1.0, 10.0],
+                                 bandwidth=[25.0, 100.0, 400.0, 1000.0, 2000.0],
+                                 observer={"order": order}, **PAPERS_FRICTION)  # fmt: skip
+    assert cmap.stable.all() if order == 0 else (cmap.stable.any() and not cmap.stable.all())
+    for i, k_e in enumerate(cmap.values):
+        for j, g in enumerate(cmap.bandwidths):
+            point = cmap.loop_at(k_e, g)
+            assert point.plant.coulomb == 0.01 and point.system.coulomb is not None
+            stable, error = _papers_verdict(point)
+            rho = cmap.spectral_radius[i, j]
+            assert stable == (rho < 1.0), (k_e, g, rho, error)
+            if stable:
+                assert error < (0.02 if g <= 100.0 else 0.25), (k_e, g, rho, error)
+            else:
+                assert error > 0.8, (k_e, g, rho, error)
+
+
+def test_near_the_bandwidth_boundary_the_papers_motor_does_not_decide():
+    """docs/force-control.md: the points the verdict check leaves out. At 700 rad/s the HPDOb's
+    map is barely unstable at 3.16 and 10 N m/rad (radius 1.0023, 1.0126) and barely stable
+    at 0.1-1 (0.9976-0.9990); on the paper's motor all four hold a bounded oscillation of
+    10-35 % of tau_ref, in contact: no threshold on the deviation separates them. Coulomb
+    friction bounds the weak instability (without it the 10 N m/rad point loses contact)."""
+    cmap = contact_stability_map(_papers_loop(1), stiffness=[0.1, 1.0, 3.16, 10.0],
+                                 bandwidth=[700.0], observer={"order": 1},
+                                 **PAPERS_FRICTION)  # fmt: skip
+    assert cmap.stable[:, 0].tolist() == [True, True, False, False]
+    errors = [_papers_verdict(cmap.loop_at(k_e, 700.0)) for k_e in cmap.values]
+    assert all(stable for stable, _ in errors)  # the rule says stable at all four
+    assert all(0.05 < error < 0.45 for _, error in errors), errors
+    # the friction bounds it: the same point at 10 N m/rad without Coulomb friction (plant and
+    # RTOB model) loses contact
+    free = cmap.loop_at(10.0, 700.0)
+    dob = design_observer(NOMINAL.discretize(TS), order=1, bandwidth=700.0)
+    free = free.replace(plant=free.plant.replace(coulomb=0.0),
+                        observer=reaction_torque_observer(dob, viscous=PLANT.b))  # fmt: skip
+    assert not _papers_verdict(free)[0]
+
+
 def test_radius_is_the_growth_rate_of_the_simulated_linear_loop():
     """An independent implementation of the recurrence (the compiled kernel on the bonded,
     linear plant): the per-sample growth of the simulated response is the map's spectral
@@ -376,3 +456,190 @@ def test_quantisation_hides_a_sub_count_instability():
     errors = [np.max(np.abs(r.tau_contact[-500:] - TAU_REF)) / TAU_REF for r in runs]
     assert np.ptp(runs[0].theta_measured[-500:]) == 0.0  # the encoder sees no motion
     assert errors[0] < 0.2 and errors[1] > 0.5
+
+
+@pytest.mark.parametrize("order", [0, 1])
+def test_the_rtobs_own_bandwidth(order):
+    """bandwidth_of="reaction": the DOb stays at 100 rad/s, the axis is a separate RTOB's own
+    bandwidth (docs/force-control.md). A faster RTOB lowers the tolerated stiffness (DOb-type
+    RTOB: 164 N m/rad at 100 rad/s, 75 at 400 measured) and, from about 700 rad/s, opens a
+    band of stability again above ~620 N m/rad. The point's loop holds exactly the DOb at
+    100 rad/s and the RTOB at its own bandwidth, its radius is closed_loop_poles' of the bonded
+    loop, and each boundary at 400 and 1000 rad/s is verified by the unilateral simulation
+    10 % on either side (for the HPDOb-type RTOB the second band starts at 942 N m/rad already
+    at 400 rad/s)."""
+    from hpdob import closed_loop_poles
+
+    loop = _loop(order=order)
+    cmap = contact_stability_map(loop, stiffness=np.geomspace(10.0, 1000.0, 21),
+                                 bandwidth=[100.0, 400.0, 1000.0], observer={"order": order},
+                                 reaction={"order": order}, viscous=PLANT.b,
+                                 bandwidth_of="reaction", fixed_bandwidth=100.0)  # fmt: skip
+    assert (cmap.bandwidth_of, cmap.fixed_bandwidth) == ("reaction", 100.0)
+    edges = cmap.boundary()
+    kinds = [(e["bandwidth"], e["kind"]) for e in edges]
+    second = [(400.0, "lower")] if order == 1 else []
+    assert kinds == [(100.0, "upper"), (400.0, "upper"), *second,
+                     (1000.0, "upper"), (1000.0, "lower")]  # fmt: skip
+    shared = contact_stability_map(
+        loop,
+        stiffness=np.geomspace(10.0, 1000.0, 21),
+        bandwidth=[100.0],
+        observer={"order": order},
+        viscous=PLANT.b,
+    )
+    assert edges[0]["stiffness"] == pytest.approx(shared.boundary()[0]["stiffness"], rel=1e-9)
+    assert edges[1]["stiffness"] < 0.6 * edges[0]["stiffness"]  # a faster RTOB: a lower edge
+    point = cmap.loop_at(50.0, 400.0)
+    expected = reaction_torque_observer(
+        design_observer(NOMINAL.discretize(TS), order=order, bandwidth=100.0),
+        design_observer(NOMINAL.discretize(TS), order=order, bandwidth=400.0),
+        viscous=PLANT.b,
+    )
+    np.testing.assert_allclose(point.system.F, expected.F, rtol=1e-12)
+    np.testing.assert_allclose(point.system.H, expected.H, rtol=1e-12)
+    bonded = cmap.loop_at(50.0, 400.0, bonded=True).replace(actuator=Actuator(delay_samples=1))
+    rho = np.max(np.abs(closed_loop_poles(bonded)))
+    assert cmap.radius_at(50.0, 400.0) == pytest.approx(rho, rel=1e-12)
+    for edge in edges[1:]:
+        stable_side = (0.9, 1.1) if edge["kind"] == "upper" else (1.1, 0.9)
+        for factor, stable in zip(stable_side, (True, False), strict=True):
+            value = edge["stiffness"] * factor
+            assert abs(cmap.radius_at(value, edge["bandwidth"]) - 1.0) >= BOUNDARY_BAND
+            assert _settles(cmap.loop_at(value, edge["bandwidth"]))[0] == stable, (edge, factor)
+
+
+def test_the_dobs_own_bandwidth_and_bad_inputs(tmp_path):
+    """bandwidth_of="dob" holds the RTOB at fixed_bandwidth instead; at the shared bandwidth
+    the three maps agree. Refused: a fixed bandwidth with "both", a one-observer axis without
+    a separate RTOB, a non-positive fixed bandwidth, viscous and friction both."""
+    loop = _loop(order=1)
+    grid = {"stiffness": [10.0, 100.0], "observer": {"order": 1}}
+    both = contact_stability_map(loop, bandwidth=[50.0, 100.0], reaction={"order": 1}, **grid)
+    for of in ("dob", "reaction"):
+        one = contact_stability_map(loop, bandwidth=[100.0], reaction={"order": 1},
+                                    bandwidth_of=of, fixed_bandwidth=100.0, **grid)  # fmt: skip
+        np.testing.assert_allclose(one.spectral_radius[:, 0], both.spectral_radius[:, 1],
+                                   rtol=1e-12)  # fmt: skip
+    dob_axis = contact_stability_map(
+        loop,
+        bandwidth=[50.0],
+        reaction={"order": 1},
+        bandwidth_of="dob",
+        fixed_bandwidth=100.0,
+        **grid,
+    )
+    assert not np.allclose(dob_axis.spectral_radius[:, 0], both.spectral_radius[:, 0])
+    header = dob_axis.to_csv(tmp_path / "map.csv").read_text().splitlines()[0]
+    assert header.startswith("stiffness,dob_bandwidth_rad_s,reaction_bandwidth_rad_s,")
+    fig = dob_axis.plot()
+    assert "the DOb's bandwidth" in fig.axes[0].get_xlabel()
+    assert "RTOB at 100 rad/s" in fig.axes[0].get_title()
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    g = {"bandwidth": [100.0], **grid}
+    with pytest.raises(ParameterValueError, match=r"^fixed_bandwidth is the bandwidth .* 5.0$"):
+        contact_stability_map(loop, fixed_bandwidth=5.0, **g)
+    with pytest.raises(ParameterValueError, match=r"^bandwidth_of='reaction' .* reaction=None$"):
+        contact_stability_map(loop, bandwidth_of="reaction", fixed_bandwidth=5.0, **g)
+    with pytest.raises(ParameterTypeError, match=r"^fixed_bandwidth must be a positive.*None"):
+        contact_stability_map(loop, bandwidth_of="dob", reaction={"order": 0}, **g)
+    with pytest.raises(ParameterValueError, match=r"^fixed_bandwidth must be a positive.*-1"):
+        contact_stability_map(loop, bandwidth_of="dob", reaction={"order": 0},
+                              fixed_bandwidth=-1.0, **g)  # fmt: skip
+    with pytest.raises(ValueError, match=r"^bandwidth_of must be one of"):
+        contact_stability_map(loop, bandwidth_of="rtob", **g)
+    with pytest.raises(ParameterValueError, match=r"^give the RTOB's friction as viscous or"):
+        contact_stability_map(loop, viscous=1e-5, friction=paper.PLANT, **g)
+    with pytest.raises(ParameterValueError, match=r"^velocity_filter low-passes .* friction=None$"):
+        contact_stability_map(loop, velocity_filter=100.0, **g)
+    with pytest.raises(ParameterTypeError, match=r"^friction must be a ServoModel"):
+        contact_stability_map(loop, friction="plant", **g)
+    with pytest.raises(ParameterValueError, match=r"^velocity_filter must be a positive"):
+        contact_stability_map(loop, friction=paper.PLANT, velocity_filter=-1.0, **g)
+
+
+def _slope_radius(point) -> float:
+    """The loop linearised at the in-contact equilibrium (omega = 0): the plant's Coulomb
+    friction c tanh(omega/v) by its slope c/v, the RTOB's Coulomb term c_n tanh(w/v_n) by its
+    slope on the velocity it reads (the low-passed omega_hat)."""
+    from hpdob import closed_loop_poles
+    from hpdob.models import InContact
+    from hpdob.observers import LinearObserver
+
+    plant, system = point.plant, point.system
+    linear = plant.replace(b=plant.b + plant.coulomb / plant.coulomb_velocity, coulomb=0.0)
+    H, E = np.array(system.H), np.array(system.E)
+    r, w = system.outputs.index("tau_reac"), system.outputs.index("omega_hat")
+    assert system.coulomb.velocity == "omega_hat"
+    H[r] -= system.coulomb.c / system.coulomb.v * H[w]
+    E[r] -= system.coulomb.c / system.coulomb.v * E[w]
+    observer = LinearObserver(F=system.F, G=system.G, H=H, E=E, N=system.N, Ts=system.Ts,
+                              measures=system.measures, outputs=system.outputs,
+                              model=system.model)  # fmt: skip
+    bonded = point.replace(plant=InContact(linear), observer=observer,
+                           actuator=Actuator(delay_samples=1))  # fmt: skip
+    return float(np.max(np.abs(closed_loop_poles(bonded))))
+
+
+def _perturbed(point, k_e: float, counts: int = 3) -> float:
+    """From the settled contact (at rest at tau_ref/k_e, observers converged on tau_ref)
+    displaced by ``counts`` encoder counts into the wall: the worst |tau_contact - tau_ref|
+    over the last 0.5 s of 2 s over that over 0.05-0.3 s (< 1: the deviation decays)."""
+    theta = TAU_REF / k_e + counts * 2 * np.pi / paper.VIRTUAL_SENSOR.counts_per_rev
+    state = np.asarray(point.system.N) @ np.array([theta, 0.0, TAU_REF])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SimulationDivergedWarning)
+        result = simulate(point, reference=lambda t: (np.full_like(t, TAU_REF), 0 * t, 0 * t),
+                          duration=2.0, x0=(theta, 0.0), observer_state=state)  # fmt: skip
+    deviation = np.abs(result.tau_contact - TAU_REF)
+    return float(deviation[-500:].max() / deviation[50:300].max())
+
+
+def test_the_friction_slope_does_not_decide_the_stiff_rows_either():
+    """docs/force-control.md: why the stiff rows are not judged. Judged locally (a 3-count
+    perturbation from the settled contact), the paper's motor holds the 1000 N m/rad wall at
+    100 rad/s, where the Coulomb-free map says unstable (1.032; the friction holds the weak
+    instability), and does not at 400 rad/s, where the map linearised with the friction's slope
+    at rest says stable (0.910; the perturbation's velocity is far beyond v = 0.01 rad/s,
+    where the slope holds). And that linearisation says unstable on the soft rows of the
+    HPDOb at 25 rad/s (1.0010 at 3.16 N m/rad), where the step run settles."""
+    cases = ((0, 100.0, 1000.0), (0, 400.0, 1000.0), (1, 25.0, 3.16))
+    found = []
+    for order, g, k_e in cases:
+        cmap = contact_stability_map(_papers_loop(order), stiffness=[k_e], bandwidth=[g],
+                                     observer={"order": order}, **PAPERS_FRICTION)  # fmt: skip
+        point = cmap.loop_at(k_e, g)
+        found.append((cmap.spectral_radius[0, 0], _slope_radius(point)))
+        if k_e == 1000.0:
+            found[-1] += (_perturbed(point, k_e),)
+        else:
+            found[-1] += (_papers_verdict(point)[1],)
+    (free, slope, local), (free4, slope4, local4), (free25, slope25, step25) = found
+    assert free > 1.02 and slope < 0.98 and local < 1e-6  # held: the free map says unstable
+    assert free4 > 1.05 and slope4 < 0.95 and local4 > 0.5  # not held: the slope says stable
+    assert free25 < 0.995 and slope25 > 1.0005 and step25 < 1e-3  # settles: slope unstable
+
+
+def test_a_slow_hpdob_type_rtob_is_weakly_unstable_on_the_stiff_wall():
+    """docs/force-control.md: an HPDOb-type RTOB at 25 rad/s beside the HPDOb at 100 rad/s is
+    unstable between 7.6 and 43.7 N m/rad (radius up to 1.0003, the stiff wall of 10 N m/rad
+    included). Too slow a growth for the unilateral step run; the bonded, linear loop simulated
+    for 20 s grows or decays per sample as the radius says, to 1e-5 (3e-7 measured), at 5, 10,
+    20 and 60 N m/rad: both sides of both boundaries."""
+    cmap = contact_stability_map(_loop(), stiffness=np.geomspace(3.0, 100.0, 31),
+                                 bandwidth=[25.0], observer={"order": 1}, reaction={"order": 1},
+                                 viscous=PLANT.b, bandwidth_of="reaction",
+                                 fixed_bandwidth=100.0)  # fmt: skip
+    edges = cmap.boundary()
+    assert [e["kind"] for e in edges] == ["upper", "lower"]
+    assert 7.0 < edges[0]["stiffness"] < 8.0 and 40.0 < edges[1]["stiffness"] < 47.0
+    for k_e, unstable in ((5.0, False), (10.0, True), (20.0, True), (60.0, False)):
+        rho = cmap.radius_at(k_e, 25.0)
+        assert (rho > 1.0) == unstable and abs(rho - 1.0) > 5e-5
+        loop = cmap.loop_at(k_e, 25.0, bonded=True).replace(actuator=Actuator(delay_samples=1))
+        result = simulate(loop, reference=lambda t: (0 * t, 0 * t, 0 * t), duration=20.0,
+                          x0=(1.0, 0.0))  # fmt: skip
+        envelope = [np.max(np.abs(result.theta[n - 500 : n])) for n in (10_000, 20_000)]
+        assert (envelope[1] / envelope[0]) ** 1e-4 == pytest.approx(rho, abs=1e-5), k_e

@@ -83,3 +83,33 @@ def test_switching_scenario_reports_force_errors_and_keeps_position(tmp_path, mo
     assert "rms_position_error_regulation" in metrics  # r is an angle here
     assert fig.axes[0].get_ylabel() == "torque [N m]"
     plt.close("all")
+
+
+def test_force_scenario_reports_steady_state_errors(tmp_path, monkeypatch):
+    """``force_rms_*_steady``: over the samples from 0.5 s after the first contact (the
+    default window), recomputed from the CSV; far below the whole run's (which holds the
+    approach, the impact and the step)."""
+    metrics, col, _ = _run(FORCE, tmp_path / "force", monkeypatch)
+    first = col["t"][np.argmax(col["in_contact"] > 0.0)]
+    assert metrics["force_steady_start"] == pytest.approx(first + 0.5, abs=1e-12)
+    w = col["t"] >= first + 0.5
+    assert metrics["force_rms_force_error_steady"] == pytest.approx(
+        _rms(col["tau_contact"][w] - col["r"][w]), rel=1e-6)  # fmt: skip
+    assert metrics["force_rms_reaction_error_steady"] == pytest.approx(
+        _rms(col["tau_reac"][w] - col["tau_contact"][w]), rel=1e-6)  # fmt: skip
+    assert metrics["force_rms_force_error_steady"] < 0.05 * metrics["force_rms_force_error"]
+
+
+def test_force_window_option(tmp_path, capsys):
+    out = tmp_path / "window"
+    args = ["simulate", str(FORCE), "--out", str(out), "--no-plot"]
+    assert main([*args, "--force-window", "0.8", "inf"]) == 0
+    ((_, metrics),) = json.loads((out / "metrics.json").read_text()).items()
+    assert metrics["force_steady_start"] == 0.8
+    with open(out / "force-step-stiff-wall.csv", newline="") as f:
+        rows = [r for r in csv.DictReader(f) if float(r["t"]) >= 0.8]
+    expected = _rms([float(r["tau_contact"]) - float(r["r"]) for r in rows])
+    assert metrics["force_rms_force_error_steady"] == pytest.approx(expected, rel=1e-6)
+    capsys.readouterr()
+    assert main([*args, "--force-window", "0.8", "0.2"]) == 2  # refused before the run
+    assert "--force-window must have start < stop [s], got [0.8, 0.2]" in capsys.readouterr().err

@@ -65,3 +65,19 @@ def test_metrics_json(reproduced):
         hp["rms_estimation_error"], rel=1e-12
     )
     np.testing.assert_array_equal(trace.t[:3], [0.0, 1e-3, 2e-3])
+
+
+def test_a_canonical_run_reuses_its_design_and_equals_one_with_a_fresh_design():
+    from hpdob import simulate
+    from hpdob.paper._scenario import _design
+
+    first = paper.run("HPDOb-100", duration=0.5)
+    spec = tuple(sorted(paper.RUNS["HPDOb-100"].items()))
+    assert _design(spec) is _design(spec)  # made once
+    fresh = simulate(**{**paper.scenario(), "duration": 0.5},
+                     observer=paper.observer("HPDOb-100").design, label="HPDOb-100")  # fmt: skip
+    for name in ("theta", "u", "tau_hat", "tau_dn"):
+        assert getattr(first, name).tobytes() == getattr(fresh, name).tobytes()
+    assert paper.run("HPDOb-100", duration=0.5).metrics() == first.metrics()
+    with pytest.raises(ValueError, match="name"):
+        paper.run("HPDOb-101")

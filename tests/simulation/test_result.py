@@ -136,3 +136,105 @@ def test_rms_of_huge_values_does_not_overflow():
     assert _rms(np.array([3.0, 4.0])) == pytest.approx(math.sqrt(12.5), rel=1e-15)
     assert _rms(np.zeros(3)) == 0.0
     assert math.isnan(_rms(np.array([])))
+
+
+def test_rms_is_the_scaled_formula_bit_for_bit():
+    # _rms writes the square in place; the value is that of the formula written out
+    from hpdob.simulation._result import _rms
+
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 7, 8, 9, 1000, 12345):
+        for exponent in (-300, -3, 0, 3, 300):
+            v = rng.standard_normal(n + 1)[1:] * 10.0**exponent  # an offset view too
+            scale = float(np.max(np.abs(v)))
+            assert _rms(v) == scale * float(np.sqrt(np.mean((v / scale) ** 2)))
+    assert _rms(np.zeros(3)) == 0.0 and math.isnan(_rms(np.zeros(0)))
+    assert _rms(np.array([1.0, math.inf])) == math.inf
+
+
+@pytest.mark.parametrize(
+    "bounds", [(1.2, 4.0), (4.0, math.inf), [1.0, 2.0], np.array([0.5, 1.5]), (1, 2)]
+)
+def test_a_window_of_floats_reads_as_the_generic_check_would(bounds):
+    from hpdob.simulation._result import metric_window
+
+    lo, hi = metric_window(bounds, "w")
+    assert (lo, hi) == (float(bounds[0]), float(bounds[1]))
+    assert type(lo) is float and type(hi) is float
+
+
+@pytest.mark.parametrize(
+    ("bounds", "pattern"),
+    [((2.0, 1.0), "start < stop"), ((math.nan, 1.0), "start < stop"), ((1.0,), "pair"),
+     ("ab", "pair"), ((True, 2.0), "bool")],
+)  # fmt: skip
+def test_a_bad_window_is_refused_whatever_its_type(bounds, pattern):
+    from hpdob.simulation._result import metric_window
+
+    with pytest.raises((ValueError, TypeError), match=pattern):
+        metric_window(bounds, "w")
+
+
+def _force_run(duration=1.5):
+    from hpdob import Environment, ServoLoop, ServoModel, design_observer, simulate
+    from hpdob.controllers import ForceControl
+    from hpdob.observers import reaction_torque_observer
+
+    nominal = ServoModel(2.8e-4)
+    dob = design_observer(nominal.discretize(1e-3), order=1, bandwidth=100.0)
+    loop = ServoLoop(plant=ServoModel(3.06e-4, environment=Environment(10.0)), nominal=nominal,
+                     Ts=1e-3, observer=reaction_torque_observer(dob),
+                     controller=ForceControl(1000.0, kv=40.0))  # fmt: skip
+    step = lambda t: (np.where(t >= 0.1, 0.05, 0.0), 0 * t, 0 * t)  # noqa: E731
+    return simulate(loop, reference=step, duration=duration, x0=(-0.01, 0.0))
+
+
+def test_force_metrics_over_a_window():
+    """The windowed RMS is the RMS over the samples start <= t < stop, recomputed here from the
+    traces; "steady" starts 0.5 s after the first sample in contact. Without the approach, the
+    impact and the step the force error is a small fraction of the whole run's."""
+    from hpdob.simulation._result import FORCE_SETTLING
+
+    run = _force_run()
+    ref = run.r
+    whole = run.force_metrics(ref)
+    assert "window_start" not in whole
+    assert whole["rms_force_error"] == pytest.approx(
+        np.sqrt(np.mean((run.tau_contact - ref) ** 2)), rel=1e-12)  # fmt: skip
+    w = (run.t >= 0.7) & (run.t < 1.2)
+    part = run.force_metrics(ref, window=(0.7, 1.2))
+    assert part["window_start"] == 0.7
+    assert part["rms_force_error"] == pytest.approx(
+        np.sqrt(np.mean((run.tau_contact[w] - ref[w]) ** 2)), rel=1e-12)  # fmt: skip
+    assert part["rms_reaction_error"] == pytest.approx(
+        np.sqrt(np.mean((run.tau_reac[w] - run.tau_contact[w]) ** 2)), rel=1e-12)  # fmt: skip
+    first = run.t[np.argmax(run.in_contact > 0.0)]
+    assert 0.1 < first < 0.3  # the approach from 0.01 rad before the wall
+    steady = run.force_metrics(ref, window="steady")
+    assert FORCE_SETTLING == 0.5
+    assert steady["window_start"] == pytest.approx(first + 0.5, abs=1e-12)
+    s = run.t >= first + 0.5
+    assert steady["rms_force_error"] == pytest.approx(
+        np.sqrt(np.mean((run.tau_contact[s] - ref[s]) ** 2)), rel=1e-12)  # fmt: skip
+    assert steady["rms_force_error"] < 0.05 * whole["rms_force_error"]
+    # only the estimate, without a reference
+    assert set(run.force_metrics(window="steady")) == {"rms_reaction_error", "window_start"}
+
+
+def test_force_metrics_window_refusals_and_empty_windows():
+    run = _force_run(duration=0.3)
+    for bad in ("last", (0.5, 0.2), (0.1,), (math.nan, 1.0)):
+        with pytest.raises(ValueError, match="window"):
+            run.force_metrics(run.r, window=bad)
+    empty = run.force_metrics(run.r, window=(5.0, 6.0))  # after the run: no sample
+    assert math.isnan(empty["rms_force_error"]) and math.isnan(empty["rms_reaction_error"])
+    assert math.isnan(run.force_metrics(run.r, window="steady")["rms_force_error"])  # < 0.5 s
+
+
+def test_force_metrics_steady_window_without_contact():
+    import dataclasses
+
+    run = _force_run(duration=0.3)
+    never = dataclasses.replace(run, in_contact=np.zeros_like(run.in_contact))
+    m = never.force_metrics(run.r, window="steady")
+    assert math.isnan(m["window_start"]) and math.isnan(m["rms_force_error"])

@@ -70,9 +70,12 @@ def test_examples_run_from_the_command_line(path, tmp_path, capsys):
     # the force error; a force controller's r is tau_ref [N m], so no position errors
     kind = re.search(r'^\[controller\][^\n]*\ntype = "([a-z-]+)"', path.read_text(), re.M)
     kind = kind.group(1) if kind else None
-    force = {"force": {"force_rms_reaction_error", "force_rms_force_error"},
-             "position-force": {"force_rms_reaction_error", "force_rms_force_error"},
-             "impedance": {"force_rms_reaction_error"}}.get(kind, set())  # fmt: skip
+    # (over the whole run and, "_steady", from 0.5 s after the first contact on)
+    errors = {"force_rms_reaction_error", "force_rms_force_error"}
+    steady = {f"{name}_steady" for name in errors} | {"force_steady_start"}
+    force = {"force": errors | steady, "position-force": errors | steady,
+             "impedance": {"force_rms_reaction_error", "force_rms_reaction_error_steady",
+                           "force_steady_start"}}.get(kind, set())  # fmt: skip
     position = set() if kind == "force" else {"rms_position_error_regulation",
                                               "rms_position_error_tracking"}  # fmt: skip
     assert set(metrics[label]) == {"rms_estimation_error", *position, *contact, *force}

@@ -355,10 +355,13 @@ def test_scenarios_that_share_a_design_design_it_once(monkeypatch):
 
     monkeypatch.setattr(sweep_module, "design_from_spec", counted)
     grid = {"plant.J": list(np.linspace(2e-4, 4e-4, 100))}
-    rows = sweep(base(0.2), grid=grid, scheduler=1, progress=False)
-    assert rows["stable"].all()
-    # one check up front, then one design per chunk (one worker: 8 chunks of 13 scenarios)
-    assert len(calls) == 1 + 8
+    for workers in (1, 2):
+        calls.clear()
+        rows = sweep(base(0.2), grid=grid, scheduler=workers, progress=False)
+        assert rows["stable"].all()
+        # one check up front, then one design for the whole sweep (its cache is shared by
+        # every chunk and thread; 8 or 16 chunks here), never one per scenario
+        assert len(calls) == 1 + 1
 
 
 def test_resume_runs_only_the_missing_scenarios_and_equals_a_run_from_scratch(monkeypatch):
@@ -443,3 +446,181 @@ def test_sweep_of_a_force_scenario_keeps_its_reaction_observer():
     assert rows["stable"].all()
     direct = scenario.simulate().metrics()["rms_estimation_error"]
     assert rows["rms_estimation_error"].iloc[1] == direct
+
+
+def test_scenarios_with_the_same_plant_parameters_share_one_plant(monkeypatch):
+    import hpdob.simulation._sweep as sweep_module
+
+    made = []
+    real = sweep_module.replaced_plant
+
+    def counted(plant, changes):
+        made.append(dict(changes))
+        return real(plant, changes)
+
+    monkeypatch.setattr(sweep_module, "replaced_plant", counted)
+    grid = {"plant.J": [2.5e-4, 3.5e-4], "observer.bandwidth": [60.0, 90.0, 120.0]}
+    rows = sweep(base(0.2), grid=grid, scheduler=2, progress=False)
+    assert rows["stable"].all() and len(rows) == 6
+    assert sorted(c["J"] for c in made) == [2.5e-4, 3.5e-4]  # once each, not per scenario
+    # the rows are those of runs that make their plant themselves
+    single = [
+        sweep(base(0.2), grid={"plant.J": [J], "observer.bandwidth": [g]}, progress=False)
+        for J in grid["plant.J"]
+        for g in grid["observer.bandwidth"]
+    ]
+    for i, one in enumerate(single):
+        for column in METRICS:  # bit for bit (NaN: a window past the run's end)
+            assert np.array_equal(rows[column][i], one[column][0], equal_nan=True)
+        assert np.isfinite(rows["rms_estimation_error"][i])
+
+
+def test_cache_keys_tell_signed_zeros_apart():
+    from hpdob.simulation._sweep import _frozen
+
+    assert _frozen({"b": 0.0}) != _frozen({"b": -0.0})
+    assert _frozen({"b": 1.0}) == _frozen({"b": 1.0}) and _frozen({"b": [1.0]}) is not None
+    assert _frozen({"x": frozenset({1, 2})}) is not None and _frozen({"x": {1, 2}}) is None
+    assert _frozen({"x": object.__new__(type("U", (), {"__hash__": None}))}) is None
+
+
+FORCE_STEP = Path(__file__).resolve().parents[2] / "examples" / "force_step_stiff_wall.toml"
+
+
+def _force_rows(grid, duration=0.6, errors=False):
+    """A sweep of the force-step example (its [reaction_observer]: the HPDOb shared as the
+    RTOB, the friction model known), and the loops each row should have run, built by hand."""
+    from hpdob.observers import design_reaction_observer
+    from hpdob.simulation import load_scenario
+
+    scenario = load_scenario(FORCE_STEP)
+    run = {**scenario.run, "duration": duration}
+    run.pop("label")
+    rows = sweep({"loop": scenario.loop, **run}, grid=grid, progress=False)
+    assert errors or (rows["error"] == "").all(), rows["error"].tolist()
+
+    def direct(nominal=paper.NOMINAL, dob=None, rtob=None, **friction):
+        model = nominal.discretize(paper.TS)
+        dob = design_observer(model, **{"order": 1, "bandwidth": 100.0, **(dob or {})})
+        rtob = None if rtob is None else design_observer(model, **rtob)
+        observer = design_reaction_observer(
+            dob, rtob, **{"viscous": 5e-5, "coulomb": 0.01, "velocity_filter": 100.0, **friction}
+        )
+        loop = scenario.loop.replace(nominal=nominal, observer=observer)
+        return simulate(loop, **run).metrics()["rms_estimation_error"]
+
+    return rows, direct
+
+
+def test_sweep_over_the_dob_of_a_force_scenario_redesigns_the_composition():
+    """observer.bandwidth and observer.order of a scenario with a [reaction_observer]: each row
+    is the run of the composition designed again (the RTOB, the DOb itself, follows it)."""
+    rows, direct = _force_rows({"observer.order": [0, 1], "observer.bandwidth": [50.0, 150.0]})
+    assert len(set(rows["rms_estimation_error"])) == 4  # every row ran another loop
+    for _, row in rows.iterrows():
+        expected = direct(dob={"order": int(row["observer.order"]),
+                               "bandwidth": row["observer.bandwidth"]})  # fmt: skip
+        assert row["rms_estimation_error"] == expected
+
+
+def test_sweep_over_the_reaction_observer_of_a_force_scenario():
+    """reaction_observer.bandwidth gives the RTOB its own design (the DOb's spec at that
+    bandwidth; the DOb keeps 100 rad/s); reaction_observer.velocity_filter and .coulomb vary the
+    friction model."""
+    rows, direct = _force_rows({"reaction_observer.bandwidth": [50.0, 200.0]})
+    for _, row in rows.iterrows():
+        g = row["reaction_observer.bandwidth"]
+        assert row["rms_estimation_error"] == direct(rtob={"order": 1, "bandwidth": g})
+    rows, direct = _force_rows({"reaction_observer.velocity_filter": [30.0],
+                                "reaction_observer.coulomb": [0.005, 0.02]})  # fmt: skip
+    for _, row in rows.iterrows():
+        c = row["reaction_observer.coulomb"]
+        assert row["rms_estimation_error"] == direct(coulomb=c, velocity_filter=30.0)
+    # a bad value is that row's error: a velocity filter without a Coulomb term
+    rows, _ = _force_rows({"reaction_observer.coulomb": [0.0, 0.01]}, errors=True)
+    assert "velocity_filter = 100.0 filters the Coulomb term's velocity, but coulomb is 0" in (
+        rows["error"].iloc[0])  # fmt: skip
+    assert rows["error"].iloc[1] == "" and not rows["stable"].iloc[0]
+
+
+def test_sweep_over_the_nominal_model_keeps_the_rtob_on_the_dobs():
+    """nominal.J: DOb and RTOB are designed again on the scenario's nominal model (the rule
+    "the RTOB's nominal model is the DOb's" holds in every row)."""
+    rows, direct = _force_rows({"nominal.J": [2.5e-4, 3.06e-4]})
+    for _, row in rows.iterrows():
+        assert row["rms_estimation_error"] == direct(nominal=paper.NOMINAL.replace(
+            J=row["nominal.J"]))  # fmt: skip
+
+
+def test_reaction_observer_paths_that_cannot_apply_are_refused():
+    from hpdob.observers import design_eso, design_reaction_observer
+    from hpdob.simulation import load_scenario
+
+    with pytest.raises(
+        ValueError,
+        match=r"^sweep path 'reaction_observer\.bandwidth' does not "
+        r"apply to this base: the base has no reaction-torque",
+    ):
+        sweep(base(), grid={"reaction_observer.bandwidth": [50.0]}, progress=False)
+    scenario = load_scenario(FORCE_STEP)
+    run = {k: v for k, v in scenario.run.items() if k != "label"}
+    model = paper.NOMINAL.discretize(paper.TS)
+    dob = design_observer(model, order=1, bandwidth=100.0, measurement="position")
+    eso = design_reaction_observer(dob, design_eso(model, bandwidth=200.0), viscous=5e-5)
+    loop = scenario.loop.replace(observer=eso, sensor=paper.VIRTUAL_SENSOR)
+    with pytest.raises(
+        ValueError,
+        match=r"'reaction_observer\.order' does not apply to this "
+        r"base: an observer spec of type 'eso' has no design "
+        r"argument 'order'",
+    ):
+        sweep({"loop": loop, **run}, grid={"reaction_observer.order": [1]}, progress=False)
+    rows = sweep(
+        {"loop": loop, **run, "duration": 0.3},
+        grid={"reaction_observer.extended_order": [0, 1]},
+        progress=False,
+    )
+    assert (rows["error"] == "").all() and rows["stable"].all()
+
+
+def test_sweep_spec_of_a_force_scenario_varies_its_observers(tmp_path):
+    """A sweep file (hpdob sweep's input) of the force-step example over the DOb's and the
+    RTOB's bandwidths: the rows are those of the Python sweep of the loaded scenario."""
+    from hpdob.simulation import load_scenario, load_sweep
+
+    path = tmp_path / "spec.toml"
+    path.write_text(FORCE_STEP.read_text().replace("duration = 1.0 ", "duration = 0.4 ") + (
+        '\n[sweep]\ngrid = { "observer.bandwidth" = [50.0, 100.0], '
+        '"reaction_observer.bandwidth" = [200.0] }\n'))  # fmt: skip
+    spec, options = load_sweep(path)
+    rows = sweep(spec, **options, progress=False)
+    scenario = load_scenario(FORCE_STEP)
+    run = {**scenario.run, "duration": 0.4}
+    run.pop("label")
+    again = sweep({"loop": scenario.loop, **run}, grid=options["grid"], progress=False)
+    assert rows["error"].tolist() == ["", ""]
+    np.testing.assert_array_equal(rows["rms_estimation_error"], again["rms_estimation_error"])
+
+
+def test_a_composition_of_a_handmade_dob_sweeps_its_friction_only():
+    """A composition whose DOb is of no registered family: its design paths are refused, its
+    friction model sweeps, and another nominal model is that row's error (the loop refuses a
+    DOb designed on another one)."""
+    from hpdob import LinearObserver
+    from hpdob.observers import design_reaction_observer
+    from hpdob.simulation import load_scenario
+
+    scenario = load_scenario(FORCE_STEP)
+    run = {k: v for k, v in scenario.run.items() if k != "label"}
+    run["duration"] = 0.3
+    system = scenario.loop.design.dob.system
+    handmade = LinearObserver(F=system.F, G=system.G, H=system.H, E=system.E, N=system.N,
+                              Ts=system.Ts, model=system.model)  # fmt: skip
+    loop = scenario.loop.replace(observer=design_reaction_observer(handmade, viscous=5e-5))
+    with pytest.raises(ValueError, match="the composition's dob is not a design of a known"):
+        sweep({"loop": loop, **run}, grid={"observer.bandwidth": [50.0]}, progress=False)
+    rows = sweep({"loop": loop, **run}, grid={"reaction_observer.viscous": [0.0, 1e-4]},
+                 progress=False)  # fmt: skip
+    assert rows["error"].tolist() == ["", ""]
+    rows = sweep({"loop": loop, **run}, grid={"nominal.J": [3e-4]}, progress=False)
+    assert "must be designed on nominal.discretize(Ts)" in rows["error"].iloc[0]

@@ -50,6 +50,13 @@ _UNITS = {
 _RTOB_UNITS = "the RTOB's nominal/true inertia J_n/J [-]"
 #: What a ``nominal_ratio`` grid varies: the nominal model of the whole loop, or the RTOB's.
 NOMINAL_OF = ("loop", "reaction")
+#: Whose bandwidth the map's bandwidth axis is: DOb and RTOB together, the DOb's or the RTOB's.
+BANDWIDTH_OF = ("both", "dob", "reaction")
+_XLABELS = {
+    "both": "observer bandwidth g (DOb and RTOB) [rad/s]",
+    "dob": "the DOb's bandwidth g [rad/s]",
+    "reaction": "the RTOB's bandwidth g_R [rad/s]",
+}
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,6 +68,10 @@ class _ContactSetting:
     reaction: dict | None
     viscous: float
     nominal_of: str = "loop"  # what a nominal_ratio grid varies: "loop" or "reaction"
+    bandwidth_of: str = "both"  # whose bandwidth the axis is: "both", "dob" or "reaction"
+    fixed_bandwidth: float | None = None  # [rad/s] the other observer's, unless "both"
+    friction: object = None  # the RTOB's friction model (a ServoModel), or None
+    velocity_filter: float | None = None
 
     @property
     def Ts(self) -> float:
@@ -79,10 +90,16 @@ class _ContactSetting:
         return plant, (nominal if self.nominal_of == "reaction" else varied), varied
 
     def observer_at(self, nominal: ServoModel, reaction_nominal: ServoModel, bandwidth: float):
-        dob = design_at_bandwidth(nominal.discretize(self.Ts), self.observer, bandwidth)
+        g_dob = self.fixed_bandwidth if self.bandwidth_of == "reaction" else bandwidth
+        g_rtob = self.fixed_bandwidth if self.bandwidth_of == "dob" else bandwidth
+        dob = design_at_bandwidth(nominal.discretize(self.Ts), self.observer, g_dob)
         rtob = None if self.reaction is None else design_at_bandwidth(
-            reaction_nominal.discretize(self.Ts), self.reaction, bandwidth, "reaction")  # fmt: skip
-        return reaction_torque_observer(dob, rtob, viscous=self.viscous,
+            reaction_nominal.discretize(self.Ts), self.reaction, g_rtob, "reaction")  # fmt: skip
+        # the friction model's Coulomb term is the observer's nonlinear one: simulated by
+        # loop_at, left out of the linear analysis like the plant's Coulomb friction
+        friction = {"viscous": self.viscous} if self.friction is None else {
+            "friction": self.friction, "velocity_filter": self.velocity_filter}  # fmt: skip
+        return reaction_torque_observer(dob, rtob, **friction,
                                         other_nominal=self.nominal_of == "reaction")  # fmt: skip
 
     def loop_at(self, parameter: str, value: float, bandwidth: float, *, bonded: bool):
@@ -127,7 +144,8 @@ class ContactStabilityMap:
     values : ndarray
         Its grid (strictly increasing).
     bandwidths : ndarray
-        Observer bandwidths [rad/s] (strictly increasing), of the DOb and the RTOB alike.
+        Observer bandwidths [rad/s] (strictly increasing): of the DOb and the RTOB alike, or
+        of the one ``bandwidth_of`` names.
     spectral_radius : ndarray, shape (len(values), len(bandwidths))
         Largest closed-loop eigenvalue magnitude.
     stiffness : float or None
@@ -143,6 +161,12 @@ class ContactStabilityMap:
     nominal_of : str
         ``"loop"`` (a ``nominal_ratio`` grid varies the nominal model of DOb, RTOB and
         controller) or ``"reaction"`` (of the RTOB alone).
+    bandwidth_of : str
+        ``"both"`` (``bandwidths`` are the DOb's and the RTOB's), ``"dob"`` (the DOb's, the
+        RTOB at ``fixed_bandwidth``) or ``"reaction"`` (the RTOB's, the DOb at
+        ``fixed_bandwidth``).
+    fixed_bandwidth : float or None
+        The other observer's bandwidth [rad/s]; None for ``"both"``.
     """
 
     parameter: str
@@ -156,6 +180,8 @@ class ContactStabilityMap:
     reaction: dict | None = field(repr=False)
     _setting: _ContactSetting = field(repr=False, compare=False)
     nominal_of: str = "loop"
+    bandwidth_of: str = "both"
+    fixed_bandwidth: float | None = None
 
     @property
     def stable(self) -> np.ndarray:
@@ -249,9 +275,17 @@ class ContactStabilityMap:
     def _columns(self) -> dict:
         n_v, n_g = self.spectral_radius.shape
         fixed = "nominal_ratio" if self.parameter == "stiffness" else "stiffness"
+        if self.bandwidth_of == "both":
+            bandwidths = {"bandwidth_rad_s": np.tile(self.bandwidths, n_v)}
+        else:  # the varied observer's bandwidth, then the other's (fixed)
+            other = "reaction" if self.bandwidth_of == "dob" else "dob"
+            bandwidths = {
+                f"{self.bandwidth_of}_bandwidth_rad_s": np.tile(self.bandwidths, n_v),
+                f"{other}_bandwidth_rad_s": np.full(n_v * n_g, self.fixed_bandwidth),
+            }
         return {
             self.parameter: np.repeat(self.values, n_g),
-            "bandwidth_rad_s": np.tile(self.bandwidths, n_v),
+            **bandwidths,
             fixed: np.full(n_v * n_g, getattr(self, fixed)),
             "delay_samples": np.full(n_v * n_g, self.delay_samples),
             "spectral_radius": self.spectral_radius.ravel(),
@@ -264,8 +298,10 @@ class ContactStabilityMap:
         Returns
         -------
         pandas.DataFrame
-            One row per grid point: the varied parameter, ``bandwidth_rad_s``, the fixed
-            parameter, ``delay_samples``, ``spectral_radius`` and ``stable``.
+            One row per grid point: the varied parameter, ``bandwidth_rad_s`` (with
+            ``bandwidth_of="dob"`` or ``"reaction"``: ``dob_bandwidth_rad_s`` and
+            ``reaction_bandwidth_rad_s``, the varied one first), the fixed parameter,
+            ``delay_samples``, ``spectral_radius`` and ``stable``.
 
         Raises
         ------
@@ -315,6 +351,9 @@ class ContactStabilityMap:
             fixed = [f"k_e = {self.stiffness:.3g} N m/rad"]
         if self.delay_samples:
             fixed.append(f"{self.delay_samples}-sample delay")
+        if self.bandwidth_of != "both":
+            other = "RTOB" if self.bandwidth_of == "dob" else "DOb"
+            fixed.append(f"{other} at {self.fixed_bandwidth:g} rad/s")
         return plot_radius_map(
             bandwidths=self.bandwidths,
             values=self.values,
@@ -329,6 +368,7 @@ class ContactStabilityMap:
             ax=ax,
             mark=mark,
             mark_label=mark_label,
+            xlabel=_XLABELS[self.bandwidth_of],
         )
 
 
@@ -364,6 +404,10 @@ def contact_stability_map(
     reaction: dict | None = None,
     viscous: float = 0.0,
     nominal_of: str = "loop",
+    bandwidth_of: str = "both",
+    fixed_bandwidth: float | None = None,
+    friction=None,
+    velocity_filter: float | None = None,
     progress=None,
 ) -> ContactStabilityMap:
     r"""Stability of the force loop in contact over stiffness or :math:`J_n/J`, and bandwidth.
@@ -385,7 +429,8 @@ def contact_stability_map(
         controller (e.g. :class:`~hpdob.controllers.ForceControl`), sensor (only its velocity
         method matters) and actuator (only its delay); its observer is replaced at every point.
     bandwidth : array_like
-        Observer bandwidths [rad/s] of the DOb and the RTOB, positive, strictly increasing.
+        Observer bandwidths [rad/s], positive, strictly increasing: of the DOb and the RTOB
+        alike, or of the one ``bandwidth_of`` names.
     observer : dict
         The DOb's family spec without the bandwidth, e.g. ``{"order": 1}`` (the HPDOb) or
         ``{"type": "eso", "extended_order": 1}``.
@@ -400,10 +445,27 @@ def contact_stability_map(
     viscous : float, optional
         :math:`\Delta b` [N m s/rad] the RTOB subtracts (as in
         :func:`~hpdob.observers.reaction_torque_observer`). Default 0.
+    friction : ServoModel, optional
+        The RTOB's friction model instead of ``viscous`` (as in
+        :func:`~hpdob.observers.reaction_torque_observer`: :math:`\Delta b = b - b_n` and the
+        Coulomb term :math:`c_n\tanh(w/v_n)`). The Coulomb term is not linear: the map leaves
+        it out, as it leaves out the plant's Coulomb friction; :meth:`~ContactStabilityMap.loop_at`
+        keeps it, so the point's simulation runs the RTOB with its friction model known.
+    velocity_filter : float, optional
+        The Coulomb term's velocity low-pass [rad/s] (with ``friction``), as in
+        :func:`~hpdob.observers.reaction_torque_observer`; its state is in the linear loop.
     nominal_of : {"loop", "reaction"}, optional
         What a ``nominal_ratio`` grid varies: ``"loop"`` (default), the nominal model of DOb,
         RTOB and controller; ``"reaction"``, the RTOB's alone (needs ``reaction``; DOb and
         controller stay on ``loop.nominal``).
+    bandwidth_of : {"both", "dob", "reaction"}, optional
+        Whose bandwidth the ``bandwidth`` axis is: ``"both"`` (default: DOb and RTOB designed
+        at it), ``"reaction"`` (the RTOB's own bandwidth :math:`g_R`, the DOb at
+        ``fixed_bandwidth``) or ``"dob"`` (the DOb's, the RTOB at ``fixed_bandwidth``). The
+        last two need a separate ``reaction`` spec.
+    fixed_bandwidth : float, optional
+        The bandwidth [rad/s] of the observer the axis does not vary; only with
+        ``bandwidth_of="dob"`` or ``"reaction"``.
     progress : callable, optional
         Called as ``progress(done, total)``: with ``done = 0`` first, then after each row.
 
@@ -455,6 +517,30 @@ def contact_stability_map(
             "nominal_ratio grid and a separate reaction observer spec, got "
             + ("a stiffness grid" if parameter != "nominal_ratio" else "reaction=None")
         )
+    bandwidth_of = check_choice(bandwidth_of, "bandwidth_of", BANDWIDTH_OF)
+    if bandwidth_of == "both":
+        if fixed_bandwidth is not None:
+            raise ParameterValueError(
+                "fixed_bandwidth is the bandwidth of the observer the axis does not vary: give "
+                f"it only with bandwidth_of='dob' or 'reaction', got {fixed_bandwidth!r}"
+            )
+    else:
+        if reaction is None:
+            raise ParameterValueError(
+                f"bandwidth_of={bandwidth_of!r} varies one observer's bandwidth alone: it needs "
+                "a separate reaction observer spec, got reaction=None"
+            )
+        fixed_bandwidth = positive(fixed_bandwidth, "fixed_bandwidth",
+                                   "a positive finite observer bandwidth [rad/s]")  # fmt: skip
+    if friction is None and velocity_filter is not None:
+        raise ParameterValueError(
+            "velocity_filter low-passes the velocity of the RTOB's Coulomb term: give it with "
+            f"friction, got velocity_filter={velocity_filter!r} and friction=None"
+        )
+    if friction is not None and viscous:
+        raise ParameterValueError(
+            f"give the RTOB's friction as viscous or as friction, not both, got viscous={viscous!r}"
+        )
     if progress is not None and not callable(progress):
         raise ParameterTypeError(
             f"progress must be a callable progress(done, total) or None, got {progress!r}"
@@ -494,6 +580,10 @@ def contact_stability_map(
         reaction=None if reaction is None else dict(reaction),
         viscous=nonnegative(viscous, "viscous", "a non-negative viscous friction [N m s/rad]"),
         nominal_of=nominal_of,
+        bandwidth_of=bandwidth_of,
+        fixed_bandwidth=fixed_bandwidth,
+        friction=friction,
+        velocity_filter=velocity_filter,
     )
     # every design of the first row (and its plant) before the grid: a bad spec fails first
     setting.radius(parameter, float(values[0]), float(bandwidths[0]))
@@ -520,6 +610,8 @@ def contact_stability_map(
         reaction=None if reaction is None else dict(reaction),
         _setting=setting,
         nominal_of=nominal_of,
+        bandwidth_of=bandwidth_of,
+        fixed_bandwidth=fixed_bandwidth,
     )
 
 

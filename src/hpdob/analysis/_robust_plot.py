@@ -33,7 +33,8 @@ def plot_stability_map(smap, ax=None, *, mark=None, mark_label=None):
 
 
 def plot_radius_map(*, bandwidths, values, radius, Ts, ylabel, title, log_values, what, ax=None,
-                    mark=None, mark_label=None):  # fmt: skip
+                    mark=None, mark_label=None,
+                    xlabel="observer bandwidth g [rad/s]"):  # fmt: skip
     """Heat-map of a spectral-radius grid ``radius[i, j]`` (``values[i]``, ``bandwidths[j]``)
     with the boundary ``radius = 1``, the legend above the map; return the figure. ``what``
     names the vertical quantity in the mark's legend entry."""
@@ -78,7 +79,7 @@ def plot_radius_map(*, bandwidths, values, radius, Ts, ylabel, title, log_values
         handles.append(Line2D([], [], linestyle="none", label=label, **style))
     cbar = fig.colorbar(mesh, ax=ax)
     cbar.set_label("slowest decay rate -ln(radius)/Ts [1/s]\n(< 0: unstable)")
-    style_axes(ax, xlabel="observer bandwidth g [rad/s]", ylabel=ylabel)
+    style_axes(ax, xlabel=xlabel, ylabel=ylabel)
     pad = 6.0  # [points] matplotlib's default title pad
     if handles:  # above the map (it has no free space), between the map and its title
         legend = ax.legend(

@@ -47,6 +47,16 @@ def register(subparsers) -> None:
         "observer's estimate",
     )
     parser.add_argument(
+        "--force-window",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("START", "STOP"),
+        help="the window [s] of the steady-state force metrics (force_rms_*_steady) of a run "
+        "against a wall with a reaction-torque observer: the samples with START <= t < STOP "
+        "(STOP may be inf); default: from 0.5 s after the first contact to the end",
+    )
+    parser.add_argument(
         "--progress",
         action=argparse.BooleanOptionalAction,
         default=None,
@@ -186,6 +196,7 @@ def _run(args: argparse.Namespace) -> int:
     if kind is not None and kind.scenario is not None:
         return _run_own_loop(args, data, kind)
     kwargs, windows = _scenario(args)
+    window = "steady" if args.force_window is None else _force_window(args.force_window)
     out = args.out or Path("hpdob-results") / args.scenario.stem
     # The label names the output files: never a path (e.g. "../escaped") nor a hidden name.
     stem = check_file_stem(kwargs.get("label") or args.scenario.stem, "label")
@@ -205,6 +216,10 @@ def _run(args: argparse.Namespace) -> int:
     force_kind, tau_ref = _force_reference(result, kwargs["controller"])
     if force_kind is not None:  # tau_reac vs tau_contact, tau_contact vs tau_ref
         metrics.update({f"force_{k}": v for k, v in result.force_metrics(tau_ref).items()})
+        # and over the steady state only (without the approach, the impact and the step)
+        steady = result.force_metrics(tau_ref, window=window)
+        metrics.update({f"force_{k}_steady": v for k, v in steady.items() if k != "window_start"})
+        metrics["force_steady_start"] = steady["window_start"]
         if force_kind == "force":  # r is tau_ref [N m]: theta - r means nothing
             for window in ("regulation", "tracking"):
                 metrics.pop(f"rms_position_error_{window}", None)
@@ -232,6 +247,18 @@ def _run(args: argparse.Namespace) -> int:
         print(f"warning: {result.message}")
         return 1
     return 0
+
+
+def _force_window(bounds) -> tuple[float, float]:
+    """``--force-window START STOP`` checked before the run (START < STOP, not NaN)."""
+    from .._validation import ParameterValueError
+    from ..simulation import metric_window
+    from ._errors import CLIError
+
+    try:
+        return metric_window(bounds, "--force-window")
+    except ParameterValueError as err:
+        raise CLIError(str(err)) from None
 
 
 #: Plant steps above which ``hpdob simulate`` says on stderr how big the run is before it.

@@ -16,6 +16,9 @@ Family, Parameter, register_family, unregister_family, families, get_family
     The family registry: one record per family, read by sweeps, scenario files, the CLI,
     ``tune``, ``compare_observers`` and the robust maps; ``design_from_spec``,
     ``design_at_bandwidth`` and ``spec_of`` design from and back to a spec.
+reaction_torque_observer, design_reaction_observer, ReactionObserverDesign
+    The DOb and a reaction-torque observer as one observer (force control without a force
+    sensor); the design keeps its parts, for scenario files and sweeps.
 CoulombFriction, coulomb_torque
     The one nonlinear observer term: the Coulomb part of a reaction-torque observer's friction
     model (``reaction_torque_observer(..., coulomb=)``).
@@ -36,7 +39,12 @@ from ._program import RESET_OPERANDS as RESET_OPERANDS
 from ._program import program_coefficients as program_coefficients
 from ._program import program_structure as program_structure
 from ._program import render_sum as render_sum
-from ._reaction import reaction_torque_observer
+from ._reaction import FRICTION_PARAMETERS as FRICTION_PARAMETERS
+from ._reaction import (
+    ReactionObserverDesign,
+    design_reaction_observer,
+    reaction_torque_observer,
+)
 from ._realised import POLE_TOLERANCE as POLE_TOLERANCE
 from ._registry import (
     Family,
@@ -86,6 +94,7 @@ __all__ = [
     "Parameter",
     "PositionObserverDesign",
     "Program",
+    "ReactionObserverDesign",
     "Term",
     "as_system",
     "characteristic_polynomial",
@@ -96,6 +105,7 @@ __all__ = [
     "design_from_spec",
     "design_kalman",
     "design_observer",
+    "design_reaction_observer",
     "error_matrix",
     "estimate",
     "extrapolation_weights",

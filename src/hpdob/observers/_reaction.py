@@ -3,14 +3,174 @@ r"""The reaction-torque observer (RTOB): a disturbance observer minus a friction
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .._validation import ParameterTypeError, ParameterValueError, nonnegative, positive
 from ._friction import CoulombFriction
-from ._system import LinearObserver, as_system
+from ._system import LinearObserver, _Designed, as_system
 
-__all__ = ["reaction_torque_observer"]
+__all__ = ["FRICTION_PARAMETERS", "ReactionObserverDesign", "design_reaction_observer",
+           "reaction_torque_observer"]  # fmt: skip
+
+#: The friction model's parameters of a composition (:class:`ReactionObserverDesign`), with
+#: their defaults: the keys of a scenario file's ``[reaction_observer]`` table besides the RTOB's
+#: own design, and the sweep paths ``reaction_observer.<name>``.
+FRICTION_PARAMETERS = {"viscous": 0.0, "coulomb": 0.0, "coulomb_velocity": 0.01,
+                       "velocity_filter": None}  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class ReactionObserverDesign(_Designed):
+    r"""The DOb and a reaction-torque observer as one design: the parts and the friction model.
+
+    What :func:`design_reaction_observer` returns. Its :attr:`system` is
+    :func:`reaction_torque_observer` of the same arguments; the parts stay readable, so a
+    composition can be written back to a scenario file (``[observer]`` and
+    ``[reaction_observer]``) and designed again on another nominal model or with other design
+    arguments (:func:`hpdob.sweep`'s ``observer.*`` and ``reaction_observer.*`` paths).
+
+    Attributes
+    ----------
+    dob : design or LinearObserver
+        The inner loop's disturbance observer.
+    reaction : design, LinearObserver or None
+        The RTOB's own observer; None: the DOb itself (its bandwidth).
+    viscous : float
+        :math:`\Delta b` [N m s/rad] the RTOB subtracts.
+    coulomb : float
+        :math:`c_n` [N m] the RTOB subtracts (0: no Coulomb term).
+    coulomb_velocity : float
+        :math:`v_n` [rad/s] of the Coulomb term.
+    velocity_filter : float or None
+        Bandwidth [rad/s] of the low-pass on the Coulomb term's velocity, or None.
+    system : LinearObserver
+        The composition (outputs ``tau_hat``, [``omega_hat``,] ``tau_reac``).
+    model : DiscreteServoModel or None
+        The DOb's nominal model (the RTOB's too).
+
+    Raises
+    ------
+    ParameterTypeError, ParameterValueError
+        As :func:`reaction_torque_observer`.
+
+    Examples
+    --------
+    >>> from hpdob import ServoModel, design_observer
+    >>> from hpdob.observers import ReactionObserverDesign
+    >>> model = ServoModel(2.8e-4).discretize(1e-3)
+    >>> both = ReactionObserverDesign(design_observer(model, order=1, bandwidth=100.0),
+    ...                               viscous=5e-5)
+    >>> both.system.outputs, both.reaction is None
+    (('tau_hat', 'tau_reac'), True)
+    """
+
+    dob: object
+    reaction: object = None
+    viscous: float = 0.0
+    coulomb: float = 0.0
+    coulomb_velocity: float = 0.01
+    velocity_filter: float | None = None
+    system: LinearObserver = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        system = reaction_torque_observer(
+            self.dob, self.reaction, viscous=self.viscous, coulomb=self.coulomb,
+            coulomb_velocity=self.coulomb_velocity, velocity_filter=self.velocity_filter,
+        )  # fmt: skip
+        # the values as validated (a sweep's numpy floats and ints become floats)
+        for name in ("viscous", "coulomb", "coulomb_velocity"):
+            object.__setattr__(self, name, float(getattr(self, name)))
+        if self.velocity_filter is not None:
+            object.__setattr__(self, "velocity_filter", float(self.velocity_filter))
+        object.__setattr__(self, "system", system)
+
+    @property
+    def model(self):
+        """The DOb's nominal model (None for a DOb without one)."""
+        return self.system.model
+
+    @property
+    def friction(self) -> dict:
+        """The friction model as ``{name: value}``, the values at their default left out.
+
+        Returns
+        -------
+        dict
+            A subset of ``viscous``, ``coulomb``, ``coulomb_velocity`` (only with a Coulomb
+            term) and ``velocity_filter``: the friction keys of ``[reaction_observer]``.
+        """
+        out = {}
+        for name, default in FRICTION_PARAMETERS.items():
+            value = getattr(self, name)
+            if name == "coulomb_velocity" and not self.coulomb:
+                continue  # no Coulomb term: its velocity scale is not used
+            if value != default:
+                out[name] = value
+        return out
+
+
+def design_reaction_observer(
+    dob,
+    reaction=None,
+    *,
+    viscous: float = 0.0,
+    coulomb: float = 0.0,
+    coulomb_velocity: float = 0.01,
+    friction=None,
+    velocity_filter: float | None = None,
+) -> ReactionObserverDesign:
+    """The DOb and a reaction-torque observer as a :class:`ReactionObserverDesign`.
+
+    The arguments are those of :func:`reaction_torque_observer` (without ``other_nominal``: the
+    RTOB is designed on the DOb's nominal model); ``friction`` (a ServoModel) is read into
+    ``viscous``, ``coulomb`` and ``coulomb_velocity``.
+
+    Parameters
+    ----------
+    dob : design or LinearObserver
+        The inner loop's disturbance observer; a design of a registered family to be written
+        to a scenario file or swept.
+    reaction : design or LinearObserver, optional
+        The RTOB's own observer (default None: the DOb itself).
+    viscous, coulomb, coulomb_velocity, friction, velocity_filter
+        The friction model, as in :func:`reaction_torque_observer`.
+
+    Returns
+    -------
+    ReactionObserverDesign
+        ``.system`` is the composed :class:`LinearObserver`.
+
+    Raises
+    ------
+    ParameterTypeError, ParameterValueError
+        As :func:`reaction_torque_observer`.
+
+    Examples
+    --------
+    >>> from hpdob import ServoModel, design_observer
+    >>> from hpdob.observers import design_reaction_observer
+    >>> model = ServoModel(2.8e-4).discretize(1e-3)
+    >>> plant = ServoModel(3.06e-4, 5e-5, coulomb=0.01)
+    >>> both = design_reaction_observer(design_observer(model, order=1, bandwidth=100.0),
+    ...                                 friction=plant, velocity_filter=100.0)
+    >>> both.friction
+    {'viscous': 5e-05, 'coulomb': 0.01, 'velocity_filter': 100.0}
+    >>> both.system.outputs
+    ('tau_hat', 'omega_hat', 'tau_reac')
+    """
+    if friction is not None:
+        viscous = nonnegative(
+            viscous, "viscous", "a non-negative finite viscous friction [N m s/rad]"
+        )
+        coulomb = nonnegative(coulomb, "coulomb", "a non-negative finite Coulomb torque [N m]")
+        viscous, coulomb, coulomb_velocity = _from_model(
+            friction, as_system(dob, "dob"), viscous, coulomb
+        )
+    return ReactionObserverDesign(dob, reaction, viscous=viscous, coulomb=coulomb,
+                                  coulomb_velocity=coulomb_velocity,
+                                  velocity_filter=velocity_filter)  # fmt: skip
 
 
 def reaction_torque_observer(

@@ -35,6 +35,7 @@ from ._plant_types import (
 )
 from ._result import SimulationResult
 from ._result import json_ready as json_ready
+from ._result import metric_window as metric_window
 from ._result import metrics_json as metrics_json
 from ._scenario import Scenario, load_scenario
 from ._scenario import load_sweep as load_sweep

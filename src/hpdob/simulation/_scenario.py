@@ -23,7 +23,13 @@ from .._validation import (
 from .._waveforms import Chirp, Noise, Sine
 from ..controllers import CONTROLLER_TYPES
 from ..models import Environment, MujocoServo, ServoModel, TwoMassServo
-from ..observers import check_spec, design_from_spec, get_family, reaction_torque_observer
+from ..observers import (
+    FRICTION_PARAMETERS,
+    check_spec,
+    design_from_spec,
+    design_reaction_observer,
+    get_family,
+)
 from ._devices import Actuator, Encoder
 from ._loop import LOOP_KEYS, ServoLoop
 from ._plant_types import PlantType, get_plant_type, register_plant_type
@@ -76,7 +82,7 @@ TOP_LEVEL = (
 )
 #: The keys of ``[reaction_observer]`` that are the friction model
 #: (:func:`hpdob.observers.reaction_torque_observer`); any other key is the RTOB's own observer.
-FRICTION_KEYS = ("viscous", "coulomb", "coulomb_velocity", "velocity_filter", "friction")
+FRICTION_KEYS = (*FRICTION_PARAMETERS, "friction")
 #: Controller types that read ``tau_reac`` (they need a ``[reaction_observer]``).
 REACTION_CONTROLLERS = ("force", "impedance", "position-force")
 REQUIRED = ("Ts", "duration", "plant", "nominal", "controller", "reference")
@@ -239,16 +245,12 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
     if "actuator" in data:
         kwargs["actuator"] = _build(Actuator, _table(data, "actuator"), "actuator")
     if "observer" in data:
-        spec = dict(_table(data, "observer"))
-        family = get_family(spec.get("type", "dob"), "observer.type")
-        for p in family.parameters:  # complex numbers are written as [re, im] pairs in TOML
-            if p.kind == "complex_list" and p.name in spec:
-                spec[p.name] = _poles(spec[p.name], f"observer.{p.name}")
+        spec = _with_poles(_table(data, "observer"), "observer")
         model = kwargs["nominal"].discretize(kwargs["Ts"])
         design = _observer(model, spec)  # validated now, with the file's key names
         kwargs["observer"] = spec if not build_observer else design
         if "reaction_observer" in data:
-            # the composition is a fixed LinearObserver: sweeps cannot vary observer.* then
+            # a ReactionObserverDesign: it keeps its parts, so a sweep designs it again
             table = _table(data, "reaction_observer")
             kwargs["observer"] = _reaction_observer(model, design, table, kwargs["plant"])
     elif "reaction_observer" in data:
@@ -262,6 +264,17 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
             "scenario needs an [observer] and a [reaction_observer] table"
         )
     return kwargs
+
+
+def _with_poles(table: dict, key: str) -> dict:
+    """A copy of an observer table with its complex lists (poles) read: TOML has no complex
+    numbers, so they are written as strings like ``'0.9+0.1j'``."""
+    spec = dict(table)
+    family = get_family(spec.get("type", "dob"), f"{key}.type")
+    for p in family.parameters:
+        if p.kind == "complex_list" and p.name in spec:
+            spec[p.name] = _poles(spec[p.name], f"{key}.{p.name}")
+    return spec
 
 
 def _observer(model, spec: dict, key: str = "observer"):
@@ -280,7 +293,7 @@ def _observer(model, spec: dict, key: str = "observer"):
 
 def _reaction_observer(model, dob, table: dict, plant):
     """The ``[reaction_observer]`` table: the DOb composed with an RTOB
-    (:func:`hpdob.observers.reaction_torque_observer`). Its :data:`FRICTION_KEYS` are the
+    (:func:`hpdob.observers.design_reaction_observer`). Its :data:`FRICTION_KEYS` are the
     friction model (``friction = "plant"``: the ``[plant]``'s ``b``, ``coulomb``,
     ``coulomb_velocity``); any other keys are the RTOB's own observer (a family spec, like
     ``[observer]``; none: the DOb itself). Errors are named ``reaction_observer.*``."""
@@ -298,9 +311,12 @@ def _reaction_observer(model, dob, table: dict, plant):
                 f"{type(plant).__name__}"
             )
         options["friction"] = plant
-    reaction = _observer(model, fields, "reaction_observer") if fields else None
+    reaction = None
+    if fields:
+        fields = _with_poles(fields, "reaction_observer")
+        reaction = _observer(model, fields, "reaction_observer")
     try:
-        return reaction_torque_observer(dob, reaction, **options)
+        return design_reaction_observer(dob, reaction, **options)
     except (ParameterTypeError, ParameterValueError) as err:
         raise _prefixed("reaction_observer", err, FRICTION_KEYS) from None
 

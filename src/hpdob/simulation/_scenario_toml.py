@@ -16,7 +16,8 @@ import numpy as np
 from .._signals import Sum
 from .._validation import ParameterTypeError, ParameterValueError
 from ..controllers import CONTROLLER_TYPES
-from ..models import ServoModel, TwoMassServo
+from ..models import MujocoServo, ServoModel, TwoMassServo
+from ..observers import ReactionObserverDesign, spec_of
 from ._loop import ServoLoop
 
 __all__ = ["scenario_toml"]
@@ -86,20 +87,77 @@ def _signal_tables(signal, name: str) -> list[str]:
     return lines
 
 
+def _mujoco_fields(plant: MujocoServo) -> dict:
+    """``[plant] type = "mujoco"`` of a servo built from its parameters (those at the
+    constructor's default left out); a wrapped model (``from_xml``) has no file form."""
+    import inspect
+
+    if plant.link_length is None:
+        raise ParameterTypeError(
+            "loop.plant is a MujocoServo wrapped from MJCF (from_xml), which has no scenario-file "
+            "form; only a servo built from its parameters (MujocoServo(J, b, ...)) is written"
+        )
+    fields = {"type": "mujoco"}
+    for name, parameter in inspect.signature(MujocoServo.__init__).parameters.items():
+        if name in ("self", "environment"):
+            continue
+        value = getattr(plant, name)
+        if value is None or (parameter.default is not inspect.Parameter.empty
+                             and value == parameter.default):  # fmt: skip
+            continue
+        fields[name] = value
+    return fields
+
+
+def _observer_tables(loop: ServoLoop) -> list[str]:
+    """``[observer]`` and, for a reaction-torque observer composition, ``[reaction_observer]``:
+    its friction model and, if it has one, the RTOB's own design."""
+    design = loop.design
+    if not isinstance(design, ReactionObserverDesign):
+        spec = loop.observer_spec  # the spec given, or that of a design of a registered family
+        if spec is None:
+            raise ParameterTypeError(
+                "loop.observer must be of a known family (hpdob.observers.families()) to be "
+                f"written to a scenario file, got {type(loop.observer).__name__}"
+            )
+        return _table("observer", spec)
+    tables = {}
+    for part, name in (("observer", "dob"), ("reaction_observer", "reaction")):
+        observer = getattr(design, name)
+        spec = None if observer is None else spec_of(observer)
+        if observer is not None and spec is None:
+            raise ParameterTypeError(
+                f"loop.observer.{name} must be of a known family (hpdob.observers.families()) "
+                f"to be written to a scenario file, got {type(observer).__name__}"
+            )
+        tables[part] = spec or {}
+    # the friction model first, then the RTOB's own design (none: the DOb itself)
+    reaction = {**design.friction, **tables["reaction_observer"]}
+    return [*_table("observer", tables["observer"]), *_table("reaction_observer", reaction)]
+
+
 def scenario_toml(loop: ServoLoop, *, reference, duration: float, disturbance=None,
-                  label: str = "", comment: str = "") -> str:  # fmt: skip
+                  substeps: int | None = None, x0=None, label: str = "",
+                  comment: str = "") -> str:  # fmt: skip
     """A scenario file that runs ``simulate(loop, reference=..., duration=..., ...)``.
 
     Parameters
     ----------
     loop : ServoLoop
-        A rigid or two-mass plant, and an observer of a known family (any registered one)
-        or none.
+        A rigid, two-mass or MuJoCo plant (a :class:`~hpdob.MujocoServo` built from its
+        parameters), and an observer of a known family (any registered one), a
+        reaction-torque observer composition of such observers
+        (:func:`hpdob.observers.design_reaction_observer`: ``[observer]`` and
+        ``[reaction_observer]``), or none.
     reference, disturbance : Signal
         Sums of the signal types of scenario files (``docs/simulation.md``); ``disturbance``
         optional.
     duration : float
         Simulated time [s].
+    substeps : int, optional
+        The run's plant sub-steps per sample (default None: not written, the plant's default).
+    x0 : sequence of 2 floats, optional
+        The initial ``[theta (rad), omega (rad/s)]`` (default None: not written, at rest at 0).
     label : str, optional
         The run's label (the file names ``hpdob simulate`` writes).
     comment : str, optional
@@ -114,8 +172,8 @@ def scenario_toml(loop: ServoLoop, *, reference, duration: float, disturbance=No
     Raises
     ------
     ParameterTypeError
-        For a plant, observer or signal that has no scenario-file form (MuJoCo, a
-        hand-written observer, a callable).
+        For a plant, observer or signal that has no scenario-file form (a MuJoCo model
+        wrapped from MJCF, a hand-written observer, a callable).
 
     Examples
     --------
@@ -146,11 +204,21 @@ def scenario_toml(loop: ServoLoop, *, reference, duration: float, disturbance=No
     if label:
         lines.append(f"label = {_value(label, 'label')}")
     lines += [f"Ts = {_value(float(loop.Ts), 'Ts')}",
-              f"duration = {_value(float(duration), 'duration')}", ""]  # fmt: skip
-    if isinstance(loop.plant, TwoMassServo):
-        lines += _table("plant", {"type": "two-mass", **_fields(loop.plant)})
-    elif isinstance(loop.plant, ServoModel):
-        lines += _table("plant", _fields(loop.plant))
+              f"duration = {_value(float(duration), 'duration')}"]  # fmt: skip
+    if substeps is not None:
+        lines.append(f"substeps = {_value(int(substeps), 'substeps')}")
+    if x0 is not None:
+        lines.append(f"x0 = {_value([float(v) for v in np.ravel(x0)], 'x0')}")
+    lines.append("")
+    if isinstance(loop.plant, (TwoMassServo, ServoModel)):
+        fields = _fields(loop.plant)
+        contact = fields.pop("environment", None)  # the wall: the table [plant.environment]
+        kind = {"type": "two-mass"} if isinstance(loop.plant, TwoMassServo) else {}
+        lines += _table("plant", {**kind, **fields})
+        if contact is not None:
+            lines += _table("plant.environment", _fields(contact))
+    elif isinstance(loop.plant, MujocoServo):
+        lines += _table("plant", _mujoco_fields(loop.plant))
     else:
         raise ParameterTypeError(
             f"loop.plant must be a ServoModel or TwoMassServo to be written to a scenario file, "
@@ -167,13 +235,7 @@ def scenario_toml(loop: ServoLoop, *, reference, duration: float, disturbance=No
     kind = {} if kinds[0] == "pd" else {"type": kinds[0]}
     lines += _table("controller", {**kind, **_fields(loop.controller)})
     if loop.observer is not None:
-        spec = loop.observer_spec  # the spec given, or that of a design of a registered family
-        if spec is None:
-            raise ParameterTypeError(
-                "loop.observer must be of a known family (hpdob.observers.families()) to be "
-                f"written to a scenario file, got {type(loop.observer).__name__}"
-            )
-        lines += _table("observer", spec)
+        lines += _observer_tables(loop)
     if loop.sensor is not None:
         lines += _table("sensor", _fields(loop.sensor))
     if loop.actuator is not None and _fields(loop.actuator):

@@ -20,6 +20,7 @@ from .._validation import (
 )
 from .._waveforms import Chirp, Noise, Sine
 from ..models import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, ExactSubsteps
+from ._derived import derived, plant_sampler, run_substeps
 from ._loop import ServoLoop, accepts_loop, controller_sources
 from ._records import (
     SENSOR_ENCODER_DIFFERENCE,
@@ -62,7 +63,11 @@ def default_substeps(plant, Ts: float) -> int:
     return plant.substeps(Ts, None)
 
 
-def check_run_arguments(Ts, duration, substeps=None, x0=(0.0, 0.0)):
+#: The default initial state of a run: at rest at 0 (by identity: no check needed).
+AT_REST = (0.0, 0.0)
+
+
+def check_run_arguments(Ts, duration, substeps=None, x0=AT_REST):
     """``(Ts, duration, substeps, x0)`` checked with :func:`simulate`'s messages: two positive
     floats [s], a positive int or None, and a new float array ``[theta, omega]``."""
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
@@ -71,7 +76,10 @@ def check_run_arguments(Ts, duration, substeps=None, x0=(0.0, 0.0)):
         substeps = as_int(
             substeps, "substeps", "a positive integer number of sub-steps per sample", minimum=1
         )
-    x0 = as_real_vector(x0, "x0", "an initial state [theta (rad), omega (rad/s)]", length=2)
+    if x0 is AT_REST:
+        x0 = np.zeros(2)
+    else:
+        x0 = as_real_vector(x0, "x0", "an initial state [theta (rad), omega (rad/s)]", length=2)
     return Ts, duration, substeps, x0
 
 
@@ -167,7 +175,7 @@ def simulate(
     duration: float,
     disturbance=None,
     substeps: int | None = None,
-    x0=(0.0, 0.0),
+    x0=AT_REST,
     label: str = "",
     observer_state=None,
     progress=None,
@@ -253,7 +261,7 @@ def simulate(
     """
     Ts, duration, substeps, x0 = check_run_arguments(loop.Ts, duration, substeps, x0)
     n = sample_count(Ts, duration)
-    S = loop.plant.substeps(Ts, substeps)
+    S = run_substeps(loop.plant, Ts, substeps)
     if not isinstance(label, str):
         raise ParameterTypeError(f"label must be a str, got {type(label).__name__}")
     state = None if observer_state is None else check_observer_state(loop, observer_state)
@@ -474,6 +482,15 @@ def _sensor_record(sensor, n: int) -> tuple[SensorRecord, np.ndarray]:
     return SensorRecord(mode, sensor.resolution), noise
 
 
+def _loop_records(loop: ServoLoop) -> tuple:
+    """The kernel's records of ``loop``'s controller, actuator and observer (read-only
+    inputs of every run: computed once per loop)."""
+    actuator = loop.actuator
+    limit = math.inf if actuator.torque_limit is None else actuator.torque_limit
+    return (_controller_record(loop), ActuatorRecord(limit, actuator.delay_samples),
+            _observer_record(loop.system))  # fmt: skip
+
+
 #: Plant steps between two calls of a run's ``progress`` (the chunk of samples run by one
 #: call of the compiled loop; one call for the whole run without ``progress``).
 PROGRESS_PLANT_STEPS = 1 << 20
@@ -498,18 +515,16 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     n = t.size
     plant, system = loop.plant, loop.system
     sensor, noise = _sensor_record(loop.sensor, n)
-    actuator = loop.actuator
-    limit = math.inf if actuator.torque_limit is None else actuator.torque_limit
-    ctl = _controller_record(loop)
+    ctl, act, obs = derived(loop, "records", lambda: _loop_records(loop))  # once per loop
     records = {
         "ctl": ctl,
         "sen": sensor,
-        "act": ActuatorRecord(limit, actuator.delay_samples),
-        "obs": _observer_record(system),
+        "act": act,
+        "obs": obs,
     }
     x = plant.initial_state(x0)
     nx = x.size
-    sampler = plant.sampler(Ts, S)
+    sampler = plant_sampler(plant, Ts, S)
     compiled = isinstance(sampler, ExactSubsteps)
     # the disturbance at the sub-step midpoints: evaluated by the compiled loop from its table
     # (factor first), else read from the sampled array
@@ -600,7 +615,7 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     for name in ("theta_load", "omega_load"):
         if name in names and out.states.shape[0]:
             extra[name] = out.states[keep, names.index(name)]
-    return SimulationResult(
+    return SimulationResult._of_arrays(  # arrays this run made: no copies
         t=t[keep],
         theta=out.theta[keep],
         omega=out.omega[keep],

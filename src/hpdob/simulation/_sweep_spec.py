@@ -51,9 +51,28 @@ def observer_parameters() -> dict:
     return out
 
 
+def reaction_parameters() -> dict:
+    """``{"reaction_observer.<name>": Parameter}``: the friction model of a reaction-torque
+    observer composition (:data:`hpdob.observers.FRICTION_PARAMETERS`) and the RTOB's own
+    design arguments (every sweepable argument of every registered family, as
+    :func:`observer_parameters`)."""
+    from ..observers import FRICTION_PARAMETERS, Parameter
+
+    friction = {f"reaction_observer.{name}": Parameter(name) for name in FRICTION_PARAMETERS}
+    own = {f"reaction_{path}": p for path, p in observer_parameters().items()}
+    return {**friction, **own}
+
+
+def design_parameter(path: str):
+    """The :class:`~hpdob.observers.Parameter` of an ``observer.*`` or ``reaction_observer.*``
+    path (None for the loop's paths)."""
+    return {**observer_parameters(), **reaction_parameters()}.get(path)
+
+
 def sweep_paths() -> tuple:
-    """Every path a sweep can vary: the loop's and the registered families' parameters."""
-    return (*LOOP_PATHS[:14], *observer_parameters(), *LOOP_PATHS[14:])
+    """Every path a sweep can vary: the loop's, the registered families' parameters and those
+    of a reaction-torque observer composition."""
+    return (*LOOP_PATHS[:14], *observer_parameters(), *reaction_parameters(), *LOOP_PATHS[14:])
 
 
 #: Random distributions for ``vary``: name -> meaning of its two parameters.
@@ -79,7 +98,7 @@ def _grid_values(path: str, values) -> list:
     values = list(values)
     if not values:
         raise ParameterValueError(f"grid[{path!r}] must be a non-empty list of values, got []")
-    parameter = observer_parameters().get(path)
+    parameter = design_parameter(path)
     if parameter is not None and parameter.kind == "int":
         return [
             as_int(
@@ -93,7 +112,7 @@ def _grid_values(path: str, values) -> list:
 
 
 def _draw(path: str, spec, n: int, rng: np.random.Generator) -> np.ndarray:
-    parameter = observer_parameters().get(path)
+    parameter = design_parameter(path)
     if parameter is not None and parameter.kind in ("int", "choice"):
         kind = "an integer" if parameter.kind == "int" else "a name"
         raise ParameterValueError(f"vary cannot draw {path!r} ({kind}): put it in grid")
@@ -192,11 +211,21 @@ def check_paths_apply(paths, loop, spec) -> None:
     base: a plant parameter the plant does not have (``plant.J`` of a :class:`TwoMassServo`,
     ``plant.stiffness`` of a rigid servo), a design argument the observer's family does not
     take (``observer.bandwidth`` of a Kalman spec, ``observer.order`` of an ESO), or
-    ``observer.velocity_bandwidth`` of an observer that measures the state. (Bad *values* are
-    reported per scenario, in the ``error`` column.)"""
-    from ..observers import get_family
+    ``observer.velocity_bandwidth`` of an observer that measures the state, or
+    ``reaction_observer.*`` of a base without a reaction-torque observer composition. With
+    such a composition (:class:`~hpdob.observers.ReactionObserverDesign`) ``observer.*`` is
+    the DOb's design and ``reaction_observer.*`` the friction model or the RTOB's own design
+    (the DOb's family when the RTOB is the DOb itself). (Bad *values* are reported per
+    scenario, in the ``error`` column.)"""
+    from ..observers import FRICTION_PARAMETERS, ReactionObserverDesign, spec_of
 
     paths = list(paths)
+    composition = loop.design if isinstance(loop.design, ReactionObserverDesign) else None
+    specs = {"observer": spec, "reaction_observer": None}
+    if composition is not None:
+        specs["observer"] = spec_of(composition.dob)
+        own = composition.reaction
+        specs["reaction_observer"] = specs["observer"] if own is None else spec_of(own)
     for path in paths:
         kind, _, name = path.partition(".")
         why = None
@@ -228,24 +257,42 @@ def check_paths_apply(paths, loop, spec) -> None:
                 why = f"a {type(controller).__name__} has no parameter {name!r}" + (
                     f" (it has {', '.join(sorted(valid))})" if valid else ""
                 )
-        elif kind == "observer" and spec is None:
+        elif kind == "reaction_observer" and composition is None:
             why = (
-                "observer.* parameters need base['observer'] as a dict of design arguments (or a "
-                "design of a known family)"
+                "the base has no reaction-torque observer composition (a [reaction_observer] "
+                "table, or observer=design_reaction_observer(...))"
             )
-        elif kind == "observer":
-            family = get_family(spec.get("type", "dob"))
-            if name not in family.keys:
-                why = (
-                    f"an observer spec of type {family.name!r} has no design argument {name!r} "
-                    f"(it takes {', '.join(family.keys)})"
-                )
-            elif family.parameter(name).only_with is not None:
-                key, value = family.parameter(name).only_with
-                default = family.parameter(key).default
-                if spec.get(key, default) != value and f"observer.{key}" not in paths:
-                    why = f"{name} applies with {key}={value!r} only, the spec has {key}=" + repr(
-                        spec.get(key, default)
-                    )
+        elif kind == "reaction_observer" and name in FRICTION_PARAMETERS:
+            pass  # the friction model: any composition has it
+        elif kind in ("observer", "reaction_observer") and specs[kind] is None:
+            part = "dob" if kind == "observer" else "reaction"
+            why = (
+                f"the composition's {part} is not a design of a known family"
+                if composition is not None
+                else "observer.* parameters need base['observer'] as a dict of design arguments "
+                "(or a design of a known family)"
+            )
+        elif kind in ("observer", "reaction_observer"):
+            why = _design_path_why(specs[kind], name, kind, paths)
         if why is not None:
             raise ParameterValueError(f"sweep path {path!r} does not apply to this base: {why}")
+
+
+def _design_path_why(spec: dict, name: str, kind: str, paths) -> str | None:
+    """Why the design argument ``name`` of ``spec`` cannot be swept (None: it can)."""
+    from ..observers import get_family
+
+    family = get_family(spec.get("type", "dob"))
+    if name not in family.keys:
+        return (
+            f"an observer spec of type {family.name!r} has no design argument {name!r} "
+            f"(it takes {', '.join(family.keys)})"
+        )
+    if family.parameter(name).only_with is not None:
+        key, value = family.parameter(name).only_with
+        default = family.parameter(key).default
+        if spec.get(key, default) != value and f"{kind}.{key}" not in paths:
+            return f"{name} applies with {key}={value!r} only, the spec has {key}=" + repr(
+                spec.get(key, default)
+            )
+    return None

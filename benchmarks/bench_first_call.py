@@ -1,0 +1,91 @@
+"""The first ``simulate`` of a later process, split into what it waits for (issue 25).
+
+Each round starts a fresh interpreter (numba's on-disk cache already filled by an earlier
+process) and times, in order: ``import numba``; ``import hpdob`` with ``hpdob.simulate``
+looked up; numba's one-time initialisation (its typing and lowering registries, loaded by the
+first compiled function any package calls: here a trivial cached ``njit`` function, which also
+makes numba's BLAS check import ``scipy.linalg``); building the canonical ``ServoLoop``; the
+first canonical ``simulate`` (10 s, HPDOb-100): loading hpdob's cached kernel and running it;
+and a second ``simulate``, for comparison. Printed: the median and the best over ``--runs``
+of each, wall and CPU. ``--no-warm`` leaves out the trivial function, so that the first
+``simulate`` pays numba's initialisation itself (the figure a user sees).
+
+Target (issue 25): the first ``simulate`` of a later process <= 0.2 s, with "import alone" its
+own row.
+
+    python benchmarks/bench_first_call.py [--runs 7] [--no-warm]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+CHILD = r"""
+import json, sys, time
+marks = []
+def mark(name):
+    marks.append((name, time.perf_counter(), time.process_time()))
+mark("start")
+import numba
+mark("import numba")
+import hpdob
+hpdob.simulate
+mark("import hpdob")
+if WARM:
+    @numba.njit(cache=True)
+    def _trivial(x):
+        return x + 1.0
+    _trivial(1.0)
+    mark("numba's initialisation")
+from hpdob import ServoLoop, paper, simulate
+kw = paper.scenario()
+loop = ServoLoop(plant=kw["plant"], nominal=kw["nominal"], Ts=kw["Ts"],
+                 controller=kw["controller"], observer=paper.observer("HPDOb-100").design)
+mark("the loop")
+run = dict(reference=kw["reference"], disturbance=kw["disturbance"], duration=kw["duration"])
+simulate(loop, **run)
+mark("first simulate")
+simulate(loop, **run)
+mark("second simulate")
+json.dump([(b[0], b[1] - a[1], b[2] - a[2]) for a, b in zip(marks, marks[1:])], sys.stdout)
+"""
+
+
+def one(script: Path, env: dict) -> list:
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          check=True, env=env)  # fmt: skip
+    return json.loads(done.stdout)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=7)
+    parser.add_argument("--no-warm", dest="warm", action="store_false")
+    args = parser.parse_args()
+    env = dict(os.environ)
+    with tempfile.TemporaryDirectory() as folder:
+        script = Path(folder) / "first_call.py"  # a file: numba caches only those
+        script.write_text(CHILD.replace("WARM", repr(args.warm)))
+        if "NUMBA_CACHE_DIR" not in env:  # not the user's cache
+            env["NUMBA_CACHE_DIR"] = folder
+            print(f"NUMBA_CACHE_DIR={folder} (hpdob's kernels compiled once below)")
+        one(script, env)  # fills the cache: every later process loads from disk
+        rounds = [one(script, env) for _ in range(args.runs)]
+    print(f"load average {os.getloadavg()[0]:.2f}; {args.runs} fresh processes")
+    print(f"{'step':>24}  {'wall median':>11}  {'wall best':>9}  {'CPU median':>10}")
+    for i, (name, _, _) in enumerate(rounds[0]):
+        wall = [r[i][1] for r in rounds]
+        cpu = [r[i][2] for r in rounds]
+        print(f"{name:>24}  {statistics.median(wall) * 1e3:>9.0f}ms  "
+              f"{min(wall) * 1e3:>7.0f}ms  {statistics.median(cpu) * 1e3:>8.0f}ms")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,66 @@
+"""Values derived from a frozen input of a run, computed once and kept on that input.
+
+A plant's sub-step matrices for ``(Ts, substeps)``, its default sub-steps, a loop's compiled
+records: pure functions of objects that cannot change (frozen dataclasses), so a second run
+of the same loop, or a sweep's scenarios sharing a plant, reuse them instead of recomputing.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+from ..models import ExactSubsteps
+
+__all__ = ["derived", "frozen", "plant_sampler", "run_substeps"]
+
+_KEY = "_hpdob_derived"
+_NONE = object()
+
+
+def derived(owner, key, make):
+    """``make()``, computed once per ``(owner, key)`` and kept in ``owner``'s ``__dict__``.
+
+    ``owner`` must be immutable (a frozen dataclass) and ``make()`` a pure function of it
+    (and of ``key``); an object without a ``__dict__`` gets ``make()`` every time. Threads may
+    race to fill an entry: both compute the same value, one is kept.
+    """
+    store = getattr(owner, "__dict__", None)
+    if store is None:
+        return make()
+    cache = store.get(_KEY)
+    if cache is None:
+        cache = store.setdefault(_KEY, {})
+    value = cache.get(key, _NONE)
+    if value is _NONE:
+        value = make()
+        cache[key] = value
+    return value
+
+
+def frozen(value) -> bool:
+    """Whether ``value`` is an instance of a frozen dataclass (its fields cannot change)."""
+    params = getattr(type(value), "__dataclass_params__", None)
+    return params is not None and params.frozen and dataclasses.is_dataclass(value)
+
+
+def plant_sampler(plant, Ts: float, substeps: int):
+    """``plant.sampler(Ts, substeps)``, kept on a frozen plant when it is the exact sub-step
+    kind (immutable matrices; a sampler advanced from Python, MuJoCo's, is made per run)."""
+    if not frozen(plant):
+        return plant.sampler(Ts, substeps)
+    key = ("sampler", Ts, substeps)
+    cache = plant.__dict__.get(_KEY)
+    sampler = None if cache is None else cache.get(key)
+    if sampler is None:
+        sampler = plant.sampler(Ts, substeps)
+        if isinstance(sampler, ExactSubsteps):
+            derived(plant, key, lambda: sampler)
+    return sampler
+
+
+def run_substeps(plant, Ts: float, substeps) -> int:
+    """``plant.substeps(Ts, substeps)``; a frozen plant keeps its default (``substeps`` None)
+    per ``Ts``."""
+    if substeps is not None or not frozen(plant):
+        return plant.substeps(Ts, substeps)
+    return derived(plant, ("substeps", Ts), lambda: plant.substeps(Ts, None))
