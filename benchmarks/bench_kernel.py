@@ -45,7 +45,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from hpdob import ServoLoop, paper, simulate
-from hpdob.simulation._simulate import _SAMPLED  # the time grid's cache of sampled signals
+from hpdob.simulation import clear_sampled_signals
 
 CLOCKS = {"cpu": time.thread_time, "wall": time.perf_counter}
 RESULT = ("t", "theta", "omega", "theta_measured", "omega_measured", "r", "r_dot", "r_ddot",
@@ -175,7 +175,7 @@ def case(name: str, duration: float | None = None):
     if spec.get("new"):
 
         def run():
-            _SAMPLED.clear()
+            clear_sampled_signals()
             return simulate(**kw, substeps=S)
     else:
 
@@ -216,15 +216,20 @@ def memory_per_sample(duration: float = 100.0, new: bool = False) -> float:
     run, _ = case("HPDOb-100", duration)
     run()
     if new:
-        _SAMPLED.clear()
+        clear_sampled_signals()
     tracemalloc.start()
     base = tracemalloc.get_traced_memory()[0]
     tracemalloc.reset_peak()
     result = run()
     peak = tracemalloc.get_traced_memory()[1] - base
     tracemalloc.stop()
-    arrays = {id(getattr(result, k)): getattr(result, k) for k in RESULT}
-    held = sum(a.base.nbytes if a.base is not None else a.nbytes for a in arrays.values())
+    # the result's arrays: views of the run's own arrays
+    owners = {}
+    for key in RESULT:
+        array = getattr(result, key)
+        owner = array.base if array.base is not None else array
+        owners[id(owner)] = owner
+    held = sum(a.nbytes for a in owners.values())
     return (peak - held) / len(result.t)
 
 

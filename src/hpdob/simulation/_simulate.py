@@ -347,6 +347,17 @@ _BUILT_IN = (Constant, Step, Ramp, SmoothStep, Sine, Chirp, Noise)
 SAMPLED_GRIDS, SAMPLED_BYTES = 16, 64 << 20
 
 
+#: The sampled arrays a result holds as its columns (t, r, r_dot, r_ddot, tau_ext).
+_COLUMNS = ("t", "r", "r_dot", "r_ddot", "tau_sample")
+
+
+def clear_sampled_signals() -> None:
+    """Forget the signals sampled on every time grid (:func:`sample_signals` samples them anew:
+    what a benchmark of a first run needs)."""
+    with _SAMPLED_LOCK:
+        _SAMPLED.clear()
+
+
 def _built_in(signal) -> bool:
     """Whether ``signal`` is made of hpdob's own (frozen) signal classes only: a subclass
     written elsewhere may hold state, so its samples are not kept."""
@@ -372,8 +383,9 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
     (:func:`~hpdob.simulation._signal_table.midpoint_table`: constants, steps, ramps, sines
     and their sums) are not evaluated at the midpoints here: their table is kept instead.
     hpdob's Signals are evaluated once per time grid: the read-only arrays of the last
-    :data:`SAMPLED_GRIDS` grids are kept and shared (a repeated run, ``tune``'s candidates, a
-    sweep's scenarios of one grid); other callables are evaluated on every call.
+    :data:`SAMPLED_GRIDS` grids are kept (a repeated run, ``tune``'s candidates, a sweep's
+    scenarios of one grid) and a later call gets copies of the columns a result holds; other
+    callables are evaluated on every call.
     """
     key = _grid_key(reference, disturbance, Ts, n, substeps)
     if key is not None:
@@ -381,7 +393,8 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
             cached = _SAMPLED.get(key)
             if cached is not None:
                 _SAMPLED.move_to_end(key)
-                return cached
+        if cached is not None:  # the columns of a result are its own: copies (a memcpy)
+            return cached._replace(**{name: getattr(cached, name).copy() for name in _COLUMNS})
     signals = _sample_signals(reference, disturbance, Ts=Ts, n=n, substeps=substeps)
     if key is not None:
         arrays = [a for a in signals if isinstance(a, np.ndarray)]
