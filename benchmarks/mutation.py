@@ -134,14 +134,23 @@ TARGETS = {
         ),
     ),
     "observers.reaction": Target(
+        # the composition as a design (test_reaction_design.py) and its Coulomb term with the
+        # velocity filter (test_friction.py), then the force loop's RTOB tests
         "src/hpdob/observers/_reaction.py",
-        ("tests/controllers/test_force.py",),
-        "rtob or reac or bad_inputs",
+        (
+            "tests/observers/test_reaction_design.py",
+            "tests/observers/test_friction.py",
+            "tests/controllers/test_force.py",
+        ),
+        "rtob or reac or bad_inputs or friction or design or replace_pickle",
     ),
     "observers.external": Target(
         "src/hpdob/observers/_external.py",
         ("tests/models/test_lti.py", "tests/robots/test_external.py"),
         "derived_reset or pyadrc or place_design or test_external",
+    ),
+    "observers.friction": Target(
+        "src/hpdob/observers/_friction.py", ("tests/observers/test_friction.py",)
     ),
     "models.servo": Target("src/hpdob/models/_servo.py", ("tests/models/test_servo.py",)),
     "models.two_mass": Target("src/hpdob/models/_two_mass.py", ("tests/models/test_two_mass.py",)),

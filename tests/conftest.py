@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
+import warnings
+
 import numpy as np
 import pytest
 
@@ -22,3 +25,47 @@ def rng():
 def paper_model():
     """Nominal discrete model of the paper's motor (J_n = 2.8e-4, b_n = 0, Ts = 1 ms)."""
     return ServoModel(J=2.8e-4).discretize(PAPER_TS)
+
+
+@pytest.fixture(scope="module")
+def dask_cluster():
+    """Local dask clusters for a test module (the sweep's tests and the CLI's).
+
+    ``dask_cluster(n_workers=2, *, processes=True, client=True)`` returns
+    ``(cluster, client)``: a ``distributed.LocalCluster`` (one thread per worker, no
+    dashboard; worker processes on 127.0.0.1, or with ``processes=False`` in this process, so
+    that a monkeypatched function runs there) and a ``Client`` of it (None with
+    ``client=False``: the code under test connects by the scheduler's address). Started at
+    the first call with these arguments, closed after the module's last test; dask's warnings
+    on starting and stopping (ports in use, workers lost at close) are silenced. Skips where
+    dask.distributed is not installed.
+    """
+    distributed = pytest.importorskip("dask.distributed")
+    started = {}
+    with contextlib.ExitStack() as stack:
+
+        def start(n_workers=2, *, processes=True, client=True):
+            key = (n_workers, processes, client)
+            if key not in started:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    # in-process workers talk over dask's inproc transport: no host to give
+                    host = {"host": "127.0.0.1"} if processes else {}
+                    cluster = distributed.LocalCluster(
+                        n_workers=n_workers, threads_per_worker=1, processes=processes,
+                        dashboard_address=None, **host,
+                    )  # fmt: skip
+                    stack.callback(_quietly, cluster.close)
+                    connected = distributed.Client(cluster) if client else None
+                    if connected is not None:
+                        stack.callback(_quietly, connected.close)
+                started[key] = (cluster, connected)
+            return started[key]
+
+        yield start
+
+
+def _quietly(close) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        close()

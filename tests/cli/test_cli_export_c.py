@@ -121,3 +121,34 @@ def test_c_example_falls_back_to_python_m_hpdob(tmp_path):
     done = subprocess.run(["make", "-n"], cwd=example, env=env, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert "python3 -m hpdob export-c" in done.stdout
+
+
+# -- --scenario: a scenario file's observer, the RTOB composition as one C observer --------
+FORCE_SCENARIO = ROOT / "examples" / "force_step_stiff_wall.toml"
+
+
+def test_cli_exports_the_rtob_composition_of_a_scenario(capsys, tmp_path):
+    from hpdob.simulation import load_scenario
+
+    argv = ["export-c", "--scenario", str(FORCE_SCENARIO), "--prefix", "rtob",
+            "-o", str(tmp_path / "cli")]  # fmt: skip
+    assert main(argv) == 0
+    paths = [Path(line) for line in capsys.readouterr().out.splitlines()]
+    observer = load_scenario(FORCE_SCENARIO).loop.observer  # the [reaction_observer] composition
+    expected = export_c(observer, tmp_path / "lib", prefix="rtob")
+    assert [p.read_text() for p in paths] == [p.read_text() for p in expected]
+    header = paths[0].read_text()
+    assert "rtob_reaction(" in header and "void rtob_estimates(" in header
+
+
+def test_cli_scenario_refuses_design_options_and_arms(capsys, tmp_path):
+    argv = ["export-c", "--scenario", str(FORCE_SCENARIO), "--bandwidth", "50",
+            "-o", str(tmp_path / "a")]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "drop --bandwidth, or drop --scenario" in err
+    arm = ROOT / "examples" / "two_link_observers.toml"
+    assert main(["export-c", "--scenario", str(arm), "-o", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "takes a single-axis one" in err
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()

@@ -113,3 +113,21 @@ def test_force_window_option(tmp_path, capsys):
     capsys.readouterr()
     assert main([*args, "--force-window", "0.8", "0.2"]) == 2  # refused before the run
     assert "--force-window must have start < stop [s], got [0.8, 0.2]" in capsys.readouterr().err
+
+
+def test_force_window_outside_the_run_or_without_a_wall_is_refused(tmp_path, capsys):
+    """--force-window 5 inf on the 1 s run would give NaN metrics, and on a scenario without a
+    wall it would be ignored: both are refused before the run, in one line naming the option."""
+    out = tmp_path / "refused"
+    assert main(["simulate", str(FORCE), "--out", str(out), "--no-plot",
+                 "--force-window", "5", "inf"]) == 2  # fmt: skip
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err
+    assert "--force-window [5, inf] s holds no sample of the run" in err
+    assert "the window must overlap the run" in err
+    canonical = ROOT / "examples" / "canonical_hpdob.toml"  # no wall
+    assert main(["simulate", str(canonical), "--out", str(out), "--no-plot",
+                 "--force-window", "0.5", "inf"]) == 2  # fmt: skip
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--force-window:" in err and "drop --force-window" in err
+    assert not out.exists()  # nothing ran, nothing written

@@ -475,9 +475,8 @@ def test_read_log_of_a_number_and_a_truncated_trace(tmp_path):
 
 # -- item 2: a dask cluster that fails mid-sweep keeps the finished rows ----------------------
 @pytest.mark.timeout(120)
-def test_a_failing_dask_cluster_keeps_the_finished_rows(capsys, tmp_path, monkeypatch):
-    import warnings
-
+def test_a_failing_dask_cluster_keeps_the_finished_rows(capsys, tmp_path, monkeypatch,
+                                                        dask_cluster):  # fmt: skip
     distributed = pytest.importorskip("dask.distributed")
     import pandas as pd
 
@@ -498,16 +497,9 @@ def test_a_failing_dask_cluster_keeps_the_finished_rows(capsys, tmp_path, monkey
         + '\n"observer.order" = [0, 1]\n[observer]\norder = 1\nbandwidth = 100.0\n'
     )
     out = tmp_path / "rows.csv"
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cluster = distributed.LocalCluster(
-            n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
-        )
-        try:
-            argv = ["sweep", spec, "--out", out, "--scheduler", cluster.scheduler_address]
-            code, _, err = run_cli(capsys, *argv)
-        finally:
-            cluster.close()
+    cluster, _ = dask_cluster(1, processes=False, client=False)  # in-process: run_chunk patched
+    argv = ["sweep", spec, "--out", out, "--scheduler", cluster.scheduler_address]
+    code, _, err = run_cli(capsys, *argv)
     assert code == 1 and err.count("\n") == 1, err  # was "internal error" and no rows
     assert err.startswith("hpdob sweep: error: the dask cluster failed after 4 of 12 scenarios")
     assert "KilledWorker" in err and "missing: scenarios 4-11" in err and "--resume" in err

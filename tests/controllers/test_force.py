@@ -262,17 +262,21 @@ def test_pd_still_runs_with_the_rtob_observer():
 
 _DRIVE = """#include "rtob.h"
 void drive(long n, const double *th, const double *om, const double *u, double *tau_hat,
-           double *omega_hat, double *tau_reac, int *fault);
+           double *omega_hat, double *tau_reac, int *fault, int both);
 void drive(long n, const double *th, const double *om, const double *u, double *tau_hat,
-           double *omega_hat, double *tau_reac, int *fault)
+           double *omega_hat, double *tau_reac, int *fault, int both)
 {
     rtob_state s;
     long k;
     rtob_init(&s, -0.01, 0.0, 0.0);
     for (k = 0; k < n; ++k) {
-        tau_hat[k] = rtob_estimate(&s, th[k], om[k]);
+        if (both) {
+            rtob_estimates(&s, th[k], om[k], &tau_hat[k], &tau_reac[k]);
+        } else {
+            tau_hat[k] = rtob_estimate(&s, th[k], om[k]);
+            tau_reac[k] = rtob_reaction(&s, th[k], om[k]);
+        }
         VELOCITY
-        tau_reac[k] = rtob_reaction(&s, th[k], om[k]);
         FAULT
         rtob_update(&s, th[k], om[k], u[k]);
     }
@@ -294,9 +298,10 @@ def _rtob(kind):
                          [("linear", False), ("coulomb", False), ("coulomb", True)])  # fmt: skip
 def test_export_c_gives_tau_hat_and_tau_reac(tmp_path, kind, nan_guard):
     """One exported C observer gives tau_hat (``_estimate``) and tau_reac (``_reaction``, with
-    the Coulomb term: libm's tanh): run over a simulated trace it reproduces the compiled
-    kernel's outputs bit for bit in double, with and without the NaN guard. Guarded, a NaN
-    angle at one sample returns the last outputs, sets ``fault`` and skips the update."""
+    the Coulomb term: libm's tanh), and both in one call (``_estimates``): run over a
+    simulated trace each reproduces the compiled kernel's outputs bit for bit in double, with
+    and without the NaN guard. Guarded, a NaN angle at one sample returns the last outputs,
+    sets ``fault`` and skips the update."""
     import ctypes
 
     from hpdob import export_c
@@ -317,19 +322,25 @@ def test_export_c_gives_tau_hat_and_tau_reac(tmp_path, kind, nan_guard):
     c = ctypes.CDLL(str(lib))
     pointer = ctypes.POINTER(ctypes.c_double)
 
-    def run(theta):
+    def run(theta, both=0):
         n = len(theta)
         arrays = [np.ascontiguousarray(a, dtype=float) for a in
                   (theta, result.omega_measured, result.u)]  # fmt: skip
         outs = [np.zeros(n) for _ in range(3)]
         fault = np.zeros(n, dtype=np.intc)
         c.drive(ctypes.c_long(n), *(a.ctypes.data_as(pointer) for a in (*arrays, *outs)),
-                fault.ctypes.data_as(ctypes.POINTER(ctypes.c_int)))  # fmt: skip
+                fault.ctypes.data_as(ctypes.POINTER(ctypes.c_int)), ctypes.c_int(both))  # fmt: skip
         return (*outs, fault)
 
     tau_hat, omega_hat, tau_reac, fault = run(result.theta_measured)
     np.testing.assert_array_equal(tau_hat, result.tau_hat)
     np.testing.assert_array_equal(tau_reac, result.tau_reac)
+    # the one function giving both (rtob_estimates): the kernel's outputs bit for bit too
+    tau_hat2, omega_hat2, tau_reac2, _ = run(result.theta_measured, both=1)
+    np.testing.assert_array_equal(tau_hat2, result.tau_hat)
+    np.testing.assert_array_equal(tau_reac2, result.tau_reac)
+    if both.has_velocity:
+        np.testing.assert_array_equal(omega_hat2, result.omega_hat)
     if both.has_velocity:
         np.testing.assert_array_equal(omega_hat, result.omega_hat)
     assert np.max(np.abs(result.tau_reac)) > 0.01  # not vacuous
@@ -341,11 +352,12 @@ def test_export_c_gives_tau_hat_and_tau_reac(tmp_path, kind, nan_guard):
         k = 150
         theta = np.array(result.theta_measured, dtype=float)
         theta[k] = np.nan
-        tau_hat, omega_hat, tau_reac, fault = run(theta)
-        assert fault[k] == 1 and not fault[:k].any() and not fault[k + 1 :].any()
-        np.testing.assert_array_equal(tau_reac[:k], result.tau_reac[:k])
-        assert tau_reac[k] == tau_reac[k - 1] and tau_hat[k] == tau_hat[k - 1]
-        assert np.isfinite(tau_reac).all()
+        for one_call in (0, 1):  # the two functions, and rtob_estimates
+            tau_hat, omega_hat, tau_reac, fault = run(theta, both=one_call)
+            assert fault[k] == 1 and not fault[:k].any() and not fault[k + 1 :].any()
+            np.testing.assert_array_equal(tau_reac[:k], result.tau_reac[:k])
+            assert tau_reac[k] == tau_reac[k - 1] and tau_hat[k] == tau_hat[k - 1]
+            assert np.isfinite(tau_reac).all()
 
 
 def _contact_loop(kf, plant):

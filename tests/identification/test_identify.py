@@ -229,6 +229,30 @@ def test_idim_iv_removes_the_noise_bias_of_idim_ls():
     np.testing.assert_allclose(iv.coulomb, SYNTHETIC_PLANT.coulomb, rtol=0.05)
 
 
+def test_idim_iv_through_a_pid_loop_removes_the_noise_bias():
+    """The log of a PID (FeedbackLoop.from_controller: any linear controller, issue 20) with
+    1e-3 rad of encoder noise. Over seeds 1-8 (measured 2026-12-02) IDIM-LS's J is 6.3-8.4 %
+    low; IDIM-IV's J is within 0.22 %, b within 1.9 %, coulomb within 0.8 %: the tolerances
+    below are about twice those (seed 1 here)."""
+    kwargs = paper.scenario()
+    kwargs.update(plant=SYNTHETIC_PLANT, disturbance=None, reference=SYNTHETIC_REFERENCE,
+                  controller=hpdob.PID(50.0, 200.0, 5.0),
+                  sensor=Encoder(16384, noise_std=1e-3, seed=1))  # fmt: skip
+    result = hpdob.simulate(**kwargs)
+    loop = FeedbackLoop.from_controller(
+        kwargs["controller"], nominal=kwargs["nominal"], Ts=kwargs["Ts"], reference=result.r,
+        reference_velocity=result.r_dot, reference_acceleration=result.r_ddot,
+    )  # fmt: skip
+    log = (result.t, result.theta_measured, result.u)
+    ls = identify(*log, method="idim-ls", loop=loop, min_speed=0.05, diagnostics=False)
+    iv = identify(*log, method="idim-iv", loop=loop, min_speed=0.05, diagnostics=False)
+    assert ls.J / SYNTHETIC_PLANT.J < 0.95
+    np.testing.assert_allclose(iv.J, SYNTHETIC_PLANT.J, rtol=0.005)
+    np.testing.assert_allclose(iv.b, SYNTHETIC_PLANT.b, rtol=0.04)
+    np.testing.assert_allclose(iv.coulomb, SYNTHETIC_PLANT.coulomb, rtol=0.015)
+    assert iv.converged
+
+
 # -- refusals --------------------------------------------------------------------------------------
 def _motion(n=5000, Ts=1e-3):
     t = np.arange(n) * Ts

@@ -53,3 +53,10 @@ def test_process_noise_reaches_low_bandwidths_at_every_order(order, bandwidth):
     w = np.geomspace(bandwidth / 1.01, bandwidth * 1.01, 3)
     gain = np.abs(estimation_response(design, w / (2 * np.pi)))
     assert gain[0] > 1 / np.sqrt(2) > gain[-1], gain
+
+
+def test_a_bandwidth_above_half_the_nyquist_frequency_is_refused():
+    """kalman_process_noise searches bandwidths below pi / (2 Ts) only (1570.8 rad/s at 1 ms)."""
+    model = ServoModel(2.8e-4).discretize(1e-3)
+    with pytest.raises(ValueError, match=r"below half the Nyquist frequency pi/\(2 Ts\) = 1570\.8"):
+        kalman_process_noise(model, bandwidth=1600.0, position_noise_std=1e-6)

@@ -7,8 +7,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hpdob import ServoModel, design_observer
-from hpdob.observers import Term
+from hpdob import LinearObserver, ServoModel, design_observer
+from hpdob.observers import Program, Term, render_sum
 
 
 def test_constant_descriptions_name_their_matrix_entries():
@@ -68,3 +68,44 @@ def test_rounding_within_the_allowance_is_not_blamed():
     program = dataclasses.replace(system.program, update=rows)
     with pytest.raises(ValueError, match=r"program\.update\[0\] sums to \S+ for operand 2 "):
         dataclasses.replace(system, program=program)
+
+
+def test_unit_coefficients_are_written_inline_and_the_others_named():
+    """Program.from_matrices: coefficients of magnitude one inline (no constant), every other
+    non-zero one a named constant (F<i>_<j>, G<i>_<signal>)."""
+    F = np.array([[1.0, 0.5], [-1.0, 2.0]])
+    G = np.array([[0.25, -1.0, 0.0], [0.0, 1.0, -3.0]])
+    H, E, N = np.array([[1.0, -0.75]]), np.array([[0.0, 0.0]]), np.zeros((2, 3))
+    program = Program.from_matrices(F, G, H, E, N, ("theta", "omega"))
+    for row in (*program.update, *program.output):
+        for t in row:
+            assert (t.constant is None) is (abs(t.coefficient) == 1.0), t
+    assert [t.constant for t in program.update[0]] == [None, "F1_2", "G1_THETA", None]
+    assert [t.constant for t in program.update[1]] == [None, "F2_2", None, "G2_U"]
+
+
+def test_an_inline_sum_keeps_every_coefficient_but_one():
+    """render_sum without names: ``c * x`` for every coefficient but +-1, signs pulled out."""
+    terms = (Term(0.5, 0), Term(-0.25, 1), Term(1.0, 2), Term(-1.0, 0), Term(3.0, 1))
+    text = render_sum(terms, ("a", "b", "c"), repr, named=False)
+    assert text == "0.5 * a - 0.25 * b + c - a + 3.0 * b"
+
+
+def test_a_program_just_outside_the_rounding_allowance_is_refused():
+    """The allowance is 4 eps times the terms' magnitude: an entry of 0.5 written as
+    0.5 (1 + 5 eps) (exact in double: the spacing at 0.5 is eps/2) is off by 5 eps x 0.5,
+    beyond 4 eps x 0.5 (1 + 5 eps), and refused."""
+    F, G = np.array([[0.5]]), np.array([[0.25, 0.0, 0.125]])
+    H, E, N = np.array([[1.0]]), np.array([[-0.5, 0.0, 0.0]]), np.array([[0.0, 0.0, 1.0]])
+    eps = np.finfo(float).eps
+    off = Program(
+        update=((Term(0.5 * (1 + 5 * eps), 0, "F1_1"), Term(0.25, 1, "G1_THETA"),
+                 Term(0.125, 3, "G1_U")),),
+        output=((Term(1.0, 0), Term(-0.5, 1, "E1_THETA")),),
+        reset=((Term(1.0, 2),),),
+    )  # fmt: skip
+    kwargs = {"F": F, "G": G, "H": H, "E": E, "N": N, "Ts": 1e-3, "measures": ("theta", "omega")}
+    with pytest.raises(ValueError, match=r"program\.update\[0\] sums to .* for operand 0 "):
+        LinearObserver(**kwargs, program=off)
+    exact = dataclasses.replace(off, update=((Term(0.5, 0, "F1_1"), *off.update[0][1:]),))
+    assert LinearObserver(**kwargs, program=exact).program is exact

@@ -24,3 +24,14 @@ def test_reaction_observer_on_an_equal_sampling_period_built_apart_combines():
     other = design_observer(NOMINAL.discretize(2e-3), order=0, bandwidth=60.0)
     with pytest.raises(ValueError, match=r"^reaction\.Ts = 0\.002 must equal dob\.Ts = 0\.001$"):
         reaction_torque_observer(dob, other)
+
+
+def test_a_friction_model_below_the_nominal_viscous_friction_is_refused():
+    """The RTOB subtracts the viscous friction beyond b_n: friction.b = b_n subtracts none
+    (the DOb's own tau_reac row), friction.b < b_n is refused naming both."""
+    nominal = ServoModel(2.8e-4, 5e-5)
+    dob = design_observer(nominal.discretize(1e-3), order=1, bandwidth=100.0)
+    same = reaction_torque_observer(dob, friction=ServoModel(3e-4, 5e-5))
+    np.testing.assert_array_equal(same.E[1], dob.system.E[0])
+    with pytest.raises(ValueError, match=r"friction\.b = 1e-05 must be at least the nominal b_n"):
+        reaction_torque_observer(dob, friction=ServoModel(3e-4, 1e-5))

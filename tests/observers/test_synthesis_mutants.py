@@ -42,3 +42,17 @@ def test_everything_but_the_model_is_keyword_only():
     model = ServoModel(2.8e-4, 5e-5).discretize(1e-3)
     with pytest.raises(TypeError, match="positional argument"):
         design_observer(model, 1, bandwidth=300.0)
+
+
+def test_a_nearly_orthogonal_gain_direction_is_refused():
+    """Eq. 25 divides by d^T D_Dn: a direction within 1e-8 (relative) of orthogonal to D_Dn is
+    refused. With J_n = 1 kg m^2 at Ts = 2 s, D_Dn = [Ts^2/(2 J_n), Ts/J_n] = [2, 2], so a
+    direction orthogonal to it has two entries of equal magnitude (|d| = sqrt(2) max|d_j|);
+    tilted by 1e-9 its cosine to D_Dn is 5e-10."""
+    model = ServoModel(1.0).discretize(2.0)
+    D = np.asarray(model.D, dtype=float)
+    unit = D / np.linalg.norm(D)
+    direction = np.array([unit[1], -unit[0]]) + 5e-10 * unit
+    assert abs(direction[0]) == pytest.approx(abs(direction[1]), rel=1e-8)
+    with pytest.raises(ValueError, match="gain_direction must not be zero or orthogonal"):
+        design_observer(model, order=1, bandwidth=0.1, gain_direction=tuple(direction))

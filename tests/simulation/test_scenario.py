@@ -161,6 +161,11 @@ def test_force_scenarios_refuse_bad_inputs():
     refused(lambda d: d["controller"].update(type="position-force", kp=1.0, kd=1.0,
                                              tau_ref=0.05),
             r"^missing required key controller.threshold")  # fmt: skip
+    # friction = "plant" reads a rigid plant's model: a two-mass plant has two (docs)
+    refused(lambda d: d.update(plant={"type": "two-mass", "J_motor": 2e-4, "J_load": 1e-4,
+                                      "stiffness": 100.0, "environment": {"stiffness": 10.0}}),
+            r"^reaction_observer.friction = 'plant' needs a rigid \[plant\] \(a ServoModel\), "
+            r"got TwoMassServo$")  # fmt: skip
 
 
 def edit(change):

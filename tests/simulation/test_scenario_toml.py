@@ -101,3 +101,26 @@ def test_a_composition_of_a_handmade_observer_is_refused():
                                                        handmade))  # fmt: skip
     with pytest.raises(TypeError, match=r"^loop\.observer\.reaction must be of a known family"):
         scenario_toml(loop, reference=Step(0.1, 0.05), duration=1.0)
+
+
+def test_a_reaction_torque_observer_linear_observer_is_refused_naming_the_design():
+    """reaction_torque_observer() gives a LinearObserver: its DOb, RTOB and friction model are
+    not recoverable, so the file is refused in one line that names design_reaction_observer;
+    the same arguments through design_reaction_observer write back."""
+    from hpdob.observers import reaction_torque_observer
+
+    dob = design_observer(MODEL, order=1, bandwidth=100.0)
+
+    def loop(observer):
+        return ServoLoop(plant=ServoModel(3.06e-4, environment=Environment(10.0)),
+                         nominal=paper.NOMINAL, Ts=paper.TS, controller=ForceControl(1000.0),
+                         observer=observer)  # fmt: skip
+
+    refused = r"^loop\.observer is a reaction-torque observer built by reaction_torque_observer"
+    with pytest.raises(TypeError, match=refused + r"\(\).*design_reaction_observer\(\)") as err:
+        scenario_toml(loop(reaction_torque_observer(dob, viscous=5e-5)),
+                      reference=Step(0.1, 0.05), duration=1.0)  # fmt: skip
+    assert "\n" not in str(err.value)
+    text = scenario_toml(loop(design_reaction_observer(dob, viscous=5e-5)),
+                         reference=Step(0.1, 0.05), duration=1.0)  # fmt: skip
+    assert "[reaction_observer]" in text

@@ -175,29 +175,9 @@ def test_missing_base_key():
         sweep(b, progress=False)
 
 
-@pytest.fixture(scope="module")
-def cluster():
-    distributed = pytest.importorskip("dask.distributed")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cluster = distributed.LocalCluster(
-            n_workers=2,
-            threads_per_worker=1,
-            processes=True,
-            host="127.0.0.1",
-            dashboard_address=None,
-        )
-        client = distributed.Client(cluster)
-    yield cluster, client
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        client.close()
-        cluster.close()
-
-
 @pytest.mark.timeout(120)
-def test_dask_gives_the_same_rows_bit_for_bit(cluster):
-    _, client = cluster
+def test_dask_gives_the_same_rows_bit_for_bit(dask_cluster):
+    _, client = dask_cluster()
     grid = {"observer.order": [0, 1], "observer.bandwidth": [60.0, 120.0]}
     vary = {"plant.J": ("loguniform", 2e-4, 5e-4)}
     local = sweep(base(1.0), grid=grid, vary=vary, n=3, seed=5, progress=False)
@@ -216,8 +196,8 @@ def test_dask_gives_the_same_rows_bit_for_bit(cluster):
 
 
 @pytest.mark.timeout(120)
-def test_a_killed_worker_does_not_lose_rows(cluster):
-    _, client = cluster
+def test_a_killed_worker_does_not_lose_rows(dask_cluster):
+    _, client = dask_cluster()
     grid = {"observer.bandwidth": list(np.linspace(40.0, 200.0, 40)), "observer.order": [0, 1]}
     expected = sweep(base(1.0), grid=grid, progress=False)
     pids = list(client.run(os.getpid).values())
@@ -237,10 +217,10 @@ def test_a_killed_worker_does_not_lose_rows(cluster):
 
 
 @pytest.mark.timeout(120)
-def test_an_interrupted_dask_sweep_cancels_its_tasks(cluster):
+def test_an_interrupted_dask_sweep_cancels_its_tasks(dask_cluster):
     # issue 16, item 2: Ctrl-C (here raised by the progress callback once the first chunk is
     # back) must not leave the remaining chunks running on the cluster
-    _, client = cluster
+    _, client = dask_cluster()
     # 63 chunks of 64 scenarios of 10 s: about a minute of work on the two workers
     grid = {"observer.bandwidth": list(np.linspace(40.0, 200.0, 2000)), "observer.order": [0, 1]}
 

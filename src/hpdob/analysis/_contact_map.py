@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._table import columns_to_csv, columns_to_pandas
 from .._validation import (
     ParameterTypeError,
     ParameterValueError,
@@ -35,6 +34,7 @@ from ..observers import (
 )
 from ..simulation import ServoLoop
 from ._linear_loop import LoopSpec, loop_matrices
+from ._radius_map import _RadiusMap
 
 __all__ = ["ContactStabilityMap", "contact_stability_map"]
 
@@ -129,7 +129,7 @@ class _ContactSetting:
 
 
 @dataclass(frozen=True, eq=False)
-class ContactStabilityMap:
+class ContactStabilityMap(_RadiusMap):
     """Spectral radius of the force loop in contact over a grid and observer bandwidths.
 
     Built by :func:`contact_stability_map`. ``spectral_radius[i, j]`` belongs to
@@ -182,11 +182,6 @@ class ContactStabilityMap:
     nominal_of: str = "loop"
     bandwidth_of: str = "both"
     fixed_bandwidth: float | None = None
-
-    @property
-    def stable(self) -> np.ndarray:
-        """Boolean array: ``spectral_radius < 1``."""
-        return self.spectral_radius < 1.0
 
     def _check_point(self, value, bandwidth) -> tuple[float, float]:
         if self.parameter == "stiffness":
@@ -291,39 +286,6 @@ class ContactStabilityMap:
             "spectral_radius": self.spectral_radius.ravel(),
             "stable": self.stable.ravel(),
         }
-
-    def to_pandas(self):
-        """The map in long format.
-
-        Returns
-        -------
-        pandas.DataFrame
-            One row per grid point: the varied parameter, ``bandwidth_rad_s`` (with
-            ``bandwidth_of="dob"`` or ``"reaction"``: ``dob_bandwidth_rad_s`` and
-            ``reaction_bandwidth_rad_s``, the varied one first), the fixed parameter,
-            ``delay_samples``, ``spectral_radius`` and ``stable``.
-
-        Raises
-        ------
-        ImportError
-            If pandas is not installed (``pip install hpdob[pandas]``).
-        """
-        return columns_to_pandas(self._columns())
-
-    def to_csv(self, path):
-        """Write the long-format table of :meth:`to_pandas` as CSV (no pandas needed).
-
-        Parameters
-        ----------
-        path : str or os.PathLike
-            The file to write (atomically; replaced if it exists).
-
-        Returns
-        -------
-        pathlib.Path
-            ``path``.
-        """
-        return columns_to_csv(self._columns(), path)
 
     def plot(self, ax=None, *, mark=None, mark_label: str | None = None):
         r"""Heat-map of the loop's slowest decay rate with the stability boundary drawn.

@@ -13,7 +13,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._table import columns_to_csv, columns_to_pandas
 from .._validation import (
     ParameterTypeError,
     ParameterValueError,
@@ -29,6 +28,7 @@ from ..models import ServoModel
 from ..observers import MEASUREMENTS, design_at_bandwidth, spec_label
 from ..simulation import MISSING, Encoder, ServoLoop, loop_parts
 from ._linear_loop import MAX_DELAY_SAMPLES, LoopSpec, loop_matrices
+from ._radius_map import _RadiusMap
 
 __all__ = ["StabilityMap", "robust_stability_map"]
 
@@ -162,7 +162,7 @@ class _Setting:
 
 
 @dataclass(frozen=True, eq=False)
-class StabilityMap:
+class StabilityMap(_RadiusMap):
     """Closed-loop spectral radius over a model-error grid and observer bandwidths.
 
     Built by :func:`robust_stability_map`. ``spectral_radius[i, j]`` belongs to
@@ -202,11 +202,6 @@ class StabilityMap:
     _setting: _Setting = field(repr=False, compare=False)
     measurement: str = "state"
     observer: dict = field(default_factory=dict, repr=False)
-
-    @property
-    def stable(self) -> np.ndarray:
-        """Boolean array: ``spectral_radius < 1``."""
-        return self.spectral_radius < 1.0
 
     def radius_at(self, value: float, bandwidth: float) -> float:
         """Spectral radius at one point (need not be on the grid).
@@ -285,37 +280,6 @@ class StabilityMap:
             "spectral_radius": self.spectral_radius.ravel(),
             "stable": self.stable.ravel(),
         }
-
-    def to_pandas(self):
-        """The map in long format.
-
-        Returns
-        -------
-        pandas.DataFrame
-            One row per grid point: the varied parameter, ``bandwidth_rad_s``, the fixed
-            parameter, ``order``, ``delay_samples``, ``spectral_radius`` and ``stable``.
-
-        Raises
-        ------
-        ImportError
-            If pandas is not installed (``pip install hpdob[pandas]``).
-        """
-        return columns_to_pandas(self._columns())
-
-    def to_csv(self, path):
-        """Write the long-format table of :meth:`to_pandas` as CSV (no pandas needed).
-
-        Parameters
-        ----------
-        path : str or os.PathLike
-            The file to write (atomically; replaced if it exists).
-
-        Returns
-        -------
-        pathlib.Path
-            ``path``.
-        """
-        return columns_to_csv(self._columns(), path)
 
     def plot(self, ax=None, *, mark=None, mark_label: str | None = None):
         r"""Heat-map of the closed loop's slowest decay rate with the stability boundary drawn.

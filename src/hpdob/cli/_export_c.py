@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from ._design import add_design_arguments, design_from_args
 from ._options import finite, output_path
@@ -51,7 +52,17 @@ def register(subparsers) -> None:
         "dependency-free C99 for a microcontroller: <prefix>.h declares <prefix>_state, "
         "<prefix>_init, <prefix>_estimate and <prefix>_update; <prefix>.c holds the gains as "
         "constants. --dtype q31 writes integer fixed-point code from the declared ranges. "
-        "See docs/deployment.md.",
+        "--scenario FILE exports a scenario file's observer instead (a [reaction_observer] "
+        "table: the DOb and the RTOB as one C observer, <prefix>_estimates giving tau_hat "
+        "and tau_reac). See docs/deployment.md.",
+    )
+    parser.add_argument(
+        "--scenario",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="export the observer of this scenario file (.toml: its [nominal], Ts, [observer] "
+        "and [reaction_observer]) instead of designing one from the options",
     )
     add_design_arguments(parser)
     out = parser.add_argument_group("output")
@@ -81,14 +92,53 @@ def register(subparsers) -> None:
         help="output directory, created if missing (default: current directory)",
     )
     add_range_arguments(parser)
-    parser.set_defaults(handler=_run)
+    # the design options' defaults: --scenario refuses any given one (they would be ignored)
+    defaults = vars(parser.parse_args([]))
+    parser.set_defaults(handler=_run, design_defaults=defaults)
+
+
+#: Options that shape the C files, not the design: they apply with --scenario too.
+_OUTPUT_OPTIONS = ("scenario", "prefix", "dtype", "nan_guard", "out", *_RANGES)
+
+
+def _scenario_design(args: argparse.Namespace):
+    """The observer of ``--scenario FILE`` (its RTOB composition, if it has one)."""
+    from .._validation import ParameterTypeError, ParameterValueError
+    from ..simulation import ServoLoop, load_scenario
+    from ._errors import CLIError
+
+    defaults = args.design_defaults
+    given = [name for name, value in defaults.items() if name not in _OUTPUT_OPTIONS
+             and getattr(args, name, value) != value]  # fmt: skip
+    if given:
+        names = ", ".join("--" + name.replace("_", "-") for name in given)
+        raise CLIError(
+            f"--scenario takes the design from {args.scenario} ([nominal], Ts, [observer], "
+            f"[reaction_observer]): drop {names}, or drop --scenario"
+        )
+    try:
+        scenario = load_scenario(args.scenario)
+    except (ParameterValueError, ParameterTypeError) as err:
+        raise CLIError(f"--scenario {args.scenario}: {err}") from None
+    if not isinstance(scenario.loop, ServoLoop):  # an N-joint arm: one observer per joint
+        raise CLIError(
+            f"--scenario {args.scenario} is an N-joint arm ({type(scenario.loop).__name__}): "
+            "export-c takes a single-axis one (export each joint's observer with export_c)"
+        )
+    observer = scenario.loop.observer
+    if observer is None:
+        raise CLIError(
+            f"--scenario {args.scenario} has no [observer] table: nothing to export (add one, "
+            "or design the observer with the options instead of --scenario)"
+        )
+    return observer
 
 
 def _run(args: argparse.Namespace) -> int:
     from ..export import export_c
 
     ranges = ranges_from_args(args)
-    design = design_from_args(args)
+    design = design_from_args(args) if args.scenario is None else _scenario_design(args)
     paths = export_c(
         design,
         args.out,

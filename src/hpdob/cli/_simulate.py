@@ -54,7 +54,8 @@ def register(subparsers) -> None:
         metavar=("START", "STOP"),
         help="the window [s] of the steady-state force metrics (force_rms_*_steady) of a run "
         "against a wall with a reaction-torque observer: the samples with START <= t < STOP "
-        "(STOP may be inf); default: from 0.5 s after the first contact to the end",
+        "(STOP may be inf); default: from 0.5 s after the first contact to the end. Refused "
+        "on a scenario without such metrics and for a window that holds no sample of the run",
     )
     parser.add_argument(
         "--progress",
@@ -149,44 +150,17 @@ def _previous_files(out: Path) -> list[str]:
     return names
 
 
-def _contact_metrics(result, controller) -> dict:
-    """``contact_first_contact`` [s], ``contact_impact_peak`` [N m], ``contact_overshoot``
-    [N m] and ``contact_overshoot_ratio`` over the force reference: the switching controller's
-    ``tau_ref``, the force controller's last reference value, else the last contact torque."""
-    from ..controllers import ForceControl
-
-    tau_ref = getattr(controller, "tau_ref", None)
-    if isinstance(controller, ForceControl) and len(result):
-        tau_ref = float(result.r[-1])
-    return {f"contact_{k}": v for k, v in result.contact_metrics(tau_ref).items()}
-
-
-def _force_reference(result, controller):
-    """``(kind, tau_ref)`` of a run: ``kind`` "force", "impedance" or "position-force" for
-    such a controller with an RTOB output (else None); ``tau_ref`` per sample [N m] (the
-    force controller's reference signal ``r``, the switching controller's ``tau_ref``), or
-    None for impedance control (its target is a position)."""
-    import numpy as np
-
-    from ..controllers import ForceControl, ImpedanceControl, PositionForceSwitch
-
-    if result.tau_contact is None or result.tau_reac is None:
-        return None, None
-    if isinstance(controller, ForceControl):
-        return "force", np.asarray(result.r, dtype=float)
-    if isinstance(controller, PositionForceSwitch):
-        return "position-force", np.full(len(result), float(controller.tau_ref))
-    return ("impedance" if isinstance(controller, ImpedanceControl) else None), None
-
-
 def _run(args: argparse.Namespace) -> int:
     import warnings
 
     from .._files import check_file_stem, check_output, staged_outputs
     from ..simulation import (
         SimulationDivergedWarning,
+        force_reference,
+        force_run_metrics,
         metrics_json,
         plant_type_of,
+        position_metrics_apply,
         read_toml,
         simulate,
     )
@@ -197,6 +171,8 @@ def _run(args: argparse.Namespace) -> int:
         return _run_own_loop(args, data, kind)
     kwargs, windows = _scenario(args)
     window = "steady" if args.force_window is None else _force_window(args.force_window)
+    if args.force_window is not None:
+        _check_force_window(window, kwargs, args.scenario)
     out = args.out or Path("hpdob-results") / args.scenario.stem
     # The label names the output files: never a path (e.g. "../escaped") nor a hidden name.
     stem = check_file_stem(kwargs.get("label") or args.scenario.stem, "label")
@@ -211,18 +187,14 @@ def _run(args: argparse.Namespace) -> int:
         finally:  # an error or interrupt message starts on its own line
             line.end()
     metrics = result.metrics(**windows)
-    if result.tau_contact is not None:  # against a wall: the impact (docs/force-control.md)
-        metrics.update(_contact_metrics(result, kwargs["controller"]))
-    force_kind, tau_ref = _force_reference(result, kwargs["controller"])
-    if force_kind is not None:  # tau_reac vs tau_contact, tau_contact vs tau_ref
-        metrics.update({f"force_{k}": v for k, v in result.force_metrics(tau_ref).items()})
-        # and over the steady state only (without the approach, the impact and the step)
-        steady = result.force_metrics(tau_ref, window=window)
-        metrics.update({f"force_{k}_steady": v for k, v in steady.items() if k != "window_start"})
-        metrics["force_steady_start"] = steady["window_start"]
-        if force_kind == "force":  # r is tau_ref [N m]: theta - r means nothing
-            for window in ("regulation", "tracking"):
-                metrics.pop(f"rms_position_error_{window}", None)
+    controller = kwargs["controller"]
+    if not position_metrics_apply(controller):  # r is tau_ref [N m]: theta - r means nothing
+        for name in ("regulation", "tracking"):
+            metrics.pop(f"rms_position_error_{name}", None)
+    # against a wall: the impact, tau_reac vs tau_contact, tau_contact vs tau_ref
+    # (docs/force-control.md); the same function gives a sweep's rows
+    metrics.update(force_run_metrics(result, controller, window=window))
+    force_kind, tau_ref = force_reference(result, controller)
     # Staged: renamed together when all are written, metrics.json last (docs/reliability.md).
     # The previous run's <label>.csv/.png (another label, or a figure this --no-plot run does
     # not draw) are removed at the commit: the directory holds one consistent set.
@@ -259,6 +231,37 @@ def _force_window(bounds) -> tuple[float, float]:
         return metric_window(bounds, "--force-window")
     except ParameterValueError as err:
         raise CLIError(str(err)) from None
+
+
+def _check_force_window(window, kwargs, path) -> None:
+    """Refuse ``--force-window`` where it would be ignored (no steady force metrics: no wall,
+    no reaction-torque observer or no force controller) or would hold no sample (NaN)."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from ..simulation import force_run_columns, sample_count
+    from ._errors import CLIError
+
+    parts = SimpleNamespace(plant=kwargs["plant"], observer=kwargs.get("observer"),
+                            controller=kwargs["controller"])  # fmt: skip
+    if "force_steady_start" not in force_run_columns(parts):
+        raise CLIError(
+            f"--force-window: {path} reports no steady force metrics to window (they need a "
+            "wall, [plant.environment], a [reaction_observer] and a force, impedance or "
+            "switching controller); drop --force-window"
+        )
+    try:
+        n = sample_count(kwargs["Ts"], kwargs["duration"])
+    except (TypeError, ValueError):
+        return  # simulate() reports it with its own message
+    t = np.arange(n) * kwargs["Ts"]  # the sampling instants of the run, as simulate's
+    start, stop = window
+    if not np.any((t >= start) & (t < stop)):
+        raise CLIError(
+            f"--force-window [{start:g}, {stop:g}] s holds no sample of the run (t = 0 to "
+            f"{t[-1] if n else 0.0:g} s): the window must overlap the run"
+        )
 
 
 #: Plant steps above which ``hpdob simulate`` says on stderr how big the run is before it.

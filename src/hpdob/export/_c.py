@@ -29,6 +29,8 @@ from ._c_outputs import (
     coulomb_expression,
     coulomb_include,
     coulomb_note,
+    estimates_declaration,
+    estimates_definition,
     reaction_declaration,
     reaction_definition,
     reaction_steps,
@@ -145,6 +147,7 @@ def _header(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
             f"{_signature(system, dtype, with_u=False)});\n"
         )
     velocity_decl += reaction_declaration(system, prefix, dtype, const, meas_doc)
+    velocity_decl += estimates_declaration(system, prefix, dtype, const, meas_doc)
     guard_fields = guard_doc = guard_define = ""
     if guard:
         guard_fields, guard_doc, guard_define = guard_header(prefix, dtype, len(system.outputs))
@@ -277,6 +280,7 @@ def _source(system: LinearObserver, prefix: str, dtype: str, guard: bool = False
 }}
 """
     velocity += reaction_definition(system, prefix, dtype, const, output_body)
+    velocity += estimates_definition(system, prefix, dtype, const, guard)
     helpers = guard_helpers(prefix, dtype, n) if guard else ""
     constants = "\n".join(_constants(system, dtype, init + est + upd + velocity)
                           + coulomb_constants(system, dtype, _literal))  # fmt: skip

@@ -13,6 +13,8 @@ __all__ = [
     "coulomb_expression",
     "coulomb_include",
     "coulomb_note",
+    "estimates_declaration",
+    "estimates_definition",
     "reaction_declaration",
     "reaction_definition",
     "reaction_steps",
@@ -32,7 +34,10 @@ def reaction_steps(system, prefix: str, args: str) -> list:
     """The sample-loop line of ``<prefix>_reaction`` for the header's comment (or none)."""
     if "tau_reac" not in system.outputs:
         return []
-    return [(f"tau_reac = {prefix}_reaction(&s, {args});", "reaction torque [N m]")]
+    return [
+        (f"tau_reac = {prefix}_reaction(&s, {args});", "reaction torque [N m]"),
+        (f"  (or {prefix}_estimates(&s, {args}, &tau_hat, &tau_reac);", "both at once)"),
+    ]
 
 
 def reaction_declaration(system, prefix: str, dtype: str, const: str, meas_doc: str) -> str:
@@ -54,6 +59,49 @@ def reaction_definition(system, prefix: str, dtype: str, const: str, output_body
     body = output_body(system.outputs.index("tau_reac"))
     return f"""
 {dtype} {prefix}_reaction({const}{prefix}_state *s, {signature(system, dtype, with_u=False)})
+{{
+{body}
+}}
+"""
+
+
+def estimates_declaration(system, prefix: str, dtype: str, const: str, meas_doc: str) -> str:
+    """The header's declaration of ``<prefix>_estimates``: tau_hat and tau_reac in one call
+    (issue 21: one C function giving both; empty without a ``tau_reac``)."""
+    if "tau_reac" not in system.outputs:
+        return ""
+    return (
+        f"\n/** Both estimates in one call: *tau_hat = the DOb's disturbance estimate tau_hat_k"
+        f"\n *  [N m] ({prefix}_estimate), *tau_reac = the reaction-torque estimate tau_reac_k"
+        f"\n *  [N m] ({prefix}_reaction), from the measured {meas_doc}. */\n"
+        f"void {prefix}_estimates({const}{prefix}_state *s, "
+        f"{signature(system, dtype, with_u=False)},\n"
+        f"    {dtype} *tau_hat, {dtype} *tau_reac);\n"
+    )
+
+
+def estimates_definition(system, prefix: str, dtype: str, const: str, guard: bool) -> str:
+    """The source's ``<prefix>_estimates``: the two output functions called in turn, so its
+    values are theirs bit for bit; guarded, ``fault`` is set if either output faulted."""
+    if "tau_reac" not in system.outputs:
+        return ""
+    args = ", ".join(system.measures)
+    if guard:
+        body = (
+            f"    int fault;\n"
+            f"    *tau_hat = {prefix}_estimate(s, {args});\n"
+            f"    fault = s->fault;\n"
+            f"    *tau_reac = {prefix}_reaction(s, {args});\n"
+            f"    s->fault |= fault;"
+        )
+    else:
+        body = (
+            f"    *tau_hat = {prefix}_estimate(s, {args});\n"
+            f"    *tau_reac = {prefix}_reaction(s, {args});"
+        )
+    return f"""
+void {prefix}_estimates({const}{prefix}_state *s, {signature(system, dtype, with_u=False)},
+    {dtype} *tau_hat, {dtype} *tau_reac)
 {{
 {body}
 }}

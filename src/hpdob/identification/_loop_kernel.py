@@ -25,7 +25,12 @@ Per sample ``k``: the position ``y_k = q(t_k)`` is measured (no quantisation), t
 estimate is ``sum_i c_i y_{k-i} / Ts`` (positions before the start equal ``y_0``) or the
 exact velocity, the command is
 ``u_k = kp (r_k - y_k) + kd (rdot_k - v_k) + ff_k`` clipped to ``+-limit``, and the plant is
-advanced over ``[t_k, t_{k+1})``.
+advanced over ``[t_k, t_{k+1})``. With a controller program (``signal_rows`` not empty: a
+:class:`hpdob.controllers.LinearController`'s :meth:`~hpdob.controllers.ControllerProgram.arrays`)
+the command is instead its last signal plus ``ff_k``, the signal rows evaluated in order from
+its state and its inputs ``[r, r_dot, r_ddot, y, v, 0]`` (``source`` picks them; the last is
+``tau_hat``, 0 without an observer), and after the clip its state is updated with the clipped
+command: the rows summed left to right, as :func:`hpdob.simulate`'s kernel and exported C do.
 """
 
 from __future__ import annotations
@@ -58,11 +63,18 @@ def run_loop(
     divergence_limit,
     q_out,
     u_out,
+    r_ddot,
+    state,
+    source,
+    signal_rows,
+    update_rows,
 ):
     """Simulate ``r.size`` samples; fill ``q_out`` and ``u_out``; return the samples completed.
 
     A return value below ``r.size`` means ``|q|`` or ``|v|`` left ``divergence_limit`` (or
-    became non-finite) at the end of the last completed sample.
+    became non-finite) at the end of the last completed sample. ``state`` (the controller's
+    initial state, updated in place), ``source`` and the ``(pointer, coefficient, operand)``
+    rows are those of a controller program; no signal rows (``pointer == [0]``): the PD law.
     """
     n = r.shape[0]
     m = velocity_filter.shape[0]
@@ -72,6 +84,14 @@ def run_loop(
     q = q0
     v = v0
     a = b / J
+    sig_ptr, sig_c, sig_i = signal_rows
+    up_ptr, up_c, up_i = update_rows
+    nc, pc, qc = state.shape[0], source.shape[0], sig_ptr.shape[0] - 1
+    programmed = qc > 0
+    first = nc + pc + 1  # operands [c, v, u_bar, signals]
+    operands = np.zeros(first + qc)
+    inputs = np.zeros(6)
+    new_state = np.empty(nc)
     for k in range(n):
         y = q
         for i in range(m - 1, 0, -1):
@@ -84,11 +104,39 @@ def run_loop(
             for i in range(m):
                 velocity += velocity_filter[i] * history[i]
             velocity /= Ts
-        uk = kp * (r[k] - y) + kd * (r_dot[k] - velocity) + feedforward[k]
+        if programmed:
+            inputs[0] = r[k]
+            inputs[1] = r_dot[k]
+            inputs[2] = r_ddot[k]
+            inputs[3] = y
+            inputs[4] = velocity
+            for i in range(nc):
+                operands[i] = state[i]
+            for j in range(pc):
+                operands[nc + j] = inputs[source[j]]
+            for j in range(qc):  # a row: its terms summed left to right (0 if empty)
+                acc = 0.0
+                for t in range(sig_ptr[j], sig_ptr[j + 1]):
+                    term = sig_c[t] * operands[sig_i[t]]
+                    acc = term if t == sig_ptr[j] else acc + term
+                operands[first + j] = acc
+            uk = operands[first + qc - 1] + feedforward[k]
+        else:
+            uk = kp * (r[k] - y) + kd * (r_dot[k] - velocity) + feedforward[k]
         if uk > limit:
             uk = limit
         elif uk < -limit:
             uk = -limit
+        if programmed and nc > 0:
+            operands[nc + pc] = uk
+            for i in range(nc):
+                acc = 0.0
+                for t in range(up_ptr[i], up_ptr[i + 1]):
+                    term = up_c[t] * operands[up_i[t]]
+                    acc = term if t == up_ptr[i] else acc + term
+                new_state[i] = acc
+            for i in range(nc):
+                state[i] = new_state[i]
         q_out[k] = y
         u_out[k] = uk
         force = uk - offset

@@ -21,6 +21,10 @@ sweep
 from ..controllers import PD as PD  # the PD lives in hpdob.controllers; kept importable here
 from . import _canonical as canonical  # noqa: F401 (the paper's set-up as one namespace)
 from ._devices import Actuator, Encoder
+from ._force_run import force_reference as force_reference
+from ._force_run import force_run_columns as force_run_columns
+from ._force_run import force_run_metrics as force_run_metrics
+from ._force_run import position_metrics_apply as position_metrics_apply
 from ._kernel import program_row as program_row
 from ._loop import LOOP_KEYS, ServoLoop
 from ._loop import MISSING as MISSING

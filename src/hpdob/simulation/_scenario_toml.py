@@ -115,6 +115,14 @@ def _observer_tables(loop: ServoLoop) -> list[str]:
     design = loop.design
     if not isinstance(design, ReactionObserverDesign):
         spec = loop.observer_spec  # the spec given, or that of a design of a registered family
+        outputs = getattr(getattr(loop.observer, "system", loop.observer), "outputs", ())
+        if spec is None and "tau_reac" in outputs:  # a LinearObserver: its parts are gone
+            raise ParameterTypeError(
+                "loop.observer is a reaction-torque observer built by reaction_torque_observer"
+                "(), whose DOb, RTOB and friction model a scenario file cannot recover: build "
+                "it with hpdob.observers.design_reaction_observer() (same arguments) to write "
+                "it as [observer] and [reaction_observer]"
+            )
         if spec is None:
             raise ParameterTypeError(
                 "loop.observer must be of a known family (hpdob.observers.families()) to be "
@@ -148,7 +156,9 @@ def scenario_toml(loop: ServoLoop, *, reference, duration: float, disturbance=No
         parameters), and an observer of a known family (any registered one), a
         reaction-torque observer composition of such observers
         (:func:`hpdob.observers.design_reaction_observer`: ``[observer]`` and
-        ``[reaction_observer]``), or none.
+        ``[reaction_observer]``; the ``LinearObserver`` of
+        :func:`hpdob.observers.reaction_torque_observer` is refused, its parts are not
+        recoverable), or none.
     reference, disturbance : Signal
         Sums of the signal types of scenario files (``docs/simulation.md``); ``disturbance``
         optional.

@@ -35,6 +35,7 @@ from ..observers import (
     spec_of,
 )
 from ._derived import frozen, run_substeps
+from ._force_run import force_run_columns, force_run_metrics, position_metrics_apply
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._simulate import check_run_arguments, run_loop, sample_count, sample_signals
@@ -304,6 +305,10 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
         return row
     row.update(result.metrics(**base["metric_windows"]))
     row["max_abs_position_error"] = result.max_abs_position_error()
+    if not position_metrics_apply(loop.controller):  # r is tau_ref [N m], not an angle
+        row.update(dict.fromkeys(METRIC_COLUMNS[1:], math.nan))
+    # against a wall: the same contact and force metrics as hpdob simulate's
+    row.update(force_run_metrics(result, loop.controller))
     row["stable"] = not result.diverged
     row["error"] = result.message if result.diverged else ""
     return row
@@ -513,9 +518,13 @@ def sweep(
     -------
     pandas.DataFrame
         One row per scenario, in scenario order: ``scenario``, the varied parameters, the
-        three metrics of :meth:`SimulationResult.metrics`, ``max_abs_position_error`` [rad],
-        ``stable`` (False if the run diverged or its parameters were invalid) and ``error``
-        (the divergence or validation message; empty when all went well).
+        three metrics of :meth:`SimulationResult.metrics`, ``max_abs_position_error`` [rad]
+        (these position metrics NaN with a force controller, whose reference is tau_ref
+        [N m]), for a plant against an environment the ``contact_*`` and ``force_*`` metrics
+        ``hpdob simulate`` reports (docs/sweep.md), ``stable`` (False if the run diverged or
+        its parameters were invalid: not a stability verdict, a bounded unstable force loop
+        is ``True`` and its ``force_rms_force_error_steady`` tells it) and ``error`` (the
+        divergence or validation message; empty when all went well).
 
     Raises
     ------
@@ -556,7 +565,7 @@ def sweep(
     workers, mode = _workers_and_mode(scheduler)
     progress = _check_progress(progress)
     # Validate the shared part once, loudly, before spending time on scenarios.
-    scenario_loop(resolved, {})
+    loop = scenario_loop(resolved, {})
     check_paths_apply([*(grid or {}), *(vary or {})], resolved["loop"], resolved["observer_spec"])
     sample_signals(
         resolved["reference"], resolved["disturbance"], Ts=resolved["loop"].Ts, n=2, substeps=1
@@ -565,6 +574,7 @@ def sweep(
         "scenario",
         *(list(grid or {}) + sorted(vary or {})),
         *METRIC_COLUMNS,
+        *force_run_columns(loop),
         "stable",
         "error",
     ]
