@@ -200,3 +200,12 @@ def test_tune_families_refuses_an_unknown_name_up_front(capsys, tmp_path):
     assert "--families takes family types dob, eso, kalman or their variants state, " in err
     assert "got 'lqg'" in err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("kind", ["eso", "cli_lp"])
+def test_analyze_tradeoff_refuses_another_family_with_a_pointer(capsys, tmp_path, registered, kind):
+    out = tmp_path / "out"
+    code, _, err = run(capsys, "analyze", "tradeoff", "--type", kind, "--out", str(out))
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"compares the paper's family (dob) only; for {kind} see 'hpdob analyze noise" in err
+    assert not out.exists()

@@ -310,6 +310,14 @@ def register(subparsers) -> None:
         "gain; both depend on the observer and its nominal model only.",
     )
     _add_common(tradeoff, loop=False)
+    tradeoff.add_argument(
+        "--type",
+        default="dob",
+        metavar="TYPE",
+        help="observer family: dob (the paper's, the only one tradeoff compares; --measurements "
+        "picks its versions); another registered family is refused with a pointer to "
+        "'analyze noise --type' and 'analyze bode --type' (default: %(default)s)",
+    )
     _add_orders(tradeoff, "0,1,2,3")
     tradeoff.add_argument(
         "--bandwidths",
@@ -581,7 +589,15 @@ def _describe(args) -> dict:
 def _tradeoff(args, files) -> list[str]:
     from ..analysis import noise_tradeoff
     from ..models import ServoModel
+    from ..observers import get_family
 
+    kind = get_family(args.type, "--type").name  # an unknown name: the registry's list
+    if kind != "dob":  # noise_tradeoff designs the paper's family only
+        raise CLIError(
+            f"--type {kind}: analyze tradeoff compares the paper's family (dob) only; for "
+            f"{kind} see 'hpdob analyze noise --type {kind}' (noise gains) and 'hpdob analyze "
+            f"bode --type {kind}' (its error |1-Q|)"
+        )
     noise = args.noise
     if noise is None:
         noise = "encoder" if "position" in args.measurements else "velocity"
