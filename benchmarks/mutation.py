@@ -172,11 +172,14 @@ TARGETS = {
     ),
     "simulation.kernel": Target(
         "src/hpdob/simulation/_kernel.py",
-        # the kernel has a rigid, a two-mass and a generic sub-step path: tests for each
-        # (test_plant.py reaches the generic one), the contact force (rigid and two-mass load)
-        # and the force loop (issue 21). Compiled: numba recompiles each mutant (about as
-        # fast as the same tests in plain Python, NUMBA_DISABLE_JIT=1; docs/testing.md).
+        # the generator of the sample loop (issue 25): its Python is mutated (which lines it
+        # writes for which structure); the loop's arithmetic is text in it, which cosmic-ray
+        # does not mutate (the planted bugs below edit that text). A rigid, a two-mass and a
+        # generic sub-step path: tests for each (test_plant.py reaches the generic one), the
+        # contact force (rigid and two-mass load) and the force loop (issue 21). A mutant
+        # changes the generated source, so numba compiles it anew (docs/testing.md).
         (
+            "tests/simulation/test_signal_table.py",
             "tests/models/test_plant.py",
             "tests/models/test_environment.py",
             "tests/models/test_two_mass.py",
@@ -184,6 +187,10 @@ TARGETS = {
             "tests/simulation/test_simulate.py",
             "tests/controllers/test_force.py",
         ),
+    ),
+    "simulation.signal_table": Target(
+        "src/hpdob/simulation/_signal_table.py",
+        ("tests/simulation/test_signal_table.py", "tests/simulation/test_kernel.py"),
     ),
     "identification.regression": Target(
         "src/hpdob/identification/_regression.py",

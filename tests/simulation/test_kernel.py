@@ -33,12 +33,81 @@ def test_import_hpdob_loads_no_heavy_modules():
     assert done.stdout.strip() == "[]"
 
 
+def _canonical_structure(**changes):
+    """The sample-loop structure of the canonical HPDOb-100 run (with ``changes`` to it)."""
+    from hpdob.simulation import _kernel
+
+    seen = []
+    original = _kernel.sample_loop
+
+    def spy(structure):
+        seen.append(structure)
+        return original(structure)
+
+    kw = {**paper.scenario(), "observer": paper.observer("HPDOb-100").design, "duration": 0.01}
+    kw.update(changes)
+    _kernel.sample_loop = spy
+    try:
+        simulate(**kw)
+    finally:
+        _kernel.sample_loop = original
+    return seen[-1]
+
+
 def test_kernel_is_numba_compiled_with_cache():
     from hpdob.simulation import _kernel
 
-    for function in (_kernel.run_samples, _kernel.ground_truth):
+    loop, fields = _kernel.sample_loop(_canonical_structure())
+    assert ("sig", "r") in fields and ("out", "tau_reac") not in fields  # what the run uses
+    for function in (loop, _kernel.ground_truth, _kernel.contact_torque):
         assert function.targetoptions.get("nogil") is True
         assert function._cache.__class__.__name__ != "NullCache"  # cache=True
+
+
+def test_generated_source_is_kept_under_the_cache_directory():
+    """As the offline estimation loops: the source is a module named by its hash under
+    NUMBA_CACHE_DIR (or ~/.cache)/hpdob, so numba's cache can refer to it."""
+    from hpdob._generated import cache_directory
+    from hpdob.simulation import _kernel
+
+    source = _kernel.loop_source(_canonical_structure())
+    _kernel.sample_loop(_canonical_structure())
+    kept = [p for p in cache_directory("sample-loops").glob("hpdob_loop_*.py")
+            if p.read_text(encoding="utf-8") == source]  # fmt: skip
+    assert len(kept) == 1
+
+
+def test_the_source_follows_the_structure():
+    """Only what the run uses is generated: no encoder arithmetic for the ideal sensor, no
+    noise read without noise, no contact torque without an environment, the observer's rows
+    as straight-line sums (no program_row loop), one source per structure."""
+    from hpdob.simulation import _kernel
+
+    ideal = _kernel.loop_source(_canonical_structure())
+    assert "math.floor" not in ideal and "contact_torque(" not in ideal.split("def run")[1]
+    assert "program_row" not in ideal and "for i in range" not in ideal
+    encoder = _kernel.loop_source(_canonical_structure(sensor=Encoder(4096)))
+    assert "math.floor(th / resolution + 0.5)" in encoder and "noise[k]" not in encoder
+    noisy = _kernel.loop_source(_canonical_structure(sensor=Encoder(4096, noise_std=1e-4)))
+    assert "noise[k]" in noisy
+    pd = _kernel.loop_source(_canonical_structure(observer=None))
+    assert "est = 0.0" in pd and len({ideal, encoder, noisy, pd}) == 4
+
+
+def test_a_sweep_generates_and_compiles_no_source_per_scenario():
+    """Bandwidths and inertias change coefficients, not the structure: after its first scenario
+    a sweep adds no generated source (issue 25)."""
+    from hpdob import sweep
+    from hpdob.simulation import _kernel
+
+    base = {**paper.scenario(), "observer": {"order": 1, "bandwidth": 100.0}, "duration": 0.05}
+    sweep(base, grid={"observer.bandwidth": [100.0]}, progress=False)
+    before = _kernel.sample_loop.cache_info()
+    rows = sweep(base, grid={"observer.bandwidth": [60.0, 150.0, 280.0],
+                             "plant.J": [2.5e-4, 4e-4]}, progress=False)  # fmt: skip
+    after = _kernel.sample_loop.cache_info()
+    assert len(rows) == 6 and rows["stable"].all()
+    assert after.misses == before.misses and after.hits >= before.hits + 6
 
 
 def test_compiled_equals_plain_python(tmp_path):

@@ -12,23 +12,17 @@ to), so it reproduces the runtime object and the closed-loop kernel bit for bit.
 
 The generated source is saved as a small module under ``~/.cache/hpdob`` (or
 ``NUMBA_CACHE_DIR``) so that numba caches its machine code on disk like the package's own
-kernels: only the first process to run a structure compiles it. This module imports numba; it is
-imported on the first offline estimation only.
+kernels (``hpdob._generated``, shared with the closed-loop kernel): only the first process to
+run a structure compiles it. This module is imported on the first offline estimation only.
 """
 
 from __future__ import annotations
 
 import functools
-import hashlib
-import importlib.util
-import os
-import sys
-import tempfile
-from pathlib import Path
 
-import numba
 import numpy as np
 
+from .._generated import compiled_function, sum_source
 from ..observers import program_coefficients, program_structure
 from ._checks import immutable
 
@@ -44,23 +38,6 @@ __all__ = [
 #: Where the observer's second measured signal comes from: none (position-only observer), the
 #: log's velocity, or the backward difference of the position computed in the loop.
 VELOCITY_NONE, VELOCITY_GIVEN, VELOCITY_DERIVED = 0, 1, 2
-
-
-def _row(shape, operands, coefficient) -> str:
-    """One row summed left to right, every term ``c * x`` with its signed coefficient, as
-    :func:`~hpdob.simulation._kernel.program_row` computes it (``1.0 * x`` is exact, so a unit
-    term is written ``x`` or ``-x`` without changing a bit)."""
-    if not shape:
-        return "0.0"
-    parts = []
-    for operand, unit in shape:
-        x = operands[operand]
-        if unit:
-            parts.append(("+" if unit > 0 else "-", x))
-        else:
-            parts.append(("+", f"{next(coefficient)} * {x}"))
-    sign, first = parts[0]
-    return ("-" if sign == "-" else "") + first + "".join(f" {s} {x}" for s, x in parts[1:])
 
 
 def kernel_source(structure: tuple, n: int, velocity: int) -> str:
@@ -81,8 +58,8 @@ def kernel_source(structure: tuple, n: int, velocity: int) -> str:
     count = sum(1 for rows in (update, output) for r in rows for _, unit in r if not unit)
     names = [f"c{i}" for i in range(count)]
     coefficient = iter(names)
-    update_rows = [_row(r, operands, coefficient) for r in update]
-    output_rows = [_row(r, operands, coefficient) for r in output]
+    update_rows = [sum_source(r, operands, coefficient) for r in update]
+    output_rows = [sum_source(r, operands, coefficient) for r in output]
     lines = ["def run(c, s_init, theta_in, omega_in, u_in, t_in, theta, omega, u, tau_hat, "
              "omega_hat, t, Ts):"]  # fmt: skip
     lines += [f"    {name} = c[{i}]" for i, name in enumerate(names)]
@@ -114,47 +91,13 @@ def kernel_source(structure: tuple, n: int, velocity: int) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _cache_directory() -> Path:
-    """Where generated loops are kept as modules, for numba's on-disk cache: under
-    ``NUMBA_CACHE_DIR`` if set, else ``~/.cache/hpdob``."""
-    root = os.environ.get("NUMBA_CACHE_DIR") or Path.home() / ".cache"
-    return Path(root) / "hpdob" / "estimate-loops"
-
-
-def _module_function(source: str):
-    """``run`` of ``source`` saved as a module named by its hash (written atomically, so
-    concurrent processes agree), so that numba caches its machine code like that of the
-    package's own kernels; None if the cache directory cannot be written."""
-    name = "hpdob_estimate_" + hashlib.sha256(source.encode()).hexdigest()[:20]
-    try:
-        directory = _cache_directory()
-        path = directory / f"{name}.py"
-        if not path.is_file() or path.read_text(encoding="utf-8") != source:
-            directory.mkdir(parents=True, exist_ok=True)
-            handle, temporary = tempfile.mkstemp(dir=directory, suffix=".tmp")
-            with os.fdopen(handle, "w", encoding="utf-8") as f:
-                f.write(source)
-            os.replace(temporary, path)
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module  # numba's cache refers to the function's module by name
-        spec.loader.exec_module(module)
-    except OSError:
-        return None
-    return numba.njit(nogil=True, cache=True)(module.run)
-
-
 @functools.lru_cache(maxsize=64)
 def offline_kernel(structure: tuple, n: int, velocity: int):
     """The compiled loop for ``structure``: generated once per process, its machine code cached
     on disk by numba where the cache directory is writable (else compiled once per process)."""
-    source = kernel_source(structure, n, velocity)
-    kernel = _module_function(source)
-    if kernel is None:
-        namespace: dict = {}
-        exec(compile(source, "<hpdob offline observer>", "exec"), namespace)  # generated above
-        kernel = numba.njit(nogil=True)(namespace["run"])
-    return kernel
+    return compiled_function(
+        kernel_source(structure, n, velocity), kind="estimate-loops", prefix="hpdob_estimate_"
+    )
 
 
 def run(system, s_init, theta, omega, u, t, velocity: int):

@@ -50,6 +50,7 @@ from ._scenario import scenario_from_dict as scenario_from_dict
 from ._scenario_toml import scenario_toml
 from ._simulate import MAX_PLANT_STEPS as MAX_PLANT_STEPS
 from ._simulate import SimulationDivergedWarning, simulate
+from ._simulate import clear_sampled_signals as clear_sampled_signals
 from ._simulate import run_loop as run_loop
 from ._simulate import sample_count as sample_count
 from ._simulate import sample_signals as sample_signals

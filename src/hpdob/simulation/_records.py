@@ -97,8 +97,9 @@ class SignalRecord(NamedTuple):
     r_dot: np.ndarray
     r_ddot: np.ndarray
     tau_sample: np.ndarray  # external torque at the sampling instants [N m]
-    tau_mid: np.ndarray  # ... at the sub-step midpoints (n * substeps)
-    noise: np.ndarray  # position noise of the sensor [rad]
+    tau_mid: np.ndarray  # ... at the sub-step midpoints (n * substeps), empty with a table
+    noise: np.ndarray  # position noise of the sensor [rad] (empty: none)
+    table: np.ndarray  # [factor, coefficients]: tau_mid evaluated by the loop (empty: sampled)
 
 
 class Outputs(NamedTuple):

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import collections
 import math
+import threading
 import warnings
 from typing import NamedTuple
 
 import numpy as np
 
-from .._signals import Signal, trajectory
+from .._signals import Constant, Ramp, Signal, SmoothStep, Step, Sum, _Trajectory, trajectory
 from .._validation import (
     ParameterTypeError,
     ParameterValueError,
@@ -16,6 +18,7 @@ from .._validation import (
     as_real_vector,
     positive,
 )
+from .._waveforms import Chirp, Noise, Sine
 from ..models import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, ExactSubsteps
 from ._derived import derived, plant_sampler, run_substeps
 from ._loop import ServoLoop, accepts_loop, controller_sources
@@ -33,6 +36,7 @@ from ._records import (
     Work,
 )
 from ._result import SimulationResult
+from ._signal_table import midpoint_table
 
 __all__ = [
     "DEFAULT_SUBSTEPS",
@@ -287,7 +291,12 @@ def check_observer_state(loop: ServoLoop, state) -> tuple:
 
 
 class SampledSignals(NamedTuple):
-    """Reference and disturbance evaluated on a run's time grids (see :func:`simulate`)."""
+    """Reference and disturbance evaluated on a run's time grids (see :func:`simulate`).
+
+    ``midpoint`` is the disturbance as a table the compiled loop evaluates at the sub-step
+    midpoints (``(form, table)`` of :func:`~hpdob.simulation._signal_table.midpoint_table`,
+    ``tau_mid`` then empty), or None: ``tau_mid`` holds its ``n * substeps`` values. The
+    midpoint values are multiplied by ``factor`` (:meth:`scaled`)."""
 
     Ts: float
     substeps: int
@@ -297,17 +306,110 @@ class SampledSignals(NamedTuple):
     r_ddot: np.ndarray
     tau_sample: np.ndarray
     tau_mid: np.ndarray
+    midpoint: tuple | None = None
+    factor: float = 1.0
+    disturbance: object = None
 
     def scaled(self, factor: float) -> SampledSignals:
         """The same signals with the disturbance multiplied by ``factor``."""
         if factor == 1.0:
             return self
-        return self._replace(tau_sample=factor * self.tau_sample, tau_mid=factor * self.tau_mid)
+        if self.midpoint is not None and self.factor != 1.0:  # f2 (f1 v), as twice in numpy
+            return self._replace(
+                tau_sample=factor * self.tau_sample, tau_mid=factor * self.midpoints(),
+                midpoint=None, factor=1.0,
+            )  # fmt: skip
+        return self._replace(
+            tau_sample=factor * self.tau_sample, tau_mid=factor * self.tau_mid,
+            factor=factor if self.midpoint is not None else 1.0,
+        )  # fmt: skip
+
+    def midpoints(self) -> np.ndarray:
+        """The disturbance at the ``n * substeps`` sub-step midpoints (sampled in numpy where
+        the compiled loop would evaluate it: a plant advanced from Python reads the array)."""
+        if self.midpoint is None:
+            return self.tau_mid
+        n, S, Ts = self.t.size, self.substeps, self.Ts
+        if self.disturbance is None:
+            values = np.zeros(n * S)
+        else:
+            t_mid = (self.t[:, None] + (np.arange(S) + 0.5) * (Ts / S)).ravel()
+            values = _disturbance(self.disturbance, t_mid)
+        return values if self.factor == 1.0 else self.factor * values
+
+
+#: Signals sampled on a time grid, by (reference, disturbance, Ts, n, substeps), for hpdob's
+#: Signals (frozen values: equal signals give equal samples); least recently used first.
+_SAMPLED: collections.OrderedDict = collections.OrderedDict()
+_SAMPLED_LOCK = threading.Lock()
+_BUILT_IN = (Constant, Step, Ramp, SmoothStep, Sine, Chirp, Noise)
+#: At most this many grids and bytes are kept (the canonical 10 s run's take 0.4 MB).
+SAMPLED_GRIDS, SAMPLED_BYTES = 16, 64 << 20
+
+
+#: The sampled arrays a result holds as its columns (t, r, r_dot, r_ddot, tau_ext).
+_COLUMNS = ("t", "r", "r_dot", "r_ddot", "tau_sample")
+
+
+def clear_sampled_signals() -> None:
+    """Forget the signals sampled on every time grid (:func:`sample_signals` samples them anew:
+    what a benchmark of a first run needs)."""
+    with _SAMPLED_LOCK:
+        _SAMPLED.clear()
+
+
+def _built_in(signal) -> bool:
+    """Whether ``signal`` is made of hpdob's own (frozen) signal classes only: a subclass
+    written elsewhere may hold state, so its samples are not kept."""
+    if type(signal) is Sum:
+        return all(_built_in(term) for _, term in signal.terms)
+    return type(signal) in _BUILT_IN
+
+
+def _grid_key(reference, disturbance, Ts, n, substeps):
+    """The cache key of a run's signals, or None unless both are hpdob's own signals (the
+    disturbance may be None)."""
+    signal = reference.signal if type(reference) is _Trajectory else reference
+    if not _built_in(signal) or not (disturbance is None or _built_in(disturbance)):
+        return None
+    return (signal, disturbance, float(Ts), int(n), int(substeps))
 
 
 def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) -> SampledSignals:
     """Evaluate ``reference`` at ``k Ts`` and ``disturbance`` at ``k Ts`` and the sub-step
-    midpoints ``k Ts + (j + 1/2) Ts / substeps``, ``0 <= k < n``, with validation."""
+    midpoints ``k Ts + (j + 1/2) Ts / substeps``, ``0 <= k < n``, with validation.
+
+    hpdob's built-in signals that the compiled loop evaluates itself
+    (:func:`~hpdob.simulation._signal_table.midpoint_table`: constants, steps, ramps, sines
+    and their sums) are not evaluated at the midpoints here: their table is kept instead.
+    hpdob's Signals are evaluated once per time grid: the read-only arrays of the last
+    :data:`SAMPLED_GRIDS` grids are kept (a repeated run, ``tune``'s candidates, a sweep's
+    scenarios of one grid) and a later call gets copies of the columns a result holds; other
+    callables are evaluated on every call.
+    """
+    key = _grid_key(reference, disturbance, Ts, n, substeps)
+    if key is not None:
+        with _SAMPLED_LOCK:
+            cached = _SAMPLED.get(key)
+            if cached is not None:
+                _SAMPLED.move_to_end(key)
+        if cached is not None:  # the columns of a result are its own: copies (a memcpy)
+            return cached._replace(**{name: getattr(cached, name).copy() for name in _COLUMNS})
+    signals = _sample_signals(reference, disturbance, Ts=Ts, n=n, substeps=substeps)
+    if key is not None:
+        arrays = [a for a in signals if isinstance(a, np.ndarray)]
+        for array in arrays:
+            array.setflags(write=False)
+        with _SAMPLED_LOCK:
+            _SAMPLED[key] = signals
+            while _SAMPLED and (len(_SAMPLED) > SAMPLED_GRIDS or sum(
+                sum(a.nbytes for a in v if isinstance(a, np.ndarray)) for v in _SAMPLED.values()
+            ) > SAMPLED_BYTES):  # fmt: skip
+                _SAMPLED.popitem(last=False)
+    return signals
+
+
+def _sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) -> SampledSignals:
     if n * substeps > MAX_PLANT_STEPS:
         raise ParameterValueError(
             f"duration/Ts * substeps = {n} * {substeps} = {n * substeps:.3g} plant steps exceeds "
@@ -317,18 +419,25 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
         )
     t = np.arange(n) * Ts
     r, r_dot, r_ddot = _reference(reference, t)
+    midpoint = None
     if disturbance is None:
-        tau_sample, tau_mid = np.zeros(n), np.zeros(n * substeps)
+        tau_sample, tau_mid = np.zeros(n), np.zeros(0)
+        midpoint = ((True, ()), np.zeros(0))  # 0.0 at every midpoint
     elif callable(disturbance):
         tau_sample = _disturbance(disturbance, t)
-        t_mid = (t[:, None] + (np.arange(substeps) + 0.5) * (Ts / substeps)).ravel()
-        tau_mid = _disturbance(disturbance, t_mid)
+        midpoint = midpoint_table(disturbance, n * Ts)
+        if midpoint is None:
+            t_mid = (t[:, None] + (np.arange(substeps) + 0.5) * (Ts / substeps)).ravel()
+            tau_mid = _disturbance(disturbance, t_mid)
+        else:
+            tau_mid = np.zeros(0)
     else:
         raise ParameterTypeError(
             "disturbance must be a callable of time (e.g. an hpdob Signal) "
             f"or None, got {type(disturbance).__name__}"
         )
-    return SampledSignals(Ts, substeps, t, r, r_dot, r_ddot, tau_sample, tau_mid)
+    return SampledSignals(Ts, substeps, t, r, r_dot, r_ddot, tau_sample, tau_mid, midpoint,
+                          1.0, disturbance)  # fmt: skip
 
 
 def _observer_record(system) -> ObserverRecord:
@@ -377,9 +486,9 @@ def _controller_record(loop) -> ControllerRecord:
 
 def _sensor_record(sensor, n: int) -> tuple[SensorRecord, np.ndarray]:
     if sensor is None:
-        return SensorRecord(SENSOR_IDEAL, 1.0), np.zeros(n)
+        return SensorRecord(SENSOR_IDEAL, 1.0), np.zeros(0)
     mode = SENSOR_ENCODER_EXACT if sensor.velocity == "exact" else SENSOR_ENCODER_DIFFERENCE
-    noise = np.zeros(n)
+    noise = np.zeros(0)  # no noise: the compiled loop reads none
     if sensor.noise_std > 0:
         seed = 0 if sensor.seed is None else sensor.seed
         noise = sensor.noise_std * np.random.default_rng(seed).standard_normal(n)
@@ -425,17 +534,31 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
         "sen": sensor,
         "act": act,
         "obs": obs,
-        "sig": SignalRecord(signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample,
-                            signals.tau_mid, noise),
-    }  # fmt: skip
+    }
     x = plant.initial_state(x0)
     nx = x.size
+    sampler = plant_sampler(plant, Ts, S)
+    compiled = isinstance(sampler, ExactSubsteps)
+    # the disturbance at the sub-step midpoints: evaluated by the compiled loop from its table
+    # (factor first), else read from the sampled array
+    midpoint = signals.midpoint if compiled else None
+    table = np.zeros(0) if midpoint is None else np.concatenate(([signals.factor], midpoint[1]))
+    records["sig"] = SignalRecord(
+        signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample,
+        signals.tau_mid if compiled else signals.midpoints(), noise, table,
+    )  # fmt: skip
+
+    def optional(present):  # an output the run records, else an empty array the loop never reads
+        return np.zeros(n) if present else np.zeros(0)
+
+    contact = not compiled or sampler.environment is not None
     out = Outputs(
-        *(np.zeros(n) for _ in range(8)),
+        *(np.zeros(n) for _ in range(7)),
+        optional(system is not None and system.has_velocity),
         np.zeros((n if nx > 2 else 0, nx)),
-        np.zeros(n),
-        np.zeros(n),
-        np.zeros(n),
+        optional(contact),
+        optional(contact),
+        optional(system is not None and "tau_reac" in system.outputs),
     )
     state = observer_state if observer_state is not None else loop.initial_observer_state(x0)
     s = np.array(state if state is not None else (), dtype=float)
@@ -443,9 +566,8 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     work = Work(s, s.copy(), np.zeros(s.size + 3), c, c.copy(),
                 np.zeros(ctl.n + ctl.p + 1 + ctl.q), np.zeros(5 + records["obs"].q),
                 np.zeros(1), x, x.copy(), np.zeros(1))  # fmt: skip
-    sampler = plant_sampler(plant, Ts, S)
     environment = getattr(plant, "environment", None)
-    if isinstance(sampler, ExactSubsteps):
+    if compiled:
         wall = sampler.environment
         record = LinearPlantRecord(
             True, sampler.path_index, sampler.velocity_index, sampler.A_h, sampler.B_h, sampler.D_h,
@@ -461,7 +583,16 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
         while done < n:  # one call without progress: the chunk is the whole run
             stop = min(n, done + chunk)
             done = _kernel.run_samples(
-                done, stop, S, Ts, record, **records, out=out, work=work, limit=DIVERGENCE_LIMIT
+                done,
+                stop,
+                S,
+                Ts,
+                record,
+                **records,
+                out=out,
+                work=work,
+                limit=DIVERGENCE_LIMIT,
+                midpoint=None if midpoint is None else midpoint[0],
             )
             if progress is not None:
                 progress(done, n)
