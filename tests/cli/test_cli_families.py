@@ -3,7 +3,7 @@
 ``tune --families`` takes the registry's family types (and the tuner's variant names).
 
 A family defined only here, registered at run time (the DOb followed by a first-order low-pass
-of its estimate, as in tests/observers/test_registered_family.py), works in both with no edit
+of its estimate, as in tests/observers/test_registry.py), works in both with no edit
 under src/; the expected values come from the library's functions on the family's own design
 function, not from the command line.
 """
