@@ -83,12 +83,12 @@ TARGETS = {
     ),
     "observers.eso": Target(
         "src/hpdob/observers/_eso.py",
-        ("tests/observers/test_realised.py", "tests/observers/test_peers.py"),
+        ("tests/observers/test_eso.py", "tests/observers/test_peers.py"),
         "eso or ESO or Eso",
     ),
     "observers.kalman": Target(
         "src/hpdob/observers/_kalman.py",
-        ("tests/observers/test_realised.py", "tests/observers/test_peers.py"),
+        ("tests/observers/test_kalman.py", "tests/observers/test_peers.py"),
         "kalman or Kalman",
     ),
     "observers.program": Target(

@@ -4,14 +4,14 @@
 13 escapes (tracebacks, warnings, internal errors) and 59 calls that were accepted although
 an argument was silently ignored or the result was wrong (an unstable Kalman filter, an ESO
 with its poles at 1, a sweep path that failed in every row). Each case below reproduces one;
-the realised-pole findings are in tests/observers/test_realised.py, the output sets of
+the realised-pole findings are in tests/observers/test_realised.py, test_eso.py and
+test_kalman.py (with this audit's ESO and Kalman cases), the output sets of
 ``hpdob estimate``/``compare``/``tune`` in tests/cli/test_atomic_outputs.py.
 """
 
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 import pytest
@@ -29,7 +29,6 @@ from hpdob import (
     tune,
 )
 from hpdob.cli import main
-from hpdob.observers import design_eso, design_kalman, kalman_process_noise
 
 MODEL = ServoModel(2.8e-4).discretize(1e-3)
 
@@ -41,45 +40,6 @@ def run_cli(capsys, *argv):
         code = exit_.code
     out, err = capsys.readouterr()
     return code, out, err
-
-
-# -- Kalman: noise levels whose variance leaves the float range; unreachable bandwidths --------
-@pytest.mark.parametrize(
-    ("name", "value", "how"),
-    [
-        ("position_noise_std", 1e-300, "underflows to 0"),
-        ("process_noise_std", 1e-300, "underflows to 0"),
-        ("position_noise_std", 1e300, "overflows"),
-        ("process_noise_std", 1e300, "overflows"),
-    ],
-)
-def test_kalman_noise_whose_variance_leaves_the_float_range(name, value, how):
-    noise = {"position_noise_std": 1e-4, "process_noise_std": 1e-3, name: value}
-    pattern = rf"^{name}={re.escape(repr(value))} is out of range: .*{how}"
-    with pytest.raises(ParameterValueError, match=pattern):
-        design_kalman(MODEL, **noise)  # 1e-300 was accepted, or warned (0/0) on the way
-
-
-@pytest.mark.parametrize(
-    ("kwargs", "pattern"),
-    [  # returned 0.0 (bandwidth 1e-300) or a q that cannot be designed (r = 1e300)
-        ({"bandwidth": 1e-300, "position_noise_std": 1e-4}, r"^bandwidth=1e-300 rad/s is not"),
-        ({"bandwidth": 100.0, "position_noise_std": 1e300}, r"^position_noise_std=1e\+300 is"),
-        ({"bandwidth": 100.0, "position_noise_std": 1e-300}, r"^position_noise_std=1e-300 is"),
-    ],
-)
-def test_kalman_process_noise_never_returns_an_unusable_value(kwargs, pattern):
-    with pytest.raises(ParameterValueError, match=pattern):
-        kalman_process_noise(MODEL, **kwargs)
-    q = kalman_process_noise(MODEL, bandwidth=1.0, position_noise_std=1e-4, order=2)
-    assert q > 0 and design_kalman(MODEL, order=2, position_noise_std=1e-4, process_noise_std=q)
-
-
-def test_eso_pole_that_rounds_to_one_is_refused():
-    # exp(-1e-20 * 1e-3) == 1.0: the ESO had every pole at 1 (not asymptotically stable)
-    assert math.exp(-1e-20 * 1e-3) == 1.0
-    with pytest.raises(ParameterValueError, match=r"^bandwidth=1e-20 rad/s is too small"):
-        design_eso(MODEL, bandwidth=1e-20)
 
 
 # -- the two-mass plant -------------------------------------------------------------------------

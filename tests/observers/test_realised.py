@@ -1,4 +1,5 @@
-"""Realised poles of the position-only family, the ESO and the Kalman observer (issue 16).
+"""Realised poles of the position-only family (issue 16; the ESO's and the Kalman observer's
+are in tests/observers/test_eso.py and test_kalman.py).
 
 As for the state-measuring family (tests/observers/test_synthesis.py), the gains rounded to
 doubles place a repeated pole of multiplicity n on a ring of radius up to ~eps^(1/n): position-
@@ -20,8 +21,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from hpdob import ExtendedStateObserver, ParameterValueError, ServoModel, design_observer
-from hpdob.observers import design_eso, design_kalman
+from hpdob import ParameterValueError, ServoModel, design_observer
 
 MODEL = ServoModel(2.8e-4).discretize(1e-3)
 mpmath = pytest.importorskip("mpmath")
@@ -141,94 +141,3 @@ def test_position_pole_tolerance_is_validated():
     loose = design_observer(MODEL, order=4, bandwidth=100.0, measurement="position",
                             pole_tolerance=0.1)  # fmt: skip  # 4.1% off, measured
     assert loose.realised_poles.shape == (7,)
-
-
-# -- ESO ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("m", range(5))
-@pytest.mark.parametrize("form", ["current", "predictive"])
-def test_eso_realised_poles_agree_with_high_precision_eigenvalues(m, form):
-    design = design_eso(MODEL, bandwidth=300.0, extended_order=m, form=form, pole_tolerance=None)
-    reference = mp_eigenvalues(design.system.F)
-    spread = np.max(np.abs(reference - np.mean(reference)))
-    assert match(design.realised_poles, reference) < 1e-9 * max(spread, 1e-6)
-
-
-@pytest.mark.parametrize(
-    ("m", "bandwidth", "realised"),
-    [  # 80-digit mpmath eigenvalues of the rounded F (Ts = 1 ms)
-        (2, 5.0, 0.995811),  # requested 0.995012
-        (1, 1.0, 0.999138),  # requested 0.999000
-        (3, 50.0, 0.954465),  # requested 0.951229
-    ],
-)
-def test_eso_designs_far_off_are_refused(m, bandwidth, realised):
-    design = design_eso(MODEL, bandwidth=bandwidth, extended_order=m, pole_tolerance=None)
-    assert np.max(np.abs(design.realised_poles)) == pytest.approx(realised, abs=2e-6)
-    with pytest.raises(ParameterValueError, match=r"an ESO of extended order .* off by"):
-        design_eso(MODEL, bandwidth=bandwidth, extended_order=m)
-    with pytest.raises(ParameterValueError, match=r"off by"):  # the runtime object too
-        ExtendedStateObserver(MODEL, bandwidth=bandwidth, extended_order=m)
-
-
-@pytest.mark.parametrize(("m", "bandwidth"), [(4, 5.0), (2, 1.0), (1, 0.01)])
-def test_unstable_esos_are_refused_even_without_a_tolerance(m, bandwidth):
-    # 80-digit eigenvalues of the rounded F: |z| = 1.0023, 1.00006, 1.00008 (all > 1)
-    assert np.max(np.abs(mp_eigenvalues(_eso_matrix(m, bandwidth)))) > 1.0
-    with pytest.raises(ParameterValueError, match=r"is not stable .* exact Schur-Cohn"):
-        design_eso(MODEL, bandwidth=bandwidth, extended_order=m, pole_tolerance=None)
-
-
-def _eso_matrix(m, bandwidth):
-    """The F of an ESO design, whatever the checks say (rebuilt from its documented formula:
-    Ackermann's gain on the ZOH chain, current form)."""
-    from hpdob.observers._eso import observer_gain, zoh
-
-    n, Ts = m + 3, MODEL.Ts
-    A_c, B_c = np.eye(n, k=1), np.zeros(n)
-    B_c[1] = 1.0 / MODEL.J
-    Phi, _ = zoh(A_c, B_c, Ts)
-    C = np.zeros((1, n))
-    C[0, 0] = 1.0
-    L_p = observer_gain(Phi, C, np.full(n, math.exp(-bandwidth * Ts)), scale=Ts ** np.arange(n))
-    L = np.linalg.solve(Phi, L_p)
-    return Phi @ (np.eye(n) - np.outer(L, C[0]))
-
-
-def test_eso_bandwidth_whose_pole_rounds_to_one_and_tolerance():
-    with pytest.raises(ParameterValueError, match=r"bandwidth=1e-20 rad/s is too small"):
-        design_eso(MODEL, bandwidth=1e-20)
-    with pytest.raises(ValueError, match=r"^pole_tolerance must be a fraction >= 0 or None"):
-        design_eso(MODEL, bandwidth=100.0, pole_tolerance=math.nan)
-
-
-@pytest.mark.parametrize("m", range(3))
-def test_eso_canonical_designs_are_accepted_unchanged(m):
-    for bandwidth in (50.0, 200.0, 1000.0):
-        design = design_eso(MODEL, bandwidth=bandwidth, extended_order=m)
-        free = design_eso(MODEL, bandwidth=bandwidth, extended_order=m, pole_tolerance=None)
-        np.testing.assert_array_equal(design.system.F, free.system.F)
-        np.testing.assert_array_equal(design.gain, free.gain)
-
-
-# -- Kalman ------------------------------------------------------------------------------------
-@pytest.mark.parametrize(
-    ("order", "r", "q", "lowest"),
-    # scipy's non-stabilising Riccati answer depends on the LAPACK build: spectral radii (80-digit
-    # mpmath eigenvalues of F) 15938.877, 1.018438, 1.064843 on one, 1.02581 and 1.06576 for the
-    # last two on another; the refusal, not the exact radius, is the invariant
-    [(2, 1e-9, 1e-4, 100.0), (3, 1e-9, 1e-8, 1.0), (4, 1e-9, 1e-12, 1.0)],
-)
-def test_kalman_designs_that_are_not_stable_are_refused(order, r, q, lowest):
-    with pytest.raises(ParameterValueError, match=r"is not stable in double precision") as info:
-        design_kalman(MODEL, order=order, position_noise_std=r, process_noise_std=q)
-    message = str(info.value)
-    assert f"position_noise_std={r!r}" in message and f"process_noise_std={q!r}" in message
-    shown = float(message.split("spectral radius about ")[1].split(",")[0])
-    assert shown > lowest
-
-
-@pytest.mark.parametrize(("order", "r", "q"), [(0, 1e-9, 1.0), (1, 1e-4, 1e4), (2, 1e-9, 1.0)])
-def test_kalman_designs_close_to_the_unit_circle_stay_accepted(order, r, q):
-    design = design_kalman(MODEL, order=order, position_noise_std=r, process_noise_std=q)
-    radius = np.max(np.abs(mp_eigenvalues(design.system.F)))
-    assert 0.9999 < radius < 1.0  # measured: 0.99999993, 0.99991, 0.9999989

@@ -29,29 +29,96 @@ CANONICAL = ROOT / "examples" / "canonical_hpdob.toml"
 
 
 def test_the_shipped_plant_types():
-    assert list(plant_types()) == ["rigid", "two-mass", "mujoco", "two-link-arm", "mujoco-arm"]
+    import hpdob.robots  # noqa: F401  # registers the arm types (registration from above)
+
+    assert list(plant_types())[:3] == ["rigid", "two-mass", "mujoco"]
+    assert {"two-link-arm", "mujoco-arm"} <= set(plant_types())
     assert [n for n, t in plant_types().items() if t.scenario is not None] == [
         "two-link-arm", "mujoco-arm"
     ]  # fmt: skip
 
 
-def test_the_arm_types_register_when_a_lookup_needs_them():
-    """A fresh interpreter that never imports hpdob.robots still finds "mujoco-arm" (the lookup
-    imports the providers), and importing hpdob.simulation alone does not import robots."""
-    code = (
-        "import sys; from hpdob.simulation import get_plant_type; "
-        "assert 'hpdob.robots' not in sys.modules; "
-        "print(get_plant_type('mujoco-arm').description); "
-        "assert 'hpdob.robots' in sys.modules"
-    )
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+def _run_python(code: str, *path) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([*map(str, path), str(ROOT / "src")])}
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
                           timeout=120, check=False)  # fmt: skip
+
+
+def _distribution(where: Path, name: str, entry_points: dict) -> Path:
+    """An installed distribution's metadata (what ``pip install`` writes), found on sys.path."""
+    info = where / f"{name}-0.1.0.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: 0.1.0\n")
+    lines = [f"[{group}]\n" + "".join(f"{k} = {v}\n" for k, v in eps.items())
+             for group, eps in entry_points.items()]  # fmt: skip
+    (info / "entry_points.txt").write_text("\n".join(lines))
+    return where
+
+
+def test_an_arm_file_loads_after_import_hpdob_alone(tmp_path):
+    """Issue 20: hpdob.simulation names no package above it; the arm types reach a fresh
+    interpreter through the entry points pyproject.toml declares (here the metadata an install
+    of this checkout writes, ahead of the shared environment's on sys.path)."""
+    declared = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["entry-points"]
+    assert declared["hpdob.plant_types"] == {"robots": "hpdob.robots"}
+    site = _distribution(tmp_path / "site", "hpdob", declared)
+    code = (
+        "import sys, hpdob; from hpdob.simulation import load_scenario; "
+        "assert 'hpdob.robots' not in sys.modules; "
+        f"s = load_scenario({str(ROOT / 'examples' / 'two_link_observers.toml')!r}); "
+        "assert 'hpdob.robots' in sys.modules; print(type(s).__name__, type(s.loop).__name__)"
+    )
+    done = _run_python(code, site)
     assert done.returncode == 0, done.stderr[-2000:]
-    assert "MujocoArm" in done.stdout
+    assert done.stdout.split() == ["ArmScenario", "ArmLoop"]
+    assert not re.search(r"importlib\.import_module|PROVIDERS", (ROOT / "src" / "hpdob" /
+                         "simulation" / "_plant_types.py").read_text())  # fmt: skip
+
+
+def test_a_plugin_registers_a_plant_type_through_an_entry_point(tmp_path):
+    """A package of the user's declares a PlantType in the group hpdob.plant_types."""
+    site = _distribution(tmp_path / "site", "heavy_plugin",
+                         {"hpdob.plant_types": {"heavy": "heavy_plugin:HEAVY"}})  # fmt: skip
+    (site / "heavy_plugin.py").write_text(
+        "from hpdob import ServoModel\nfrom hpdob.simulation import PlantType\n"
+        "HEAVY = PlantType('heavy', lambda t, where, base: ServoModel(J=2 * t['J']))\n"
+    )
+    text = re.sub(r"^\[plant\].*$", '[plant]\ntype = "heavy"', CANONICAL.read_text(),
+                  count=1, flags=re.M)  # fmt: skip
+    (tmp_path / "heavy.toml").write_text(text)
+    code = (
+        "from hpdob.simulation import load_scenario; "
+        f"print(load_scenario({str(tmp_path / 'heavy.toml')!r}).loop.plant.J / "
+        f"load_scenario({str(CANONICAL)!r}).loop.plant.J)"
+    )
+    done = _run_python(code, site)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert float(done.stdout) == 2.0
+
+
+def test_without_the_entry_points_the_message_says_to_import_hpdob_robots():
+    """A source tree on PYTHONPATH whose install metadata is stale: the lookup cannot find the
+    arm types, and says how to get them."""
+    code = (
+        "import importlib.metadata as m; m.entry_points = lambda **kw: []; "
+        "from hpdob.simulation import get_plant_type\n"
+        "try:\n    get_plant_type('two-link-arm')\n"
+        "except ValueError as err:\n    print(err)\n"
+        "import hpdob.robots\nprint(get_plant_type('two-link-arm').name)"
+    )
+    done = _run_python(code)
+    assert done.returncode == 0, done.stderr[-2000:]
+    message, name = done.stdout.strip().splitlines()
+    assert message == (
+        "plant.type must be one of 'rigid', 'two-mass', 'mujoco'; got 'two-link-arm' (the arm "
+        "types register when hpdob.robots is imported: import hpdob.robots)"
+    )
+    assert name == "two-link-arm"
 
 
 def test_an_unknown_type_is_refused_naming_every_registered_one():
+    import hpdob.robots  # noqa: F401  # registers the arm types
+
     with pytest.raises(ParameterValueError) as info:
         get_plant_type("three-link")
     message = str(info.value)

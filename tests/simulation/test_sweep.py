@@ -15,6 +15,7 @@ import pytest
 
 from hpdob import (
     DisturbanceObserver,
+    ServoLoop,
     ServoModel,
     SimulationDivergedWarning,
     design_observer,
@@ -173,6 +174,55 @@ def test_missing_base_key():
     del b["plant"]
     with pytest.raises(ValueError, match=r"^base is missing the required key 'plant'"):
         sweep(b, progress=False)
+
+
+def _loop_of(b):
+    return ServoLoop(**{k: b[k] for k in ("plant", "nominal", "Ts", "controller", "observer")})
+
+
+def test_a_servo_loop_base_gives_the_rows_of_its_dict_form():
+    # Issue 20: sweep takes a ServoLoop, the run settings given as simulate() takes them.
+    b = base(1.5)
+    loop = _loop_of(b)
+    run = {k: b[k] for k in ("duration", "reference", "disturbance")}
+    grid = {"observer.order": [0, 1], "plant.J": [2.5e-4, 3.5e-4]}
+    by_loop = sweep(loop, grid=grid, **run, substeps=2, progress=False)
+    by_dict = sweep({"loop": loop, **run, "substeps": 2}, grid=grid, progress=False)
+    pd.testing.assert_frame_equal(by_loop, by_dict)
+    assert by_loop["stable"].all()
+    assert not by_loop["rms_position_error_regulation"].isna().any()  # tracking starts at 4 s
+
+
+@pytest.mark.parametrize(
+    ("call", "exc", "pattern"),
+    [
+        (
+            lambda loop, b: sweep(loop, progress=False, reference=b["reference"]),
+            ValueError,
+            r"^duration is required with a ServoLoop base: sweep\(loop, grid=\.\.\., duration=",
+        ),
+        (
+            lambda loop, b: sweep(loop, progress=False, duration=1.0),
+            ValueError,
+            r"^reference is required with a ServoLoop base",
+        ),
+        (
+            lambda loop, b: sweep(b, progress=False, duration=1.0),
+            ValueError,
+            r"^duration is a keyword of sweep\(loop, \.\.\.\) with a ServoLoop base only, got "
+            r"duration=1.0 with a dict base",
+        ),
+        (
+            lambda loop, b: sweep(1.0, progress=False),
+            TypeError,
+            r"^base must be a ServoLoop, a Scenario or a dict of simulate\(\) arguments, got float",
+        ),
+    ],
+)
+def test_servo_loop_base_errors(call, exc, pattern):
+    b = base(1.0)
+    with pytest.raises(exc, match=pattern):
+        call(_loop_of(b), b)
 
 
 @pytest.mark.timeout(120)

@@ -23,6 +23,7 @@ from .._interrupts import (
     handling_signals,
     received,
 )
+from .._plugins import load_plugins
 from .._version import __version__
 from ._errors import CLIError
 
@@ -114,6 +115,7 @@ def main(argv: list[str] | None = None) -> int:
         try:
             try:
                 checkpoint("startup")  # a test hook (hpdob._interrupts); no-op otherwise
+                load_plugins()  # HPDOB_PLUGINS and hpdob.families: their families' options
                 parser = build_parser()
                 args = parser.parse_args(argv)
                 command = f"hpdob {args.command}"

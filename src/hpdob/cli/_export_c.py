@@ -103,6 +103,7 @@ _OUTPUT_OPTIONS = ("scenario", "prefix", "dtype", "nan_guard", "out", *_RANGES)
 
 def _scenario_design(args: argparse.Namespace):
     """The observer of ``--scenario FILE`` (its RTOB composition, if it has one)."""
+    from .. import robots  # noqa: F401  # registers the arm plant types (registration from above)
     from .._validation import ParameterTypeError, ParameterValueError
     from ..simulation import ServoLoop, load_scenario
     from ._errors import CLIError

@@ -69,6 +69,7 @@ def register(subparsers) -> None:
 
 def _scenario(args):
     """The scenario's simulate() arguments and metric windows, with the command's overrides."""
+    from .. import robots  # noqa: F401  # registers the arm plant types (registration from above)
     from ..simulation import metric_windows, read_toml, scenario_from_dict
     from ._errors import CLIError
 

@@ -72,6 +72,7 @@ def partial_path(out: Path) -> Path:
 
 
 def _run(args: argparse.Namespace) -> int:
+    from .. import robots  # noqa: F401  # registers the arm plant types (registration from above)
     from .._interrupts import Interrupted, acknowledge
     from ..simulation import SweepIncomplete, SweepInterrupted, load_sweep, sweep
 

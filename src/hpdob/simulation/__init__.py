@@ -7,7 +7,7 @@ ServoLoop, LOOP_KEYS
 Encoder, Actuator
     Sensor and actuator models (the controllers are in :mod:`hpdob.controllers`).
 simulate, SimulationResult, SimulationDivergedWarning
-    One closed-loop run (continuous plant, sampled PD, observer inner loop).
+    One closed-loop run (continuous plant, sampled controller, observer inner loop).
 load_scenario, Scenario, scenario_toml
     A TOML scenario file read into a :class:`ServoLoop` and the run settings, and written from a
     loop and a run.

@@ -44,8 +44,9 @@ _PLANTS = "a ServoModel, a TwoMassServo or a MujocoServo (an hpdob Plant)"
 class ServoLoop:
     r"""The sampled-data position loop of the paper's section IV, as one validated value.
 
-    Plant (continuous, with friction), sampled PD outer loop on the nominal model, an optional
-    disturbance observer in the inner loop, sensor and actuator. Simulation
+    Plant (continuous, with friction), a sampled controller of the
+    :class:`~hpdob.controllers.Controller` protocol (PD, PID, ADRC, ...) on the nominal model,
+    an optional disturbance observer in the inner loop, sensor and actuator. Simulation
     (:func:`hpdob.simulate`, :func:`hpdob.sweep`) and every analysis view
     (:func:`hpdob.closed_loop`, :func:`hpdob.closed_loop_poles`, :func:`hpdob.gang_of_four`,
     :func:`hpdob.loop_transfer`, :func:`hpdob.loop_margins`, :func:`hpdob.noise_gains`) take it

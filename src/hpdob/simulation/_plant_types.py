@@ -5,21 +5,23 @@ single-axis :class:`~hpdob.ServoLoop` does not run, how the whole file becomes a
 its own loop. :func:`~hpdob.simulation.load_scenario` and ``hpdob simulate`` look the type up
 here instead of listing the types. The single-axis types (``"rigid"``, ``"two-mass"``,
 ``"mujoco"``) are registered by this package; a package above it registers its own when it
-is imported (``hpdob.robots``: ``"two-link-arm"``, ``"mujoco-arm"``), and a lookup of a type
-not yet registered first imports the packages of :data:`PROVIDERS` (by name: the dependency
-order of the subpackages holds, ``hpdob.simulation`` never imports them in its code).
+is imported (``hpdob.robots``: ``"two-link-arm"``, ``"mujoco-arm"``; the ``hpdob`` command
+imports it). Plugins -- ``hpdob.robots`` among them -- are also found through the standard
+entry points of the group ``hpdob.plant_types`` (``[project.entry-points."hpdob.plant_types"]``
+in a ``pyproject.toml``), loaded on the first lookup of a type not registered yet: this package
+names no package above it, so the dependency order of the subpackages holds.
 """
 
 from __future__ import annotations
 
-import importlib
+import importlib.metadata
 from collections.abc import Callable
 from dataclasses import dataclass
 
 from .._validation import ParameterTypeError, ParameterValueError
 
 __all__ = [
-    "PROVIDERS",
+    "ENTRY_POINT_GROUP",
     "PlantType",
     "get_plant_type",
     "plant_types",
@@ -27,9 +29,13 @@ __all__ = [
     "unregister_plant_type",
 ]
 
-#: Packages that register plant types when imported (imported on the first lookup of a type
-#: that is not registered yet, so that a scenario file works without importing them first).
-PROVIDERS = ("hpdob.robots",)
+#: The entry-point group of plant-type plugins: each entry point names a module (importing it
+#: registers its types) or a :class:`PlantType` (registered as it is).
+ENTRY_POINT_GROUP = "hpdob.plant_types"
+
+#: Added to the message of an unknown type while hpdob.robots is not imported (an install
+#: whose entry points are stale, or a source tree on PYTHONPATH without its metadata).
+_ROBOTS_HINT = " (the arm types register when hpdob.robots is imported: import hpdob.robots)"
 
 
 @dataclass(frozen=True)
@@ -131,23 +137,31 @@ def unregister_plant_type(name: str) -> None:
     del _REGISTRY[name]
 
 
-def _load_providers() -> None:
-    for module in PROVIDERS:
-        try:
-            importlib.import_module(module)
-        except ImportError:  # pragma: no cover - a provider that cannot load offers nothing
+_LOADED: set[str] = set()  # the entry points loaded already (each once per process)
+
+
+def _load_plugins() -> None:
+    for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        if entry.value in _LOADED:
             continue
+        _LOADED.add(entry.value)
+        try:
+            value = entry.load()  # importing a plugin module registers its types
+        except ImportError:  # a plugin that cannot load (a missing dependency) offers nothing
+            continue
+        if isinstance(value, PlantType) and _REGISTRY.get(value.name) is not value:
+            register_plant_type(value)
 
 
 def plant_types() -> dict:
-    """The registered plant types, the providers' included.
+    """The registered plant types, those of the entry points' plugins included.
 
     Returns
     -------
     dict
         ``type`` value -> :class:`PlantType`, in registration order.
     """
-    _load_providers()
+    _load_plugins()
     return dict(_REGISTRY)
 
 
@@ -172,7 +186,12 @@ def get_plant_type(name, where: str = "plant.type") -> PlantType:
     """
     if isinstance(name, str) and name in _REGISTRY:
         return _REGISTRY[name]
-    names = plant_types()  # the providers' types register on their import
+    names = plant_types()  # the plugins' types register on their import
     if isinstance(name, str) and name in names:
         return names[name]
-    raise ParameterValueError(f"{where} must be one of {', '.join(map(repr, names))}; got {name!r}")
+    import sys
+
+    hint = "" if "hpdob.robots" in sys.modules else _ROBOTS_HINT
+    raise ParameterValueError(
+        f"{where} must be one of {', '.join(map(repr, names))}; got {name!r}{hint}"
+    )

@@ -38,6 +38,7 @@ from ._derived import frozen, run_substeps
 from ._force_run import force_run_columns, force_run_metrics, position_metrics_apply
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
+from ._scenario import Scenario
 from ._simulate import check_run_arguments, run_loop, sample_count, sample_signals
 from ._sweep_dask import SweepIncomplete, SweepInterrupted, _Incomplete, _run_dask, resumed_rows
 from ._sweep_spec import check_paths_apply, expand_scenarios, replaced_plant
@@ -75,14 +76,34 @@ def _observer_parts(observer):
     return None, observer
 
 
-def _resolve_base(base, *, varies_Ts: bool = False) -> dict:
-    from ._scenario import Scenario
-
+def _base_dict(base, run: dict):
+    """The dict form of ``base``; ``run`` holds the run settings given beside a ServoLoop."""
+    given = {k: v for k, v in run.items() if v is not None}
+    if isinstance(base, ServoLoop):  # like simulate(loop, reference=..., duration=...)
+        missing = [k for k in ("duration", "reference") if k not in given]
+        if missing:
+            raise ParameterValueError(
+                f"{missing[0]} is required with a ServoLoop base: "
+                f"sweep(loop, grid=..., duration=..., reference=...), got None"
+            )
+        return {"loop": base, **given}
+    if given:
+        name = next(iter(given))
+        raise ParameterValueError(
+            f"{name} is a keyword of sweep(loop, ...) with a ServoLoop base only, got {name}="
+            f"{given[name]!r} with a {type(base).__name__} base: put it in the base instead"
+        )
     if isinstance(base, Scenario):  # a loop and its run settings (load_scenario)
-        base = {"loop": base.loop, **{k: v for k, v in base.run.items() if k != "label"}}
+        return {"loop": base.loop, **{k: v for k, v in base.run.items() if k != "label"}}
+    return base
+
+
+def _resolve_base(base, *, varies_Ts: bool = False, run: dict | None = None) -> dict:
+    base = _base_dict(base, run or {})
     if not isinstance(base, dict):
         raise ParameterTypeError(
-            f"base must be a dict of simulate() arguments, got {type(base).__name__}"
+            "base must be a ServoLoop, a Scenario or a dict of simulate() arguments, got "
+            f"{type(base).__name__}"
         )
     check_keys(base, SIMULATE_KEYS, "base")
     if "loop" in base:
@@ -442,9 +463,14 @@ def _workers_and_mode(scheduler):
 
 
 def sweep(
-    base: dict,
+    base: ServoLoop | Scenario | dict,
     *,
     grid=None,
+    duration=None,
+    reference=None,
+    disturbance=None,
+    substeps=None,
+    x0=None,
     vary=None,
     n=None,
     seed=0,
@@ -457,17 +483,20 @@ def sweep(
 
     Parameters
     ----------
-    base : dict or Scenario
-        What the scenarios share: a :class:`~hpdob.simulation.Scenario` (a loop and its run
-        settings, as :func:`~hpdob.simulation.load_scenario` reads them), or a dict of
-        ``loop`` (a :class:`~hpdob.ServoLoop`) or the loop's keyword
-        arguments (``plant``, ``nominal``, ``Ts``, ``controller``, ``observer``, ``sensor``,
-        ``actuator``), and the keyword arguments of :func:`hpdob.simulate` (``duration``,
-        ``reference``, ``disturbance``, ``substeps``, ``x0``). The observer may be a dict of
-        design arguments (``order``, ``bandwidth`` or ``poles``, ``measurement``,
-        ``velocity_bandwidth``, ``gain_direction``; see :func:`hpdob.design_observer`), built per
-        scenario on ``nominal.discretize(Ts)`` and started at ``x0`` with ``tau0 = 0``; a
-        design of a known family is turned into such a dict, any other observer is used as
+    base : ServoLoop, Scenario or dict
+        What the scenarios share: a :class:`~hpdob.ServoLoop` (``sweep(loop, grid=...,
+        duration=..., reference=...)``, the run settings given as :func:`hpdob.simulate`
+        takes them), a
+        :class:`~hpdob.simulation.Scenario` (a loop and its run settings, as
+        :func:`~hpdob.simulation.load_scenario` reads them), or a dict of ``loop`` (a
+        :class:`~hpdob.ServoLoop`) or the loop's keyword arguments (``plant``, ``nominal``,
+        ``Ts``, ``controller``, ``observer``, ``sensor``, ``actuator``), and the keyword
+        arguments of :func:`hpdob.simulate` (``duration``, ``reference``, ``disturbance``,
+        ``substeps``, ``x0``). The observer may be a spec of any registered family
+        (``{"type": "eso", "bandwidth": 150.0}``; the DOb's ``order``, ``bandwidth`` or
+        ``poles``, ``measurement``, ...; see :func:`hpdob.observers.register_family`), built
+        per scenario on ``nominal.discretize(Ts)`` and started at ``x0`` with ``tau0 = 0``; a
+        design of a registered family is turned into its spec, any other observer is used as
         it is (and then ``nominal``, ``Ts`` and ``observer.*`` cannot vary).
     grid : dict, optional
         Dotted path -> list of values; the scenarios are their Cartesian product. Paths:
@@ -486,6 +515,10 @@ def sweep(
         ``controller.time_constant``, ``controller.tracking_time``, ``controller.bandwidth``,
         ``controller.observer_bandwidth`` (the parameters of the base's controller, through
         its constructor), ``Ts``, ``disturbance_scale`` (multiplies the disturbance).
+    duration, reference, disturbance, substeps, x0 : optional
+        The run settings of every scenario, as :func:`hpdob.simulate` takes them, with a
+        :class:`~hpdob.ServoLoop` base only (``duration`` and ``reference`` then required); a
+        dict or :class:`~hpdob.simulation.Scenario` base holds them itself.
     vary : dict, optional
         Path -> ``("uniform", low, high)``, ``("normal", mean, std)`` or
         ``("loguniform", low, high)``; ``n`` draws per grid point.
@@ -551,6 +584,17 @@ def sweep(
     >>> rows = sweep(base, grid={"observer.order": [0, 1]}, progress=False)
     >>> rows[["observer.order", "stable"]].to_dict("records")
     [{'observer.order': 0, 'stable': True}, {'observer.order': 1, 'stable': True}]
+
+    The same sweep from a :class:`~hpdob.ServoLoop`:
+
+    >>> from hpdob import ServoLoop
+    >>> loop = ServoLoop(**{k: v for k, v in base.items() if k in ("plant", "nominal", "Ts",
+    ...                     "controller", "observer")})
+    >>> rows2 = sweep(loop, grid={"observer.order": [0, 1]}, duration=2.0,
+    ...               reference=base["reference"], disturbance=base["disturbance"],
+    ...               progress=False)
+    >>> rows2.equals(rows)
+    True
     """
     try:
         import pandas as pd
@@ -559,7 +603,9 @@ def sweep(
             "hpdob.sweep returns a pandas DataFrame: pip install 'hpdob[sweep]'"
         ) from err
     varies_Ts = "Ts" in (grid or {}) or "Ts" in (vary or {})
-    resolved = _resolve_base(base, varies_Ts=varies_Ts)
+    run = {"duration": duration, "reference": reference, "disturbance": disturbance}
+    run |= {"substeps": substeps, "x0": x0}
+    resolved = _resolve_base(base, varies_Ts=varies_Ts, run=run)
     resolved["metric_windows"] = _metric_windows(metric_windows)
     scenarios = expand_scenarios(grid, vary, n, seed)
     workers, mode = _workers_and_mode(scheduler)

@@ -4,13 +4,17 @@ observers by name -- with no edit under src/ (issue 20, section 1).
 The family: the paper's order-m DOb followed by a first-order low-pass of its estimate,
 ``tau_f[k+1] = a tau_f[k] + (1 - a) tau_hat[k]`` with ``a = exp(-filter_bandwidth Ts)``,
 built from the DOb's F, G, H, E, N by hand (as tests/observers/test_system.py does for one design).
+The docs' table of families is the registry's (docs/architecture.md; moved here from
+tests/observers/test_registry_docs.py).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -324,3 +328,22 @@ def test_export_c_of_a_design_of_the_family(registered, tmp_path):
         assert library.lp_estimate(state, *args) == estimate(design, s, (theta, omega))
         library.lp_update(state, *args, ctypes.c_double(u))
         s = update(design, s, (theta, omega), u)
+
+
+DOCS_TABLE = Path(__file__).parents[2] / "docs" / "architecture.md"
+
+
+def test_the_architecture_table_lists_every_registered_family():
+    rows = {}
+    for line in DOCS_TABLE.read_text().splitlines():
+        m = re.match(r"^\| `(\w+)` \| (.+?) \| (.+?) \| `(\w+|None)` \| `(\w+)` \|$", line)
+        if m:
+            rows[m.group(1)] = m.groups()[1:]
+    assert set(rows) == {f.name for f in families()}
+    for f in families():
+        title, params, order, tuned = rows[f.name]
+        assert title == f.title
+        names = re.findall(r"`(\w+)`", params)
+        assert names == list(f.keys)
+        assert re.findall(r"\*\*`(\w+)`\*\*", params) == [k for k in f.keys if k in f.required]
+        assert (order, tuned) == (str(f.order), f.tuned)
