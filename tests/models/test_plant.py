@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from hpdob import PD, ServoLoop, ServoModel, simulate
+from hpdob import PD, Actuator, ServoLoop, ServoModel, simulate
 from hpdob.models import ExactSubsteps, Plant
 from hpdob.signals import Step
 
@@ -105,13 +105,17 @@ def test_generic_path_is_exact_zoh(on_load):
     np.testing.assert_allclose(run.omega, omega, rtol=1e-10, atol=1e-12)
 
 
-def test_generic_path_runs_the_rigid_servo_like_its_own_path():
-    """Near rest (tanh far from saturated) the generic and the rigid path agree to rounding."""
+@pytest.mark.parametrize("delay", [0, 2])
+def test_generic_path_runs_the_rigid_servo_like_its_own_path(delay):
+    """Near rest (tanh far from saturated) the generic and the rigid path agree to rounding,
+    also with the command applied ``delay`` samples late (the generated generic loop's
+    ``u[k - delay]`` mutated to ``u[k ^ delay]`` survived with no delay: docs/testing.md)."""
     plant = ServoModel(3.06e-4, 5e-5, coulomb=0.01, coulomb_velocity=0.05)
     generic = GenericRigidServo(3.06e-4, 5e-5, coulomb=0.01, coulomb_velocity=0.05)
     runs = []
     for p in (plant, generic):
-        loop = ServoLoop(plant=p, nominal=ServoModel(2.8e-4), Ts=TS, controller=PD(50.0, 5.0))
+        loop = ServoLoop(plant=p, nominal=ServoModel(2.8e-4), Ts=TS, controller=PD(50.0, 5.0),
+                         actuator=Actuator(delay_samples=delay))  # fmt: skip
         runs.append(simulate(loop, reference=lambda t: (0.1 * np.sin(t), 0.1 * np.cos(t),
                                                         -0.1 * np.sin(t)),
                              disturbance=Step(0.2, 0.002), duration=0.5))  # fmt: skip

@@ -131,3 +131,37 @@ def test_compiled_equals_plain_python(tmp_path):
     for name in plain.files:
         np.testing.assert_array_equal(getattr(compiled, name), plain[name], err_msg=name)
     assert Path(out).exists()
+
+
+def test_a_loop_file_overrides_the_generated_loop_only_under_the_mutation_variable(
+    tmp_path, monkeypatch
+):
+    """benchmarks/mutation_kernel.py's override: unset, or set to a directory without a file
+    for the structure, the generated loop runs; with ``<loop_key>.py`` there, that file's loop
+    runs, compiled from memory (nothing written to the cache directory)."""
+    from hpdob._generated import cache_directory
+    from hpdob.simulation import _kernel
+
+    kw = {**paper.scenario(), "observer": paper.observer("HPDOb-100").design, "duration": 0.02}
+    structure = _canonical_structure(duration=0.02)
+    source = _kernel.loop_source(structure)
+    assert source.count("tau_hat[k] = est\n") == 1
+    mutated = source.replace("tau_hat[k] = est\n", "tau_hat[k] = est + 1.0\n")  # recorded only
+    monkeypatch.delenv(_kernel.OVERRIDE_VARIABLE, raising=False)
+    try:
+        _kernel.sample_loop.cache_clear()
+        generated = simulate(**kw).tau_hat
+        monkeypatch.setenv(_kernel.OVERRIDE_VARIABLE, str(tmp_path))
+        _kernel.sample_loop.cache_clear()
+        np.testing.assert_array_equal(simulate(**kw).tau_hat, generated)  # no file: inert
+        (tmp_path / f"{_kernel.loop_key(structure)}.py").write_text(mutated, encoding="utf-8")
+        _kernel.sample_loop.cache_clear()
+        np.testing.assert_array_equal(simulate(**kw).tau_hat, generated + 1.0)
+        kept = [p for p in cache_directory("sample-loops").glob("hpdob_loop_*.py")
+                if p.read_text(encoding="utf-8") == mutated]  # fmt: skip
+        assert kept == []
+        monkeypatch.delenv(_kernel.OVERRIDE_VARIABLE)
+        _kernel.sample_loop.cache_clear()
+        np.testing.assert_array_equal(simulate(**kw).tau_hat, generated)
+    finally:
+        _kernel.sample_loop.cache_clear()

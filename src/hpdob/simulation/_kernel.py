@@ -79,6 +79,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import inspect
+import os
 import re
 import sys
 from pathlib import Path
@@ -101,6 +102,7 @@ from ._signal_table import midpoint_source
 __all__ = [
     "contact_torque",
     "ground_truth",
+    "loop_key",
     "loop_source",
     "loop_structure",
     "program_row",
@@ -604,17 +606,36 @@ def _digest() -> str:
     return hashlib.sha256(text).hexdigest()[:16]
 
 
+#: For mutation testing only (``benchmarks/mutation_kernel.py``): a directory of loop sources
+#: named ``<loop_key(structure)>.py``; a structure with a file there runs that file's loop,
+#: compiled from memory (no on-disk cache, so a mutated file is always compiled anew). Unset,
+#: or without a file for the structure, nothing changes.
+OVERRIDE_VARIABLE = "HPDOB_MUTATION_LOOPS"
+
+
+def loop_key(structure: tuple) -> str:
+    """A name for ``structure`` (:func:`loop_structure`) stable across processes."""
+    return hashlib.sha256(repr(structure).encode()).hexdigest()[:16]
+
+
 @functools.lru_cache(maxsize=256)
 def sample_loop(structure: tuple):
     """The compiled sample loop of ``structure`` (:func:`loop_structure`) and the record
     fields it takes after ``k_start, k_stop, substeps, Ts, limit`` (``(record, field)`` pairs,
     :data:`PARAMETERS`): generated and compiled once per structure and process, its machine
-    code cached on disk by numba."""
-    source = loop_source(structure)
+    code cached on disk by numba (or read from :data:`OVERRIDE_VARIABLE`'s directory)."""
+    directory = os.environ.get(OVERRIDE_VARIABLE)
+    override = Path(directory, f"{loop_key(structure)}.py") if directory else None
+    if override is not None and override.is_file():
+        source = override.read_text(encoding="utf-8")
+    else:
+        override, source = None, loop_source(structure)
     signature = next(line for line in source.splitlines() if line.startswith("def run("))
     names = signature[len("def run(") : -len("):")].split(", ")[5:]
     where = {name: (record, field) for name, record, field in PARAMETERS}
-    kernel = compiled_function(source, kind="sample-loops", prefix="hpdob_loop_")
+    kernel = compiled_function(
+        source, kind="sample-loops", prefix="hpdob_loop_", cache=override is None
+    )
     return kernel, tuple(where[name] for name in names)
 
 
