@@ -14,31 +14,24 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+from observer_tools import (
+    B_N,
+    J_N,
+    MODEL,
+    RIGID_MODEL,
+    TS,
+    match,
+    mp_eigenvalues,
+    run_observer,
+    trace,
+)
 
 from hpdob import (
     ExtendedStateObserver,
     Observer,
     ParameterValueError,
-    ServoModel,
 )
 from hpdob.observers import design_eso
-
-TS = 1e-3
-J_N, B_N = 2.8e-4, 2e-5
-MODEL = ServoModel(J_N, B_N).discretize(TS)
-
-
-def trace(rng, n=600):
-    return np.cumsum(rng.normal(scale=2e-3, size=n)), rng.normal(scale=0.05, size=n)
-
-
-def run_observer(obs, theta, u):
-    tau, omega = [], []
-    for th, uk in zip(theta.tolist(), u.tolist(), strict=True):
-        tau.append(obs.estimate(th))
-        omega.append(obs.velocity)
-        obs.update(th, uk)
-    return np.array(tau), np.array(omega)
 
 
 # -- ESO ----------------------------------------------------------------------------------------
@@ -126,27 +119,6 @@ def literal_eso_m1(theta, u, g, form):
     Lp = np.array([float(v) for v in exact_solve(matrix, target[1:])])
     L = np.linalg.solve(Phi, Lp)
     return run_literal_eso(Phi, Gamma, L, Lp, theta, u, form)
-
-
-RIGID_MODEL = ServoModel(2.8e-4).discretize(1e-3)
-mpmath = pytest.importorskip("mpmath")
-
-
-def mp_eigenvalues(F, digits=80) -> np.ndarray:
-    """Eigenvalues of the double matrix ``F`` (every entry at its exact value) by mpmath."""
-    with mpmath.workdps(digits):
-        matrix = mpmath.matrix([[mpmath.mpf(float(v)) for v in row] for row in np.asarray(F)])
-        return np.array([complex(e) for e in mpmath.eig(matrix, left=False, right=False)])
-
-
-def match(found, reference) -> float:
-    """Largest distance between the two multisets of roots, paired greedily."""
-    left = list(reference)
-    worst = 0.0
-    for z in found:
-        i = int(np.argmin([abs(z - r) for r in left]))
-        worst = max(worst, abs(z - left.pop(i)))
-    return worst
 
 
 @pytest.mark.parametrize("form", ["current", "predictive"])

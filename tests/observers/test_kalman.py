@@ -14,35 +14,14 @@ import re
 
 import numpy as np
 import pytest
+from observer_tools import MODEL, RIGID_MODEL, mp_eigenvalues, trace
 
 from hpdob import (
     KalmanDisturbanceObserver,
     ParameterValueError,
-    ServoModel,
     estimation_response,
 )
 from hpdob.observers import design_kalman, kalman_process_noise
-
-TS = 1e-3
-J_N, B_N = 2.8e-4, 2e-5
-
-
-MODEL = ServoModel(J_N, B_N).discretize(TS)
-
-
-def trace(rng, n=600):
-    return np.cumsum(rng.normal(scale=2e-3, size=n)), rng.normal(scale=0.05, size=n)
-
-
-RIGID_MODEL = ServoModel(2.8e-4).discretize(1e-3)
-mpmath = pytest.importorskip("mpmath")
-
-
-def mp_eigenvalues(F, digits=80) -> np.ndarray:
-    """Eigenvalues of the double matrix ``F`` (every entry at its exact value) by mpmath."""
-    with mpmath.workdps(digits):
-        matrix = mpmath.matrix([[mpmath.mpf(float(v)) for v in row] for row in np.asarray(F)])
-        return np.array([complex(e) for e in mpmath.eig(matrix, left=False, right=False)])
 
 
 # -- Kalman -------------------------------------------------------------------------------------

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from observer_tools import MODEL, TS, run_observer, trace
 
 from hpdob import (
     Encoder,
@@ -28,23 +29,6 @@ from hpdob import (
 )
 from hpdob.observers import ESODesign, design_eso, design_kalman, kalman_process_noise
 from hpdob.testing import CObserver, find_compiler
-
-TS = 1e-3
-J_N, B_N = 2.8e-4, 2e-5
-MODEL = ServoModel(J_N, B_N).discretize(TS)
-
-
-def trace(rng, n=600):
-    return np.cumsum(rng.normal(scale=2e-3, size=n)), rng.normal(scale=0.05, size=n)
-
-
-def run_observer(obs, theta, u):
-    tau, omega = [], []
-    for th, uk in zip(theta.tolist(), u.tolist(), strict=True):
-        tau.append(obs.estimate(th))
-        omega.append(obs.velocity)
-        obs.update(th, uk)
-    return np.array(tau), np.array(omega)
 
 
 # -- the same loop and tools --------------------------------------------------------------------

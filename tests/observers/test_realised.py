@@ -20,28 +20,10 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
+from observer_tools import RIGID_MODEL as MODEL
+from observer_tools import match, mp_eigenvalues
 
 from hpdob import ParameterValueError, ServoModel, design_observer
-
-MODEL = ServoModel(2.8e-4).discretize(1e-3)
-mpmath = pytest.importorskip("mpmath")
-
-
-def mp_eigenvalues(F, digits=80) -> np.ndarray:
-    """Eigenvalues of the double matrix ``F`` (every entry at its exact value) by mpmath."""
-    with mpmath.workdps(digits):
-        matrix = mpmath.matrix([[mpmath.mpf(float(v)) for v in row] for row in np.asarray(F)])
-        return np.array([complex(e) for e in mpmath.eig(matrix, left=False, right=False)])
-
-
-def match(found, reference) -> float:
-    """Largest distance between the two multisets of roots, paired greedily."""
-    left = list(reference)
-    worst = 0.0
-    for z in found:
-        i = int(np.argmin([abs(z - r) for r in left]))
-        worst = max(worst, abs(z - left.pop(i)))
-    return worst
 
 
 # -- the exact characteristic polynomial of a matrix -----------------------------------------
