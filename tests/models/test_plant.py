@@ -123,8 +123,13 @@ def test_generic_ground_truth_is_eq3_with_a_negative_internal_coefficient(on_loa
     plant, run, states = flywheel_run(on_load)
     omega, omega_f = states[:, 1], states[:, 2]
     tau_motor = 0.0 if on_load else run.tau_ext  # the external torque at t_k^+ on the motor
-    accel = (run.u - (plant.b + plant.d) * omega + plant.d * omega_f
-             - plant.coulomb * np.tanh(omega / plant.coulomb_velocity) - tau_motor) / plant.J
+    accel = (
+        run.u
+        - (plant.b + plant.d) * omega
+        + plant.d * omega_f
+        - plant.coulomb * np.tanh(omega / plant.coulomb_velocity)
+        - tau_motor
+    ) / plant.J
     assert np.max(np.abs(plant.d * omega_f)) > 1e-3  # the -d term reaches 1e-3 N m
     np.testing.assert_allclose(run.tau_dn, run.u - NOMINAL.b * omega - NOMINAL.J * accel,
                                rtol=1e-9, atol=1e-12)  # fmt: skip
