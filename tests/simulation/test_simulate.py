@@ -315,6 +315,32 @@ def test_divergence_is_reported_not_raised():
     assert np.all(np.isfinite(res.theta))
 
 
+def test_a_diverged_encoder_run_holds_the_samples_before_the_first_state_beyond_the_limit(
+    monkeypatch,
+):
+    """The same unstable loop with an encoder and a disturbance: the result holds samples
+    0..n-1 and the state at t_n is the first beyond ``DIVERGENCE_LIMIT``, read off the same
+    run with a far larger limit (the generated loop's divergence exit ``return k + 1``
+    mutated to ``k % 1`` survived without this test: docs/testing.md)."""
+    import hpdob.simulation._simulate as module
+
+    nominal = ServoModel(3e-4)
+    obs = DisturbanceObserver(nominal.discretize(1e-3), order=1, bandwidth=900.0)
+    kwargs = {"plant": ServoModel(3e-5), "nominal": nominal, "Ts": 1e-3, "duration": 10.0,
+              "controller": PD(50, 5), "observer": obs.design, "reference": Step(0.0, 1.0),
+              "disturbance": Step(0.0, 0.01), "sensor": Encoder(16384)}  # fmt: skip
+    limit = module.DIVERGENCE_LIMIT
+    with pytest.warns(SimulationDivergedWarning):
+        res = simulate(**kwargs)
+    monkeypatch.setattr(module, "DIVERGENCE_LIMIT", 1e3 * limit)
+    with pytest.warns(SimulationDivergedWarning):
+        longer = simulate(**kwargs)
+    n = len(res)
+    beyond = np.maximum(np.abs(longer.theta), np.abs(longer.omega)) > limit
+    assert 1 < n < len(longer) and not beyond[:n].any() and beyond[n]
+    np.testing.assert_array_equal(res.theta, longer.theta[:n])
+
+
 @pytest.mark.parametrize(
     ("change", "exc", "pattern"),
     [
