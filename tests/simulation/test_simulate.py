@@ -318,17 +318,17 @@ def test_divergence_is_reported_not_raised():
 def test_a_diverged_encoder_run_holds_the_samples_before_the_first_state_beyond_the_limit(
     monkeypatch,
 ):
-    """The same unstable loop with an encoder and a disturbance: the result holds samples
-    0..n-1 and the state at t_n is the first beyond ``DIVERGENCE_LIMIT``, read off the same
-    run with a far larger limit (the generated loop's divergence exit ``return k + 1``
-    mutated to ``k % 1`` survived without this test: docs/testing.md)."""
+    """The paper's virtual experiment (encoder, one sample of delay, its DOb) on a tenth of
+    the inertia without a torque limit diverges: the result holds samples 0..n-1 and the
+    state at t_n is the first beyond ``DIVERGENCE_LIMIT``, read off the same run with a larger
+    limit (the generated loop's divergence exit ``return k + 1`` mutated to ``k % 1``
+    survived without this test: docs/testing.md)."""
     import hpdob.simulation._simulate as module
 
-    nominal = ServoModel(3e-4)
-    obs = DisturbanceObserver(nominal.discretize(1e-3), order=1, bandwidth=900.0)
-    kwargs = {"plant": ServoModel(3e-5), "nominal": nominal, "Ts": 1e-3, "duration": 10.0,
-              "controller": PD(50, 5), "observer": obs.design, "reference": Step(0.0, 1.0),
-              "disturbance": Step(0.0, 0.01), "sensor": Encoder(16384)}  # fmt: skip
+    kwargs = paper.scenario()
+    kwargs.update(sensor=paper.VIRTUAL_SENSOR, actuator=Actuator(delay_samples=1), duration=2.0,
+                  plant=kwargs["plant"].replace(J=kwargs["plant"].J / 10),
+                  observer=paper.observer("virtual-experiment").design)  # fmt: skip
     limit = module.DIVERGENCE_LIMIT
     with pytest.warns(SimulationDivergedWarning):
         res = simulate(**kwargs)
