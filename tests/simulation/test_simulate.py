@@ -424,6 +424,10 @@ def _loops():
                          environment=Environment(10.0, damping=0.02, position=0.5))  # fmt: skip
     wall = {**base, "plant": drive, "observer": paper.observer("HPDOb-100").design}
     yield "two-mass drive against a wall", wall, 8
+    # free (the structure of the kernel mutation sample's two-mass loop, whose state written
+    # back as x[ 1] or read from x[ 4] survived without it: docs/testing.md)
+    free = TwoMassServo(2.8e-4, 5.6e-4, 30.0, 0.004, b_motor=1e-5, b_load=2e-5)
+    yield "two-mass drive", {**wall, "plant": free}, 8
     unstable = {"plant": ServoModel(3e-5), "nominal": ServoModel(3e-4), "Ts": 1e-3,
                 "controller": PD(50, 5), "reference": Step(0.0, 1.0),
                 "observer": design_observer(ServoModel(3e-4).discretize(1e-3), order=1,
