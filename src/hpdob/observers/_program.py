@@ -328,6 +328,15 @@ def _python_factory(structure: tuple, n: int, p: int):
     used = [f"c{i}" for i in range(sum(1 for rows in structure for r in rows for _, u in r
                                        if not u))]  # fmt: skip
     unpack = f"        ({', '.join(state)},) = s\n"
+    # update's rows, then None where they overflow: t - t is 0.0 exactly when t is finite, and
+    # the left-to-right sum t is finite exactly when sum() of the state is (no call per sample)
+    fresh = [f"n{i}" for i in range(n)]
+    checked = "".join(
+        f"        {name} = {row}\n" for name, row in zip(fresh, update_rows, strict=True)
+    )
+    checked += f"        t = {' + '.join(fresh)}\n"
+    checked += "        if t - t != 0.0:\n            return None\n"
+    checked += f"        return ({', '.join(fresh)},)\n"
     args = ", ".join(inputs)
     source = (
         f"def make({', '.join(used)}):\n"
@@ -335,7 +344,8 @@ def _python_factory(structure: tuple, n: int, p: int):
         f"    def outputs(s, {args}):\n{unpack}        return ({', '.join(output_rows)},)\n"
         f"    def estimate(s, {args}):\n{unpack}        return {output_rows[0]}\n"
         f"    def update(s, {args}, u):\n{unpack}        return ({', '.join(update_rows)},)\n"
-        "    return reset, outputs, estimate, update\n"
+        f"    def checked_update(s, {args}, u):\n{unpack}{checked}"
+        "    return reset, outputs, estimate, update, checked_update\n"
     )
     namespace: dict = {}
     exec(compile(source, "<hpdob observer program>", "exec"), namespace)  # generated above
@@ -351,6 +361,16 @@ def compile_python(system):
     orders them (the numba kernel and exported C do the same). The code is generated once per
     program structure (:func:`program_structure`); the coefficients are bound per observer.
     """
+    return _python_functions(system)[:4]
+
+
+def compile_checked_update(system):
+    """``update`` of :func:`compile_python` that returns None instead of a state that is not
+    finite (the runtime observer's per-sample path refuses such a step)."""
+    return _python_functions(system)[4]
+
+
+def _python_functions(system):
     program = system.program
     make = _python_factory(program_structure(program), system.n_states, len(system.measures))
     return make(*program_coefficients(program))
