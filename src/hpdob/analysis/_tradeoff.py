@@ -568,7 +568,7 @@ def noise_tradeoff(
         measurements=tuple(kind for _, kind in rows),
         u_noise_gain=None if u_gain is None else readonly(u_gain),
         family=spec,
-        labels=() if spec is None else tuple(_spec_label(spec, m) for m in ms),
+        labels=_labels(spec, ms),
     )
 
 
@@ -614,8 +614,11 @@ def _with_order(spec: dict, m: int) -> dict:
     return dict(spec) if key is None else {**spec, key: m}
 
 
-def _spec_label(spec: dict, m: int) -> str:
-    return spec_label(_with_order(spec, m))
+def _labels(spec: dict | None, orders: tuple) -> tuple:
+    """The rows' legend names: the paper's family keeps its own however it is asked for."""
+    if spec is None or spec["type"] == "dob":
+        return ()
+    return tuple(spec_label(_with_order(spec, m)) for m in orders)
 
 
 def _design(model, spec: dict, m: int, g: float, pole_tolerance):
