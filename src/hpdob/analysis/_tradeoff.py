@@ -424,10 +424,10 @@ def noise_tradeoff(
         measured velocity with observers measuring the state. A NaN marks a grid point
         whose nominal loop is unstable.
     pole_tolerance : float or None, optional
-        As for :func:`hpdob.design_observer` (default 0.05): a grid point whose design cannot
-        be realised in double precision (high orders at low bandwidths) raises. ``None``
-        accepts every design; the figures are then those of the rounded gains, i.e. of the
-        observer as it would run.
+        As for :func:`hpdob.design_observer` (default 0.05; the paper's family only, the one
+        whose design takes it): a grid point whose design cannot be realised in double
+        precision (high orders at low bandwidths) raises. ``None`` accepts every design; the
+        figures are then those of the rounded gains, i.e. of the observer as it would run.
     progress : callable, optional
         Called as ``progress(done, total)`` with the grid points computed so far: once with
         ``done = 0`` before the first and then after each point (``total`` = rows x
@@ -464,6 +464,11 @@ def noise_tradeoff(
     ...                       noise="encoder", measurements=("state", "position"))
     >>> both.measurements
     ('state', 'position')
+    >>> eso = noise_tradeoff(nominal=ServoModel(2.8e-4), Ts=1e-3, frequency=2.0,
+    ...                      bandwidths=[100.0, 400.0], orders=(0, 1), noise="encoder",
+    ...                      family={"type": "eso", "form": "predictive"})
+    >>> eso.labels
+    ('ESO (m=0, predictive)', 'ESO (m=1, predictive)')
     """
     parts = loop_parts(loop, {"nominal": nominal, "Ts": Ts, "controller": controller},
                        "noise_tradeoff")  # fmt: skip
