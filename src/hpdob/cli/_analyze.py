@@ -332,7 +332,7 @@ def register(subparsers) -> None:
         "--measurements",
         type=_measurements,
         default=["state"],
-        help="observer families, e.g. state,position (default: state)",
+        help="the paper's observer versions (--type dob), e.g. state,position (default: state)",
     )
     tradeoff.add_argument(
         "--pole-tolerance",
