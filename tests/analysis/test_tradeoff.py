@@ -27,7 +27,7 @@ from hpdob import (
     noise_tradeoff,
     observer_noise_gain,
 )
-from hpdob.observers import design_eso
+from hpdob.observers import Family, Parameter, design_eso, register_family, unregister_family
 
 TS = 1e-3
 NOMINAL = ServoModel(2.8e-4)
@@ -281,3 +281,27 @@ def test_family_bad_arguments(options, error, message):
     with pytest.raises(error, match=message) as info:
         noise_tradeoff(**{**kw, **options})
     assert "\n" not in str(info.value)
+
+
+def test_a_family_without_an_order_key_takes_one_order():
+    """A family registered here with no order key (the generalised ESO of order 2 as a fixed
+    design): one row, the same numbers as the ESO's row of extended order 2."""
+    geso2 = Family("tradeoff_geso2",
+                   lambda model, *, bandwidth: design_eso(model, bandwidth=bandwidth,
+                                                          extended_order=2),
+                   (Parameter("bandwidth"),), required=("bandwidth",), order=None,
+                   label=lambda spec: "GESO m=2")  # fmt: skip
+    register_family(geso2)
+    try:
+        kw = {"nominal": NOMINAL, "Ts": TS, "frequency": 2.0, "bandwidths": [100.0, 400.0],
+              "noise": "position"}  # fmt: skip
+        with pytest.raises(ParameterValueError, match=r"orders must hold one value for family "
+                           r"'tradeoff_geso2' \(it has no order key\), got \[0, 1\]"):  # fmt: skip
+            noise_tradeoff(**kw, orders=(0, 1), family="tradeoff_geso2")
+        fixed = noise_tradeoff(**kw, orders=(0,), family="tradeoff_geso2")
+    finally:
+        unregister_family("tradeoff_geso2")
+    eso = noise_tradeoff(**kw, orders=(2,), family="eso")
+    assert fixed.labels == ("GESO m=2",)
+    np.testing.assert_array_equal(fixed.error_gain, eso.error_gain)
+    np.testing.assert_array_equal(fixed.noise_gain, eso.noise_gain)
