@@ -208,6 +208,27 @@ def test_force_step_settles_within_1_percent(k_e, duration):
     assert result.in_contact[-1000:].all()
 
 
+def test_ground_truth_in_contact_is_eq3():
+    """tau_dn,k = u_k - b_n omega_k - J_n theta_ddot(t_k^+) (eq. 3) against the wall with the
+    RTOB: the acceleration written out from the motor's equation with the torque applied one
+    sample late (the actuator's delay), its viscous and Coulomb friction and the wall's
+    k_e theta where theta > 0 (the generated loop's ``accel / J_motor`` mutated to
+    ``accel - J_motor`` survived without this test: docs/testing.md)."""
+    k_e = 10.0
+    dob = design_observer(MODEL, order=1, bandwidth=100.0)
+    loop = _force_loop(k_e, reaction_torque_observer(dob, viscous=DELTA_B))
+    result = simulate(loop, reference=_step, duration=0.5, x0=(-0.01, 0.0))
+    theta, omega, u = result.theta, result.omega, result.u
+    assert paper.VIRTUAL_ACTUATOR.delay_samples == 1
+    applied = np.concatenate([[0.0], u[:-1]])
+    wall = np.where(theta > 0.0, k_e * theta, 0.0)  # c_e = 0, theta_e = 0: pushes when inside
+    assert result.in_contact[-100:].all() and wall[-1] > 0.04  # the wall acts at the end
+    accel = (applied - PLANT.b * omega - PLANT.coulomb * np.tanh(omega / PLANT.coulomb_velocity)
+             - result.tau_ext - wall) / PLANT.J  # fmt: skip
+    np.testing.assert_allclose(result.tau_dn, u - NOMINAL.b * omega - NOMINAL.J * accel,
+                               rtol=1e-9, atol=1e-12)  # fmt: skip
+
+
 def test_soft_wall_settles_fast_with_the_coulomb_model():
     """Issue 21 item: with the friction model known including the Coulomb part
     (``friction=PLANT``: Delta_b omega + c tanh(w/v), w the measured velocity low-passed at

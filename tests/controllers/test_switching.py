@@ -9,9 +9,11 @@ import pytest
 
 from hpdob import (
     PD,
+    Actuator,
     Environment,
     ParameterValueError,
     ServoLoop,
+    SimulationDivergedWarning,
     closed_loop_poles,
     design_observer,
     export_c,
@@ -33,12 +35,12 @@ def _spec(threshold=THRESHOLD):
     return PositionForceSwitch(400.0, 40.0, 1000.0, kv=40.0, tau_ref=TAU_REF, threshold=threshold)
 
 
-def _loop(spec=None, plant=None):
+def _loop(spec=None, plant=None, actuator=paper.VIRTUAL_ACTUATOR):
     dob = design_observer(MODEL, order=1, bandwidth=100.0)
     observer = reaction_torque_observer(dob, friction=paper.PLANT, velocity_filter=100.0)
     return ServoLoop(plant=plant or paper.PLANT.replace(environment=Environment(10.0)),
                      nominal=NOMINAL, Ts=TS, observer=observer, controller=spec or _spec(),
-                     sensor=paper.VIRTUAL_SENSOR, actuator=paper.VIRTUAL_ACTUATOR)  # fmt: skip
+                     sensor=paper.VIRTUAL_SENSOR, actuator=actuator)  # fmt: skip
 
 
 def _ramp(t):
@@ -123,6 +125,31 @@ def test_contact_metrics_without_contact_and_without_environment():
     result = simulate(loop, reference=_ramp, duration=0.01)
     with pytest.raises(ParameterValueError, match=r"^contact_metrics needs a run against"):
         result.contact_metrics()
+
+
+def test_a_diverged_switching_run_holds_the_samples_before_the_first_state_beyond_the_limit(
+    monkeypatch,
+):
+    """A tenth of the inertia and no torque limit: the loop diverges (after contact). The
+    result holds samples 0..n-1 and the state at t_n is the first beyond
+    ``DIVERGENCE_LIMIT``, read off the same run with a larger limit (the generated loop's
+    divergence exit ``return k + 1`` mutated to ``k ** 1`` survived without this test:
+    docs/testing.md)."""
+    import hpdob.simulation._simulate as module
+
+    plant = paper.PLANT.replace(J=paper.PLANT.J / 10, environment=Environment(10.0))
+    loop = _loop(plant=plant, actuator=Actuator(delay_samples=1))
+    limit = module.DIVERGENCE_LIMIT
+    with pytest.warns(SimulationDivergedWarning):
+        res = simulate(loop, reference=_ramp, duration=2.0, x0=(-0.02, 0.0))
+    monkeypatch.setattr(module, "DIVERGENCE_LIMIT", 1e3 * limit)
+    with pytest.warns(SimulationDivergedWarning):
+        longer = simulate(loop, reference=_ramp, duration=2.0, x0=(-0.02, 0.0))
+    n = len(res)
+    beyond = np.maximum(np.abs(longer.theta), np.abs(longer.omega)) > limit
+    assert res.in_contact.any() and 1 < n < len(longer)
+    assert not beyond[:n].any() and beyond[n]
+    np.testing.assert_array_equal(res.theta, longer.theta[:n])
 
 
 def test_analysis_sees_the_position_mode():

@@ -86,23 +86,53 @@ def ramp(t):
     return t, np.ones_like(t), np.zeros_like(t)
 
 
-@pytest.mark.parametrize("on_load", [False, True])
-def test_generic_path_is_exact_zoh(on_load):
+NOMINAL = ServoModel(9e-4)
+
+
+def flywheel_run(on_load):
+    """The flywheel servo's run and its exact ZOH states at the samples, ``(n, 3)``."""
     plant = FlywheelServo(on_load=on_load)
     disturbance = Step(0.1, 0.004)  # at a sample instant: constant over every sample
-    loop = ServoLoop(plant=plant, nominal=ServoModel(9e-4), Ts=TS, controller=PD(400.0, 40.0))
+    loop = ServoLoop(plant=plant, nominal=NOMINAL, Ts=TS, controller=PD(400.0, 40.0))
     run = simulate(loop, reference=ramp, disturbance=disturbance, duration=0.3, x0=(0.0, 1.0))
     assert run.omega.min() / plant.coulomb_velocity > 25  # tanh(omega/v) == 1.0 throughout
     model = plant.discretize(TS)
     x = plant.initial_state((0.0, 1.0))
-    theta, omega = [], []
+    states = []
     tau = disturbance(run.t + TS / 2)
     for k in range(run.t.size):
-        theta.append(x[0])
-        omega.append(x[1])
+        states.append(x)
         x = model.A @ x + model.B * (run.u[k] - plant.coulomb) - model.D * tau[k]
-    np.testing.assert_allclose(run.theta, theta, rtol=1e-10, atol=1e-12)
-    np.testing.assert_allclose(run.omega, omega, rtol=1e-10, atol=1e-12)
+    return plant, run, np.array(states)
+
+
+@pytest.mark.parametrize("on_load", [False, True])
+def test_generic_path_is_exact_zoh(on_load):
+    _, run, states = flywheel_run(on_load)
+    np.testing.assert_allclose(run.theta, states[:, 0], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(run.omega, states[:, 1], rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("on_load", [False, True])
+def test_generic_ground_truth_is_eq3_with_a_negative_internal_coefficient(on_load):
+    """tau_dn,k = u_k - b_n omega_k - J_n theta_ddot(t_k^+) (eq. 3), the motor's acceleration
+    written out from the flywheel's equations at the exact ZOH states: its internal row
+    (0, b + d, -d) has a negative coefficient, whose term the rigid servo on the generic path
+    never runs (the generated loop's ``internal[i] != 0.0`` mutated to ``>= 0.0`` survived
+    without this test: docs/testing.md)."""
+    plant, run, states = flywheel_run(on_load)
+    omega, omega_f = states[:, 1], states[:, 2]
+    tau_motor = 0.0 if on_load else run.tau_ext  # the external torque at t_k^+ on the motor
+    accel = (
+        run.u
+        - (plant.b + plant.d) * omega
+        + plant.d * omega_f
+        - plant.coulomb * np.tanh(omega / plant.coulomb_velocity)
+        - tau_motor
+    ) / plant.J
+    assert np.max(np.abs(plant.d * omega_f)) > 1e-3  # the -d term reaches 1e-3 N m
+    np.testing.assert_allclose(run.tau_dn, run.u - NOMINAL.b * omega - NOMINAL.J * accel,
+                               rtol=1e-9, atol=1e-12)  # fmt: skip
 
 
 @pytest.mark.parametrize("delay", [0, 2])

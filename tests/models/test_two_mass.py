@@ -28,7 +28,7 @@ from hpdob import (
     simulate,
     sweep,
 )
-from hpdob.signals import Constant, Step
+from hpdob.signals import Constant, SmoothStep, Step, Sum
 
 TS = 1e-3
 JM, JL = 2.8e-4, 5.6e-4  # kg m^2
@@ -87,6 +87,40 @@ def test_a_stiff_coupling_is_the_rigid_servo():
     # the spring deflects by tau/k ~ 1e-8 rad; the loop sees practically the rigid motor
     np.testing.assert_allclose(coupled.theta, rigid.theta, atol=2e-5)
     np.testing.assert_allclose(coupled.theta_load, rigid.theta, atol=2e-5)
+
+
+@pytest.mark.parametrize("state", ["theta", "theta_load"])
+def test_a_state_exactly_at_the_divergence_limit_is_not_diverged(monkeypatch, state):
+    """The run diverges once a state leaves ``|x| <= DIVERGENCE_LIMIT`` (the bound included):
+    with the limit set to a value the motor's (or the load's) angle reaches at sample k while
+    no state before was larger, the run goes past k; one ulp lower, it holds samples 0..k-1
+    (the generated loop's ``abs(x0) <= limit`` mutated to ``<`` and ``abs(x2) <= limit`` to
+    ``is not`` survived without this test: docs/testing.md)."""
+    import hpdob.simulation._simulate as module
+
+    # a slow 5 rad step (peak velocity 3.1 rad/s): the angles set the record at the end; the
+    # load torque's sign sets which side leads (the spring deflects by tau / k)
+    kwargs = {**paper.scenario(), "duration": 3.5, "reference": SmoothStep(0.0, 3.0, 5.0)}
+    sign = 1.0 if state == "theta" else -1.0
+    kwargs["disturbance"] = Sum(tuple((sign * w, f) for w, f in kwargs["disturbance"].terms))
+    J = paper.PLANT.J
+    stiff = TwoMassServo(J / 2, J / 2, 1e7, b_motor=paper.PLANT.b, coulomb=paper.PLANT.coulomb,
+                         coulomb_velocity=paper.PLANT.coulomb_velocity)  # fmt: skip
+    kwargs.update(plant=stiff, observer=paper.observer("HPDOb-100").design)
+    run = simulate(**kwargs)
+    x = np.abs([run.theta, run.omega, run.theta_load, run.omega_load])
+    ahead = np.maximum.accumulate(x.max(axis=0))  # the largest state up to each sample
+    own = x[["theta", "omega", "theta_load", "omega_load"].index(state)]
+    k = int(np.flatnonzero((own == ahead) & (np.arange(own.size) > 0))[-1])
+    limit = own[k]
+    assert k > 100 and ahead[k - 1] < limit  # the state sets the record at k, none ties it
+    monkeypatch.setattr(module, "DIVERGENCE_LIMIT", limit)
+    with warnings.catch_warnings():  # a state after the last sample may still pass the limit
+        warnings.simplefilter("ignore", SimulationDivergedWarning)
+        assert len(simulate(**kwargs)) > k
+    monkeypatch.setattr(module, "DIVERGENCE_LIMIT", np.nextafter(limit, 0.0))
+    with pytest.warns(SimulationDivergedWarning):
+        assert len(simulate(**kwargs)) == k
 
 
 def test_simulation_matches_the_linear_closed_loop():

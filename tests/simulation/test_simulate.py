@@ -315,6 +315,32 @@ def test_divergence_is_reported_not_raised():
     assert np.all(np.isfinite(res.theta))
 
 
+def test_a_diverged_encoder_run_holds_the_samples_before_the_first_state_beyond_the_limit(
+    monkeypatch,
+):
+    """The paper's virtual experiment (encoder, one sample of delay, its DOb) on a tenth of
+    the inertia without a torque limit diverges: the result holds samples 0..n-1 and the
+    state at t_n is the first beyond ``DIVERGENCE_LIMIT``, read off the same run with a larger
+    limit (the generated loop's divergence exit ``return k + 1`` mutated to ``k % 1``
+    survived without this test: docs/testing.md)."""
+    import hpdob.simulation._simulate as module
+
+    kwargs = paper.scenario()
+    kwargs.update(sensor=paper.VIRTUAL_SENSOR, actuator=Actuator(delay_samples=1), duration=2.0,
+                  plant=kwargs["plant"].replace(J=kwargs["plant"].J / 10),
+                  observer=paper.observer("virtual-experiment").design)  # fmt: skip
+    limit = module.DIVERGENCE_LIMIT
+    with pytest.warns(SimulationDivergedWarning):
+        res = simulate(**kwargs)
+    monkeypatch.setattr(module, "DIVERGENCE_LIMIT", 1e3 * limit)
+    with pytest.warns(SimulationDivergedWarning):
+        longer = simulate(**kwargs)
+    n = len(res)
+    beyond = np.maximum(np.abs(longer.theta), np.abs(longer.omega)) > limit
+    assert 1 < n < len(longer) and not beyond[:n].any() and beyond[n]
+    np.testing.assert_array_equal(res.theta, longer.theta[:n])
+
+
 @pytest.mark.parametrize(
     ("change", "exc", "pattern"),
     [
@@ -398,6 +424,10 @@ def _loops():
                          environment=Environment(10.0, damping=0.02, position=0.5))  # fmt: skip
     wall = {**base, "plant": drive, "observer": paper.observer("HPDOb-100").design}
     yield "two-mass drive against a wall", wall, 8
+    # free (the structure of the kernel mutation sample's two-mass loop, whose state written
+    # back as x[ 1] or read from x[ 4] survived without it: docs/testing.md)
+    free = TwoMassServo(2.8e-4, 5.6e-4, 30.0, 0.004, b_motor=1e-5, b_load=2e-5)
+    yield "two-mass drive", {**wall, "plant": free}, 8
     unstable = {"plant": ServoModel(3e-5), "nominal": ServoModel(3e-4), "Ts": 1e-3,
                 "controller": PD(50, 5), "reference": Step(0.0, 1.0),
                 "observer": design_observer(ServoModel(3e-4).discretize(1e-3), order=1,
