@@ -22,9 +22,12 @@ from hpdob import (
     ServoLoop,
     ServoModel,
     design_observer,
+    estimation_response,
+    noise_gains,
     noise_tradeoff,
     observer_noise_gain,
 )
+from hpdob.observers import Family, Parameter, design_eso, register_family, unregister_family
 
 TS = 1e-3
 NOMINAL = ServoModel(2.8e-4)
@@ -207,3 +210,98 @@ def test_a_loop_or_its_keywords_not_both():
         noise_tradeoff(frequency=2.0, bandwidths=[50.0])
     with pytest.raises(ParameterTypeError, match="controller must be a PD, PID"):
         noise_tradeoff(nominal=NOMINAL, Ts=TS, frequency=2.0, bandwidths=[50.0], controller=3)
+
+
+@pytest.mark.parametrize(
+    "spec", [{"type": "eso"}, {"type": "eso", "form": "predictive"}], ids=["current", "predictive"]
+)
+def test_any_registered_family_the_eso_agrees_with_noise_gains_and_estimation_response(spec):
+    """Each entry of the ESO's table against the direct computations on its design: the error
+    |1 - Q| by estimation_response, the estimate's noise gain by the closed-loop Lyapunov
+    gains of noise_gains (plant = nominal: the command cancels out of the estimate, so it
+    equals the observer's own gain), the command's by the python-control loop."""
+    grid, orders, loop = [100.0, 400.0], (0, 1, 2), ServoLoop(
+        plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=PD(50.0, 5.0))  # fmt: skip
+    t = noise_tradeoff(loop, frequency=2.0, bandwidths=grid, orders=orders, noise="position",
+                       family=spec)  # fmt: skip
+    assert t.orders == orders and t.measurements == ("position",) * 3
+    assert t.family == spec
+    assert t.labels[1] == f"ESO (m=1, {spec.get('form', 'current')})"
+    for i, m in enumerate(orders):
+        for j, g in enumerate(grid):
+            design = design_eso(NOMINAL.discretize(TS), bandwidth=g, extended_order=m,
+                                form=spec.get("form", "current"))  # fmt: skip
+            gains = noise_gains(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=PD(50.0, 5.0),
+                                observer=design)  # fmt: skip
+            error = abs(estimation_response(design, 2.0, error=True)[0])
+            assert t.error_gain[i, j] == pytest.approx(error, rel=1e-12)
+            assert t.noise_gain[i, j] == pytest.approx(gains.tau_hat_position, rel=1e-9)
+            system = interconnect.closed_loop(J=NOMINAL.J, b=NOMINAL.b, Ts=TS,
+                                              controller=loop.controller_system,
+                                              observer=design.system)  # fmt: skip
+            expected = interconnect.h2(system, "n_theta", "u")
+            assert t.u_noise_gain[i, j] == pytest.approx(expected, rel=1e-7)
+    assert t.improvement(2)[1] > 1  # the generalised ESO beats the classical at equal noise
+
+
+def test_the_paper_family_through_the_registry_is_the_paper_path_bit_for_bit():
+    kw = {"nominal": NOMINAL, "Ts": TS, "frequency": 2.0, "bandwidths": [50.0, 300.0],
+          "orders": (0, 1, 2)}  # fmt: skip
+    for measurement, noise in (("state", "velocity"), ("position", "encoder")):
+        paper = noise_tradeoff(**kw, noise=noise, measurements=(measurement,))
+        spec = noise_tradeoff(**kw, noise=noise, family={"type": "dob", "measurement": measurement})
+        assert paper.family is None and spec.family["type"] == "dob"
+        assert spec.measurements == paper.measurements and spec.labels == paper.labels
+        for name in ("error_gain", "noise_gain"):
+            assert np.array_equal(getattr(spec, name), getattr(paper, name))
+
+
+@pytest.mark.parametrize(
+    ("options", "error", "message"),
+    [
+        ({"family": "nope"}, ParameterValueError, "family must be one of 'dob', 'eso', 'kalman'"),
+        ({"family": 3}, ParameterTypeError, "family must be a registered family's type name"),
+        ({"family": {"type": "eso", "bandwidth": 5.0}}, ParameterValueError,
+         r"family must not give bandwidth \(noise_tradeoff sets"),
+        ({"family": {"type": "eso", "extended_order": 1}}, ParameterValueError,
+         "family must not give extended_order"),
+        ({"family": {"type": "eso", "form": "x"}}, ParameterValueError, "form must be one of"),
+        ({"family": {"type": "eso", "gain": 1}}, ParameterValueError, "gain"),
+        ({"family": "eso", "measurements": ("position",)}, ParameterValueError,
+         r"measurements applies to the paper's family \(family=None\), not family 'eso'"),
+        ({"family": "eso", "gain_direction": (0.0, 1.0)}, ParameterValueError,
+         "gain_direction applies to the paper's family"),
+        ({"family": "eso", "noise": "velocity"}, ParameterValueError,
+         "noise must be 'position' or 'encoder' for family 'eso' .it measures the angle only"),
+    ],
+)  # fmt: skip
+def test_family_bad_arguments(options, error, message):
+    kw = {"nominal": NOMINAL, "Ts": TS, "frequency": 2.0, "bandwidths": [100.0],
+          "noise": "position"}  # fmt: skip
+    with pytest.raises(error, match=message) as info:
+        noise_tradeoff(**{**kw, **options})
+    assert "\n" not in str(info.value)
+
+
+def test_a_family_without_an_order_key_takes_one_order():
+    """A family registered here with no order key (the generalised ESO of order 2 as a fixed
+    design): one row, the same numbers as the ESO's row of extended order 2."""
+    geso2 = Family("tradeoff_geso2",
+                   lambda model, *, bandwidth: design_eso(model, bandwidth=bandwidth,
+                                                          extended_order=2),
+                   (Parameter("bandwidth"),), required=("bandwidth",), order=None,
+                   label=lambda spec: "GESO m=2")  # fmt: skip
+    register_family(geso2)
+    try:
+        kw = {"nominal": NOMINAL, "Ts": TS, "frequency": 2.0, "bandwidths": [100.0, 400.0],
+              "noise": "position"}  # fmt: skip
+        with pytest.raises(ParameterValueError, match=r"orders must hold one value for family "
+                           r"'tradeoff_geso2' \(it has no order key\), got \[0, 1\]"):  # fmt: skip
+            noise_tradeoff(**kw, orders=(0, 1), family="tradeoff_geso2")
+        fixed = noise_tradeoff(**kw, orders=(0,), family="tradeoff_geso2")
+    finally:
+        unregister_family("tradeoff_geso2")
+    eso = noise_tradeoff(**kw, orders=(2,), family="eso")
+    assert fixed.labels == ("GESO m=2",)
+    np.testing.assert_array_equal(fixed.error_gain, eso.error_gain)
+    np.testing.assert_array_equal(fixed.noise_gain, eso.noise_gain)

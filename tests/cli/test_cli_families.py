@@ -21,6 +21,7 @@ import pytest
 
 from hpdob import (
     PD,
+    Encoder,
     LinearObserver,
     ServoLoop,
     ServoModel,
@@ -30,7 +31,7 @@ from hpdob import (
     robust_stability_map,
 )
 from hpdob.cli import main
-from hpdob.observers import Family, Parameter, register_family, unregister_family
+from hpdob.observers import Family, Parameter, design_eso, register_family, unregister_family
 
 TS = 1e-3
 NOMINAL, PLANT = ServoModel(2.8e-4), ServoModel(3.06e-4, 5e-5)  # canonical
@@ -202,10 +203,65 @@ def test_tune_families_refuses_an_unknown_name_up_front(capsys, tmp_path):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("kind", ["eso", "cli_lp"])
-def test_analyze_tradeoff_refuses_another_family_with_a_pointer(capsys, tmp_path, registered, kind):
+def test_analyze_tradeoff_of_the_eso_and_of_a_registered_family(capsys, tmp_path, registered):
+    """`analyze tradeoff --type T` (was refused): each CSV entry against the direct computation
+    on the family's design; the registered low-pass's error |1 - Q| against the DOb's Q times
+    the low-pass (1 - a)/(z - a), independent of the family's code."""
+    grid = ["--bandwidths", "100,400", "--frequency", "2", "--dpi", "40", "--no-progress"]
+    for kind, options in (("eso", ["--form", "predictive", "--orders", "0,1"]),
+                          ("cli_lp", ["--lp-bandwidth", "300", "--orders", "0,1"])):  # fmt: skip
+        out = tmp_path / kind
+        code, _, err = run(capsys, "analyze", "tradeoff", "--type", kind, *options, *grid,
+                           "--out", str(out))  # fmt: skip
+        assert code == 0 and err == "", err
+        table = rows(out / "tradeoff.csv")
+        summary = json.loads((out / "tradeoff.json").read_text())
+        assert {r["family"] for r in table} == {kind}
+        # the ESO measures the angle only: the default noise is then the encoder's
+        noise = "encoder" if kind == "eso" else "velocity"
+        assert summary["noise"] == noise and summary["observer"]["type"] == kind
+        assert [(int(r["order"]), float(r["bandwidth_rad_s"])) for r in table] == [
+            (0, 100.0), (0, 400.0), (1, 100.0), (1, 400.0)]  # fmt: skip
+        for r in table:
+            m, g = int(r["order"]), float(r["bandwidth_rad_s"])
+            if kind == "eso":
+                design = design_eso(MODEL, bandwidth=g, extended_order=m, form="predictive")
+                error = abs(estimation_response(design, 2.0, error=True)[0])
+            else:
+                design = design_low_pass(MODEL, order=m, bandwidth=g, lp_bandwidth=300.0)
+                z, a = np.exp(2j * np.pi * 2.0 * TS), math.exp(-300.0 * TS)
+                dob = design_observer(MODEL, order=m, bandwidth=g)
+                error = abs(1 - estimation_response(dob, 2.0)[0] * (1 - a) / (z - a))
+            assert float(r["error_gain"]) == pytest.approx(error, rel=1e-9)
+            encoder = Encoder(2**20, velocity="backward-difference") if kind == "eso" else None
+            gains = noise_gains(plant=NOMINAL, nominal=NOMINAL, Ts=TS, controller=PD(50.0, 5.0),
+                                observer=design, sensor=encoder)  # fmt: skip
+            # plant = nominal: the command cancels out of the estimate (its own noise gain)
+            expected = gains.tau_hat_position if kind == "eso" else gains.tau_hat_velocity
+            assert float(r[f"noise_gain_{noise}"]) == pytest.approx(expected, rel=1e-9)
+        assert set(summary["improvement_at_equal_noise"]) == {"1"}
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--type", "cli_lp"], r"--type cli_lp needs --lp-bandwidth \(low-pass bandwidth"),
+        (["--lp-bandwidth", "300"], "--lp-bandwidth applies to another family, not --type dob"),
+        (["--type", "eso", "--measurements", "position"],
+         "--measurements applies to --type dob, not --type eso"),
+        (["--type", "eso", "--noise", "velocity"],
+         "noise must be 'position' or 'encoder' for family 'eso'"),
+        (["--type", "kalman"], "--type kalman needs --position-noise-std"),
+        (["--type", "nope"], "invalid choice: 'nope'"),
+        (["--velocity-bandwidth", "300", "--measurements", "state,position"],
+         "--measurements takes one version with --type dob's options"),
+    ],
+)  # fmt: skip
+def test_analyze_tradeoff_family_options_refused_in_one_line(capsys, tmp_path, registered,
+                                                            options, message):  # fmt: skip
     out = tmp_path / "out"
-    code, _, err = run(capsys, "analyze", "tradeoff", "--type", kind, "--out", str(out))
+    code, _, err = run(capsys, "analyze", "tradeoff", *options, "--bandwidths", "100",
+                       "--no-progress", "--out", str(out))  # fmt: skip
     assert code == 2 and err.count("\n") == 1, err
-    assert f"compares the paper's family (dob) only; for {kind} see 'hpdob analyze noise" in err
+    assert re.search(message, err), err
     assert not out.exists()

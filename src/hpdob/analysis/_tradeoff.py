@@ -27,7 +27,15 @@ from .._validation import (
 )
 from ..controllers import Controller, LinearController, controller_system
 from ..models import ServoModel
-from ..observers import MEASUREMENTS, POLE_TOLERANCE, design_observer
+from ..observers import (
+    MEASUREMENTS,
+    POLE_TOLERANCE,
+    check_spec,
+    design_at_bandwidth,
+    design_observer,
+    get_family,
+    spec_label,
+)
 from ..simulation import MISSING, Encoder, loop_parts
 from ._estimation import estimation_response
 from ._noise import OBSERVER_CHANNELS, noise_gains, observer_noise_gain
@@ -67,6 +75,12 @@ class NoiseTradeoff:
         With a ``controller``: RMS of the command ``u`` per unit white noise in the nominal
         closed loop [N m/(rad/s)] or [N m/rad] (NaN where that loop is unstable, as a
         differenced velocity makes it at high bandwidths); None otherwise.
+    family : dict or None
+        The registered family's spec (``type`` and its other arguments, without the order
+        and the bandwidth) the rows design, or None for the paper's family (then
+        ``measurements`` says which of its versions).
+    labels : tuple of str
+        Display name of each row (the legend).
     """
 
     orders: tuple
@@ -78,10 +92,15 @@ class NoiseTradeoff:
     noise_gain: np.ndarray = field(repr=False)
     measurements: tuple = ()
     u_noise_gain: np.ndarray | None = field(default=None, repr=False)
+    family: dict | None = None
+    labels: tuple = ()
 
     def __post_init__(self) -> None:
         if not self.measurements:
             object.__setattr__(self, "measurements", ("state",) * len(self.orders))
+        if not self.labels:
+            names = tuple(map(_row_name, self.orders, self.measurements))
+            object.__setattr__(self, "labels", names)
 
     def _row(self, order, measurement=None) -> int:
         m = as_int(order, "order", "one of the computed orders")
@@ -197,7 +216,8 @@ class NoiseTradeoff:
         Returns
         -------
         pandas.DataFrame
-            One row per order and bandwidth: ``measurement``, ``order``,
+            One row per order and bandwidth: (``family``, for a registered family other
+            than the paper's,) ``measurement``, ``order``,
             ``bandwidth_rad_s``, ``frequency_Hz``, ``error_gain``, ``noise_gain_<noise>``
             (and ``u_noise_gain_<noise>`` with a controller).
 
@@ -210,7 +230,12 @@ class NoiseTradeoff:
 
     def _columns(self) -> dict:
         n = len(self.bandwidths)
-        columns = {
+        columns = (
+            {}
+            if self.family is None
+            else {"family": np.repeat(np.array([self.family["type"]]), n * len(self.orders))}
+        )
+        columns |= {
             "measurement": np.repeat(np.array(self.measurements), n),
             "order": np.repeat(np.array(self.orders), n),
             "bandwidth_rad_s": np.tile(self.bandwidths, len(self.orders)),
@@ -280,7 +305,7 @@ class NoiseTradeoff:
                 self.error_gain[i],
                 "--" if kind == "position" else "-",
                 color=f"C{colors.index(m) % 10}",
-                label=_row_name(m, kind),
+                label=self.labels[i],
             )[0]
             logs = np.log(self.bandwidths)
             order = np.argsort(logs)
@@ -343,6 +368,7 @@ def noise_tradeoff(
     noise: str = "velocity",
     gain_direction=(1.0, 1.0),
     measurements=("state",),
+    family=None,
     controller: Controller | LinearController | None = MISSING,
     pole_tolerance: float | None = POLE_TOLERANCE,
     progress=None,
@@ -375,7 +401,19 @@ def noise_tradeoff(
     gain_direction : sequence of 2 floats, optional
         As for :func:`hpdob.design_observer` (observers measuring the state).
     measurements : sequence of {"state", "position"}, optional
-        Observer families; rows are every family with every order. Default ``("state",)``.
+        The paper's observer families; rows are every family with every order. Default
+        ``("state",)``.
+    family : str or dict, optional
+        Any registered observer family (:func:`hpdob.observers.families`) instead of the
+        paper's: its ``type`` name or a spec (``{"type": "eso", "form": "predictive"}``,
+        its other arguments, without its order key and the bandwidth). One row per order:
+        ``orders`` are the values of the family's order key (``extended_order`` for the
+        ESO; a family without one takes a single order, whose value only labels the row),
+        each bandwidth designs it by :func:`hpdob.observers.design_at_bandwidth` (a Kalman
+        observer's process noise is chosen for it). ``measurements`` and
+        ``gain_direction`` then keep their defaults; each row's measurement is the
+        design's. Default None: the paper's family, as ``measurements`` and
+        ``gain_direction`` say.
     controller : Controller or LinearController, optional
         Also compute the command's noise gain in the nominal closed loop (plant = nominal,
         no delay), with any controller of the protocol (:class:`~hpdob.PD`,
@@ -386,10 +424,10 @@ def noise_tradeoff(
         measured velocity with observers measuring the state. A NaN marks a grid point
         whose nominal loop is unstable.
     pole_tolerance : float or None, optional
-        As for :func:`hpdob.design_observer` (default 0.05): a grid point whose design cannot
-        be realised in double precision (high orders at low bandwidths) raises. ``None``
-        accepts every design; the figures are then those of the rounded gains, i.e. of the
-        observer as it would run.
+        As for :func:`hpdob.design_observer` (default 0.05; the paper's family only, the one
+        whose design takes it): a grid point whose design cannot be realised in double
+        precision (high orders at low bandwidths) raises. ``None`` accepts every design; the
+        figures are then those of the rounded gains, i.e. of the observer as it would run.
     progress : callable, optional
         Called as ``progress(done, total)`` with the grid points computed so far: once with
         ``done = 0`` before the first and then after each point (``total`` = rows x
@@ -426,6 +464,11 @@ def noise_tradeoff(
     ...                       noise="encoder", measurements=("state", "position"))
     >>> both.measurements
     ('state', 'position')
+    >>> eso = noise_tradeoff(nominal=ServoModel(2.8e-4), Ts=1e-3, frequency=2.0,
+    ...                      bandwidths=[100.0, 400.0], orders=(0, 1), noise="encoder",
+    ...                      family={"type": "eso", "form": "predictive"})
+    >>> eso.labels
+    ('ESO (m=0, predictive)', 'ESO (m=1, predictive)')
     """
     parts = loop_parts(loop, {"nominal": nominal, "Ts": Ts, "controller": controller},
                        "noise_tradeoff")  # fmt: skip
@@ -464,7 +507,8 @@ def noise_tradeoff(
         raise ParameterValueError(
             f"measurements must hold 'state' and/or 'position' once each, got {list(kinds)}"
         )
-    if "position" in kinds and noise == "velocity":
+    spec = None if family is None else _family_spec(family, ms, kinds, gain_direction)
+    if "position" in kinds and noise == "velocity" and spec is None:
         raise ParameterValueError(
             "noise must be 'position' or 'encoder' when measurements include 'position' (a "
             "position-only observer measures no velocity), got 'velocity'"
@@ -477,6 +521,14 @@ def noise_tradeoff(
             f"type {type(progress).__name__}"
         )
     model = nominal.discretize(Ts)
+    if spec is not None:
+        design = _design(model, spec, ms[0], float(grid[0]), pole_tolerance)  # the row kind
+        kinds = (design.system.measurement,)
+        if kinds == ("position",) and noise == "velocity":
+            raise ParameterValueError(
+                f"noise must be 'position' or 'encoder' for family {spec['type']!r} (it "
+                "measures the angle only, no velocity), got 'velocity'"
+            )
     rows = [(m, kind) for kind in kinds for m in ms]
     total = len(rows) * grid.size
     if progress is not None:
@@ -486,7 +538,9 @@ def noise_tradeoff(
     u_gain = None if controller is None else np.empty((len(rows), grid.size))
     for i, (m, kind) in enumerate(rows):
         for j, g in enumerate(grid):
-            if kind == "state":
+            if spec is not None:
+                design = _design(model, spec, m, g, pole_tolerance)
+            elif kind == "state":
                 design = design_observer(model, order=m, bandwidth=g, gain_direction=gain_direction,
                                          pole_tolerance=pole_tolerance)  # fmt: skip
             else:
@@ -499,6 +553,11 @@ def noise_tradeoff(
             if progress is not None:
                 progress(i * grid.size + j + 1, total)
     if np.any(gain <= 0.0):
+        if spec is not None:
+            raise ParameterValueError(
+                f"noise={noise!r} does not reach the estimate of family {spec['type']!r} "
+                "(noise gain 0): choose another noise channel"
+            )
         raise ParameterValueError(
             f"noise={noise!r} does not reach the estimate for gain_direction="
             f"{list(gain_direction)} (noise gain 0): choose the other noise channel"
@@ -513,4 +572,63 @@ def noise_tradeoff(
         noise_gain=readonly(gain),
         measurements=tuple(kind for _, kind in rows),
         u_noise_gain=None if u_gain is None else readonly(u_gain),
+        family=spec,
+        labels=_labels(spec, ms),
     )
+
+
+def _family_spec(family, orders: tuple, kinds: tuple, gain_direction) -> dict:
+    """The registered family's spec ``family`` names (a type name or a spec), checked."""
+    if isinstance(family, str):
+        family = {"type": family}
+    if not isinstance(family, dict):
+        raise ParameterTypeError(
+            f"family must be a registered family's type name or a spec dict, got {family!r}"
+        )
+    record = get_family(family.get("type"), "family")
+    set_here = sorted({record.order, "bandwidth", record.tuned, *record.set_at_bandwidth}
+                      & set(family) - {None})  # fmt: skip
+    if set_here:
+        raise ParameterValueError(
+            f"family must not give {', '.join(set_here)} (noise_tradeoff sets the order from "
+            f"orders and the bandwidth from bandwidths), got {family!r}"
+        )
+    if kinds != ("state",):
+        raise ParameterValueError(
+            "measurements applies to the paper's family (family=None), not family "
+            f"{record.name!r}: give its measurement in the spec, got {list(kinds)}"
+        )
+    if [float(v) for v in np.ravel(gain_direction)] != [1.0, 1.0]:
+        raise ParameterValueError(
+            "gain_direction applies to the paper's family (family=None), not family "
+            f"{record.name!r}: give it in the spec, got {list(gain_direction)}"
+        )
+    if record.order is None and len(orders) != 1:
+        raise ParameterValueError(
+            f"orders must hold one value for family {record.name!r} (it has no order key), "
+            f"got {list(orders)}"
+        )
+    spec = {**family, "type": record.name}
+    order = {} if record.order is None else {record.order: orders[0]}
+    check_spec({**spec, **order, record.tuned: 1.0}, "family")  # the keys, before any work
+    return spec
+
+
+def _with_order(spec: dict, m: int) -> dict:
+    key = get_family(spec["type"], "family").order
+    return dict(spec) if key is None else {**spec, key: m}
+
+
+def _labels(spec: dict | None, orders: tuple) -> tuple:
+    """The rows' legend names: the paper's family keeps its own however it is asked for."""
+    if spec is None or spec["type"] == "dob":
+        return ()
+    return tuple(spec_label(_with_order(spec, m)) for m in orders)
+
+
+def _design(model, spec: dict, m: int, g: float, pole_tolerance):
+    """The family's design of order ``m`` at ``g`` [rad/s] (the paper's with its pole check)."""
+    if spec["type"] == "dob":  # the one family whose design takes a pole tolerance
+        arguments = {k: v for k, v in _with_order(spec, m).items() if k != "type"}
+        return design_observer(model, **arguments, bandwidth=g, pole_tolerance=pole_tolerance)
+    return design_at_bandwidth(model, _with_order(spec, m), g, "family")

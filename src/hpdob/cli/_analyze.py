@@ -310,14 +310,7 @@ def register(subparsers) -> None:
         "gain; both depend on the observer and its nominal model only.",
     )
     _add_common(tradeoff, loop=False)
-    tradeoff.add_argument(
-        "--type",
-        default="dob",
-        metavar="TYPE",
-        help="observer family: dob (the paper's, the only one tradeoff compares; --measurements "
-        "picks its versions); another registered family is refused with a pointer to "
-        "'analyze noise --type' and 'analyze bode --type' (default: %(default)s)",
-    )
+    _add_family(tradeoff)
     _add_orders(tradeoff, "0,1,2,3")
     tradeoff.add_argument(
         "--bandwidths",
@@ -339,7 +332,7 @@ def register(subparsers) -> None:
         "--measurements",
         type=_measurements,
         default=["state"],
-        help="observer families, e.g. state,position (default: state)",
+        help="the paper's observer versions (--type dob), e.g. state,position (default: state)",
     )
     tradeoff.add_argument(
         "--pole-tolerance",
@@ -589,29 +582,40 @@ def _describe(args) -> dict:
 def _tradeoff(args, files) -> list[str]:
     from ..analysis import noise_tradeoff
     from ..models import ServoModel
-    from ..observers import get_family
 
-    kind = get_family(args.type, "--type").name  # an unknown name: the registry's list
-    if kind != "dob":  # noise_tradeoff designs the paper's family only
-        raise CLIError(
-            f"--type {kind}: analyze tradeoff compares the paper's family (dob) only; for "
-            f"{kind} see 'hpdob analyze noise --type {kind}' (noise gains) and 'hpdob analyze "
-            f"bode --type {kind}' (its error |1-Q|)"
-        )
+    spec = None  # the paper's family, its versions by --measurements (as it always was)
+    if not _is_paper_family(args) or _family_given(args):
+        if args.measurements != ["state"] and not _is_paper_family(args):
+            raise CLIError(f"--measurements applies to --type dob, not --type {args.type}")
+        if len(args.measurements) != 1:
+            raise CLIError("--measurements takes one version with --type dob's options")
+        args.measurement = args.measurements[0]
+        spec = _spec(args, None)
+    nominal = ServoModel(args.J_n, args.b_n)
     noise = args.noise
+    if noise is None and spec is not None:  # the angle noise if the family measures no velocity
+        from ..observers import design_at_bandwidth, get_family
+
+        key = get_family(spec["type"], "--type").order
+        first = design_at_bandwidth(nominal.discretize(args.Ts),
+                                    {**spec, **({} if key is None else {key: args.orders[0]})},
+                                    args.bandwidths[0], "--type")  # fmt: skip
+        noise = "encoder" if first.system.measurement == "position" else "velocity"
     if noise is None:
         noise = "encoder" if "position" in args.measurements else "velocity"
+    family = {} if spec is None else {"family": spec}
     with _progress_line("analyze tradeoff:", args) as line:
         result = noise_tradeoff(
-            nominal=ServoModel(args.J_n, args.b_n),
+            nominal=nominal,
             Ts=args.Ts,
             frequency=args.frequency,
             bandwidths=args.bandwidths,
             orders=args.orders,
             noise=noise,
-            measurements=args.measurements,
+            measurements=args.measurements if spec is None else ["state"],
             pole_tolerance=args.pole_tolerance,
             progress=line,
+            **family,
         )
     save_figure(result.plot(), files, "tradeoff.png", args.dpi)
     result.to_csv(files.path("tradeoff.csv"))
@@ -640,6 +644,8 @@ def _tradeoff(args, files) -> list[str]:
             if (m, kind) != (reference, first)
         },
     }
+    if spec is not None:
+        summary["observer"] = spec
     write_json(files, "tradeoff.json", summary)
     return ["tradeoff.png", "tradeoff.csv", "tradeoff.json"]
 
