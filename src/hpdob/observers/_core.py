@@ -74,17 +74,23 @@ def checked_next_state(system: LinearObserver, state: tuple, values: tuple, u: f
     """``system``'s next state, refused (ParameterValueError, nothing changed) if it overflows.
 
     Finite inputs large enough (e.g. 1e308) overflow the state to inf/NaN, which would then
-    poison every later estimate silently. The test is one sum: it is non-finite exactly when an
-    element is (or when finite elements near the float range overflow it, refused as well).
+    poison every later estimate silently. The generated ``checked_update`` tests one sum: it is
+    non-finite exactly when an element is (or when finite elements near the float range
+    overflow it, refused as well).
     """
-    new = system.python[3](state, *values, u)
-    if not _isfinite(sum(new)):
-        raise ParameterValueError(
-            f"update(measurement={_show_values(values)}, u={u!r}) overflows the state of "
-            f"{system.name}: the inputs are beyond the observer's float range; the state is "
-            "unchanged"
-        )
+    new = system.checked_update(state, *values, u)
+    if new is None:
+        raise overflow_error(system, values, u)
     return new
+
+
+def overflow_error(system: LinearObserver, values: tuple, u: float) -> ParameterValueError:
+    """The refusal of an update whose next state overflows."""
+    return ParameterValueError(
+        f"update(measurement={_show_values(values)}, u={u!r}) overflows the state of "
+        f"{system.name}: the inputs are beyond the observer's float range; the state is "
+        "unchanged"
+    )
 
 
 def _show_values(values: tuple) -> str:

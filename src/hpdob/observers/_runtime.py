@@ -7,7 +7,6 @@ import numpy as np
 from .._validation import ParameterTypeError
 from . import _core
 from ._position import PositionObserverDesign
-from ._program import compile_checked_update
 from ._synthesis import ObserverDesign, design_observer
 from ._system import LinearObserver, as_system
 
@@ -63,7 +62,7 @@ class Observer:
     :func:`hpdob.initial_state` are the same loop as pure functions.
     """
 
-    __slots__ = ("_checked_update", "_outputs", "_state", "_system")
+    __slots__ = ("_outputs", "_state", "_system")
 
     def __init__(self, system, *, x0=(0.0, 0.0), tau0: float = 0.0):
         system = as_system(system, "system")
@@ -71,7 +70,6 @@ class Observer:
         self._system = system
         self._state = state
         self._outputs = None
-        self._checked_update = compile_checked_update(system)
 
     @staticmethod
     def of(design, *, x0=(0.0, 0.0), tau0: float = 0.0) -> Observer:
@@ -109,7 +107,6 @@ class Observer:
         obs._system = system
         obs._state = state
         obs._outputs = None
-        obs._checked_update = compile_checked_update(system)
         for name, value in attrs:
             object.__setattr__(obs, name, value)
         return obs
@@ -207,9 +204,9 @@ class Observer:
         system = self._system
         values = _core.read_measurement(system, measurement)
         u = _core.read_control(u)
-        new = self._checked_update(self._state, *values, u)
-        if new is None:  # the next state overflows
-            _core.checked_next_state(system, self._state, values, u)  # raises, says why
+        new = system.checked_update(self._state, *values, u)
+        if new is None:  # _core.checked_next_state inline: this is the per-sample path
+            raise _core.overflow_error(system, values, u)
         self._state = new
         self._outputs = None
 

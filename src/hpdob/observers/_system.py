@@ -44,7 +44,14 @@ from .._validation import (
 )
 from ._error_dynamics import ErrorDynamics
 from ._friction import CoulombFriction, coulomb_torque
-from ._program import RESET_OPERANDS, Program, Term, check_program, compile_python
+from ._program import (
+    RESET_OPERANDS,
+    Program,
+    Term,
+    check_program,
+    compile_checked_update,
+    compile_python,
+)
 from ._signals import MEASUREMENTS, OUTPUTS, UNITS
 
 __all__ = [
@@ -308,6 +315,12 @@ class LinearObserver:
         return (functions[0], _with_coulomb(self, functions[1]), *functions[2:])
 
     @functools.cached_property
+    def checked_update(self):
+        """The generated ``update`` that returns None instead of a next state that is not
+        finite (:func:`compile_checked_update`): the overflow refusal of the sample loop."""
+        return compile_checked_update(self)
+
+    @functools.cached_property
     def kernel_arrays(self):
         """The program as arrays for the compiled kernel (:meth:`Program.arrays`)."""
         return self.program.arrays()
@@ -406,8 +419,8 @@ class LinearObserver:
     def __getstate__(self) -> dict:
         # generated code is rebuilt on demand, not pickled (e.g. for dask workers)
         state = dict(self.__dict__)
-        state.pop("python", None)
-        state.pop("kernel_arrays", None)
+        for derived in ("python", "checked_update", "kernel_arrays"):
+            state.pop(derived, None)
         return state
 
     def __setstate__(self, state: dict) -> None:
