@@ -250,13 +250,85 @@ def _family_given(args) -> bool:
     return any(getattr(args, k, None) is not None for k in _family_options())
 
 
-def _add_orders(parser: argparse.ArgumentParser, default: str) -> None:
+def _add_orders(parser: argparse.ArgumentParser, default: str, *, follows: bool = False) -> None:
+    """``--orders``; ``follows``: its default (None until :func:`_family_grid`) follows
+    ``--type``, as its help says."""
+    follow = "; for another --type the family's orders that it can design" if follows else ""
     parser.add_argument(
         "--orders",
         type=_orders,
-        default=_orders(default),
-        help=f"comma-separated truncation orders, 0 DOb, 1 HPDOb (default {default})",
+        default=None if follows else _orders(default),
+        help=f"comma-separated truncation orders, 0 DOb, 1 HPDOb (default {default}{follow})",
     )
+
+
+def _print_notes(notes) -> None:
+    import sys
+
+    for note in notes:
+        print(note, file=sys.stderr)
+
+
+#: The defaults of ``analyze noise`` and ``analyze tradeoff``'s grids (the paper's family's).
+GRID_DEFAULTS = {"noise": ("0,1,2,3", "10:2000:25"), "tradeoff": ("0,1,2,3", "10:3000:61")}
+
+
+def _family_grid(args, model) -> list[str]:
+    """Fill in ``args.orders`` and ``args.bandwidths`` where they were not given.
+
+    The paper's family (``--type dob``) takes the defaults as they are. Another family takes
+    the default orders it has (one row for a family without an order key) and, of a default
+    axis, the values it can design: the bandwidths it designs at some default order, then the
+    orders it designs at every such bandwidth (an ESO of extended order 2 cannot be realised in
+    double precision at 10 rad/s; a Kalman design refuses bandwidths beyond pi/(2 Ts)). An
+    axis the user gave is kept whole, so a point it cannot design stops the analysis, named.
+    Returns the notes of what was left out, for stderr.
+    """
+    from .._validation import ParameterTypeError, ParameterValueError
+    from ..observers import get_family
+
+    orders_text, bandwidths_text = GRID_DEFAULTS[args.analysis]
+    given_orders, given_bandwidths = args.orders is not None, args.bandwidths is not None
+    if args.orders is None:
+        args.orders = _orders(orders_text)
+    if args.bandwidths is None:
+        args.bandwidths = _grid(bandwidths_text)
+    if _is_paper_family(args) or (given_orders and given_bandwidths):
+        return []
+    family = get_family(args.type, "--type")
+    if family.order is None and not given_orders:
+        args.orders = args.orders[:1]  # one row: a family without an order key
+    first_error, works = None, {}
+    for m in args.orders:
+        for g in args.bandwidths:
+            try:
+                _design(args, model, m, g)
+                works[m, g] = True
+            except (ParameterValueError, ParameterTypeError) as err:
+                first_error = first_error or err
+                works[m, g] = False
+    notes = []
+    if not given_bandwidths:
+        kept = [g for g in args.bandwidths if any(works[m, g] for m in args.orders)]
+        if len(kept) < len(args.bandwidths):
+            left = [g for g in args.bandwidths if g not in kept]
+            notes.append(f"{len(left)} default bandwidths ({left[0]:.4g}-{left[-1]:.4g} rad/s)")
+        args.bandwidths = kept or args.bandwidths
+    if not given_orders:
+        kept = [m for m in args.orders if all(works[m, g] for g in args.bandwidths)]
+        left = [m for m in args.orders if m not in kept]
+        if left:
+            notes.append(f"order{'s' if len(left) > 1 else ''} {', '.join(map(str, left))}")
+        args.orders = kept or args.orders
+    if not all(works[m, g] for m in args.orders for g in args.bandwidths):
+        raise first_error  # nothing of the default grid left: say why, as for a given grid
+    if not notes:
+        return []
+    return [
+        f"hpdob analyze {args.analysis}: --type {family.name} cannot design "
+        f"{' and '.join(notes)} of the default grid, left out (first: {first_error}); give "
+        "--orders and --bandwidths to choose the grid"
+    ]
 
 
 def register(subparsers) -> None:
@@ -295,13 +367,14 @@ def register(subparsers) -> None:
         "and noise.json.",
     )
     _add_common(noise)
-    _add_orders(noise, "0,1,2,3")
+    _add_orders(noise, GRID_DEFAULTS["noise"][0], follows=True)
     _add_measurement(noise)
     noise.add_argument(
         "--bandwidths",
         type=_grid,
-        default=_grid("10:2000:25"),
-        help="[rad/s], LO:HI:N or a list (default 10:2000:25)",
+        default=None,
+        help=f"[rad/s], LO:HI:N or a list (default {GRID_DEFAULTS['noise'][1]}; for another "
+        "--type the values the family can design)",
     )
     tradeoff = sub.add_parser(
         "tradeoff",
@@ -311,12 +384,13 @@ def register(subparsers) -> None:
     )
     _add_common(tradeoff, loop=False)
     _add_family(tradeoff)
-    _add_orders(tradeoff, "0,1,2,3")
+    _add_orders(tradeoff, GRID_DEFAULTS["tradeoff"][0], follows=True)
     tradeoff.add_argument(
         "--bandwidths",
         type=_grid,
-        default=_grid("10:3000:61"),
-        help="[rad/s], LO:HI:N or a list (default 10:3000:61)",
+        default=None,
+        help=f"[rad/s], LO:HI:N or a list (default {GRID_DEFAULTS['tradeoff'][1]}; for another "
+        "--type the values the family can design)",
     )
     tradeoff.add_argument(
         "--frequency", type=finite, default=2.0, help="disturbance frequency [Hz] (default 2)"
@@ -537,6 +611,7 @@ def _noise(args, files) -> list[str]:
 
     loop = _loop(args)
     model = loop["nominal"].discretize(loop["Ts"])
+    _print_notes(_family_grid(args, model))
     total = len(args.orders) * len(args.bandwidths)
     with _progress_line("analyze noise:", args) as line:
         line(0, total)
@@ -583,6 +658,8 @@ def _tradeoff(args, files) -> list[str]:
     from ..analysis import noise_tradeoff
     from ..models import ServoModel
 
+    nominal = ServoModel(args.J_n, args.b_n)
+    _print_notes(_family_grid(args, nominal.discretize(args.Ts)))
     spec = None  # the paper's family, its versions by --measurements (as it always was)
     if not _is_paper_family(args) or _family_given(args):
         if args.measurements != ["state"] and not _is_paper_family(args):
@@ -591,7 +668,6 @@ def _tradeoff(args, files) -> list[str]:
             raise CLIError("--measurements takes one version with --type dob's options")
         args.measurement = args.measurements[0]
         spec = _spec(args, None)
-    nominal = ServoModel(args.J_n, args.b_n)
     noise = args.noise
     if noise is None and spec is not None:  # the angle noise if the family measures no velocity
         from ..observers import design_at_bandwidth, get_family
