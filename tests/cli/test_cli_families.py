@@ -2,10 +2,10 @@
 ``analyze --type`` takes any registered family with its options, as ``hpdob design`` does;
 ``tune --families`` takes the registry's family types (and the tuner's variant names).
 
-A family defined only here, registered at run time (the DOb followed by a first-order low-pass
-of its estimate, as in tests/observers/test_registry.py), works in both with no edit
-under src/; the expected values come from the library's functions on the family's own design
-function, not from the command line.
+A family defined in the tests only, registered at run time (the DOb followed by a first-order
+low-pass of its estimate, tests/low_pass_family.py), works in both with no edit under src/;
+the expected values come from the library's functions on the family's own design function,
+not from the command line.
 """
 
 from __future__ import annotations
@@ -14,15 +14,14 @@ import csv
 import json
 import math
 import re
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
 
+import low_pass_family
 from hpdob import (
     PD,
     Encoder,
-    LinearObserver,
     ServoLoop,
     ServoModel,
     design_observer,
@@ -31,62 +30,15 @@ from hpdob import (
     robust_stability_map,
 )
 from hpdob.cli import main
-from hpdob.observers import Family, Parameter, design_eso, register_family, unregister_family
+from hpdob.observers import design_eso
+from low_pass_family import design_filtered
 
 TS = 1e-3
 NOMINAL, PLANT = ServoModel(2.8e-4), ServoModel(3.06e-4, 5e-5)  # canonical
 MODEL = NOMINAL.discretize(TS)
 
 
-@dataclass(frozen=True, eq=False)
-class LowPassDesign:
-    model: object
-    order: int
-    bandwidth: float
-    lp_bandwidth: float
-    system: LinearObserver
-
-
-def design_low_pass(model, *, order: int = 0, bandwidth: float, lp_bandwidth: float):
-    """The DOb of ``order`` at ``bandwidth`` [rad/s], its estimate low-pass filtered:
-    ``tau_f[k+1] = a tau_f[k] + (1 - a) tau_hat[k]``, ``a = exp(-lp_bandwidth Ts)``."""
-    dob = design_observer(model, order=order, bandwidth=bandwidth).system
-    a = math.exp(-lp_bandwidth * model.Ts)
-    n = dob.F.shape[0]
-    F = np.block([[dob.F, np.zeros((n, 1))], [(1 - a) * dob.H, np.array([[a]])]])
-    G = np.vstack([dob.G, (1 - a) * dob.E])
-    H = np.hstack([np.zeros((1, n)), [[1.0]]])
-    N = np.vstack([dob.N, [0.0, 0.0, 1.0]])
-    system = LinearObserver(F=F, G=G, H=H, E=np.zeros((1, 3)), N=N, Ts=model.Ts, model=model,
-                            name=f"DOb m={order} + LP")  # fmt: skip
-    return LowPassDesign(model, order, bandwidth, lp_bandwidth, system)
-
-
-LOW_PASS = Family(
-    name="cli_lp",
-    design=design_low_pass,
-    parameters=(
-        Parameter("order", "int", "truncation order of the DOb"),
-        Parameter("bandwidth", "float", "DOb bandwidth [rad/s]"),
-        Parameter("lp_bandwidth", "float", "low-pass bandwidth [rad/s]"),
-    ),
-    required=("bandwidth", "lp_bandwidth"),
-    order="order",
-    tuned="bandwidth",
-    designs=(LowPassDesign,),
-    spec_of=lambda d: {"order": d.order, "bandwidth": d.bandwidth, "lp_bandwidth": d.lp_bandwidth},
-    label=lambda spec: f"DOb m={spec.get('order', 0)} + LP",
-    title="a DOb followed by a first-order low-pass (defined in a test)",
-    variants={"cli-filtered": {"lp_bandwidth": 2000.0}},
-    orders=(0, 1),
-)
-
-
-@pytest.fixture
-def registered():
-    register_family(LOW_PASS)
-    yield LOW_PASS
-    unregister_family("cli_lp")
+registered = low_pass_family.registered  # the fixture registering FILTERED
 
 
 def run(capsys, *argv):
@@ -110,8 +62,8 @@ def test_analyze_stability_of_the_eso_and_of_a_registered_family(capsys, tmp_pat
     cases = [
         (["--type", "eso", "--form", "current"], {"type": "eso", "extended_order": 1,
                                                   "form": "current"}, "eso"),
-        (["--type", "cli_lp", "--lp-bandwidth", "300"], {"type": "cli_lp", "order": 1,
-                                                         "lp_bandwidth": 300.0}, "cli_lp"),
+        (["--type", "dob_lp", "--filter-bandwidth", "300"], {"type": "dob_lp", "order": 1,
+                                                         "filter_bandwidth": 300.0}, "dob_lp"),
     ]  # fmt: skip
     for options, spec, stem in cases:
         out = tmp_path / stem
@@ -128,7 +80,7 @@ def test_analyze_stability_of_the_eso_and_of_a_registered_family(capsys, tmp_pat
 
 
 def test_analyze_noise_and_bode_of_a_registered_family(capsys, tmp_path, registered):
-    options = ["--type", "cli_lp", "--lp-bandwidth", "300", "--orders", "0,1", "--dpi", "40",
+    options = ["--type", "dob_lp", "--filter-bandwidth", "300", "--orders", "0,1", "--dpi", "40",
                "--no-progress"]  # fmt: skip
     code, _, err = run(capsys, "analyze", "noise", *options, "--bandwidths", "50,200",
                        "--out", str(tmp_path / "n"))  # fmt: skip
@@ -138,7 +90,7 @@ def test_analyze_noise_and_bode_of_a_registered_family(capsys, tmp_path, registe
         (0, 50.0), (0, 200.0), (1, 50.0), (1, 200.0)]  # fmt: skip
     for r in table:
         m, g = int(r["order"]), float(r["bandwidth_rad_s"])
-        design = design_low_pass(MODEL, order=m, bandwidth=g, lp_bandwidth=300.0)
+        design = design_filtered(MODEL, order=m, bandwidth=g, filter_bandwidth=300.0)
         gains = noise_gains(plant=PLANT, nominal=NOMINAL, Ts=TS, controller=PD(50.0, 5.0),
                             observer=design)  # fmt: skip
         assert float(r["tau_hat_position"]) == pytest.approx(gains.tau_hat_position, rel=1e-12)
@@ -226,8 +178,9 @@ def test_analyze_kalman_default_grid_keeps_the_bandwidths_it_designs(capsys, tmp
 @pytest.mark.parametrize(
     ("options", "message"),
     [
-        (["--type", "cli_lp"], r"--type cli_lp needs --lp-bandwidth \(low-pass bandwidth"),
-        (["--lp-bandwidth", "300"], "--lp-bandwidth applies to another family, not --type dob"),
+        (["--type", "dob_lp"], r"--type dob_lp needs --filter-bandwidth \(low-pass bandwidth"),
+        (["--filter-bandwidth", "300"],
+         "--filter-bandwidth applies to another family, not --type dob"),
         (["--type", "eso", "--measurement", "position"],
          "--measurement applies to --type dob, not --type eso"),
         (["--type", "kalman"], "--type kalman needs --position-noise-std"),
@@ -247,9 +200,9 @@ def test_analyze_family_options_refused_before_any_work(
 
 @pytest.mark.parametrize(
     ("families", "variants"),
-    [("cli_lp", ["cli-filtered"]),  # a registered type: its variants
+    [("dob_lp", ["filtered"]),  # a registered type: its variants
      ("dob", ["state", "position"]),  # the paper's type: both its variants
-     ("position,cli-filtered,cli_lp", ["position", "cli-filtered"])],  # old names kept
+     ("position,filtered,dob_lp", ["position", "filtered"])],  # old names kept
 )  # fmt: skip
 def test_tune_families_takes_the_registry_types(capsys, tmp_path, registered, families, variants):
     # the audit: "--families dob" was refused (only the tuner's own names were accepted)
@@ -277,7 +230,8 @@ def test_analyze_tradeoff_of_the_eso_and_of_a_registered_family(capsys, tmp_path
     the low-pass (1 - a)/(z - a), independent of the family's code."""
     grid = ["--bandwidths", "100,400", "--frequency", "2", "--dpi", "40", "--no-progress"]
     for kind, options in (("eso", ["--form", "predictive", "--orders", "0,1"]),
-                          ("cli_lp", ["--lp-bandwidth", "300", "--orders", "0,1"])):  # fmt: skip
+                          ("dob_lp",
+                           ["--filter-bandwidth", "300", "--orders", "0,1"])):  # fmt: skip
         out = tmp_path / kind
         code, _, err = run(capsys, "analyze", "tradeoff", "--type", kind, *options, *grid,
                            "--out", str(out))  # fmt: skip
@@ -296,7 +250,7 @@ def test_analyze_tradeoff_of_the_eso_and_of_a_registered_family(capsys, tmp_path
                 design = design_eso(MODEL, bandwidth=g, extended_order=m, form="predictive")
                 error = abs(estimation_response(design, 2.0, error=True)[0])
             else:
-                design = design_low_pass(MODEL, order=m, bandwidth=g, lp_bandwidth=300.0)
+                design = design_filtered(MODEL, order=m, bandwidth=g, filter_bandwidth=300.0)
                 z, a = np.exp(2j * np.pi * 2.0 * TS), math.exp(-300.0 * TS)
                 dob = design_observer(MODEL, order=m, bandwidth=g)
                 error = abs(1 - estimation_response(dob, 2.0)[0] * (1 - a) / (z - a))
@@ -313,8 +267,9 @@ def test_analyze_tradeoff_of_the_eso_and_of_a_registered_family(capsys, tmp_path
 @pytest.mark.parametrize(
     ("options", "message"),
     [
-        (["--type", "cli_lp"], r"--type cli_lp needs --lp-bandwidth \(low-pass bandwidth"),
-        (["--lp-bandwidth", "300"], "--lp-bandwidth applies to another family, not --type dob"),
+        (["--type", "dob_lp"], r"--type dob_lp needs --filter-bandwidth \(low-pass bandwidth"),
+        (["--filter-bandwidth", "300"],
+         "--filter-bandwidth applies to another family, not --type dob"),
         (["--type", "eso", "--measurements", "position"],
          "--measurements applies to --type dob, not --type eso"),
         (["--type", "eso", "--noise", "velocity"],

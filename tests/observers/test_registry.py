@@ -13,16 +13,15 @@ from __future__ import annotations
 import json
 import math
 import re
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+import low_pass_family
 from hpdob import (
     PD,
     Encoder,
-    LinearObserver,
     ServoModel,
     compare_observers,
     design_observer,
@@ -42,71 +41,14 @@ from hpdob.observers import (
     get_family,
     register_family,
     spec_of,
-    unregister_family,
 )
 from hpdob.simulation import load_scenario
+from low_pass_family import FILTERED, FilteredDesign, design_filtered
 
 TS = 1e-3
 NOMINAL = ServoModel(2.8e-4)
 MODEL = NOMINAL.discretize(TS)
-
-
-@dataclass(frozen=True, eq=False)
-class FilteredDesign:
-    model: object
-    order: int
-    bandwidth: float
-    filter_bandwidth: float
-    system: LinearObserver
-
-
-def design_filtered(model, *, order: int = 0, bandwidth: float, filter_bandwidth: float):
-    """The DOb of ``order`` at ``bandwidth`` [rad/s], its estimate low-pass filtered."""
-    if not filter_bandwidth > 0:
-        raise ValueError(f"filter_bandwidth must be positive [rad/s], got {filter_bandwidth!r}")
-    dob = design_observer(model, order=order, bandwidth=bandwidth).system
-    a = math.exp(-filter_bandwidth * model.Ts)
-    n = dob.F.shape[0]
-    F = np.block([[dob.F, np.zeros((n, 1))], [(1 - a) * dob.H, np.array([[a]])]])
-    G = np.vstack([dob.G, (1 - a) * dob.E])
-    H = np.hstack([np.zeros((1, n)), [[1.0]]])
-    N = np.vstack([dob.N, [0.0, 0.0, 1.0]])  # converged on tau0: the filter holds tau0 too
-    system = LinearObserver(
-        F=F, G=G, H=H, E=np.zeros((1, 3)), N=N, Ts=model.Ts, model=model, name=f"DOb m={order} + LP"
-    )
-    return FilteredDesign(model, order, bandwidth, filter_bandwidth, system)
-
-
-FILTERED = Family(
-    name="dob_lp",
-    design=design_filtered,
-    parameters=(
-        Parameter("order", "int", "truncation order of the DOb"),
-        Parameter("bandwidth", "float", "DOb bandwidth [rad/s]"),
-        Parameter("filter_bandwidth", "float", "low-pass bandwidth [rad/s]"),
-    ),
-    required=("bandwidth", "filter_bandwidth"),
-    order="order",
-    tuned="bandwidth",
-    designs=(FilteredDesign,),
-    spec_of=lambda d: {
-        "order": d.order,
-        "bandwidth": d.bandwidth,
-        "filter_bandwidth": d.filter_bandwidth,
-    },
-    label=lambda spec: f"DOb m={spec.get('order', 0)} + LP",
-    title="a DOb followed by a first-order low-pass (defined in a test)",
-    variants={"filtered": {"filter_bandwidth": 2000.0}},
-    orders=(0, 1),
-    compared={"DOb + LP": {"order": 0, "filter_bandwidth": 2000.0}},
-)
-
-
-@pytest.fixture
-def registered():
-    register_family(FILTERED)
-    yield FILTERED
-    unregister_family("dob_lp")
+registered = low_pass_family.registered  # the fixture registering FILTERED
 
 
 def test_registration_is_undone_by_the_fixture():
