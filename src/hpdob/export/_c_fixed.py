@@ -90,14 +90,33 @@ def _header(design: FixedPointDesign, prefix: str) -> str:
         ("U_MAX", str(design.limit("u")), "u saturates at +-U_MAX"),
         ("TAU_MAX", str(design.limit("tau_hat")), "tau_hat saturates at +-TAU_MAX"),
     ]  # fmt: skip
-    velocity = ""
+    extra = ""
     if system.has_velocity:
         macros.append(("OMEGA_HAT_FRAC_BITS", str(design.frac_bits["omega_hat"]),
                        "omega_hat [rad/s] = value * 2^-OMEGA_HAT_FRAC_BITS"))  # fmt: skip
-        velocity = (
+        extra = (
             "\n/** Velocity estimate omega_hat_k (OMEGA_HAT format) from the encoder count. */\n"
             f"int32_t {prefix}_velocity(const {prefix}_state *s, int32_t count{omega_arg});\n"
         )
+    args = "count, omega" if design.measures_omega else "count"
+    reaction_loop = ""
+    if "tau_reac" in system.outputs:
+        # tau_reac has the format of its own proven bound (it never saturates), not TAU's
+        macros.append(("TAU_REAC_FRAC_BITS", str(design.frac_bits["tau_reac"]),
+                       "tau_reac [N m] = value * 2^-TAU_REAC_FRAC_BITS"))  # fmt: skip
+        extra += (
+            "\n/** Reaction-torque estimate tau_reac_k (TAU_REAC format): the RTOB's disturbance"
+            "\n *  estimate minus the friction model, from the encoder count. */\n"
+            f"int32_t {prefix}_reaction(const {prefix}_state *s, int32_t count{omega_arg});\n"
+            "\n/** Both estimates in one call: *tau_hat = tau_hat_k (TAU format, "
+            f"{prefix}_estimate),\n *  *tau_reac = tau_reac_k (TAU_REAC format, "
+            f"{prefix}_reaction). */\n"
+            f"void {prefix}_estimates(const {prefix}_state *s, int32_t count{omega_arg},\n"
+            "    int32_t *tau_hat, int32_t *tau_reac);\n"
+        )
+        reaction_loop = (f"\n *   tau_reac = {prefix}_reaction(&s, {args});   reaction torque"
+                         f"\n *     (or {prefix}_estimates(&s, {args}, &tau_hat, &tau_reac);"
+                         " both at once)")  # fmt: skip
     defines = "\n".join(f"/** {note} */\n#define {up}_{name} {value}" for name, value, note
                         in macros)  # fmt: skip
     omega_doc = ", omega = measure_velocity_q();" if design.measures_omega else ";"
@@ -111,9 +130,9 @@ def _header(design: FixedPointDesign, prefix: str) -> str:
  *
  * Sample loop, at every sample k and in this order (Ts = {system.Ts!r} s):
  *   count = read_encoder(){omega_doc}   32-bit running count; only differences are used
- *   tau_hat = {prefix}_estimate(&s, count{", omega" if design.measures_omega else ""});
+ *   tau_hat = {prefix}_estimate(&s, {args});{reaction_loop}
  *   u = u_outer + tau_hat;  apply(u);
- *   {prefix}_update(&s, count{", omega" if design.measures_omega else ""}, u);
+ *   {prefix}_update(&s, {args}, u);
  * Call {prefix}_init(&s, count0, omega0, tau0) once before the first sample.
  *
  * Integer arithmetic only: {word} values, int{2 * design.bits}_t sums, round half up,
@@ -141,7 +160,7 @@ void {prefix}_init({prefix}_state *s, int32_t count0, int32_t omega0, int32_t ta
 
 /** Disturbance estimate tau_hat_k (TAU format) from the encoder count. */
 int32_t {prefix}_estimate(const {prefix}_state *s, int32_t count{omega_arg});
-{velocity}
+{extra}
 /** Advance to sample k+1 with the same measurement and the torque u_k applied (U format). */
 void {prefix}_update({prefix}_state *s, int32_t count{omega_arg}, int32_t u);
 
@@ -192,10 +211,21 @@ def _source(design: FixedPointDesign, prefix: str) -> str:
     init += (f"    const {word} t0 = {narrow}{prefix}_clamp(tau0, {up}_TAU_MAX);\n"
              if "t0" in used else "    (void)tau0;\n")  # fmt: skip
     init += init_rows + "    s->count = count0;\n"
-    velocity = ""
+    extra = ""
     if system.has_velocity:
         signature = f"int32_t {prefix}_velocity(const {prefix}_state *s, int32_t count{omega_arg})"
-        velocity = f"\n{signature}\n{{\n{output(1)}}}\n"
+        extra = f"\n{signature}\n{{\n{output(1)}}}\n"
+    if "tau_reac" in system.outputs:
+        signature = f"int32_t {prefix}_reaction(const {prefix}_state *s, int32_t count{omega_arg})"
+        extra += f"\n{signature}\n{{\n{output(system.outputs.index('tau_reac'))}}}\n"
+        args = "count, omega" if design.measures_omega else "count"
+        # the two output functions in turn: its values are theirs bit for bit
+        extra += (
+            f"\nvoid {prefix}_estimates(const {prefix}_state *s, int32_t count{omega_arg},\n"
+            f"    int32_t *tau_hat, int32_t *tau_reac)\n{{\n"
+            f"    *tau_hat = {prefix}_estimate(s, {args});\n"
+            f"    *tau_reac = {prefix}_reaction(s, {args});\n}}\n"
+        )
     top = 2 ** (w - 1) - 1
     return f"""\
 /*
@@ -240,7 +270,7 @@ void {prefix}_init({prefix}_state *s, int32_t count0, int32_t omega0, int32_t ta
 int32_t {prefix}_estimate(const {prefix}_state *s, int32_t count{omega_arg})
 {{
 {output(0)}}}
-{velocity}
+{extra}
 void {prefix}_update({prefix}_state *s, int32_t count{omega_arg}, int32_t u)
 {{
 {update}}}

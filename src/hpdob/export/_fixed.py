@@ -263,6 +263,10 @@ class FixedPointDesign:
         if "omega_hat" in q:
             lines.append(("omega_hat", f"{q['omega_hat']}, |omega_hat| <= "
                                        f"{self.output_bound[1]:.6g} rad/s"))  # fmt: skip
+        if "tau_reac" in q:
+            r = self.system.outputs.index("tau_reac")
+            lines.append(("tau_reac", f"{q['tau_reac']}, |tau_reac| <= "
+                                      f"{self.output_bound[r]:.6g} N m"))  # fmt: skip
         for i in range(self.system.n_states):
             lines.append((f"q{i + 1}", f"{q[f'q{i + 1}']}, |q{i + 1}| <= "
                                        f"{self.state_bound[i]:.6g}"))  # fmt: skip

@@ -89,7 +89,8 @@ class FixedPointObserver:
         return (count,)
 
     def outputs(self, count: int, omega: int | None = None) -> tuple:
-        """All outputs (``tau_hat`` [, ``omega_hat``]) of the held state, as integers.
+        """All outputs (``tau_hat`` [, ``omega_hat``] [, ``tau_reac``]) of the held state, as
+        integers.
 
         Parameters
         ----------
@@ -117,6 +118,69 @@ class FixedPointObserver:
         int
         """
         return self.outputs(count, omega)[0]
+
+    def reaction(self, count: int, omega: int | None = None) -> int:
+        """The reaction-torque estimate of a reaction-torque observer composition (integer in
+        the ``tau_reac`` format), as ``<prefix>_reaction`` of the C.
+
+        Parameters
+        ----------
+        count, omega : int
+            As for :meth:`outputs`.
+
+        Returns
+        -------
+        int
+
+        Raises
+        ------
+        ParameterValueError
+            If the observer has no ``tau_reac`` output.
+        """
+        return self.estimates(count, omega)[1]
+
+    def estimates(self, count: int, omega: int | None = None) -> tuple[int, int]:
+        """``(tau_hat, tau_reac)`` in one call, as ``<prefix>_estimates`` of the C (issue 21):
+        the DOb's disturbance estimate (``tau_hat`` format) and the reaction-torque estimate
+        (``tau_reac`` format).
+
+        Parameters
+        ----------
+        count, omega : int
+            As for :meth:`outputs`.
+
+        Returns
+        -------
+        tuple of int
+
+        Raises
+        ------
+        ParameterValueError
+            If the observer has no ``tau_reac`` output (not a reaction-torque observer
+            composition).
+
+        Examples
+        --------
+        >>> from hpdob import ServoModel, design_observer
+        >>> from hpdob.export import FixedPointObserver, fixed_point_design
+        >>> from hpdob.observers import reaction_torque_observer
+        >>> dob = design_observer(ServoModel(J=2.8e-4).discretize(1e-3), order=1,
+        ...                       bandwidth=100.0)
+        >>> fx = fixed_point_design(reaction_torque_observer(dob, viscous=5e-5),
+        ...                         counts_per_rev=16384, omega_max=50.0, u_max=0.5, tau_max=0.5)
+        >>> obs = FixedPointObserver(fx)
+        >>> obs.estimates(0, 0)               # at rest, no torque: both zero
+        (0, 0)
+        """
+        outputs = self.design.system.outputs
+        if "tau_reac" not in outputs:
+            raise ParameterValueError(
+                f"observer {self.design.system.name!r} has no reaction-torque output tau_reac "
+                f"(its outputs: {', '.join(outputs)}); a reaction-torque observer composition "
+                "(hpdob.observers.reaction_torque_observer) has one"
+            )
+        y = self.outputs(count, omega)
+        return y[0], y[outputs.index("tau_reac")]
 
     def update(self, count: int, omega: int | None = None, u: int = 0) -> None:
         """Advance by one sample with the measurement and the torque applied (integers).

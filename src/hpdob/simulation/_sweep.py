@@ -513,7 +513,9 @@ def sweep(
         arguments; ``observer.*`` is then the DOb's), ``controller.kp``, ``controller.kd``,
         ``controller.ki``,
         ``controller.time_constant``, ``controller.tracking_time``, ``controller.bandwidth``,
-        ``controller.observer_bandwidth`` (the parameters of the base's controller, through
+        ``controller.observer_bandwidth``, ``controller.kf``, ``controller.kv``,
+        ``controller.M_d``, ``controller.D_d``, ``controller.K_d``, ``controller.tau_ref``,
+        ``controller.threshold`` (the parameters of the base's controller, through
         its constructor), ``Ts``, ``disturbance_scale`` (multiplies the disturbance).
     duration, reference, disturbance, substeps, x0 : optional
         The run settings of every scenario, as :func:`hpdob.simulate` takes them, with a

@@ -33,6 +33,9 @@ LOOP_PATHS = (
     "nominal.J", "nominal.b",
     "controller.kp", "controller.kd", "controller.ki", "controller.time_constant",
     "controller.tracking_time", "controller.bandwidth", "controller.observer_bandwidth",
+    # the force, impedance and position-force controllers' (hpdob.controllers)
+    "controller.kf", "controller.kv", "controller.M_d", "controller.D_d", "controller.K_d",
+    "controller.tau_ref", "controller.threshold",
     "Ts", "disturbance_scale",
 )  # fmt: skip
 

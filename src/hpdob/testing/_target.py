@@ -12,7 +12,9 @@ The drive loop's interface is the same on every build::
 
 ``in`` holds ``init[3]`` followed by ``count, omega, u`` for each of ``n`` samples; ``out``
 receives, per sample, the outputs and then the state the sample started from. ``_step`` runs
-one ``estimate`` (+ ``velocity``) and ``update``: what the instruction count measures.
+one ``estimate`` (+ ``velocity``) and ``update``: what the instruction count measures; for a
+reaction-torque observer composition ``estimates`` (``tau_hat`` and ``tau_reac`` in one call)
+replaces ``estimate``.
 """
 
 from __future__ import annotations
@@ -159,6 +161,11 @@ def fixed_drive_source(design, prefix: str) -> str:
     if system.has_velocity:
         outs.append(f"{prefix}_velocity(s, {args})")
     step_outs = "".join(f"    out[{r}] = {e};\n" for r, e in enumerate(outs))
+    if "tau_reac" in system.outputs:  # both estimates through the one call
+        r = system.outputs.index("tau_reac")
+        step_outs = step_outs.replace(
+            f"    out[0] = {outs[0]};\n",
+            f"    {prefix}_estimates(s, {args}, &out[0], &out[{r}]);\n")  # fmt: skip
     unused = "" if design.measures_omega else "    (void)w;\n"
     return f"""\
 #include <stdint.h>
