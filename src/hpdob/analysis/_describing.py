@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._blas import one_blas_thread
 from .._validation import (
     ParameterTypeError,
     ParameterValueError,
@@ -61,6 +62,9 @@ VERDICTS = ("stable", "limit cycle", "unstable")
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(400)
 _PHI = (_NODES + 1.0) * (np.pi / 4.0)
 _W = _WEIGHTS * (np.pi / 4.0)
+# Gauss-Hermite nodes for a mean over Gaussian noise: E[g(n)] = sum w_i g(sqrt(2) sigma x_i)
+_HERMITE_X, _HERMITE_W = np.polynomial.hermite.hermgauss(40)
+_HERMITE_W = _HERMITE_W / np.sqrt(np.pi)
 
 
 def _amplitude(amplitude) -> np.ndarray:
@@ -107,7 +111,7 @@ def relay_df(amplitude, *, level: float):
     return _out(4.0 * h / (np.pi * a), amplitude)
 
 
-def tanh_friction_df(amplitude, *, coulomb: float, velocity: float):
+def tanh_friction_df(amplitude, *, coulomb: float, velocity: float, sigma: float = 0.0):
     r"""Describing function of the smooth Coulomb friction :math:`c\tanh(\omega/v)`.
 
     .. math:: N(A) = \frac{4c}{\pi A}\int_0^{\pi/2}\tanh\left(\frac{A\sin\phi}{v}\right)
@@ -115,6 +119,12 @@ def tanh_friction_df(amplitude, *, coulomb: float, velocity: float):
 
     (400-point Gauss-Legendre): :math:`c/v` (the slope) for :math:`A \ll v`, the relay's
     :math:`4c/(\pi A)` for :math:`A \gg v`. As an equivalent viscous friction [N m s/rad].
+    With ``sigma > 0`` the input also carries zero-mean Gaussian noise of that standard
+    deviation, and :math:`\tanh` is replaced by its mean over the noise (40-point
+    Gauss-Hermite): the sinusoid's gain of the dual-input (sinusoid + Gaussian) describing
+    function (Gelb & Vander Velde 1968, ch. 6). Noise lowers it: for :math:`A \to 0` it
+    tends to the mean slope :math:`E[c/v\,\mathrm{sech}^2(n/v)]`, about
+    :math:`c\sqrt{2/\pi}/\sigma` for :math:`\sigma \gg v`.
 
     Parameters
     ----------
@@ -124,6 +134,9 @@ def tanh_friction_df(amplitude, *, coulomb: float, velocity: float):
         :math:`c` [N m], non-negative.
     velocity : float
         :math:`v` [rad/s], positive.
+    sigma : float, optional
+        Standard deviation [rad/s] of Gaussian noise added to the sinusoid, non-negative.
+        Default 0.
 
     Returns
     -------
@@ -143,9 +156,15 @@ def tanh_friction_df(amplitude, *, coulomb: float, velocity: float):
     """
     c = nonnegative(coulomb, "coulomb", "a non-negative Coulomb torque [N m]")
     v = positive(velocity, "velocity", "a positive velocity scale [rad/s]")
+    sigma = nonnegative(sigma, "sigma", "a non-negative noise standard deviation [rad/s]")
     a = _amplitude(amplitude)
     x = np.multiply.outer(a / v, np.sin(_PHI))
-    n = 4.0 * c / (np.pi * a) * (np.tanh(x) @ (np.sin(_PHI) * _W))
+    if sigma == 0.0:
+        f = np.tanh(x)
+    else:  # E[tanh((x + n)/v)], n ~ N(0, sigma^2); odd in x, so over +-n symmetric nodes
+        shift = np.sqrt(2.0) * sigma / v * _HERMITE_X
+        f = np.tanh(x[..., None] + shift) @ _HERMITE_W
+    n = 4.0 * c / (np.pi * a) * (f @ (np.sin(_PHI) * _W))
     return _out(n, amplitude)
 
 
@@ -258,56 +277,86 @@ def saturation_df(amplitude, *, limit: float, bias: float = 0.0):
     return _out(n, amplitude)
 
 
-def _oscillation(A: np.ndarray, min_angle: float):
-    """``(radius of all, eigenvalue, eigenvector)`` of the largest oscillatory eigenvalue
-    (angle above ``min_angle`` [rad/sample]) of ``A``; (radius, None, None) without one."""
+def _candidates(A: np.ndarray, min_angle: float, count: int):
+    """``(spectral radius, [(eigenvalue, eigenvector), ...])``: the ``count`` largest
+    oscillatory eigenvalues of ``A`` (angle above ``min_angle`` [rad/sample], one of each
+    conjugate pair), largest first."""
     w, v = np.linalg.eig(A)
-    radius = float(np.abs(w).max())
-    osc = np.abs(np.angle(w)) > min_angle
-    if not osc.any():
-        return radius, None, None
-    i = np.flatnonzero(osc)[np.argmax(np.abs(w[osc]))]
-    return radius, w[i], v[:, i]
+    osc = np.flatnonzero((np.angle(w) > min_angle) | (np.angle(w) >= np.pi - 1e-12))
+    order = osc[np.argsort(-np.abs(w[osc]))][:count]
+    return float(np.abs(w).max()), [(w[i], v[:, i]) for i in order]
 
 
-def harmonic_balance(build, gains, amplitudes, *, reference: str, min_angle=1e-3, iterations=20,
-                     tolerance=1e-3):
-    """The quasi-linear loop's oscillation at each amplitude of ``reference`` (internal).
+def harmonic_balance(build, gains, amplitudes, *, reference: str, min_angle=1e-3, modes=3,
+                     iterations=30, tolerance=1e-4):  # fmt: skip
+    """The quasi-linear loop's oscillations at each amplitude of ``reference`` (internal).
 
     ``build(gains) -> (A, rows)``: the loop's state matrix with the DF gains put in and the
-    output rows (name -> row over the state) whose amplitudes the gains read; ``gains`` maps
-    a row's name to its DF ``N(amplitude)``. At each amplitude of ``reference``'s row the
-    amplitudes of the other rows follow the eigenvector of the largest oscillatory mode, which
-    follows the gains: iterated to a fixed point (geometric mean of old and new, to damp it).
-    Returns ``(radius, oscillatory radius, omega [rad/sample], converged)`` arrays.
+    output rows (name -> row over the state) whose amplitudes the gains read. ``gains`` maps
+    a row's name to its DF ``N(amplitude, amplitudes, angle)``: the row's amplitude, every
+    row's, and the oscillation's angle per sample [rad]. An oscillation in one mode at
+    amplitude ``X`` of ``reference`` gives the other rows the amplitudes of that mode's
+    eigenvector; they set the gains, which move the mode. Per mode a fixed point, iterated
+    (geometric mean of old and new amplitudes, to damp it), following the eigenvalue
+    nearest the last one. The ``modes`` largest oscillatory modes are followed, seeded from
+    the previous amplitude's (``amplitudes`` in the order given). Returns ``(modulus, omega
+    [rad/sample], converged)``: the largest self-consistent modulus at each amplitude, its
+    angle, and whether its fixed point was reached; where no oscillatory mode remains, the
+    spectral radius if it exceeds 1 (a real mode that grows) and 0 otherwise.
     """
     n = len(amplitudes)
-    radius, rho, angle = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    modulus, angle = np.full(n, np.nan), np.full(n, np.nan)
     converged = np.zeros(n, dtype=bool)
-    ratios = None  # amplitude of each row over the reference's
+
+    def gains_at(amp, theta):
+        if amp is None:
+            return dict.fromkeys(gains, 1.0)
+        amp = {k: max(a, 1e-200) for k, a in amp.items()}
+        return {k: f(amp[k], amp, theta) for k, f in gains.items()}
+
+    seeds = [(None, 0.0)]  # amplitude ratios (row / reference) and angle of the modes followed
     for i, level in enumerate(amplitudes):
-        amp = None if ratios is None else {k: level * r for k, r in ratios.items()}
-        for _ in range(iterations):
-            values = {k: 1.0 for k in gains} if amp is None else {
-                k: f(max(amp[k], 1e-300)) for k, f in gains.items()}  # fmt: skip
-            A, rows = build(values)
-            radius[i], lam, vec = _oscillation(A, min_angle)
-            if lam is None:
-                break
-            size = {k: float(abs(rows[k] @ vec)) for k in (*gains, reference)}
-            if size[reference] == 0.0:
-                break
-            new = {k: max(level * size[k] / size[reference], 1e-200) for k in gains}
-            done = amp is not None and all(
-                abs(math.log(new[k] / amp[k])) < tolerance for k in gains)  # fmt: skip
-            amp = new if amp is None else {k: math.sqrt(amp[k] * new[k]) for k in gains}
-            rho[i], angle[i] = abs(lam), abs(np.angle(lam))
-            if done:
-                converged[i] = True
-                break
-        if amp is not None:
-            ratios = {k: max(amp[k] / level, 1e-100) for k in gains}
-    return radius, rho, angle, converged
+        found = []  # (modulus, angle, converged, ratios)
+        starts, spectral = [], 0.0
+        for ratios, theta in seeds:
+            amp = None if ratios is None else {k: level * r for k, r in ratios.items()}
+            radius, pairs = _candidates(build(gains_at(amp, theta))[0], min_angle, modes)
+            starts += [(lam, ratios) for lam, _ in pairs]
+            spectral = max(spectral, radius)
+        for lam, ratios in starts[: 2 * modes]:
+            amp = None if ratios is None else {k: level * ratios[k] for k in gains}
+            done = False
+            for _ in range(iterations):
+                A, rows = build(gains_at(amp, abs(np.angle(lam))))
+                w, v = np.linalg.eig(A)
+                j = int(np.argmin(np.abs(w - lam)))
+                lam, vec = w[j], v[:, j]
+                size = {k: float(abs(rows[k] @ vec)) for k in (*gains, reference)}
+                if size[reference] == 0.0:
+                    break
+                new = {k: min(max(level * size[k] / size[reference], 1e-200), 1e100)
+                       for k in gains}  # fmt: skip
+                done = amp is not None and all(
+                    abs(math.log(new[k] / amp[k])) < tolerance for k in gains)  # fmt: skip
+                amp = new if amp is None else {
+                    k: math.sqrt(amp[k]) * math.sqrt(new[k]) for k in gains}  # fmt: skip
+                if done:
+                    break
+            if amp is not None and abs(np.angle(lam)) > min_angle:
+                found.append((abs(lam), abs(np.angle(lam)), done,
+                              {k: max(amp[k] / level, 1e-100) for k in gains}))  # fmt: skip
+        if not found:  # no oscillatory mode: a real one decides (growth only beyond 1)
+            modulus[i], converged[i] = (spectral if spectral > 1.0 + 1e-9 else 0.0), True
+            continue
+        # the same mode reached from two seeds: keep one (moduli and angles within 1e-6)
+        unique = []
+        for f in sorted(found, key=lambda f: -f[0]):
+            if all(abs(f[0] - u[0]) > 1e-6 or abs(f[1] - u[1]) > 1e-6 for u in unique):
+                unique.append(f)
+        best = unique[0]  # the largest: the one that decides growth or decay
+        modulus[i], angle[i], converged[i] = best[0], best[1], best[2]
+        seeds = [(f[3], f[1]) for f in unique[:modes]]
+    return modulus, angle, converged
 
 
 @dataclass(frozen=True, eq=False)
@@ -431,12 +480,14 @@ def _contact_parts(loop: ServoLoop, tau_ref: float):
     return plant, wall, limit
 
 
+@one_blas_thread  # thousands of eigenvalue problems of size ~12: BLAS threads only cost
 def contact_limit_cycle(
     loop: ServoLoop,
     /,
     *,
     tau_ref: float,
     friction: bool = True,
+    reaction_friction: bool = True,
     quantiser: bool = True,
     saturation: bool = True,
     levels: int = 48,
@@ -478,10 +529,10 @@ def contact_limit_cycle(
         composed observer (its Coulomb term, ``LinearObserver.coulomb``) are read from it.
     tau_ref : float
         The force reference [N m] the loop holds, positive, below the torque limit.
-    friction, quantiser, saturation : bool, optional
-        Model the Coulomb friction (the plant's and the RTOB's), the encoder's quantiser, the
-        torque limit. Default True each; False leaves it out (unquantised, unlimited,
-        frictionless).
+    friction, reaction_friction, quantiser, saturation : bool, optional
+        Model the plant's Coulomb friction, the RTOB's Coulomb term, the encoder's quantiser,
+        the torque limit. Default True each; False leaves it out (frictionless, the RTOB's
+        term as if absent, unquantised, unlimited).
     levels : int, optional
         Amplitudes scanned (log-spaced), at least 8. Default 48.
     smallest : float, optional
@@ -538,8 +589,11 @@ def contact_limit_cycle(
     levels = as_int(levels, "levels", "an integer number of amplitudes, at least 8", minimum=8)
     smallest = positive(smallest, "smallest", "an amplitude ratio in (0, 1)")
     if smallest >= 1.0:
-        raise ParameterValueError(f"smallest must be an amplitude ratio in (0, 1), got {smallest!r}")
+        raise ParameterValueError(
+            f"smallest must be an amplitude ratio in (0, 1), got {smallest!r}"
+        )
     friction, quantiser, saturation = bool(friction), bool(quantiser), bool(saturation)
+    reaction_friction = bool(reaction_friction)
     Ts = loop.Ts
     k_e = wall.stiffness
     system = loop.system
@@ -547,28 +601,39 @@ def contact_limit_cycle(
     base = plant.replace(coulomb=0.0)
     controller = loop.controller_system
     backward = sensor is not None and sensor.velocity == "backward-difference"
-    coulomb = None if system is None or not friction else system.coulomb
+    coulomb = None if system is None or not reaction_friction else system.coulomb
     signals, gains, used = (), {}, []
+    quantised = quantiser and sensor is not None and hasattr(sensor, "counts_per_rev")
+    q = 2.0 * np.pi / sensor.counts_per_rev if quantised else 0.0
     if friction and plant.coulomb > 0.0:
-        gains["omega"] = lambda a: tanh_friction_df(a, coulomb=plant.coulomb,
-                                                    velocity=plant.coulomb_velocity)  # fmt: skip
+        gains["omega"] = lambda a, amp, angle: tanh_friction_df(
+            a, coulomb=plant.coulomb, velocity=plant.coulomb_velocity)  # fmt: skip
         used.append("friction")
     if coulomb is not None and coulomb.c > 0.0:
         source = "omega_m" if coulomb.velocity == "omega" else "omega_hat"
         signals = (source,)
-        gains[source] = lambda a: tanh_friction_df(a, coulomb=coulomb.c, velocity=coulomb.v)
+        dither = _velocity_dither(system, source, Ts) if quantised and backward else 0.0
+
+        def reaction_gain(a, amp, angle):
+            # the encoder's count changes as noise on the term's velocity: crossings per
+            # sample of a sinusoid of amp["theta"] / q counts, each an impulse q / Ts of the
+            # backward difference (white q^2/12 at one and more per sample)
+            rate = 2.0 / np.pi * amp["theta"] / q * angle if dither else 0.0
+            sigma = dither * q / Ts * math.sqrt(min(rate, 1.0 / 6.0))
+            return tanh_friction_df(a, coulomb=coulomb.c, velocity=coulomb.v, sigma=sigma)
+
+        gains[source] = reaction_gain
         used.append("reaction_friction")
-    quantised = quantiser and sensor is not None and hasattr(sensor, "counts_per_rev")
     if quantised:
-        q = 2.0 * np.pi / sensor.counts_per_rev
         centre = wall.position + tau_ref / k_e
         offset = centre - q * round(centre / q)
-        gains["theta"] = lambda a: quantiser_df(a, step=q, offset=offset)
+        gains["theta"] = lambda a, amp, angle: quantiser_df(a, step=q, offset=offset)
         used.append("quantiser")
     if saturation and limit is not None:
-        gains["u"] = lambda a: saturation_df(a, limit=limit, bias=tau_ref)
+        gains["u"] = lambda a, amp, angle: saturation_df(a, limit=limit, bias=tau_ref)
         used.append("saturation")
     plants = {}
+    delay = loop.actuator.delay_samples
 
     def build(values):
         # the plant's ZOH with the friction's equivalent viscous term, to 5 digits (each ZOH
@@ -580,7 +645,7 @@ def contact_limit_cycle(
         if coulomb is not None and coulomb.c > 0.0:
             observer = _with_viscous_reaction(system, coulomb.velocity, values[signals[0]])
         spec = LoopSpec(plant=plants[extra], controller=controller, system=observer,
-                        backward_difference=backward, delay=loop.actuator.delay_samples)  # fmt: skip
+                        backward_difference=backward, delay=delay)  # fmt: skip
         A, _, C, _, _, names = loop_matrices(spec, measurement_gain=values.get("theta", 1.0),
                                              command_gain=values.get("u", 1.0),
                                              signals=signals)  # fmt: skip
@@ -591,8 +656,8 @@ def contact_limit_cycle(
     top = tau_ref
     grid = np.geomspace(smallest * top, top, levels)
     # scanned from the top down: the start amplitude's mode seeds the next level's ratios
-    radius, rho, angle, converged = harmonic_balance(build, gains, grid[::-1], reference="tau_env")
-    radius, rho, angle, converged = radius[::-1], rho[::-1], angle[::-1], converged[::-1]
+    rho, angle, converged = harmonic_balance(build, gains, grid[::-1], reference="tau_env")
+    rho, angle, converged = rho[::-1], angle[::-1], converged[::-1]
     hz = angle / (2 * np.pi * Ts)
     cycles = []
     for i in range(levels - 1):
@@ -612,12 +677,30 @@ def contact_limit_cycle(
             verdict, amplitude, frequency = "limit cycle", best["amplitude"], best["frequency"]
         else:
             verdict, amplitude, frequency = "stable", 0.0, math.nan
-    for array in (grid, radius, hz, converged):
+    for array in (grid, rho, hz, converged):
         array.setflags(write=False)
     return ContactLimitCycle(verdict=verdict, amplitude=amplitude, frequency=frequency,
                              tau_ref=tau_ref, levels=grid, radius=rho, frequencies=hz,
                              converged=converged, limit_cycles=tuple(cycles),
                              nonlinearities=tuple(used))  # fmt: skip
+
+
+def _velocity_dither(system: LinearObserver, source: str, Ts: float) -> float:
+    """The RMS of the Coulomb term's velocity per unit white noise on the measured velocity
+    (the observer alone: 1 for the measured velocity, the H2 norm to ``omega_hat`` for its
+    own); 0 for an observer that does not read the measured velocity."""
+    if source == "omega_m":
+        return 1.0
+    if "omega" not in system.measures:
+        return 0.0
+    from scipy.linalg import solve_discrete_lyapunov
+
+    col = system.measures.index("omega")
+    w = system.outputs.index("omega_hat")
+    F, G = np.asarray(system.F), np.asarray(system.G)[:, col]
+    H, E = np.asarray(system.H)[w], float(np.asarray(system.E)[w, col])
+    P = solve_discrete_lyapunov(F.T, np.outer(H, H))
+    return float(math.sqrt(E * E + G @ P @ G))
 
 
 def _with_viscous_reaction(system: LinearObserver, velocity: str, gain: float):

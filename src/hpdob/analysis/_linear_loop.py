@@ -221,10 +221,9 @@ def loop_matrices(
     theta_row, omega_row = row(), row()
     theta_row[:nx], omega_row[:nx] = Cp[0], Cp[1]
     rows = {"theta": theta_row, "omega": omega_row, "u": command, "tau_hat": tau_hat, "a": a}
+    measured = {"theta_m": theta_m, "omega_m": omega_m}
     for name in signals:
-        rows[name] = {"theta_m": theta_m, "omega_m": omega_m}.get(name)
-        if rows[name] is None:
-            rows[name] = signals_of[name] if name in signals_of else None
+        rows[name] = measured.get(name, signals_of.get(name))
         if rows[name] is None:
             raise ParameterValueError(
                 f"signals must name theta_m, omega_m or observer outputs "
