@@ -65,6 +65,9 @@ _W = _WEIGHTS * (np.pi / 4.0)
 # Gauss-Hermite nodes for a mean over Gaussian noise: E[g(n)] = sum w_i g(sqrt(2) sigma x_i)
 _HERMITE_X, _HERMITE_W = np.polynomial.hermite.hermgauss(40)
 _HERMITE_W = _HERMITE_W / np.sqrt(np.pi)
+# Gauss-Legendre on [0, 20] (units of v) for the remainder sign(u) - tanh(u) ~ 2 exp(-2u)
+_TAIL_U, _TAIL_W = np.polynomial.legendre.leggauss(200)
+_TAIL_U, _TAIL_W = (_TAIL_U + 1.0) * 10.0, _TAIL_W * 10.0
 
 
 def _amplitude(amplitude) -> np.ndarray:
@@ -161,9 +164,17 @@ def tanh_friction_df(amplitude, *, coulomb: float, velocity: float, sigma: float
     x = np.multiply.outer(a / v, np.sin(_PHI))
     if sigma == 0.0:
         f = np.tanh(x)
-    else:  # E[tanh((x + n)/v)], n ~ N(0, sigma^2); odd in x, so over +-n symmetric nodes
+    elif sigma <= v:  # E[tanh((x + n)/v)], n ~ N(0, sigma^2): smooth on the noise's scale
         shift = np.sqrt(2.0) * sigma / v * _HERMITE_X
         f = np.tanh(x[..., None] + shift) @ _HERMITE_W
+    else:  # a step on the noise's scale: E[sign] = erf exactly, minus the smooth remainder
+        from scipy.special import erf
+
+        s = sigma / v  # in units of v: E[sign(x + n)] - E[sign(u) - tanh(u)] over u = x + n
+        xu = x[..., None]
+        gap = (1.0 - np.tanh(_TAIL_U)) * _TAIL_W  # sign - tanh on u > 0 (odd), weighted
+        pdf = np.exp(-0.5 * ((_TAIL_U - xu) / s) ** 2) - np.exp(-0.5 * ((_TAIL_U + xu) / s) ** 2)
+        f = erf(x / (np.sqrt(2.0) * s)) - (pdf @ gap) / (s * np.sqrt(2 * np.pi))
     n = 4.0 * c / (np.pi * a) * (f @ (np.sin(_PHI) * _W))
     return _out(n, amplitude)
 
