@@ -139,3 +139,63 @@ def test_bad_inputs_are_refused_naming_the_parameter():
         contact_limit_cycle(loop, tau_ref=TAU_REF, smallest=1.0)
     # a rejected call changes nothing: the loop is frozen and still gives the same verdict
     assert dataclasses.is_dataclass(loop)
+
+
+#: The fixed DF grid of examples/force_contact_verdict.py (DF_STIFFNESS, DF_BANDWIDTH).
+GRID_K, GRID_G = np.geomspace(0.2, 200.0, 6), np.geomspace(40.0, 1200.0, 6)
+
+
+def _step(t):
+    return np.where(t >= 0.01, TAU_REF, 0.0), 0 * t, 0 * t
+
+
+def _simulated(loop) -> tuple[str, float]:
+    """The script's simulation rule (``simulated``): stable / unstable / bounded, and the
+    worst deviation over the last 0.5 s of the 5 s step run over tau_ref."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SimulationDivergedWarning)
+        result = simulate(loop, reference=_step, duration=5.0)
+    if result.theta.size < 5000 or not np.all(np.isfinite(result.tau_contact)):
+        return "unstable", np.inf
+    deviation = np.abs(result.tau_contact - TAU_REF) / TAU_REF
+    last, middle = deviation[-500:].max(), deviation[2000:2500].max()
+    if not result.in_contact[-500:].all() or (last > 0.05 and last > 1.5 * middle):
+        return "unstable", last
+    if last <= 0.05 or last <= 0.5 * middle:
+        return "stable", last
+    return "bounded", last
+
+
+def _grid_point(order, i, j):
+    k_e, g = GRID_K[i], GRID_G[j]
+    cmap = contact_stability_map(_loop(order), stiffness=[k_e], bandwidth=[g],
+                                 observer={"order": order}, **FRICTION)  # fmt: skip
+    return cmap.loop_at(k_e, g)
+
+
+def test_df_verdict_on_the_grid_agrees_on_both_sides_and_fails_where_documented():
+    """docs/force-control.md, "The describing-function verdict" (measured 2026-12-02: 46 of
+    72 points agree). Two points that agree, one on each side: the DOb at 3.17 N m/rad,
+    155.9 rad/s (DF stable; the run within 2.6e-8 of tau_ref) and the HPDOb at 50.2 N m/rad,
+    1200 rad/s (DF unstable; the run off by 340 %). Two that do not: the HPDOb at
+    0.796 N m/rad, 607.8 rad/s (DF: a 0.26 % cycle, so "stable"; the run hunts, 13 % off)
+    and the DOb at 50.2 N m/rad, 307.8 rad/s (DF: a 7.7 % cycle, so "bounded"; the run
+    rests, 1.7e-14 off, no count change)."""
+    point = _grid_point(0, 2, 2)
+    assert contact_limit_cycle(point, tau_ref=TAU_REF).verdict == "stable"
+    outcome, last = _simulated(point)
+    assert outcome == "stable" and last < 1e-4
+    point = _grid_point(1, 4, 5)
+    assert contact_limit_cycle(point, tau_ref=TAU_REF).verdict == "unstable"
+    outcome, last = _simulated(point)
+    assert outcome == "unstable" and last > 1.0
+    point = _grid_point(1, 1, 4)
+    cycle = contact_limit_cycle(point, tau_ref=TAU_REF)
+    assert cycle.verdict in ("stable", "limit cycle") and cycle.amplitude < 0.02
+    outcome, last = _simulated(point)
+    assert outcome == "bounded" and last > 0.08
+    point = _grid_point(0, 4, 3)
+    cycle = contact_limit_cycle(point, tau_ref=TAU_REF)
+    assert cycle.verdict == "limit cycle" and cycle.amplitude > 0.06
+    outcome, last = _simulated(point)
+    assert outcome == "stable" and last < 1e-6
