@@ -4,14 +4,15 @@ The contact map's verdict on the paper's motor, and the RTOB's own bandwidth (a 
 
 Regenerate the figure and the tables of docs/force-control.md's sections "The verdict on the
 paper's motor" (the a-priori decidability rule on its fixed 7 x 7 grid, the 6 x 6 grid under
-the old 50 % rule, the stiff and soft rows) and "The RTOB's own bandwidth"::
+the old 50 % rule, the stiff and soft rows), "The describing-function verdict" (its fixed
+6 x 6 grid) and "The RTOB's own bandwidth"::
 
     python examples/force_contact_verdict.py [OUT_DIR]
     python examples/force_contact_verdict.py --df     # the describing-function grid alone
 
 writes force_rtob_bandwidth.png (100 dpi) into OUT_DIR (default docs/figures) and prints the
 Markdown tables of the page, computed here from the library (copy them into the page when the
-numbers change). Takes ~40 s of CPU.
+numbers change). Takes ~5 min of CPU, 4 of them the describing-function grid (``--df``).
 
 The loop: the paper's motor (J = 3.06e-4 kg m^2, b = 5e-5 N m s/rad, Coulomb 0.01 N m smoothed
 over 0.01 rad/s) and nominal model (J_n = 2.8e-4, b_n = 0), its 16384-count encoder with

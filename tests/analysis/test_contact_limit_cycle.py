@@ -199,3 +199,17 @@ def test_df_verdict_on_the_grid_agrees_on_both_sides_and_fails_where_documented(
     assert cycle.verdict == "limit cycle" and cycle.amplitude > 0.06
     outcome, last = _simulated(point)
     assert outcome == "stable" and last < 1e-6
+
+
+def test_the_maps_limit_cycles_column_is_the_verdict_of_each_point():
+    cmap = contact_stability_map(_loop(), stiffness=[10.0, 200.0], bandwidth=[100.0],
+                                 observer={"order": 1}, **FRICTION)  # fmt: skip
+    frame = cmap.limit_cycles(tau_ref=TAU_REF, levels=8)
+    assert list(frame.columns[-3:]) == ["df_verdict", "df_amplitude", "df_frequency_hz"]
+    for row in frame.itertuples():
+        cycle = contact_limit_cycle(cmap.loop_at(row.stiffness, row.bandwidth_rad_s),
+                                    tau_ref=TAU_REF, levels=8)  # fmt: skip
+        assert row.df_verdict == cycle.verdict
+        assert row.df_amplitude == cycle.amplitude
+    with pytest.raises(ParameterValueError, match="tau_ref must be a positive"):
+        cmap.limit_cycles(tau_ref=0.0)
