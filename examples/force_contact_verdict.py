@@ -4,13 +4,15 @@ The contact map's verdict on the paper's motor, and the RTOB's own bandwidth (a 
 
 Regenerate the figure and the tables of docs/force-control.md's sections "The verdict on the
 paper's motor" (the a-priori decidability rule on its fixed 7 x 7 grid, the 6 x 6 grid under
-the old 50 % rule, the stiff and soft rows) and "The RTOB's own bandwidth"::
+the old 50 % rule, the stiff and soft rows), "The describing-function verdict" (its fixed
+6 x 6 grid) and "The RTOB's own bandwidth"::
 
     python examples/force_contact_verdict.py [OUT_DIR]
+    python examples/force_contact_verdict.py --df     # the describing-function grid alone
 
 writes force_rtob_bandwidth.png (100 dpi) into OUT_DIR (default docs/figures) and prints the
 Markdown tables of the page, computed here from the library (copy them into the page when the
-numbers change). Takes ~40 s of CPU.
+numbers change). Takes ~5 min of CPU, 4 of them the describing-function grid (``--df``).
 
 The loop: the paper's motor (J = 3.06e-4 kg m^2, b = 5e-5 N m s/rad, Coulomb 0.01 N m smoothed
 over 0.01 rad/s) and nominal model (J_n = 2.8e-4, b_n = 0), its 16384-count encoder with
@@ -357,8 +359,73 @@ def a_priori_causes() -> None:
         )
 
 
+#: The describing-function verdict's grid and rule (docs/force-control.md, "The
+#: describing-function verdict"), fixed and committed before the grid was run: 6 x 6, regular
+#: in log and offset from both earlier grids (7 x 7 over 0.3-300 x 30-1500, 6 x 6 over
+#: 0.1-1000 x 25-2000), both orders. The rule: the DF's "stable", and its "limit cycle" of at
+#: most SETTLED of tau_ref (the simulation rule's 5 %), predict the simulation's "stable"; a
+#: larger limit cycle predicts "bounded"; "unstable" predicts "unstable".
+DF_STIFFNESS, DF_BANDWIDTH = np.geomspace(0.2, 200.0, 6), np.geomspace(40.0, 1200.0, 6)
+SETTLED = 0.05
+
+
+def predicted(cycle) -> str:
+    """The simulation rule's outcome the describing-function verdict predicts."""
+    if cycle.verdict == "unstable":
+        return "unstable"
+    if cycle.verdict == "limit cycle" and cycle.amplitude > SETTLED:
+        return "bounded"
+    return "stable"
+
+
+def first_harmonic(point) -> tuple[float, float]:
+    """The step run's oscillation over its last 2 s: the largest spectral line's amplitude
+    over tau_ref [-] and frequency [Hz] (the contact torque's, mean removed)."""
+    result = run(point, reference=step)
+    if result.theta.size < 5000 or not np.all(np.isfinite(result.tau_contact)):
+        return np.nan, np.nan
+    x = result.tau_contact[-2000:] - TAU_REF
+    spectrum = np.abs(np.fft.rfft(x - x.mean()))
+    i = int(np.argmax(spectrum[1:])) + 1
+    return 2 * spectrum[i] / x.size / TAU_REF, float(np.fft.rfftfreq(x.size, paper.TS)[i])
+
+
+def describing_function_grid() -> None:
+    """The DF verdict (``contact_limit_cycle``) against the simulation rule at every point
+    of the fixed DF grid: the loop's linear radius, the DF's verdict (amplitude, frequency),
+    the simulated outcome (worst deviation over the last 0.5 s) and the run's first harmonic
+    over the last 2 s."""
+    from hpdob.analysis import contact_limit_cycle
+
+    total = agree = 0
+    for order in (0, 1):
+        cmap = contact_stability_map(loop(order, friction=FRICTION), stiffness=DF_STIFFNESS,
+                                     bandwidth=DF_BANDWIDTH, observer={"order": order},
+                                     **FRICTION)  # fmt: skip
+        print(f"\n{NAMES[order]}\n")
+        print("| k_e [N m/rad] | g [rad/s] | radius | DF verdict | predicts | simulated "
+              "(worst deviation) | run's first harmonic | agrees |")  # fmt: skip
+        print("|---:|---:|---:|---|---|---|---|---|")
+        for i, k_e in enumerate(DF_STIFFNESS):
+            for j, g in enumerate(DF_BANDWIDTH):
+                point = cmap.loop_at(k_e, g)
+                cycle = contact_limit_cycle(point, tau_ref=TAU_REF)
+                outcome, last = simulated(point)
+                amplitude, hz = first_harmonic(point)
+                guess = predicted(cycle)
+                total += 1
+                agree += guess == outcome
+                df = cycle.verdict + (f" {100 * cycle.amplitude:.2g} % at {cycle.frequency:.3g} Hz"
+                                      if cycle.verdict == "limit cycle" else "")  # fmt: skip
+                print(f"| {k_e:.3g} | {g:.4g} | {cmap.spectral_radius[i, j]:.4f} | {df} | "
+                      f"{guess} | {outcome} ({100 * last:.2g} %) | {100 * amplitude:.2g} % at "
+                      f"{hz:.3g} Hz | {'yes' if guess == outcome else '**no**'} |")  # fmt: skip
+    print(f"\nagree: {agree} of {total}")
+
+
 def main(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
+    describing_function_grid()
     rtob_bandwidth(out)
     a_priori_rule()
     a_priori_causes()
@@ -369,4 +436,7 @@ def main(out: Path) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parents[1] / "docs/figures")
+    if sys.argv[1:] == ["--df"]:  # the describing-function grid alone
+        describing_function_grid()
+    else:
+        main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parents[1] / "docs/figures")

@@ -13,6 +13,9 @@ robust_stability_map
 contact_stability_map, ContactStabilityMap, force_response, ForceResponse
     The force loop in contact: stability over environment stiffness or J_n/J and bandwidth;
     tau_env/tau_ref, its poles, zeros and -3 dB bandwidth.
+contact_limit_cycle, ContactLimitCycle, relay_df, tanh_friction_df, quantiser_df, saturation_df
+    The force loop in contact with its friction, quantiser and torque limit as describing
+    functions: stable, limit cycle (its amplitude) or unstable.
 compare_observers, Comparison
     The paper's observers, their position-only versions, ESO and Kalman at equal noise.
 bode_figure, noise_figure
@@ -23,6 +26,14 @@ from ._closed_loop import closed_loop, closed_loop_poles, spectral_radii
 from ._comparison import DEFAULT_NOISE_GAIN as DEFAULT_NOISE_GAIN
 from ._comparison import Comparison, compare_observers
 from ._contact_map import ContactStabilityMap, contact_stability_map
+from ._describing import (
+    ContactLimitCycle,
+    contact_limit_cycle,
+    quantiser_df,
+    relay_df,
+    saturation_df,
+    tanh_friction_df,
+)
 from ._estimation import estimation_response, estimation_transfer
 from ._figures import bode_figure, noise_figure
 from ._force_response import ForceResponse, force_response
@@ -36,6 +47,7 @@ from ._tradeoff import NoiseTradeoff, noise_tradeoff
 # subpackages, not part of the public API (docs/architecture.md, "Dependency order").
 __all__ = [
     "Comparison",
+    "ContactLimitCycle",
     "ContactStabilityMap",
     "ForceResponse",
     "GangOfFour",
@@ -47,6 +59,7 @@ __all__ = [
     "closed_loop",
     "closed_loop_poles",
     "compare_observers",
+    "contact_limit_cycle",
     "contact_stability_map",
     "estimation_response",
     "estimation_transfer",
@@ -58,6 +71,10 @@ __all__ = [
     "noise_gains",
     "noise_tradeoff",
     "observer_noise_gain",
+    "quantiser_df",
+    "relay_df",
     "robust_stability_map",
+    "saturation_df",
     "spectral_radii",
+    "tanh_friction_df",
 ]

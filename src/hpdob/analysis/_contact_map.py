@@ -267,6 +267,50 @@ class ContactStabilityMap(_RadiusMap):
                             "kind": "upper" if col[i] < 0 else "lower"})  # fmt: skip
         return out
 
+    def limit_cycles(self, *, tau_ref: float, **options):
+        """The describing-function verdict at every grid point, as a table.
+
+        :func:`hpdob.analysis.contact_limit_cycle` of :meth:`loop_at` each point (the
+        unilateral loop with the map's sensor, actuator and the RTOB's friction model).
+
+        Parameters
+        ----------
+        tau_ref : float
+            The force reference [N m], positive, below the torque limit.
+        **options
+            Passed to :func:`~hpdob.analysis.contact_limit_cycle` (``friction``,
+            ``reaction_friction``, ``quantiser``, ``saturation``, ``levels``, ``smallest``).
+
+        Returns
+        -------
+        pandas.DataFrame
+            The columns of :meth:`to_pandas` and ``df_verdict`` (``"stable"``, ``"limit
+            cycle"`` or ``"unstable"``), ``df_amplitude`` (over ``tau_ref``) and
+            ``df_frequency_hz``.
+
+        Raises
+        ------
+        ParameterTypeError, ParameterValueError
+            As :func:`~hpdob.analysis.contact_limit_cycle`, before any point is analysed.
+        """
+        from ._describing import contact_limit_cycle
+
+        first = self.loop_at(float(self.values[0]), float(self.bandwidths[0]))
+        contact_limit_cycle(first, tau_ref=tau_ref, **{**options, "levels": 8})  # checks
+        verdicts, amplitudes, frequencies = [], [], []
+        for value in self.values:
+            for g in self.bandwidths:
+                cycle = contact_limit_cycle(self.loop_at(float(value), float(g)),
+                                            tau_ref=tau_ref, **options)  # fmt: skip
+                verdicts.append(cycle.verdict)
+                amplitudes.append(cycle.amplitude)
+                frequencies.append(cycle.frequency)
+        frame = self.to_pandas()
+        frame["df_verdict"] = verdicts
+        frame["df_amplitude"] = amplitudes
+        frame["df_frequency_hz"] = frequencies
+        return frame
+
     def _columns(self) -> dict:
         n_v, n_g = self.spectral_radius.shape
         fixed = "nominal_ratio" if self.parameter == "stiffness" else "stiffness"

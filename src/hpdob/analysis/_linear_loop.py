@@ -109,13 +109,28 @@ def state_names(spec: LoopSpec) -> list[str]:
     return names
 
 
-def loop_matrices(spec: LoopSpec, *, broken: bool = False):
+def loop_matrices(
+    spec: LoopSpec,
+    *,
+    broken: bool = False,
+    measurement_gain: float = 1.0,
+    command_gain: float = 1.0,
+    signals: tuple = (),
+):
     r"""``(A, B, C, D, inputs, outputs)`` of the loop as numpy arrays.
 
     With ``broken=False`` the inputs are :data:`INPUTS` and the outputs :data:`OUTPUTS` plus
     ``"a"``, the torque the plant receives (``u`` delayed). With ``broken=True`` the loop is
     cut at the plant input: the plant is driven by an extra last input ``"a_in"`` instead of
     ``"a"``, so the loop gain is :math:`L = -a/a_{in}`.
+
+    ``measurement_gain`` and ``command_gain`` are the quasi-linear gains of the describing-
+    function analysis (:mod:`hpdob.analysis._describing`): the measured angle is
+    ``measurement_gain * theta + n_theta`` (the encoder's quantiser), and the command the
+    observer, the controller and the actuator receive is ``command_gain * u`` (the torque
+    limit; the output ``"u"`` stays the command before it). At 1.0 (the default) they leave
+    every entry as it was, bit for bit. ``signals`` appends outputs: the measured ``"theta_m"``
+    and ``"omega_m"`` and observer outputs by name (e.g. ``"omega_hat"``).
     """
     Ts = spec.Ts
     system = spec.system
@@ -139,7 +154,7 @@ def loop_matrices(spec: LoopSpec, *, broken: bool = False):
 
     # Measurement rows over [state, input].
     theta_m = row()
-    theta_m[:nx] = Cp[0]
+    theta_m[:nx] = Cp[0] if measurement_gain == 1.0 else measurement_gain * Cp[0]
     theta_m[col["n_theta"]] = 1.0
     omega_m = row()
     if spec.backward_difference:
@@ -151,23 +166,26 @@ def loop_matrices(spec: LoopSpec, *, broken: bool = False):
     Y = np.vstack([theta_m, omega_m])
 
     # the observer's outputs, then the controller's inputs, as rows over [state, inputs]
-    signals = {"theta": theta_m, "omega": omega_m, "tau_hat": row()}
+    signals_of = {"theta": theta_m, "omega": omega_m, "tau_hat": row()}
     for name in ("r", "r_dot", "r_ddot"):
-        signals[name] = row()
-        signals[name][col[name]] = 1.0
+        signals_of[name] = row()
+        signals_of[name][col[name]] = 1.0
     if system is not None:
         p = len(system.measures)
         Ym = Y[:p]
         H, E = np.asarray(system.H), np.asarray(system.E)
         for j, name in enumerate(system.outputs):
-            signals[name] = row()
-            signals[name][i_z:i_c] = H[j]
-            signals[name] += E[j, :p] @ Ym
-    tau_hat = signals["tau_hat"]
-    V = np.vstack([signals[name] for name in controller.inputs]) if controller.inputs else (
+            signals_of[name] = row()
+            signals_of[name][i_z:i_c] = H[j]
+            signals_of[name] += E[j, :p] @ Ym
+    tau_hat = signals_of["tau_hat"]
+    V = np.vstack([signals_of[name] for name in controller.inputs]) if controller.inputs else (
         np.zeros((0, ns + nv)))  # fmt: skip
     u = controller.E[0] @ V
     u[i_c:ns] += controller.H[0]
+    command = u
+    if command_gain != 1.0:  # the command really given, after the torque limit
+        u = command_gain * command
     if nd == 0:
         a = u.copy()
     else:
@@ -202,15 +220,24 @@ def loop_matrices(spec: LoopSpec, *, broken: bool = False):
 
     theta_row, omega_row = row(), row()
     theta_row[:nx], omega_row[:nx] = Cp[0], Cp[1]
-    rows = {"theta": theta_row, "omega": omega_row, "u": u, "tau_hat": tau_hat, "a": a}
-    out = np.vstack([rows[name] for name in (*OUTPUTS, "a")])
+    rows = {"theta": theta_row, "omega": omega_row, "u": command, "tau_hat": tau_hat, "a": a}
+    measured = {"theta_m": theta_m, "omega_m": omega_m}
+    for name in signals:
+        rows[name] = measured.get(name, signals_of.get(name))
+        if rows[name] is None:
+            raise ParameterValueError(
+                f"signals must name theta_m, omega_m or observer outputs "
+                f"{list(signals_of)}, got {name!r}"
+            )
+    names = [*OUTPUTS, "a", *signals]
+    out = np.vstack([rows[name] for name in names])
     return (
         nxt[:, :ns],
         nxt[:, ns:],
         out[:, :ns],
         out[:, ns:],
         inputs,
-        [*OUTPUTS, "a"],
+        names,
     )
 
 

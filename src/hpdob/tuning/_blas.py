@@ -2,27 +2,6 @@
 
 from __future__ import annotations
 
-import functools
+from .._blas import one_blas_thread
 
 __all__ = ["one_blas_thread"]
-
-
-def one_blas_thread(function):
-    """Run ``function`` with one BLAS thread where threadpoolctl is installed.
-
-    ``tune`` solves thousands of matrix problems of size 2-12 (eigenvalues, Riccati equations);
-    BLAS threads give them nothing, and on a loaded machine their spin-waiting starved the
-    calling thread (measured: 19-30 s with OpenBLAS's default 2 threads against 4.6-6 s with
-    one, the same table bit for bit, on the shared 2-core machine of 2026-12-01).
-    """
-
-    @functools.wraps(function)
-    def wrapper(*args, **kwargs):
-        try:
-            from threadpoolctl import threadpool_limits
-        except ImportError:  # pragma: no cover - an optional speed-up
-            return function(*args, **kwargs)
-        with threadpool_limits(1, user_api="blas"):
-            return function(*args, **kwargs)
-
-    return wrapper
