@@ -36,7 +36,8 @@ draws nothing):
 
 from __future__ import annotations
 
-import warnings
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -44,15 +45,16 @@ from hpdob import (
     Encoder,
     Environment,
     ServoLoop,
-    SimulationDivergedWarning,
     paper,
-    simulate,
 )
 from hpdob.analysis import contact_stability_map
 from hpdob.controllers import ForceControl
 from hpdob.observers import design_observer, reaction_torque_observer
 
-TAU_REF = 0.05  # N m
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+# the tight simulation rule of the verdict's script (its docstring), the same 0.05 N m step
+from force_contact_verdict import TAU_REF, simulated
+
 FRICTION = {"friction": paper.PLANT, "velocity_filter": 100.0}
 COUNT = 2 * np.pi / paper.VIRTUAL_SENSOR.counts_per_rev  # one encoder count [rad]
 N_COUNTS, DELTA = 3, 2e-3
@@ -76,27 +78,6 @@ def own_bandwidth_map(order: int, stiffness, bandwidths=BANDWIDTHS):
                                  observer={"order": order}, reaction={"order": order},
                                  bandwidth_of="reaction", fixed_bandwidth=100.0,
                                  **FRICTION)  # fmt: skip
-
-
-def step(t):
-    return np.where(t >= 0.01, TAU_REF, 0.0), 0 * t, 0 * t
-
-
-def simulated(point) -> tuple[str, float]:
-    """The tight rule (module docstring): ``(verdict, worst deviation over the last 0.5 s /
-    tau_ref)``."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", SimulationDivergedWarning)
-        result = simulate(point, reference=step, duration=5.0)
-    if result.theta.size < 5000 or not np.all(np.isfinite(result.tau_contact)):
-        return "unstable", np.inf
-    deviation = np.abs(result.tau_contact - TAU_REF) / TAU_REF
-    last, middle = deviation[-500:].max(), deviation[2000:2500].max()
-    if not result.in_contact[-500:].all() or (last > 0.05 and last > 1.5 * middle):
-        return "unstable", float(last)
-    if last <= 0.05 or last <= 0.5 * middle:
-        return "stable", float(last)
-    return "bounded", float(last)
 
 
 def decidable(k_e: float, radius: float) -> bool:
