@@ -504,6 +504,19 @@ def _loop_records(loop: ServoLoop) -> tuple:
             _observer_record(loop.system))  # fmt: skip
 
 
+def _read_only(array: np.ndarray) -> np.ndarray:
+    """``array`` if it is read-only, else a read-only view of it (the loop only reads a run's
+    signals). numba compiles, caches and loads one machine code per argument type, and a
+    read-only array is a type of its own: without this a grid's kept signals (read-only) and
+    signals sampled anew, scaled or given as a plain callable (writeable) would make the same
+    structure compile twice in a fresh environment and load twice in a later process."""
+    if not array.flags.writeable:
+        return array
+    view = array.view()
+    view.flags.writeable = False
+    return view
+
+
 #: Plant steps between two calls of a run's ``progress`` (the chunk of samples run by one
 #: call of the compiled loop; one call for the whole run without ``progress``).
 PROGRESS_PLANT_STEPS = 1 << 20
@@ -543,10 +556,10 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     # (factor first), else read from the sampled array
     midpoint = signals.midpoint if compiled else None
     table = np.zeros(0) if midpoint is None else np.concatenate(([signals.factor], midpoint[1]))
-    records["sig"] = SignalRecord(
+    records["sig"] = SignalRecord(*map(_read_only, (
         signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample,
         signals.tau_mid if compiled else signals.midpoints(), noise, table,
-    )  # fmt: skip
+    )))  # fmt: skip
 
     def optional(present):  # an output the run records, else an empty array the loop never reads
         return np.zeros(n) if present else np.zeros(0)
