@@ -10,6 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._generated import read_only_view
 from .._signals import Constant, Ramp, Signal, SmoothStep, Step, Sum, _Trajectory, trajectory
 from .._validation import (
     ParameterTypeError,
@@ -504,19 +505,6 @@ def _loop_records(loop: ServoLoop) -> tuple:
             _observer_record(loop.system))  # fmt: skip
 
 
-def _read_only(array: np.ndarray) -> np.ndarray:
-    """``array`` if it is read-only, else a read-only view of it (the loop only reads a run's
-    signals). numba compiles, caches and loads one machine code per argument type, and a
-    read-only array is a type of its own: without this a grid's kept signals (read-only) and
-    signals sampled anew, scaled or given as a plain callable (writeable) would make the same
-    structure compile twice in a fresh environment and load twice in a later process."""
-    if not array.flags.writeable:
-        return array
-    view = array.view()
-    view.flags.writeable = False
-    return view
-
-
 #: Plant steps between two calls of a run's ``progress`` (the chunk of samples run by one
 #: call of the compiled loop; one call for the whole run without ``progress``).
 PROGRESS_PLANT_STEPS = 1 << 20
@@ -556,7 +544,8 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     # (factor first), else read from the sampled array
     midpoint = signals.midpoint if compiled else None
     table = np.zeros(0) if midpoint is None else np.concatenate(([signals.factor], midpoint[1]))
-    records["sig"] = SignalRecord(*map(_read_only, (
+    # read-only, so that every run of a structure is one numba signature (read_only_view)
+    records["sig"] = SignalRecord(*map(read_only_view, (
         signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample,
         signals.tau_mid if compiled else signals.midpoints(), noise, table,
     )))  # fmt: skip
