@@ -34,6 +34,21 @@ def test_import_hpdob_loads_no_heavy_modules():
     assert done.stdout.strip() == "[]"
 
 
+def test_a_loop_and_an_analysis_load_no_numba_until_the_first_simulate():
+    """numba (~0.3 s to import) is imported by the first simulation, not by building a loop,
+    the paper's set-up or an analysis (``hpdob.simulation`` re-exports the compiled
+    ``program_row`` lazily, issue 25)."""
+    code = (
+        "import sys; from hpdob import ServoLoop, paper, simulate; import hpdob.analysis; "
+        "kw = paper.scenario(); kw['observer'] = paper.observer('HPDOb-100').design; "
+        "before = 'numba' in sys.modules; simulate(**{**kw, 'duration': 0.01}); "
+        "from hpdob.simulation import program_row; "
+        "print(before, 'numba' in sys.modules, type(program_row).__name__)"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["False", "True", "CPUDispatcher"]
+
+
 def _canonical_structure(**changes):
     """The sample-loop structure of the canonical HPDOb-100 run (with ``changes`` to it)."""
     from hpdob.simulation import _kernel
