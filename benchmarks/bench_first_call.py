@@ -7,13 +7,25 @@ first compiled function any package calls: here a trivial cached ``njit`` functi
 makes numba's BLAS check import ``scipy.linalg``); building the canonical ``ServoLoop``; the
 first canonical ``simulate`` (10 s, HPDOb-100): loading hpdob's cached kernel and running it;
 and a second ``simulate``, for comparison. Printed: the median and the best over ``--runs``
-of each, wall and CPU. ``--no-warm`` leaves out the trivial function, so that the first
-``simulate`` pays numba's initialisation itself (the figure a user sees).
+of each, wall and CPU.
+
+``--no-warm`` leaves out the trivial function, so that the first ``simulate`` pays numba's
+initialisation itself (the figure a user sees). ``--breakdown`` splits numba's initialisation
+into the ``scipy.linalg`` import of its BLAS check, its typing registries
+(``typing_context.refresh()``) and its lowering registries (``target_context.refresh()``,
+which imports about 60 ``numba.*`` modules: every implementation numba has, whatever the
+function uses), each timed by calling it directly (numba's internals, here only to measure).
+``--fresh`` gives every measured process an empty ``NUMBA_CACHE_DIR``, so that its first
+``simulate`` compiles hpdob's loop (target <= 1.0 s). ``--bytecode`` lets the processes
+cache hpdob's bytecode (a private ``PYTHONPYCACHEPREFIX``, written by a warm-up process) where
+the environment sets ``PYTHONDONTWRITEBYTECODE``: an installed package has its ``.pyc`` files,
+a checkout run with that variable compiles every module of hpdob on each import.
 
 Target (issue 25): the first ``simulate`` of a later process <= 0.2 s, with "import alone" its
-own row.
+own row; of a fresh environment <= 1.0 s.
 
-    python benchmarks/bench_first_call.py [--runs 7] [--no-warm]
+    python benchmarks/bench_first_call.py [--runs 7] [--no-warm] [--breakdown] [--fresh]
+                                          [--bytecode]
 """
 
 from __future__ import annotations
@@ -38,12 +50,20 @@ mark("import numba")
 import hpdob
 hpdob.simulate
 mark("import hpdob")
+if BREAKDOWN:
+    import scipy.linalg
+    mark("scipy.linalg (BLAS check)")
+    from numba.core.registry import cpu_target
+    cpu_target.typing_context.refresh()
+    mark("typing registries")
+    cpu_target.target_context.refresh()
+    mark("lowering registries")
 if WARM:
     @numba.njit(cache=True)
     def _trivial(x):
         return x + 1.0
     _trivial(1.0)
-    mark("numba's initialisation")
+    mark("rest of numba's init" if BREAKDOWN else "numba's initialisation")
 from hpdob import ServoLoop, paper, simulate
 kw = paper.scenario()
 loop = ServoLoop(plant=kw["plant"], nominal=kw["nominal"], Ts=kw["Ts"],
@@ -68,22 +88,39 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=7)
     parser.add_argument("--no-warm", dest="warm", action="store_false")
+    parser.add_argument("--breakdown", action="store_true",
+                        help="split numba's initialisation into its parts")  # fmt: skip
+    parser.add_argument("--fresh", action="store_true",
+                        help="an empty numba cache for every measured process")  # fmt: skip
+    parser.add_argument("--bytecode", action="store_true",
+                        help="let the processes cache hpdob's bytecode")  # fmt: skip
     args = parser.parse_args()
     env = dict(os.environ)
     with tempfile.TemporaryDirectory() as folder:
         script = Path(folder) / "first_call.py"  # a file: numba caches only those
-        script.write_text(CHILD.replace("WARM", repr(args.warm)))
-        if "NUMBA_CACHE_DIR" not in env:  # not the user's cache
+        child = CHILD.replace("WARM", repr(args.warm)).replace("BREAKDOWN", repr(args.breakdown))
+        script.write_text(child)
+        if args.bytecode:
+            env.pop("PYTHONDONTWRITEBYTECODE", None)
+            env["PYTHONPYCACHEPREFIX"] = str(Path(folder, "bytecode"))
+        bytecode = "cached" if "PYTHONDONTWRITEBYTECODE" not in env else "compiled on import"
+        if "NUMBA_CACHE_DIR" not in env or args.fresh:  # not the user's cache
             env["NUMBA_CACHE_DIR"] = folder
             print(f"NUMBA_CACHE_DIR={folder} (hpdob's kernels compiled once below)")
-        one(script, env)  # fills the cache: every later process loads from disk
-        rounds = [one(script, env) for _ in range(args.runs)]
-    print(f"load average {os.getloadavg()[0]:.2f}; {args.runs} fresh processes")
-    print(f"{'step':>24}  {'wall median':>11}  {'wall best':>9}  {'CPU median':>10}")
+        one(script, env)  # fills the caches: every later process loads from disk
+        rounds = []
+        for i in range(args.runs):
+            if args.fresh:  # an empty numba cache: this process compiles what it runs
+                env["NUMBA_CACHE_DIR"] = str(Path(folder, f"fresh-{i}"))
+            rounds.append(one(script, env))
+    kind = "an empty numba cache each" if args.fresh else "numba's cache filled"
+    print(f"load average {os.getloadavg()[0]:.2f}; {args.runs} fresh processes, {kind}; "
+          f"hpdob's bytecode {bytecode}")  # fmt: skip
+    print(f"{'step':>26}  {'wall median':>11}  {'wall best':>9}  {'CPU median':>10}")
     for i, (name, _, _) in enumerate(rounds[0]):
         wall = [r[i][1] for r in rounds]
         cpu = [r[i][2] for r in rounds]
-        print(f"{name:>24}  {statistics.median(wall) * 1e3:>9.0f}ms  "
+        print(f"{name:>26}  {statistics.median(wall) * 1e3:>9.0f}ms  "
               f"{min(wall) * 1e3:>7.0f}ms  {statistics.median(cpu) * 1e3:>8.0f}ms")  # fmt: skip
 
 

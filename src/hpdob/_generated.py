@@ -22,7 +22,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-__all__ = ["cache_directory", "compiled_function", "sum_source"]
+__all__ = ["cache_directory", "compiled_function", "read_only_view", "sum_source"]
 
 
 def sum_source(shape, operands, coefficient) -> str:
@@ -45,6 +45,30 @@ def sum_source(shape, operands, coefficient) -> str:
             parts.append(("+", f"{next(coefficient)} * {x}"))
     sign, first = parts[0]
     return ("-" if sign == "-" else "") + first + "".join(f" {s} {x}" for s, x in parts[1:])
+
+
+def read_only_view(array):
+    """``array`` if it is read-only, else a read-only view of it, for an input a generated loop
+    only reads.
+
+    numba compiles, caches and loads one machine code per argument type, and a read-only array
+    is a type of its own: passing every input read-only gives a loop one signature, so that a
+    run on a result's (read-only) arrays and one on arrays sampled or loaded anew (writeable)
+    do not compile it twice in a fresh environment, nor load it twice in a later process.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = np.zeros(3)
+    >>> v = read_only_view(a)
+    >>> v.flags.writeable, a.flags.writeable, read_only_view(v) is v
+    (False, True, True)
+    """
+    if not array.flags.writeable:
+        return array
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 def cache_directory(kind: str) -> Path:

@@ -166,3 +166,24 @@ def test_start_state_is_checked():
         estimate_disturbance(design, theta=theta, u=u, state=[0.0])
     with pytest.raises(ValueError, match="give tau0 or state, not both"):
         estimate_disturbance(design, theta=theta, u=u, state=[0.0, 0.0], tau0=0.1)
+
+
+def test_one_machine_code_for_read_only_and_writeable_logs():
+    """The offline loop is compiled (or loaded from numba's cache) once per structure: a
+    result's read-only columns and writeable arrays of the same samples reach it as one
+    argument type (read-only), with the same estimate (issue 25)."""
+    from hpdob.identification import _estimate_kernel
+    from hpdob.observers import as_system, program_structure
+
+    run = paper.run("HPDOb-100", duration=0.5)
+    observer = paper.observer("HPDOb-100")
+    shared = estimate_disturbance(observer, theta=run.theta_measured, omega=run.omega_measured,
+                                  u=run.u)  # fmt: skip
+    copied = estimate_disturbance(observer, theta=run.theta_measured.copy(),
+                                  omega=run.omega_measured.copy(), u=run.u.copy())  # fmt: skip
+    assert shared.tau_hat.tobytes() == copied.tau_hat.tobytes() == run.tau_hat.tobytes()
+    system = as_system(observer)
+    kernel = _estimate_kernel.offline_kernel(
+        program_structure(system.program), system.n_states, _estimate_kernel.VELOCITY_GIVEN
+    )
+    assert len(kernel.signatures) == 1, kernel.signatures

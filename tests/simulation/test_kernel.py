@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from hpdob import Actuator, Encoder, paper, simulate
+from hpdob.signals import trajectory
 
 SMALL_RUN = """
 import sys, numpy as np
@@ -31,6 +32,21 @@ def test_import_hpdob_loads_no_heavy_modules():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]"
+
+
+def test_a_loop_and_an_analysis_load_no_numba_until_the_first_simulate():
+    """numba (~0.3 s to import) is imported by the first simulation, not by building a loop,
+    the paper's set-up or an analysis (``hpdob.simulation`` re-exports the compiled
+    ``program_row`` lazily, issue 25)."""
+    code = (
+        "import sys; from hpdob import ServoLoop, paper, simulate; import hpdob.analysis; "
+        "kw = paper.scenario(); kw['observer'] = paper.observer('HPDOb-100').design; "
+        "before = 'numba' in sys.modules; simulate(**{**kw, 'duration': 0.01}); "
+        "from hpdob.simulation import program_row; "
+        "print(before, 'numba' in sys.modules, type(program_row).__name__)"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.split() == ["False", "True", "CPUDispatcher"]
 
 
 def _canonical_structure(**changes):
@@ -165,3 +181,26 @@ def test_a_loop_file_overrides_the_generated_loop_only_under_the_mutation_variab
         np.testing.assert_array_equal(simulate(**kw).tau_hat, generated)
     finally:
         _kernel.sample_loop.cache_clear()
+
+
+def test_one_machine_code_per_structure():
+    """A structure is compiled (or loaded from numba's cache) once per process: the signals a
+    run reads are passed read-only whether they were sampled anew, kept for the grid (the
+    second run), scaled by a sweep or returned by a plain callable, so numba sees one argument
+    type (a writeable array is another type: the second run of a fresh environment compiled
+    the loop again, issue 25)."""
+    from hpdob import sweep
+    from hpdob.simulation import _kernel
+
+    kw = {**paper.scenario(), "observer": paper.observer("HPDOb-100").design, "duration": 0.02}
+    signal = paper.scenario()["reference"]
+    first = simulate(**kw)
+    again = simulate(**kw)  # the grid's kept signals
+    plain = simulate(**{**kw, "reference": lambda t: trajectory(signal)(t)})  # sampled anew
+    base = {**paper.scenario(), "observer": paper.observer("HPDOb-100").design, "duration": 0.02}
+    sweep(base, grid={"disturbance_scale": [0.5]}, progress=False)  # scaled: a new array
+    kernel, _ = _kernel.sample_loop(_canonical_structure(duration=0.02))
+    assert len(kernel.signatures) == 1, kernel.signatures
+    for name in ("theta", "u", "tau_hat"):
+        assert getattr(first, name).tobytes() == getattr(again, name).tobytes()
+        assert getattr(first, name).tobytes() == getattr(plain, name).tobytes()

@@ -22,7 +22,7 @@ import functools
 
 import numpy as np
 
-from .._generated import compiled_function, sum_source
+from .._generated import compiled_function, read_only_view, sum_source
 from ..observers import program_coefficients, program_structure
 from ._checks import immutable
 
@@ -132,9 +132,11 @@ def run(system, s_init, theta, omega, u, t, velocity: int):
         "t": new(t),
     }
     state = np.array(s_init, dtype=np.float64)  # the kernel leaves the final state in it
-    kernel(coefficients, state, theta,
-           empty if omega is None else omega, u, empty if t is None else t, *out.values(),
-           float(system.Ts))  # fmt: skip
+    inputs = [
+        read_only_view(x)
+        for x in (theta, empty if omega is None else omega, u, empty if t is None else t)
+    ]  # one signature (read_only_view)
+    kernel(coefficients, state, *inputs, *out.values(), float(system.Ts))
     given = {"theta": theta, "omega": omega, "u": u, "tau_hat": None, "omega_hat": None, "t": t}
     return (*(
         given[name] if array is empty and given[name] is not None
@@ -153,9 +155,9 @@ def run_block(system, state, theta, omega, u, tau_hat, omega_hat) -> None:
     kernel = offline_kernel(program_structure(program), system.n_states, velocity)
     coefficients = np.array(program_coefficients(program)[: _count(program)], dtype=np.float64)
     empty = np.empty(0)
-    kernel(coefficients, state, theta, empty if omega is None else omega, u, empty, empty, empty,
-           empty, tau_hat, empty if omega_hat is None else omega_hat, empty,
-           float(system.Ts))  # fmt: skip
+    inputs = [read_only_view(x) for x in (theta, empty if omega is None else omega, u, empty)]
+    kernel(coefficients, state, *inputs, empty, empty, empty, tau_hat,
+           empty if omega_hat is None else omega_hat, empty, float(system.Ts))  # fmt: skip
 
 
 def _count(program) -> int:

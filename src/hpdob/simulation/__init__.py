@@ -25,7 +25,6 @@ from ._force_run import force_reference as force_reference
 from ._force_run import force_run_columns as force_run_columns
 from ._force_run import force_run_metrics as force_run_metrics
 from ._force_run import position_metrics_apply as position_metrics_apply
-from ._kernel import program_row as program_row
 from ._loop import LOOP_KEYS, ServoLoop
 from ._loop import MISSING as MISSING
 from ._loop import accepts_loop as accepts_loop
@@ -58,6 +57,19 @@ from ._sweep import SweepIncomplete, SweepInterrupted, sweep
 
 # Names imported "as" themselves and absent from __all__ are hpdob-internal: for the other
 # subpackages, not part of the public API (docs/architecture.md, "Dependency order").
+
+
+def __getattr__(name: str):
+    """``program_row`` (hpdob-internal, for the robots' kernel), imported on first use: it is
+    compiled by numba, and importing numba (~0.3 s) is for the first simulation, not for every
+    user of a loop, an analysis or the paper's set-up."""
+    if name == "program_row":
+        from ._kernel import program_row
+
+        return program_row
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 __all__ = [
     "LOOP_KEYS",
     "Actuator",

@@ -10,6 +10,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._generated import read_only_view
 from .._signals import Constant, Ramp, Signal, SmoothStep, Step, Sum, _Trajectory, trajectory
 from .._validation import (
     ParameterTypeError,
@@ -384,8 +385,8 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
     and their sums) are not evaluated at the midpoints here: their table is kept instead.
     hpdob's Signals are evaluated once per time grid: the read-only arrays of the last
     :data:`SAMPLED_GRIDS` grids are kept (a repeated run, ``tune``'s candidates, a sweep's
-    scenarios of one grid) and a later call gets copies of the columns a result holds; other
-    callables are evaluated on every call.
+    scenarios of one grid) and a later call gets read-only copies of the columns a result
+    holds; other callables are evaluated on every call.
     """
     key = _grid_key(reference, disturbance, Ts, n, substeps)
     if key is not None:
@@ -394,7 +395,10 @@ def sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int) 
             if cached is not None:
                 _SAMPLED.move_to_end(key)
         if cached is not None:  # the columns of a result are its own: copies (a memcpy)
-            return cached._replace(**{name: getattr(cached, name).copy() for name in _COLUMNS})
+            copies = {name: getattr(cached, name).copy() for name in _COLUMNS}
+            for array in copies.values():  # read-only as the kept ones (see run_loop)
+                array.flags.writeable = False
+            return cached._replace(**copies)
     signals = _sample_signals(reference, disturbance, Ts=Ts, n=n, substeps=substeps)
     if key is not None:
         arrays = [a for a in signals if isinstance(a, np.ndarray)]
@@ -543,10 +547,12 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     # (factor first), else read from the sampled array
     midpoint = signals.midpoint if compiled else None
     table = np.zeros(0) if midpoint is None else np.concatenate(([signals.factor], midpoint[1]))
-    records["sig"] = SignalRecord(
+    noise.flags.writeable = table.flags.writeable = False  # this run's own: no views needed
+    # read-only, so that every run of a structure is one numba signature (read_only_view)
+    records["sig"] = SignalRecord(*map(read_only_view, (
         signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample,
         signals.tau_mid if compiled else signals.midpoints(), noise, table,
-    )  # fmt: skip
+    )))  # fmt: skip
 
     def optional(present):  # an output the run records, else an empty array the loop never reads
         return np.zeros(n) if present else np.zeros(0)
