@@ -1,12 +1,11 @@
 """Plugins of the ``hpdob`` command (hpdob/_plugins.py): a family registered by a user's module
 reaches the installed command through ``HPDOB_PLUGINS`` or the entry-point group
-``hpdob.families`` (issue 20). The family is tests/observers/test_registry.py's DOb followed by
-a low-pass, defined only in that test file; each run is a fresh interpreter, as the command is.
+``hpdob.families`` (issue 20). The family is tests/low_pass_family.py's DOb followed by a
+low-pass, defined in the tests only; each run is a fresh interpreter, as the command is.
 """
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import os
 import subprocess
@@ -16,24 +15,15 @@ from pathlib import Path
 import numpy as np
 
 from hpdob import ServoModel
+from low_pass_family import design_filtered
 
 ROOT = Path(__file__).resolve().parents[1]
 DESIGN = ["design", "--type", "dob_lp", "--order", "1", "--bandwidth", "150",
           "--filter-bandwidth", "300", "--json"]  # fmt: skip
 
 
-def _registry_tests():
-    spec = importlib.util.spec_from_file_location(
-        "registry_tests", ROOT / "tests" / "observers" / "test_registry.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
-
-
 def _hpdob(argv, *path, **env) -> subprocess.CompletedProcess:
-    python_path = os.pathsep.join([*map(str, path), str(ROOT / "tests" / "observers"),
+    python_path = os.pathsep.join([*map(str, path), str(ROOT / "tests"),
                                    str(ROOT / "src")])  # fmt: skip
     environ = {k: v for k, v in os.environ.items() if k != "HPDOB_PLUGINS"}
     environ |= {"PYTHONPATH": python_path, **env}
@@ -42,7 +32,7 @@ def _hpdob(argv, *path, **env) -> subprocess.CompletedProcess:
 
 
 def _expected_F():
-    design = _registry_tests().design_filtered(
+    design = design_filtered(
         ServoModel(2.8e-4).discretize(1e-3), order=1, bandwidth=150.0, filter_bandwidth=300.0
     )
     return design.system.F
@@ -51,7 +41,7 @@ def _expected_F():
 def test_a_family_of_a_module_named_in_hpdob_plugins_reaches_the_command(tmp_path):
     (tmp_path / "lab_families.py").write_text(
         "from hpdob.observers import register_family\n"
-        "from test_registry import FILTERED\n"
+        "from low_pass_family import FILTERED\n"
         "register_family(FILTERED)\n"
     )
     without = _hpdob(DESIGN, tmp_path)
@@ -63,7 +53,7 @@ def test_a_family_of_a_module_named_in_hpdob_plugins_reaches_the_command(tmp_pat
 
 
 def test_a_family_of_an_entry_point_reaches_the_command(tmp_path):
-    (tmp_path / "lab_package.py").write_text("from test_registry import FILTERED\n")
+    (tmp_path / "lab_package.py").write_text("from low_pass_family import FILTERED\n")
     info = tmp_path / "lab_package-1.0.dist-info"  # what pip install writes for the package
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: lab-package\nVersion: 1.0\n")
