@@ -226,6 +226,25 @@ def test_run_metrics_reuses_its_scratch_across_lengths_and_equals_run_loop():
         assert (diverged, message) == (False, "ok")
 
 
+def test_long_runs_get_scratch_arrays_of_their_own(monkeypatch):
+    """A thread keeps scratch arrays up to SCRATCH_SAMPLES samples; a longer run's are its own
+    (a long-lived worker thread holds no more), and its metrics are still the full run's."""
+    monkeypatch.setattr(_simulate, "SCRATCH_SAMPLES", 600)
+    monkeypatch.setattr(_simulate, "_SCRATCH", type(_simulate._SCRATCH)())
+    kw = _canonical()
+    loop = _loop(kw)
+    windows = {"regulation": (0.1, 0.4), "tracking": (0.4, math.inf)}
+    for n in (500, 900, 500):
+        signals = _simulate.sample_signals(kw["reference"], kw["disturbance"], Ts=loop.Ts, n=n,
+                                           substeps=8)  # fmt: skip
+        metrics, _, _ = _simulate.run_metrics(loop, signals, np.zeros(2), windows=windows)
+        result = _simulate.run_loop(loop, signals, np.zeros(2))
+        assert _bits(metrics["rms_estimation_error"]) == _bits(
+            result.metrics(**windows)["rms_estimation_error"]
+        )
+        assert _simulate._SCRATCH.arrays.shape[1] == 500  # the long run's were not kept
+
+
 def test_the_error_loop_records_only_the_two_errors():
     """The sweep's loop writes ``position_error`` and ``estimation_error`` (and the delay line
     ``u``), none of a full run's traces; a loop without delay applies ``uk`` itself."""

@@ -687,13 +687,19 @@ class _ErrorOutputs(NamedTuple):
 #: Per thread: the arrays :func:`run_metrics` lends the loop, reused by the next run of that
 #: thread (a sweep's scenarios: no allocation per scenario, the memory stays in the cache).
 _SCRATCH = threading.local()
+#: Runs of at most this many samples use the thread's kept arrays (5 x 2 MB); longer ones get
+#: their own, freed with the run (a long-lived worker thread keeps no more than that).
+SCRATCH_SAMPLES = 1 << 18
 
 
 def _scratch(n: int) -> _ErrorOutputs:
-    """Views of ``n`` entries of this thread's scratch arrays (grown when too small)."""
+    """Views of ``n`` entries of this thread's scratch arrays (grown when too small, up to
+    :data:`SCRATCH_SAMPLES`; beyond, new arrays not kept)."""
     arrays = getattr(_SCRATCH, "arrays", None)
     if arrays is None or arrays.shape[1] < n:
-        arrays = _SCRATCH.arrays = np.empty((len(_ErrorOutputs._fields), n))
+        arrays = np.empty((len(_ErrorOutputs._fields), n))
+        if n <= SCRATCH_SAMPLES:
+            _SCRATCH.arrays = arrays
     return _ErrorOutputs(*(row[:n] for row in arrays))
 
 
