@@ -23,10 +23,11 @@ With ``--startup``: the first ``simulate`` of a fresh process, with an empty num
 with the cache that run left (targets: <= 1.0 s and <= 0.2 s; ``import hpdob`` and
 ``import numba`` are timed on their own, before it).
 
-With ``--sweep``: ``bench_sweep.py``'s sweep against the minimal kernel run as often on as
-many threads (target: >= 6 M samples/s on 2 threads and >= 90 % of the minimal kernel's).
+The sweep's throughput is ``bench_sweep.py``'s (against ``_minimal_kernel.py``, the one
+minimal reference of a sweep scenario: the loop with its row computed inline, nothing
+recorded).
 
-    python benchmarks/bench_kernel.py [--repeat 30] [--clock cpu|wall] [--sweep] [--startup]
+    python benchmarks/bench_kernel.py [--repeat 30] [--clock cpu|wall] [--startup]
 """
 
 from __future__ import annotations
@@ -233,37 +234,6 @@ def memory_per_sample(duration: float = 100.0, new: bool = False) -> float:
     return (peak - held) / len(result.t)
 
 
-def sweep_throughput(scenarios: int = 200, rounds: int = 3) -> list:
-    """Simulated samples per second [M/s] of ``benchmarks/bench_sweep.py``'s sweep (orders 0
-    and 1 x 25 bandwidths x 4 inertias, 10 s each) and of the minimal kernel run as many times
-    on the same number of threads (the canonical HPDOb-100: the same arithmetic per sample,
-    no design), on 1 and 2 workers: rows ``(workers, hpdob, minimal)``, best of ``rounds``
-    (wall time: the threads share the two cores)."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    from bench_sweep import GRID
-
-    from hpdob import sweep
-
-    base = {**paper.scenario(), "observer": {"order": 1, "bandwidth": 100.0}}
-    sweep(base, grid={"observer.order": [0, 1]}, progress=False)  # warm
-    _, reference = case("HPDOb-100")
-    reference()
-    rows = []
-    for workers in (1, 2):
-        ours = theirs = math.inf
-        for _ in range(rounds):
-            start = time.perf_counter()
-            sweep(base, grid=GRID, scheduler=workers, progress=False)
-            ours = min(ours, time.perf_counter() - start)
-            start = time.perf_counter()
-            with ThreadPoolExecutor(workers) as pool:
-                list(pool.map(lambda _: reference(), range(scenarios)))
-            theirs = min(theirs, time.perf_counter() - start)
-        rows.append((workers, scenarios * 1e4 / ours / 1e6, scenarios * 1e4 / theirs / 1e6))
-    return rows
-
-
 STARTUP = """
 import time
 start = time.perf_counter()
@@ -301,8 +271,6 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=30)
     parser.add_argument("--clock", choices=tuple(CLOCKS), default="cpu")
-    parser.add_argument("--sweep", action="store_true",
-                        help="also the sweep's throughput against the minimal kernel")  # fmt: skip
     parser.add_argument("--startup", action="store_true",
                         help="also time the first simulate of fresh processes (wall)")  # fmt: skip
     args = parser.parse_args()
@@ -316,10 +284,6 @@ def main() -> None:
               f"{worst:>14.2g}", flush=True)  # fmt: skip
     print(f"100 s canonical run: {memory_per_sample():.1f} B per sample beyond its result arrays"
           f" ({memory_per_sample(new=True):.1f} B with the signals sampled anew)")  # fmt: skip
-    if args.sweep:
-        for workers, ours, theirs in sweep_throughput():
-            print(f"sweep, {workers} worker(s): {ours:.2f} M samples/s, minimal kernel "
-                  f"{theirs:.2f} M samples/s: {ours / theirs:.0%}")  # fmt: skip
     if args.startup:
         for kind, (hpdob_s, numba_s, setup, first) in startup().items():
             print(f"first simulate, {kind} process: {first:.3f} s after import hpdob "

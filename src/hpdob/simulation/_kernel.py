@@ -105,6 +105,7 @@ __all__ = [
     "loop_key",
     "loop_source",
     "loop_structure",
+    "midpoint_filler",
     "program_row",
     "run_samples",
     "sample_loop",
@@ -170,12 +171,17 @@ def _rows(shape) -> tuple:
     return tuple(tuple((o[t], u[t]) for t in range(p[i], p[i + 1])) for i in range(len(p) - 1))
 
 
-def loop_structure(plant, ctl, sen, obs, sig, nx: int, midpoint=None) -> tuple:
+def loop_structure(
+    plant, ctl, sen, obs, sig, nx: int, midpoint=None, errors=False, delayed=True
+) -> tuple:
     """What the generated sample loop depends on, apart from the values it reads: the plant's
     path (and state size, velocity and contact indices, whether it has a contact), the sensor
     mode and whether it has noise, the observer's and the controller's program structure and
-    wiring. Two runs of one structure run one compiled function (a sweep over bandwidths or
-    inertias compiles nothing after its first scenario)."""
+    wiring, whether the actuator delays the command (``delayed``: else the plant receives
+    ``u_k`` itself, not read back from ``u``), and what it records (``errors``: only the two
+    error traces a sweep's metrics read, :func:`loop_source`). Two runs of one structure run
+    one compiled function (a sweep over bandwidths or inertias compiles nothing after its first
+    scenario)."""
     observer = None
     if obs.present:
         observer = (
@@ -213,6 +219,8 @@ def loop_structure(plant, ctl, sen, obs, sig, nx: int, midpoint=None) -> tuple:
         observer,
         controller,
         midpoint if plant.linear else None,
+        bool(errors) and plant.linear,
+        bool(delayed),
     )
 
 
@@ -246,8 +254,16 @@ def loop_source(structure: tuple) -> str:
     (:func:`hpdob._generated.sum_source`) over local variables, their coefficients read once
     from the records' arrays; the states are kept in locals and written back to ``work``'s
     arrays on return.
+
+    With ``errors`` (a sweep's loop: its rows read nothing else) the loop records, instead of
+    ``theta``, ``omega``, ``theta_m``, ``omega_m``, ``tau_hat``, ``tau_dn`` and the plant's
+    states, only ``estimation_error[k] = tau_hat_k - tau_dn_k`` and ``position_error[k] =
+    theta_k - r_k``: the one IEEE subtraction numpy's ``result.tau_hat - result.tau_dn`` and
+    ``result.theta - result.r`` perform on the recorded values, so the metrics computed from
+    them are bit for bit those of a full run; ``u`` (the delay line) and the optional outputs
+    are recorded as in a full run.
     """
-    path, nx, v, ci, wall, mode, noisy, observer, controller, midpoint = structure
+    path, nx, v, ci, wall, mode, noisy, observer, controller, midpoint, errors, delayed = structure
     nc, _, qc, source, c_signals, c_update, switch = controller
     source = np.frombuffer(source, dtype=np.int64).tolist()
     c_signals, c_update = _rows(c_signals), _rows(c_update)
@@ -314,7 +330,7 @@ def loop_source(structure: tuple) -> str:
         store.append("x[0], x[1], x[2], x[3] = x0, x1, x2, x3")
         state = ["x0", "x1", "x2", "x3"]
     elif generic:
-        put(1, "nx = x.shape[0]", "record = states.shape[0] > 0")
+        put(1, "nx = x.shape[0]", *(() if errors else ("record = states.shape[0] > 0",)))
     put(1, "for k in range(k_start, k_stop):")
     if rigid:
         pass
@@ -322,8 +338,13 @@ def loop_source(structure: tuple) -> str:
         put(2, "th = x0", f"om = x{v}")
     else:
         put(2, "th = x[0]", f"om = x[{v}]")
-    put(2, "theta[k] = th", "omega[k] = om")
-    if two_mass:
+    if errors:  # theta_k - r_k, as numpy subtracts the recorded traces
+        put(2, "position_error[k] = th - r_in[k]")
+    else:
+        put(2, "theta[k] = th", "omega[k] = om")
+    if errors:
+        pass
+    elif two_mass:
         put(2, *(f"states[k, {i}] = x{i}" for i in range(nx)))
     elif generic or python:
         put(2, "if record:", "    for i in range(x.shape[0]):", "        states[k, i] = x[i]")
@@ -364,7 +385,8 @@ def loop_source(structure: tuple) -> str:
                 "    omm = (thm - prev) / Ts",
                 "prev = thm",
             )
-    put(2, "theta_m[k] = thm", "omega_m[k] = omm")
+    if not errors:
+        put(2, "theta_m[k] = thm", "omega_m[k] = omm")
     put(2, "# 2. estimate: the observer's output rows, left to right")
     if observer is not None:
         operands = [*(f"s{i}" for i in range(n)), "thm", *(("omm",) if p == 2 else ()), "uk"]
@@ -380,7 +402,8 @@ def loop_source(structure: tuple) -> str:
             put(2, f"tau_reac[k] = y{reaction_row}")
     else:
         put(2, "est = 0.0")
-    put(2, "tau_hat[k] = est")
+    if not errors:
+        put(2, "tau_hat[k] = est")
     for j, name in enumerate(("r_in", "r_dot_in", "r_ddot_in")):
         if j in source:
             put(2, f"{_SIGNALS[j]} = {name}[k]")
@@ -421,7 +444,10 @@ def loop_source(structure: tuple) -> str:
         if switch is not None:
             put(2, f"d{switch[0]} = 1.0 if on else 0.0")
         put(2, *(f"c{i} = d{i}" for i in range(nc)))
-    put(2, "# 5. actuator delay", "applied = u[k - delay] if k >= delay else 0.0")
+    # without a delay the command itself: u[k - 0] read back from memory is uk, but the
+    # store-to-load round trip sits on the loop's critical path (6 % of a canonical run)
+    applied = "u[k - delay] if k >= delay else 0.0" if delayed else "uk"
+    put(2, "# 5. actuator delay", f"applied = {applied}")
     if python:
         put(2, "applied_out[0] = applied", *store, "return k + 1")
         put(1, *store, "return k_stop")
@@ -447,7 +473,11 @@ def loop_source(structure: tuple) -> str:
         "accel -= c * math.tanh(om / c_scale)",
         "if shared:",
         "    accel -= tau + f_env",
-        "tau_dn[k] = ground_truth(uk, om, accel / J_motor, J_n, b_n)",
+        (
+            "estimation_error[k] = est - ground_truth(uk, om, accel / J_motor, J_n, b_n)"
+            if errors
+            else "tau_dn[k] = ground_truth(uk, om, accel / J_motor, J_n, b_n)"
+        ),
         "# 7. the plant over [t_k, t_{k+1}): exponential midpoint sub-steps",
     )
     if midpoint is None:
@@ -483,7 +513,8 @@ PARAMETERS = (
     ("table", "sig", "table"),
     *((name, "out", name) for name in ("theta", "omega", "theta_m", "omega_m", "u", "tau_hat",
                                        "tau_dn", "omega_hat", "states", "tau_contact",
-                                       "in_contact", "tau_reac")),
+                                       "in_contact", "tau_reac", "estimation_error",
+                                       "position_error")),
     ("x", "work", "x"), ("x_next", "work", "x_next"), ("s_", "work", "s"), ("c_", "work", "c"),
     ("previous", "work", "previous"), ("applied_out", "work", "applied"),
     ("resolution", "sen", "resolution"),
@@ -640,19 +671,52 @@ def sample_loop(structure: tuple):
 
 
 def run_samples(
-    k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, out, work, limit, midpoint=None
-):
+    k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, out, work, limit, midpoint=None,
+    errors=False,
+):  # fmt: skip
     """Run samples ``k_start <= k < k_stop``; return the number of samples completed.
 
     With a linear plant the plant is advanced here and a return value below ``k_stop`` means
     its state left ``|x| <= limit`` (or became non-finite) at the end of the last completed
     sample. Otherwise one sample's steps 1-5 run (the plant's state ``work.x`` set by the
     caller) and ``work.applied[0]`` holds the torque to apply. The loop is the one compiled
-    for the run's structure (:func:`sample_loop`).
+    for the run's structure (:func:`sample_loop`); ``errors``: the loop that records only the
+    error traces (``out.estimation_error``, ``out.position_error``; see :func:`loop_source`).
     """
-    structure = loop_structure(plant, ctl, sen, obs, sig, work.x.shape[0], midpoint)
+    structure = loop_structure(
+        plant, ctl, sen, obs, sig, work.x.shape[0], midpoint, errors, act.delay != 0
+    )
     kernel, fields = sample_loop(structure)
     records = {"plant": plant, "ctl": ctl, "sen": sen, "act": act, "obs": obs, "sig": sig,
                "out": out, "work": work}  # fmt: skip
     arguments = [getattr(records[record], field) for record, field in fields]
     return kernel(k_start, k_stop, substeps, Ts, limit, *arguments)
+
+
+@functools.lru_cache(maxsize=64)
+def midpoint_filler(form):
+    """A compiled ``run(n, substeps, Ts, table, out)`` that writes the disturbance of ``form``
+    (:func:`~hpdob.simulation._signal_table.midpoint_table`) at every sub-step midpoint,
+    ``out[k substeps + j]`` at ``t = k Ts + (j + 1/2) Ts/substeps``, with the statements the
+    sample loop evaluates it by (:func:`loop_source`: the same ``t`` and ``h``, the same
+    operations in the same order, the factor ``table[0]`` last), so a loop that reads ``out``
+    computes what the loop evaluating the table inline computes, bit for bit: a sweep fills
+    one array per time grid instead of evaluating the signal in every scenario's loop."""
+    loads, evaluate = midpoint_source(form, "t_mid", "table", "tau_e")
+    lines = [
+        f"# hpdob sub-step midpoints of a disturbance table (generator {_digest()})",
+        "import math",
+        "",
+        "",
+        "def run(n, substeps, Ts, table, out):",
+        "    factor = table[0]",
+        "    h = Ts / substeps",
+        *("    " + line for line in loads),
+        "    for k in range(n):",
+        "        t_k = k * Ts",
+        "        for j in range(substeps):",
+        "            t_mid = t_k + (j + 0.5) * h",
+        *("            " + line for line in evaluate),
+        "            out[k * substeps + j] = factor * tau_e",
+    ]
+    return compiled_function("\n".join(lines) + "\n", kind="sample-loops", prefix="hpdob_mid_")

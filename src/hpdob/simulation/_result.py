@@ -18,7 +18,9 @@ __all__ = [
     "CANONICAL_WINDOWS",
     "FORCE_SETTLING",
     "SimulationResult",
+    "error_metrics",
     "json_ready",
+    "max_abs",
     "metric_window",
     "metrics_json",
 ]
@@ -95,7 +97,38 @@ def _rms(values: np.ndarray) -> float:
         return scale  # all zero, or inf/nan in the trace
     scaled = values / scale
     np.square(scaled, out=scaled)  # what ``** 2`` computes, without a second temporary
-    return scale * float(np.sqrt(np.mean(scaled)))
+    # np.mean's own arithmetic (np.add.reduce, then / count) without its Python wrapper
+    return scale * math.sqrt(float(np.add.reduce(scaled)) / scaled.size)
+
+
+def error_metrics(t, estimation_error, position_error, *, regulation, tracking,
+                  increasing=False) -> dict:  # fmt: skip
+    """:meth:`SimulationResult.metrics` of a run's traces ``t`` [s], ``tau_hat - tau_dn``
+    [N m] and ``theta - r`` [rad]: the one computation of both a result and a sweep's row.
+
+    ``increasing``: ``t`` is known to increase (a run's grid ``k Ts``), so each window's
+    samples are one slice, found by bisection instead of a mask over the run: the same
+    samples in the same order, so the same RMS bit for bit."""
+
+    def window(bounds, name):
+        lo, hi = metric_window(bounds, name)
+        if increasing:  # t >= lo from index i on, t < hi up to index j (excluded)
+            i, j = np.searchsorted(t, (lo, hi), side="left").tolist()
+            return _rms(position_error[i:j])
+        mask = (t >= lo) & (t < hi)
+        return _rms(position_error[mask])
+
+    return {
+        "rms_estimation_error": _rms(estimation_error),
+        "rms_position_error_regulation": window(regulation, "regulation"),
+        "rms_position_error_tracking": window(tracking, "tracking"),
+    }
+
+
+def max_abs(values: np.ndarray) -> float:
+    """``max |values|``, NaN for an empty array (as
+    :meth:`SimulationResult.max_abs_position_error`)."""
+    return float(np.max(np.abs(values))) if len(values) else math.nan
 
 
 @dataclass(frozen=True, eq=False)
@@ -240,18 +273,8 @@ class SimulationResult:
             (``theta - r`` in each window; NaN if the window holds no sample).
         """
 
-        error = self.position_error  # once for both windows
-
-        def window(bounds, name):
-            lo, hi = metric_window(bounds, name)
-            mask = (self.t >= lo) & (self.t < hi)
-            return _rms(error[mask])
-
-        return {
-            "rms_estimation_error": _rms(self.estimation_error),
-            "rms_position_error_regulation": window(regulation, "regulation"),
-            "rms_position_error_tracking": window(tracking, "tracking"),
-        }
+        return error_metrics(self.t, self.estimation_error, self.position_error,
+                             regulation=regulation, tracking=tracking)  # fmt: skip
 
     def contact_metrics(self, tau_ref: float | None = None) -> dict[str, float]:
         """The impact of a run against an :class:`~hpdob.Environment`.
@@ -434,7 +457,7 @@ class SimulationResult:
         float
             ``max |theta - r|`` [rad]; NaN for an empty result.
         """
-        return float(np.max(np.abs(self.position_error))) if len(self) else math.nan
+        return max_abs(self.position_error)
 
     # -- export -----------------------------------------------------------------------------
     def to_csv(self, path, *, progress=None) -> Path:

@@ -36,7 +36,7 @@ from ._records import (
     SignalRecord,
     Work,
 )
-from ._result import SimulationResult
+from ._result import SimulationResult, error_metrics, max_abs
 from ._signal_table import midpoint_table
 
 __all__ = [
@@ -46,6 +46,7 @@ __all__ = [
     "SimulationDivergedWarning",
     "default_substeps",
     "run_loop",
+    "run_metrics",
     "simulate",
 ]
 
@@ -513,6 +514,92 @@ def _loop_records(loop: ServoLoop) -> tuple:
 PROGRESS_PLANT_STEPS = 1 << 20
 
 
+#: An empty array for the record fields a run does not use (the loop never reads them).
+_EMPTY = np.zeros(0)
+_EMPTY.setflags(write=False)
+
+
+def _run_inputs(loop: ServoLoop, signals: SampledSignals, x0, observer_state=None,
+                tau_mid=None):  # fmt: skip
+    """``(records, work, sampler, midpoint)`` of a run of ``loop`` on ``signals`` from ``x0``:
+    the kernel's read-only records (``sig``, ``sen``, ``ctl``, ``act``, ``obs``, and ``plant``
+    for a plant the compiled loop advances), its ``Work`` state, the plant's sampler and the
+    disturbance's midpoint table (``(form, table)``, or None: the loop reads ``sig.tau_mid``).
+    ``tau_mid``: the disturbance at the sub-step midpoints, already sampled (a sweep's grid),
+    read instead of the table."""
+    Ts, S, n = signals.Ts, signals.substeps, signals.t.size
+    plant = loop.plant
+    sensor, noise = _sensor_record(loop.sensor, n)
+    ctl, act, obs = derived(loop, "records", lambda: _loop_records(loop))  # once per loop
+    records = {"ctl": ctl, "sen": sensor, "act": act, "obs": obs}
+    x = plant.initial_state(x0)
+    sampler = plant_sampler(plant, Ts, S)
+    compiled = isinstance(sampler, ExactSubsteps)
+    # the disturbance at the sub-step midpoints: evaluated by the compiled loop from its table
+    # (factor first), else read from the sampled array
+    midpoint = signals.midpoint if compiled and tau_mid is None else None
+    table = _EMPTY if midpoint is None else np.concatenate(([signals.factor], midpoint[1]))
+    if tau_mid is None:
+        tau_mid = signals.tau_mid if compiled else signals.midpoints()
+    noise.flags.writeable = table.flags.writeable = False  # this run's own: no views needed
+    # read-only, so that every run of a structure is one numba signature (read_only_view)
+    records["sig"] = SignalRecord(*map(read_only_view, (
+        signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample, tau_mid, noise, table,
+    )))  # fmt: skip
+    state = observer_state if observer_state is not None else loop.initial_observer_state(x0)
+    s = np.array(state if state is not None else (), dtype=float)
+    c = np.array(loop.controller_system.python.reset(float(x0[0]), float(x0[1]), 0.0))
+    work = Work(s, s.copy(), np.zeros(s.size + 3), c, c.copy(),
+                np.zeros(ctl.n + ctl.p + 1 + ctl.q), np.zeros(5 + obs.q),
+                np.zeros(1), x, x.copy(), np.zeros(1))  # fmt: skip
+    if compiled:  # a frozen sampler's record, made once (the sampler is kept on its plant)
+        records["plant"] = derived(sampler, "record", lambda: _plant_record(sampler))
+    return records, work, sampler, midpoint
+
+
+def _plant_record(sampler: ExactSubsteps) -> LinearPlantRecord:
+    wall = sampler.environment
+    return LinearPlantRecord(
+        True, sampler.path_index, sampler.velocity_index, sampler.A_h, sampler.B_h, sampler.D_h,
+        sampler.A_half, sampler.B_half, sampler.D_half, sampler.shared, sampler.internal,
+        sampler.J_motor, sampler.coulomb, sampler.coulomb_velocity, wall is not None,
+        sampler.contact_index, *((wall.stiffness, wall.damping, wall.position)
+                                 if wall is not None else (1.0, 0.0, 0.0)),
+    )  # fmt: skip
+
+
+def _run_compiled(signals, records, out, work, midpoint, *, progress=None, errors=False) -> int:
+    """Run the compiled loop over the whole run (in chunks of :data:`PROGRESS_PLANT_STEPS` plant
+    steps with ``progress``); the number of samples completed."""
+    from . import _kernel  # numba is imported on the first run, not by ``import hpdob``
+
+    Ts, S, n = signals.Ts, signals.substeps, signals.t.size
+    chunk = n if progress is None else max(1, PROGRESS_PLANT_STEPS // S)
+    done = 0
+    if progress is not None:
+        progress(0, n)
+    while done < n:  # one call without progress: the chunk is the whole run
+        stop = min(n, done + chunk)
+        done = _kernel.run_samples(
+            done, stop, S, Ts, records["plant"], records["ctl"], records["sen"], records["act"],
+            records["obs"], records["sig"], out, work, DIVERGENCE_LIMIT,
+            None if midpoint is None else midpoint[0], errors,
+        )  # fmt: skip
+        if progress is not None:
+            progress(done, n)
+        if done < stop:  # diverged
+            break
+    return done
+
+
+def _diverged_message(label: str, done: int, Ts: float, unstable: str = "") -> str:
+    return (
+        f"{label or 'simulation'} diverged: |theta| or |omega| exceeded "
+        f"{DIVERGENCE_LIMIT:g} (or became non-finite{unstable}) by t = {done * Ts:.6g} s; "
+        f"the result holds the {done} samples before that"
+    )
+
+
 def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
              observer_state=None, progress=None) -> SimulationResult:  # fmt: skip
     """Run ``loop`` on pre-sampled signals from the motor state ``x0`` (no warning).
@@ -526,33 +613,12 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     ``work`` and the actuator's delay line read from ``out``, as every sample does within one
     call, so the result is bit for bit the same.
     """
-    from . import _kernel  # numba is imported on the first run, not by ``import hpdob``
-
     Ts, S, t = signals.Ts, signals.substeps, signals.t
     n = t.size
     plant, system = loop.plant, loop.system
-    sensor, noise = _sensor_record(loop.sensor, n)
-    ctl, act, obs = derived(loop, "records", lambda: _loop_records(loop))  # once per loop
-    records = {
-        "ctl": ctl,
-        "sen": sensor,
-        "act": act,
-        "obs": obs,
-    }
-    x = plant.initial_state(x0)
-    nx = x.size
-    sampler = plant_sampler(plant, Ts, S)
-    compiled = isinstance(sampler, ExactSubsteps)
-    # the disturbance at the sub-step midpoints: evaluated by the compiled loop from its table
-    # (factor first), else read from the sampled array
-    midpoint = signals.midpoint if compiled else None
-    table = np.zeros(0) if midpoint is None else np.concatenate(([signals.factor], midpoint[1]))
-    noise.flags.writeable = table.flags.writeable = False  # this run's own: no views needed
-    # read-only, so that every run of a structure is one numba signature (read_only_view)
-    records["sig"] = SignalRecord(*map(read_only_view, (
-        signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample,
-        signals.tau_mid if compiled else signals.midpoints(), noise, table,
-    )))  # fmt: skip
+    records, work, sampler, midpoint = _run_inputs(loop, signals, x0, observer_state)
+    compiled = "plant" in records
+    nx = work.x.size
 
     def optional(present):  # an output the run records, else an empty array the loop never reads
         return np.zeros(n) if present else np.zeros(0)
@@ -566,61 +632,20 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
         optional(contact),
         optional(system is not None and "tau_reac" in system.outputs),
     )
-    state = observer_state if observer_state is not None else loop.initial_observer_state(x0)
-    s = np.array(state if state is not None else (), dtype=float)
-    c = np.array(loop.controller_system.python.reset(float(x0[0]), float(x0[1]), 0.0))
-    work = Work(s, s.copy(), np.zeros(s.size + 3), c, c.copy(),
-                np.zeros(ctl.n + ctl.p + 1 + ctl.q), np.zeros(5 + records["obs"].q),
-                np.zeros(1), x, x.copy(), np.zeros(1))  # fmt: skip
     environment = getattr(plant, "environment", None)
     if compiled:
-        wall = sampler.environment
-        record = LinearPlantRecord(
-            True, sampler.path_index, sampler.velocity_index, sampler.A_h, sampler.B_h, sampler.D_h,
-            sampler.A_half, sampler.B_half, sampler.D_half, sampler.shared, sampler.internal,
-            sampler.J_motor, sampler.coulomb, sampler.coulomb_velocity, wall is not None,
-            sampler.contact_index, *((wall.stiffness, wall.damping, wall.position)
-                                     if wall is not None else (1.0, 0.0, 0.0)),
-        )  # fmt: skip
-        chunk = n if progress is None else max(1, PROGRESS_PLANT_STEPS // S)
-        done = 0
-        if progress is not None:
-            progress(0, n)
-        while done < n:  # one call without progress: the chunk is the whole run
-            stop = min(n, done + chunk)
-            done = _kernel.run_samples(
-                done,
-                stop,
-                S,
-                Ts,
-                record,
-                **records,
-                out=out,
-                work=work,
-                limit=DIVERGENCE_LIMIT,
-                midpoint=None if midpoint is None else midpoint[0],
-            )
-            if progress is not None:
-                progress(done, n)
-            if done < stop:  # diverged
-                break
+        done = _run_compiled(signals, records, out, work, midpoint, progress=progress)
         unstable = ""
     else:
         from ._python_plant import run_python_plant
 
-        session = sampler.start(x)
+        session = sampler.start(work.x)
         every = None if progress is None else max(1, PROGRESS_PLANT_STEPS // S)
         done = run_python_plant(session, n, S, Ts, records, out, work, DIVERGENCE_LIMIT,
                                 progress=progress, every=every)  # fmt: skip
         unstable = f" or {getattr(session, 'engine', 'the plant')} flagged it unstable"
     diverged = done < n
-    message = "ok"
-    if diverged:
-        message = (
-            f"{label or 'simulation'} diverged: |theta| or |omega| exceeded "
-            f"{DIVERGENCE_LIMIT:g} (or became non-finite{unstable}) by t = {done * Ts:.6g} s; "
-            f"the result holds the {done} samples before that"
-        )
+    message = _diverged_message(label, done, Ts, unstable) if diverged else "ok"
     keep = slice(0, done)
     extra = {}
     if system is not None and system.has_velocity:
@@ -653,3 +678,86 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
         message=message,
         **extra,
     )
+
+
+class _ErrorOutputs(NamedTuple):
+    """What the error-recording loop writes (:func:`run_metrics`): the delay line, the two
+    error traces and the optional outputs of the loop's structure."""
+
+    u: np.ndarray
+    estimation_error: np.ndarray
+    position_error: np.ndarray
+    omega_hat: np.ndarray
+    tau_reac: np.ndarray
+
+
+#: Per thread: the arrays :func:`run_metrics` lends the loop, reused by the next run of that
+#: thread (a sweep's scenarios: no allocation per scenario, the memory stays in the cache).
+_SCRATCH = threading.local()
+#: Runs of at most this many samples use the thread's kept arrays (5 x 2 MB); longer ones get
+#: their own, freed with the run (a long-lived worker thread keeps no more than that).
+SCRATCH_SAMPLES = 1 << 18
+
+
+def _scratch(n: int) -> _ErrorOutputs:
+    """Views of ``n`` entries of this thread's scratch arrays (grown when too small, up to
+    :data:`SCRATCH_SAMPLES`; beyond, new arrays not kept)."""
+    arrays = getattr(_SCRATCH, "arrays", None)
+    if arrays is None or arrays.shape[1] < n:
+        arrays = np.empty((len(_ErrorOutputs._fields), n))
+        if n <= SCRATCH_SAMPLES:
+            _SCRATCH.arrays = arrays
+    return _ErrorOutputs(*(row[:n] for row in arrays))
+
+
+def error_run_applies(loop: ServoLoop, Ts: float, substeps: int) -> bool:
+    """Whether :func:`run_metrics` runs ``loop`` at ``(Ts, substeps)``: a plant the compiled
+    loop advances (not MuJoCo) and no environment (whose contact and force metrics read the
+    contact traces of a full run)."""
+    sampler = plant_sampler(loop.plant, Ts, substeps)
+    return isinstance(sampler, ExactSubsteps) and sampler.environment is None
+
+
+def run_metrics(loop: ServoLoop, signals: SampledSignals, x0, *, windows: dict, tau_mid=None):
+    """The metrics of :func:`run_loop`'s result, computed without recording its traces.
+
+    For a loop that :func:`error_run_applies` to. The compiled loop records only the
+    estimation and the position error (``tau_hat - tau_dn`` and ``theta - r``: the same
+    subtractions numpy performs on a result's traces, see
+    :func:`~hpdob.simulation._kernel.loop_source`) into this thread's scratch arrays, and the
+    metrics are computed from them by the functions :class:`SimulationResult` uses, so they
+    are bit for bit ``run_loop(...).metrics(**windows)`` and its ``max_abs_position_error()``.
+
+    Parameters
+    ----------
+    loop : ServoLoop
+        The validated loop.
+    signals : SampledSignals
+        The run's sampled signals (:func:`sample_signals`, scaled as the run's).
+    x0 : ndarray
+        The motor's initial state ``[theta (rad), omega (rad/s)]``, checked.
+    windows : dict
+        ``{"regulation": (start, stop), "tracking": (start, stop)}`` [s].
+    tau_mid : ndarray, optional
+        The disturbance at the ``n * substeps`` sub-step midpoints, as the loop would evaluate
+        it from ``signals.midpoint`` (:func:`~hpdob.simulation._kernel.midpoint_filler`, a
+        sweep's one array per time grid); None: the loop evaluates the table, or reads
+        ``signals.tau_mid``.
+
+    Returns
+    -------
+    tuple
+        ``(metrics, diverged, message)``: the three metrics of :meth:`SimulationResult.metrics`
+        and ``max_abs_position_error`` [rad] over the samples run, whether the run diverged
+        and :func:`run_loop`'s message (``"ok"``, or where it stopped).
+    """
+    n = signals.t.size
+    records, work, _, midpoint = _run_inputs(loop, signals, x0, tau_mid=tau_mid)
+    out = _scratch(n)
+    done = _run_compiled(signals, records, out, work, midpoint, errors=True)
+    position_error = out.position_error[:done]
+    metrics = error_metrics(signals.t[:done], out.estimation_error[:done], position_error,
+                            increasing=True, **windows)  # fmt: skip
+    metrics["max_abs_position_error"] = max_abs(position_error)
+    diverged = done < n
+    return metrics, diverged, _diverged_message("", done, signals.Ts) if diverged else "ok"

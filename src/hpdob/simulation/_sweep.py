@@ -39,7 +39,14 @@ from ._force_run import force_run_columns, force_run_metrics, position_metrics_a
 from ._loop import LOOP_KEYS, ServoLoop
 from ._result import CANONICAL_WINDOWS, metric_window
 from ._scenario import Scenario
-from ._simulate import check_run_arguments, run_loop, sample_count, sample_signals
+from ._simulate import (
+    check_run_arguments,
+    error_run_applies,
+    run_loop,
+    run_metrics,
+    sample_count,
+    sample_signals,
+)
 from ._sweep_dask import SweepIncomplete, SweepInterrupted, _Incomplete, _run_dask, resumed_rows
 from ._sweep_spec import check_paths_apply, expand_scenarios, replaced_plant
 
@@ -320,19 +327,62 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
             ),
         )
         scale = float(params.get("disturbance_scale", 1.0))
-        result = run_loop(loop, signals.scaled(scale), x0)
+        signals = signals.scaled(scale)
+        if error_run_applies(loop, loop.Ts, S):  # the row needs no trace: none is recorded
+            tau_mid = _midpoints(signals, cache, ("midpoints", loop.Ts, n, S))
+            metrics, diverged, message = run_metrics(
+                loop, signals, x0, windows=base["metric_windows"], tau_mid=tau_mid
+            )
+            result = None
+        else:
+            result = run_loop(loop, signals, x0)
     except (ParameterValueError, ParameterTypeError) as err:
         row.update(dict.fromkeys(METRIC_COLUMNS, math.nan), stable=False, error=str(err))
         return row
-    row.update(result.metrics(**base["metric_windows"]))
-    row["max_abs_position_error"] = result.max_abs_position_error()
+    if result is not None:
+        metrics = result.metrics(**base["metric_windows"])
+        metrics["max_abs_position_error"] = result.max_abs_position_error()
+        diverged, message = result.diverged, result.message
+    row.update(metrics)
     if not position_metrics_apply(loop.controller):  # r is tau_ref [N m], not an angle
         row.update(dict.fromkeys(METRIC_COLUMNS[1:], math.nan))
-    # against a wall: the same contact and force metrics as hpdob simulate's
-    row.update(force_run_metrics(result, loop.controller))
-    row["stable"] = not result.diverged
-    row["error"] = result.message if result.diverged else ""
+    if result is not None:  # against a wall: the same contact and force metrics as hpdob simulate's
+        row.update(force_run_metrics(result, loop.controller))
+    row["stable"] = not diverged
+    row["error"] = message if diverged else ""
     return row
+
+
+#: A time grid's sub-step midpoints are filled once per sweep up to this many values (32 MB);
+#: beyond, each scenario's loop evaluates the disturbance's table itself (the same values).
+MIDPOINTS_MAX = 1 << 22
+
+
+def _midpoints(signals, cache, key):
+    """The disturbance at the sub-step midpoints of ``signals`` (scaled), as the compiled loop
+    evaluates its table, for the loop to read: filled once per time grid (``key``) through
+    ``cache`` by :func:`~hpdob.simulation._kernel.midpoint_filler` (the loop's own statements,
+    so bit for bit the loop's values) and multiplied by the scenario's factor as the loop
+    multiplies it; None where the signals hold no table or the grid is too large (the loop
+    then evaluates the table, or reads ``signals.tau_mid``)."""
+    if signals.midpoint is None or cache is None:
+        return None
+    n, S = signals.t.size, signals.substeps
+    if n * S > MIDPOINTS_MAX:
+        return None
+
+    def fill():
+        from ._kernel import midpoint_filler
+
+        form, coefficients = signals.midpoint
+        values = np.empty(n * S)
+        midpoint_filler(form)(n, S, signals.Ts, np.concatenate(([1.0], coefficients)), values)
+        values.setflags(write=False)
+        return values
+
+    values = _cached(cache, key, fill)
+    # the loop computes factor * tau_e per midpoint: the same product, elementwise
+    return values if signals.factor == 1.0 else signals.factor * values
 
 
 class SweepCancelled(Exception):
