@@ -18,6 +18,7 @@ from .._validation import (
     ParameterTypeError,
     ParameterValueError,
     as_grid,
+    as_int,
     check_choice,
     nonnegative,
     positive,
@@ -295,8 +296,19 @@ class ContactStabilityMap(_RadiusMap):
         """
         from ._describing import contact_limit_cycle
 
+        known = ("friction", "reaction_friction", "quantiser", "saturation", "levels", "smallest")
+        unknown = sorted(set(options) - set(known))
+        if unknown:
+            raise ParameterTypeError(
+                f"limit_cycles got unknown option {unknown[0]!r}; the options are "
+                f"{', '.join(known)}"
+            )
         first = self.loop_at(float(self.values[0]), float(self.bandwidths[0]))
-        contact_limit_cycle(first, tau_ref=tau_ref, **{**options, "levels": 8})  # checks
+        # the checks, on a short scan (levels checked as given first, as the function does)
+        if "levels" in options:
+            as_int(options["levels"], "levels", "an integer number of amplitudes, at least 8",
+                   minimum=8)  # fmt: skip
+        contact_limit_cycle(first, tau_ref=tau_ref, **{**options, "levels": 8})
         verdicts, amplitudes, frequencies = [], [], []
         for value in self.values:
             for g in self.bandwidths:
