@@ -473,6 +473,25 @@ class ContactLimitCycle:
         Returns
         -------
         pandas.DataFrame
+            One row per scanned amplitude, increasing.
+
+        Examples
+        --------
+        >>> from hpdob import Environment, ServoLoop, paper
+        >>> from hpdob.analysis import contact_limit_cycle
+        >>> from hpdob.controllers import ForceControl
+        >>> from hpdob.observers import design_observer, reaction_torque_observer
+        >>> dob = design_observer(paper.NOMINAL.discretize(1e-3), order=1, bandwidth=100.0)
+        >>> loop = ServoLoop(plant=paper.PLANT.replace(environment=Environment(10.0)),
+        ...                  nominal=paper.NOMINAL, Ts=1e-3,
+        ...                  controller=ForceControl(1000.0, kv=40.0),
+        ...                  observer=reaction_torque_observer(dob, friction=paper.PLANT,
+        ...                                                    velocity_filter=100.0),
+        ...                  sensor=paper.VIRTUAL_SENSOR, actuator=paper.VIRTUAL_ACTUATOR)
+        >>> cycle = contact_limit_cycle(loop, tau_ref=0.05, levels=8)
+        >>> frame = cycle.to_pandas()
+        >>> len(frame), float(frame["amplitude_ratio"].iloc[-1])   # the scan's top: tau_ref
+        (8, 1.0)
         """
         import pandas as pd
 
@@ -498,7 +517,29 @@ class ContactLimitCycle:
         -------
         matplotlib.figure.Figure
             The radius over the amplitude [%], the line ``|z| = 1``, the balances (``o``
-            stable, ``x`` unstable) and a legend above the axes.
+            stable, ``x`` unstable) and a legend right of the axes.
+
+        Examples
+        --------
+        >>> import matplotlib
+        >>> matplotlib.use("Agg")
+        >>> import matplotlib.pyplot as plt
+        >>> from hpdob import Environment, ServoLoop, paper
+        >>> from hpdob.analysis import contact_limit_cycle
+        >>> from hpdob.controllers import ForceControl
+        >>> from hpdob.observers import design_observer, reaction_torque_observer
+        >>> dob = design_observer(paper.NOMINAL.discretize(1e-3), order=1, bandwidth=100.0)
+        >>> loop = ServoLoop(plant=paper.PLANT.replace(environment=Environment(10.0)),
+        ...                  nominal=paper.NOMINAL, Ts=1e-3,
+        ...                  controller=ForceControl(1000.0, kv=40.0),
+        ...                  observer=reaction_torque_observer(dob, friction=paper.PLANT,
+        ...                                                    velocity_filter=100.0),
+        ...                  sensor=paper.VIRTUAL_SENSOR, actuator=paper.VIRTUAL_ACTUATOR)
+        >>> cycle = contact_limit_cycle(loop, tau_ref=0.05, levels=8)
+        >>> fig = cycle.plot()
+        >>> fig.axes[0].get_ylabel()
+        'largest oscillatory pole modulus [-]'
+        >>> plt.close(fig)
         """
         import matplotlib.pyplot as plt
 
