@@ -213,3 +213,21 @@ def test_the_maps_limit_cycles_column_is_the_verdict_of_each_point():
         assert row.df_amplitude == cycle.amplitude
     with pytest.raises(ParameterValueError, match="tau_ref must be a positive"):
         cmap.limit_cycles(tau_ref=0.0)
+
+
+def test_loop_matrices_refuses_bad_gains_and_signals():
+    """A NaN gain gave NaN matrices silently; signals="omega_hat" was read letter by letter."""
+    spec = _bonded_spec(_loop())
+    for name in ("measurement_gain", "command_gain"):
+        with pytest.raises(
+            ParameterValueError, match=rf"^{name} must be a finite real gain, got nan"
+        ):
+            loop_matrices(spec, **{name: float("nan")})
+        with pytest.raises(ParameterTypeError, match=rf"^{name} must be a finite real gain"):
+            loop_matrices(spec, **{name: "0.5"})
+    with pytest.raises(ParameterTypeError, match=r"^signals must be a tuple of signal names, "
+                       r"got 'omega_hat' of type str"):  # fmt: skip
+        loop_matrices(spec, signals="omega_hat")
+    # an int gain is the float's, bit for bit
+    assert np.array_equal(loop_matrices(spec, measurement_gain=2)[0],
+                          loop_matrices(spec, measurement_gain=2.0)[0])  # fmt: skip

@@ -757,3 +757,17 @@ def test_a_slow_hpdob_type_rtob_is_weakly_unstable_on_the_stiff_wall():
                               x0=(1.0, 0.0))  # fmt: skip
             envelope = [np.max(np.abs(result.theta[n - 500 : n])) for n in (10_000, 20_000)]
             assert (envelope[1] / envelope[0]) ** 1e-4 == pytest.approx(rho, abs=1e-5), k_e
+
+
+def test_limit_cycles_refuses_an_unknown_option_and_a_bad_levels_before_any_point():
+    """An unknown option was Python's bare TypeError from the first point; levels was
+    replaced by 8 in the up-front check, so a bad one surfaced only at the first full point."""
+    cmap = contact_stability_map(_loop(), stiffness=[10.0], bandwidth=[100.0],
+                                 observer={"order": 1})  # fmt: skip
+    with pytest.raises(ParameterTypeError, match=r"unknown option 'level'; the options are "
+                       r"friction, .*levels, smallest"):  # fmt: skip
+        cmap.limit_cycles(tau_ref=0.05, level=8)
+    with pytest.raises(ParameterValueError, match=r"^levels must be .* at least 8, got 3"):
+        cmap.limit_cycles(tau_ref=0.05, levels=3)
+    with pytest.raises(ParameterTypeError, match=r"^friction must be True or False"):
+        cmap.limit_cycles(tau_ref=0.05, friction="no")

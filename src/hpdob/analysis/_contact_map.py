@@ -18,6 +18,7 @@ from .._validation import (
     ParameterTypeError,
     ParameterValueError,
     as_grid,
+    as_int,
     check_choice,
     nonnegative,
     positive,
@@ -291,12 +292,46 @@ class ContactStabilityMap(_RadiusMap):
         Raises
         ------
         ParameterTypeError, ParameterValueError
-            As :func:`~hpdob.analysis.contact_limit_cycle`, before any point is analysed.
+            As :func:`~hpdob.analysis.contact_limit_cycle`, before any point is analysed; an
+            option it does not take (a ParameterTypeError naming it).
+
+        Examples
+        --------
+        >>> from hpdob import Environment, ServoLoop, paper
+        >>> from hpdob.analysis import contact_stability_map
+        >>> from hpdob.controllers import ForceControl
+        >>> from hpdob.observers import design_observer, reaction_torque_observer
+        >>> dob = design_observer(paper.NOMINAL.discretize(1e-3), order=1, bandwidth=100.0)
+        >>> loop = ServoLoop(plant=paper.PLANT.replace(environment=Environment(10.0)),
+        ...                  nominal=paper.NOMINAL, Ts=1e-3,
+        ...                  controller=ForceControl(1000.0, kv=40.0),
+        ...                  observer=reaction_torque_observer(dob, friction=paper.PLANT,
+        ...                                                    velocity_filter=100.0),
+        ...                  sensor=paper.VIRTUAL_SENSOR, actuator=paper.VIRTUAL_ACTUATOR)
+        >>> cmap = contact_stability_map(loop, stiffness=[10.0], bandwidth=[100.0],
+        ...                              observer={"order": 1}, friction=paper.PLANT,
+        ...                              velocity_filter=100.0)
+        >>> frame = cmap.limit_cycles(tau_ref=0.05, levels=8)
+        >>> from hpdob.analysis import contact_limit_cycle
+        >>> point = contact_limit_cycle(cmap.loop_at(10.0, 100.0), tau_ref=0.05, levels=8)
+        >>> len(frame), frame["df_verdict"].iloc[0] == point.verdict   # the point's verdict
+        (1, True)
         """
         from ._describing import contact_limit_cycle
 
+        known = ("friction", "reaction_friction", "quantiser", "saturation", "levels", "smallest")
+        unknown = sorted(set(options) - set(known))
+        if unknown:
+            raise ParameterTypeError(
+                f"limit_cycles got unknown option {unknown[0]!r}; the options are "
+                f"{', '.join(known)}"
+            )
         first = self.loop_at(float(self.values[0]), float(self.bandwidths[0]))
-        contact_limit_cycle(first, tau_ref=tau_ref, **{**options, "levels": 8})  # checks
+        # the checks, on a short scan (levels checked as given first, as the function does)
+        if "levels" in options:
+            as_int(options["levels"], "levels", "an integer number of amplitudes, at least 8",
+                   minimum=8)  # fmt: skip
+        contact_limit_cycle(first, tau_ref=tau_ref, **{**options, "levels": 8})
         verdicts, amplitudes, frequencies = [], [], []
         for value in self.values:
             for g in self.bandwidths:

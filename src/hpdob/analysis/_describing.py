@@ -37,7 +37,9 @@ from .._validation import (
     ParameterTypeError,
     ParameterValueError,
     as_int,
+    as_real,
     nonnegative,
+    numeric_array,
     positive,
     require_instance,
 )
@@ -70,13 +72,35 @@ _TAIL_U, _TAIL_W = np.polynomial.legendre.leggauss(200)
 _TAIL_U, _TAIL_W = (_TAIL_U + 1.0) * 10.0, _TAIL_W * 10.0
 
 
+#: Beyond this many quantisation steps of amplitude the quantiser's DF is 1: the exact sum
+#: would need ~2 * A/q thresholds per amplitude (memory), and its deviation from 1 is of the
+#: order (q/A)^(3/2) (the Euler-Maclaurin remainder of the sqrt end points), below 1e-9 here.
+QUANTISER_EXACT_STEPS = 2**20
+
+# above this the tanh's argument A/v (and the friction's DF) is saturated: tanh(1e150) is 1
+_X_MAX = 1e150
+
+
 def _amplitude(amplitude) -> np.ndarray:
-    a = np.asarray(amplitude, dtype=float)
-    if a.size == 0 or not np.all(np.isfinite(a)) or np.any(a <= 0.0):
-        raise ParameterValueError(
-            f"amplitude must be positive finite amplitudes, got {amplitude!r}"
-        )
+    what = "positive finite amplitudes (a number or an array of them)"
+    a = numeric_array(amplitude, "amplitude", what)  # strings, bools, complex: TypeError
+    # subnormal amplitudes refused too: 1/A overflows there (a gain beyond the float range)
+    if a.size == 0 or not np.all(np.isfinite(a)) or np.any(a < np.finfo(float).tiny):
+        raise ParameterValueError(f"amplitude must be {what}, got {amplitude!r}")
     return a
+
+
+def _centre(value, name: str, what: str, half_width: float, *, closed: bool) -> float:
+    """``value`` as a finite float within ``half_width`` of 0 (``closed``: inclusive, with a
+    relative 1e-12 of slack for a centre computed on the boundary)."""
+    x0 = as_real(value, name, f"a finite {what}")  # numpy scalars too; str, bool: TypeError
+    bound = half_width * (1 + 1e-12) if closed else half_width
+    if abs(x0) > bound or (not closed and abs(x0) == bound):
+        sign = "<=" if closed else "<"
+        raise ParameterValueError(
+            f"{name} must be a finite {what} (|{name}| {sign} {half_width!r}), got {value!r}"
+        )
+    return x0
 
 
 def _out(value: np.ndarray, amplitude):
@@ -100,6 +124,9 @@ def relay_df(amplitude, *, level: float):
 
     Raises
     ------
+    ParameterTypeError
+        For an argument that is not a real number (amplitudes: a number or an array
+        of them; strings, booleans and complex numbers are refused).
     ParameterValueError
         For a non-positive amplitude or a negative level.
 
@@ -148,6 +175,9 @@ def tanh_friction_df(amplitude, *, coulomb: float, velocity: float, sigma: float
 
     Raises
     ------
+    ParameterTypeError
+        For an argument that is not a real number (amplitudes: a number or an array
+        of them; strings, booleans and complex numbers are refused).
     ParameterValueError
         For a non-positive amplitude or velocity, or a negative Coulomb torque.
 
@@ -161,12 +191,17 @@ def tanh_friction_df(amplitude, *, coulomb: float, velocity: float, sigma: float
     v = positive(velocity, "velocity", "a positive velocity scale [rad/s]")
     sigma = nonnegative(sigma, "sigma", "a non-negative noise standard deviation [rad/s]")
     a = _amplitude(amplitude)
-    x = np.multiply.outer(a / v, np.sin(_PHI))
+    with np.errstate(over="ignore"):  # A/v beyond the float range: tanh is 1 long before
+        ratio = np.minimum(a / v, _X_MAX)
+    x = np.multiply.outer(ratio, np.sin(_PHI))
     if sigma == 0.0:
         f = np.tanh(x)
     elif sigma <= v:  # E[tanh((x + n)/v)], n ~ N(0, sigma^2): smooth on the noise's scale
         shift = np.sqrt(2.0) * sigma / v * _HERMITE_X
         f = np.tanh(x[..., None] + shift) @ _HERMITE_W
+        small = ratio < 1e-6  # the nodes' mean of tanh(shift) is 0 only to rounding (~1e-17),
+        if np.any(small):  # nonsense over a tiny A: there its linear term (relative error x^2)
+            f[small] = x[small] * (np.cosh(shift) ** -2.0 @ _HERMITE_W)
     else:  # a step on the noise's scale: E[sign] = erf exactly, minus the smooth remainder
         from scipy.special import erf
 
@@ -189,7 +224,9 @@ def quantiser_df(amplitude, *, step: float, offset: float = 0.0):
 
     at ``offset = 0`` (centred on a level, the mid-tread case) the textbook
     :math:`\frac{4q}{\pi A}\sum_{i \ge 1}\sqrt{1 - ((2i-1)q/(2A))^2}`: zero below
-    :math:`A = q/2`, tending to 1 for :math:`A \gg q`.
+    :math:`A = q/2`, tending to 1 for :math:`A \gg q`. Beyond
+    :data:`QUANTISER_EXACT_STEPS` (:math:`2^{20}`) steps of amplitude it is 1 (the sum's
+    deviation from 1 is of the order :math:`(q/A)^{3/2}`, below 1e-9 there).
 
     Parameters
     ----------
@@ -207,6 +244,9 @@ def quantiser_df(amplitude, *, step: float, offset: float = 0.0):
 
     Raises
     ------
+    ParameterTypeError
+        For an argument that is not a real number (amplitudes: a number or an array
+        of them; strings, booleans and complex numbers are refused).
     ParameterValueError
         For a non-positive amplitude or step, or an offset beyond half a step.
 
@@ -219,17 +259,21 @@ def quantiser_df(amplitude, *, step: float, offset: float = 0.0):
     1.5915
     """
     q = positive(step, "step", "a positive quantisation step [rad]")
-    x0 = float(offset) if isinstance(offset, (int, float)) else offset
-    if not isinstance(x0, float) or not math.isfinite(x0) or abs(x0) > 0.5 * q * (1 + 1e-12):
-        raise ParameterValueError(
-            f"offset must be a finite centre within half a step (|offset| <= {0.5 * q!r}) of a "
-            f"level [rad], got {offset!r}"
-        )
+    x0 = _centre(offset, "offset", "centre within half a step of a level [rad]", 0.5 * q,
+                 closed=True)  # fmt: skip
     a = _amplitude(amplitude)
-    k_max = int(np.ceil(np.max(a) / q)) + 1
+    with np.errstate(over="ignore"):
+        large = a / q > QUANTISER_EXACT_STEPS  # N = 1 - O((q/A)^1.5): 1 to < 1e-9
+    if np.all(large):
+        return _out(np.ones_like(a), amplitude)
+    exact = np.where(large, q, a)  # the exact sum's thresholds: those of the smaller amplitudes
+    k_max = int(np.ceil(np.max(exact) / q)) + 1
     t = (np.arange(-k_max, k_max) + 0.5) * q - x0  # thresholds relative to the centre
-    r = np.clip(1.0 - np.square(np.divide.outer(t, a)), 0.0, None)
-    n = 2.0 * q / (np.pi * a) * np.sqrt(r).sum(axis=0)
+    with np.errstate(over="ignore"):  # a tiny A: (t/A)^2 = inf is a threshold beyond it
+        r = np.clip(1.0 - np.square(np.divide.outer(t, exact)), 0.0, None)
+    n = 2.0 * q / (np.pi * exact) * np.sqrt(r).sum(axis=0)
+    if np.any(large):
+        n = np.where(large, 1.0, n)
     return _out(n, amplitude)
 
 
@@ -266,6 +310,9 @@ def saturation_df(amplitude, *, limit: float, bias: float = 0.0):
 
     Raises
     ------
+    ParameterTypeError
+        For an argument that is not a real number (amplitudes: a number or an array
+        of them; strings, booleans and complex numbers are refused).
     ParameterValueError
         For a non-positive amplitude or limit, or a bias not inside the limits.
 
@@ -278,13 +325,10 @@ def saturation_df(amplitude, *, limit: float, bias: float = 0.0):
     0.609
     """
     L = positive(limit, "limit", "a positive torque limit [N m]")
-    x0 = float(bias) if isinstance(bias, (int, float)) else bias
-    if not isinstance(x0, float) or not math.isfinite(x0) or abs(x0) >= L:
-        raise ParameterValueError(
-            f"bias must be a finite centre inside the limits (|bias| < {L!r}), got {bias!r}"
-        )
+    x0 = _centre(bias, "bias", "centre inside the limits [N m]", L, closed=False)
     a = _amplitude(amplitude)
-    n = (_g((L - x0) / a) + _g((L + x0) / a)) / np.pi
+    with np.errstate(over="ignore"):  # a tiny A: delta/A = inf, g = pi/2 (no clipping)
+        n = (_g((L - x0) / a) + _g((L + x0) / a)) / np.pi
     return _out(n, amplitude)
 
 
@@ -429,6 +473,25 @@ class ContactLimitCycle:
         Returns
         -------
         pandas.DataFrame
+            One row per scanned amplitude, increasing.
+
+        Examples
+        --------
+        >>> from hpdob import Environment, ServoLoop, paper
+        >>> from hpdob.analysis import contact_limit_cycle
+        >>> from hpdob.controllers import ForceControl
+        >>> from hpdob.observers import design_observer, reaction_torque_observer
+        >>> dob = design_observer(paper.NOMINAL.discretize(1e-3), order=1, bandwidth=100.0)
+        >>> loop = ServoLoop(plant=paper.PLANT.replace(environment=Environment(10.0)),
+        ...                  nominal=paper.NOMINAL, Ts=1e-3,
+        ...                  controller=ForceControl(1000.0, kv=40.0),
+        ...                  observer=reaction_torque_observer(dob, friction=paper.PLANT,
+        ...                                                    velocity_filter=100.0),
+        ...                  sensor=paper.VIRTUAL_SENSOR, actuator=paper.VIRTUAL_ACTUATOR)
+        >>> cycle = contact_limit_cycle(loop, tau_ref=0.05, levels=8)
+        >>> frame = cycle.to_pandas()
+        >>> len(frame), float(frame["amplitude_ratio"].iloc[-1])   # the scan's top: tau_ref
+        (8, 1.0)
         """
         import pandas as pd
 
@@ -448,21 +511,50 @@ class ContactLimitCycle:
         Parameters
         ----------
         ax : matplotlib Axes, optional
+            Where to draw; default a new figure.
 
         Returns
         -------
         matplotlib.figure.Figure
+            The radius over the amplitude [%], the line ``|z| = 1``, the balances (``o``
+            stable, ``x`` unstable) and a legend right of the axes.
+
+        Examples
+        --------
+        >>> import matplotlib
+        >>> matplotlib.use("Agg")
+        >>> import matplotlib.pyplot as plt
+        >>> from hpdob import Environment, ServoLoop, paper
+        >>> from hpdob.analysis import contact_limit_cycle
+        >>> from hpdob.controllers import ForceControl
+        >>> from hpdob.observers import design_observer, reaction_torque_observer
+        >>> dob = design_observer(paper.NOMINAL.discretize(1e-3), order=1, bandwidth=100.0)
+        >>> loop = ServoLoop(plant=paper.PLANT.replace(environment=Environment(10.0)),
+        ...                  nominal=paper.NOMINAL, Ts=1e-3,
+        ...                  controller=ForceControl(1000.0, kv=40.0),
+        ...                  observer=reaction_torque_observer(dob, friction=paper.PLANT,
+        ...                                                    velocity_filter=100.0),
+        ...                  sensor=paper.VIRTUAL_SENSOR, actuator=paper.VIRTUAL_ACTUATOR)
+        >>> cycle = contact_limit_cycle(loop, tau_ref=0.05, levels=8)
+        >>> fig = cycle.plot()
+        >>> fig.axes[0].get_ylabel()
+        'largest oscillatory pole modulus [-]'
+        >>> plt.close(fig)
         """
         import matplotlib.pyplot as plt
 
         if ax is None:
             _, ax = plt.subplots(figsize=(6.0, 4.0), layout="constrained")
         ax.semilogx(100 * self.levels / self.tau_ref, self.radius, label="quasi-linear loop")
-        ax.axhline(1.0, color="k", lw=0.8)
+        ax.axhline(1.0, color="k", lw=0.8, label="|z| = 1")
+        labels = {True: "stable balance", False: "unstable balance"}  # each labelled once
         for cycle in self.limit_cycles:
-            ax.plot(100 * cycle["amplitude"], 1.0, "o" if cycle["stable"] else "x", color="C3")
+            ax.plot(100 * cycle["amplitude"], 1.0, "o" if cycle["stable"] else "x", color="C3",
+                    label=labels.pop(cycle["stable"], None))  # fmt: skip
         ax.set_xlabel("contact-torque amplitude X / tau_ref [%]")
-        ax.set_ylabel("largest oscillatory pole modulus")
+        ax.set_ylabel("largest oscillatory pole modulus [-]")
+        # right of the axes: the curve and the balances on |z| = 1 stay uncovered
+        ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize="small")
         ax.set_title(f"{self.verdict}" + (f": {100 * self.amplitude:.3g} %"
                                           if self.verdict == "limit cycle" else ""))  # fmt: skip
         return ax.figure
@@ -471,10 +563,13 @@ class ContactLimitCycle:
 def _contact_parts(loop: ServoLoop, tau_ref: float):
     require_instance(loop, ServoLoop, "loop")
     plant = loop.plant
+    if isinstance(plant, InContact):  # bonded (loop_at(..., bonded=True)): the same analysis
+        plant = plant.plant
     if not isinstance(plant, ServoModel) or plant.environment is None:
         raise ParameterValueError(
-            "loop.plant must be a ServoModel with an environment (the describing-function "
-            f"analysis is of the rigid axis pressing its wall), got {plant!r}"
+            "loop.plant must be a ServoModel with an environment, or InContact of one (the "
+            f"describing-function analysis is of the rigid axis pressing its wall), got "
+            f"{loop.plant!r}"
         )
     wall = plant.environment
     if wall.damping != 0.0:
@@ -559,8 +654,8 @@ def contact_limit_cycle(
     ------
     ParameterTypeError, ParameterValueError
         Naming the parameter: a loop that is not a rigid plant with a damping-free
-        environment, a non-positive ``tau_ref`` or one at or above the torque limit, a bad
-        ``levels`` or ``smallest``.
+        environment, a non-positive ``tau_ref`` or one at or above the torque limit, a flag
+        that is not a bool, a bad ``levels`` or ``smallest``.
 
     Notes
     -----
@@ -595,14 +690,19 @@ def contact_limit_cycle(
     """
     tau_ref = positive(tau_ref, "tau_ref", "a positive force reference [N m]")
     plant, wall, limit = _contact_parts(loop, tau_ref)
-    if not isinstance(loop.plant, ServoModel):  # pragma: no cover - checked above
-        raise ParameterTypeError("loop.plant must be a ServoModel")
     levels = as_int(levels, "levels", "an integer number of amplitudes, at least 8", minimum=8)
     smallest = positive(smallest, "smallest", "an amplitude ratio in (0, 1)")
     if smallest >= 1.0:
         raise ParameterValueError(
             f"smallest must be an amplitude ratio in (0, 1), got {smallest!r}"
         )
+    flags = {"friction": friction, "reaction_friction": reaction_friction,
+             "quantiser": quantiser, "saturation": saturation}  # fmt: skip
+    for name, flag in flags.items():  # bool("no") is True: a flag must be a bool
+        if not isinstance(flag, (bool, np.bool_)):
+            raise ParameterTypeError(
+                f"{name} must be True or False, got {flag!r} of type {type(flag).__name__}"
+            )
     friction, quantiser, saturation = bool(friction), bool(quantiser), bool(saturation)
     reaction_friction = bool(reaction_friction)
     Ts = loop.Ts

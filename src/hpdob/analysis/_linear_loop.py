@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._validation import ParameterValueError
+from .._validation import ParameterTypeError, ParameterValueError, as_real
 from ..controllers import LinearController
 from ..observers import LinearObserver
 from ..simulation import ServoLoop
@@ -132,6 +132,14 @@ def loop_matrices(
     every entry as it was, bit for bit. ``signals`` appends outputs: the measured ``"theta_m"``
     and ``"omega_m"`` and observer outputs by name (e.g. ``"omega_hat"``).
     """
+    # a NaN or a string gain would give NaN matrices, and a bare string iterates by letters
+    measurement_gain = as_real(measurement_gain, "measurement_gain", "a finite real gain")
+    command_gain = as_real(command_gain, "command_gain", "a finite real gain")
+    if not isinstance(signals, (tuple, list)) or not all(isinstance(n, str) for n in signals):
+        raise ParameterTypeError(
+            f"signals must be a tuple of signal names, got {signals!r} of type "
+            f"{type(signals).__name__}"
+        )
     Ts = spec.Ts
     system = spec.system
     nd = spec.delay

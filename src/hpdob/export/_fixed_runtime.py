@@ -136,6 +136,21 @@ class FixedPointObserver:
         ------
         ParameterValueError
             If the observer has no ``tau_reac`` output.
+
+        Examples
+        --------
+        >>> from hpdob import ServoModel, design_observer
+        >>> from hpdob.export import FixedPointObserver, fixed_point_design
+        >>> from hpdob.observers import reaction_torque_observer
+        >>> dob = design_observer(ServoModel(J=2.8e-4).discretize(1e-3), order=1,
+        ...                       bandwidth=100.0)
+        >>> fx = fixed_point_design(reaction_torque_observer(dob, viscous=5e-5),
+        ...                         counts_per_rev=16384, omega_max=50.0, u_max=0.5, tau_max=0.5)
+        >>> obs = FixedPointObserver(fx)
+        >>> obs.reaction(0, 0)                # at rest, no torque
+        0
+        >>> obs.reaction(0, 0) == obs.estimates(0, 0)[1]
+        True
         """
         return self.estimates(count, omega)[1]
 
