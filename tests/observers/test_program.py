@@ -174,7 +174,10 @@ def test_a_sweep_generates_no_code_per_scenario():
     from hpdob import paper, sweep
 
     base = {**paper.scenario(), "observer": {"order": 1, "bandwidth": 100.0}, "duration": 0.05}
+    import hpdob.simulation._sweep as sweep_module
+
     sweep(base, grid={"observer.order": [0, 1]}, progress=False)  # both structures seen
+    sweep_module.clear_kept_designs()  # eight new designs below, none kept from other tests
     before = _python_factory.cache_info()
     grid = {"observer.order": [0, 1], "observer.bandwidth": [60.0, 80.0, 120.0, 150.0]}
     rows = sweep(base, grid=grid, progress=False)

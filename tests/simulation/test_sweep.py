@@ -387,11 +387,16 @@ def test_scenarios_that_share_a_design_design_it_once(monkeypatch):
     grid = {"plant.J": list(np.linspace(2e-4, 4e-4, 100))}
     for workers in (1, 2):
         calls.clear()
+        sweep_module.clear_kept_designs()  # else the first sweep's design is taken again
         rows = sweep(base(0.2), grid=grid, scheduler=workers, progress=False)
         assert rows["stable"].all()
-        # one check up front, then one design for the whole sweep (its cache is shared by
-        # every chunk and thread; 8 or 16 chunks here), never one per scenario
-        assert len(calls) == 1 + 1
+        # one design for the whole sweep, the up-front check's (the designs are kept across
+        # the sweep's chunks and threads, 8 or 16 chunks here, and across sweeps), never one
+        # per scenario
+        assert len(calls) == 1
+    rows = sweep(base(0.2), grid=grid, progress=False)  # again: the kept design, bit for bit
+    assert calls == [calls[0]]
+    assert rows.equals(sweep(base(0.2), grid=grid, scheduler=1, progress=False))
 
 
 def test_resume_runs_only_the_missing_scenarios_and_equals_a_run_from_scratch(monkeypatch):

@@ -14,6 +14,7 @@ import os
 import signal
 import sys
 import threading
+from collections import OrderedDict
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
 import numpy as np
@@ -220,10 +221,62 @@ def _varied_spec(spec: dict, varied: dict) -> dict:
     return spec
 
 
+#: The designs of the process's recent sweeps, most recently used last: a sweep run again (a
+#: tuning loop, a notebook cell, a benchmark's repeats) takes its observers from here instead of
+#: designing them again (0.3-0.6 ms each, the exact stability and realised-pole checks). Only
+#: designs that are pure functions of their key: a frozen nominal model and a spec of plain
+#: values (numbers, strings, booleans, None and tuples of them); the family's record is part of
+#: the key, so a family registered again designs anew. Guarded by ``_FILLING``.
+_KEPT_DESIGNS: OrderedDict = OrderedDict()
+#: At most this many designs are kept (each a few kB: its matrices and program).
+KEPT_DESIGNS_MAX = 1024
+_PLAIN = (float, int, str, bool, complex, type(None))
+
+
+def clear_kept_designs() -> None:
+    """Forget the designs kept across sweeps (tests that count designs start from none)."""
+    with _FILLING:
+        _KEPT_DESIGNS.clear()
+
+
+def _plain(value) -> bool:
+    """Whether ``value`` is made of plain values only (numbers, strings, booleans, None, and
+    dicts, lists and tuples of them): nothing that could change after it was designed."""
+    if isinstance(value, dict):
+        return all(isinstance(k, str) and _plain(v) for k, v in value.items())
+    if isinstance(value, (list, tuple)):
+        return all(_plain(v) for v in value)
+    return isinstance(value, _PLAIN)
+
+
+def _kept_design(spec: dict, nominal, Ts, frozen_key):
+    """``design_from_spec(nominal.discretize(Ts), spec)``, kept across sweeps when it is a pure
+    function of ``frozen_key`` (see ``_KEPT_DESIGNS``); called under ``_FILLING``."""
+    frozen_spec = frozen_key is not None and frozen(nominal) and _plain(spec)
+    if frozen_spec:  # the nominal model by its fields' bits (0.0 and -0.0 differ)
+        fields = {f.name: getattr(nominal, f.name) for f in dataclasses.fields(nominal)}
+        frozen_spec = _plain(fields)
+        fields = _frozen(fields)
+    family = get_family(spec.get("type", "dob")) if frozen_spec else None
+    key = (frozen_key, fields, family, type(nominal)) if frozen_spec else None
+    with _FILLING:
+        design = _KEPT_DESIGNS.get(key) if frozen_spec else None
+        if design is not None:
+            _KEPT_DESIGNS.move_to_end(key)
+            return design
+        design = design_from_spec(nominal.discretize(Ts), spec)
+        if frozen_spec:
+            _KEPT_DESIGNS[key] = design
+            while len(_KEPT_DESIGNS) > KEPT_DESIGNS_MAX:
+                _KEPT_DESIGNS.popitem(last=False)
+    return design
+
+
 def _designed(spec: dict, nominal, Ts, cache):
-    """The design of ``spec`` on ``nominal.discretize(Ts)``, shared through ``cache``."""
+    """The design of ``spec`` on ``nominal.discretize(Ts)``, shared through ``cache`` (and
+    across sweeps, :func:`_kept_design`)."""
     key = ("design", _frozen({"spec": spec, "nominal": nominal, "Ts": Ts}))
-    return _cached(cache, key, lambda: design_from_spec(nominal.discretize(Ts), spec))
+    return _cached(cache, key, lambda: _kept_design(spec, nominal, Ts, key[-1]))
 
 
 def _recomposed(composition: ReactionObserverDesign, params: dict, nominal, Ts, cache):
