@@ -32,6 +32,7 @@ import math
 
 import numpy as np
 
+from .._blas import one_blas_thread
 from .._interrupts import checkpoint
 from .._validation import (
     ParameterTypeError,
@@ -45,7 +46,6 @@ from ..analysis import MAX_DELAY_SAMPLES
 from ..controllers import PD, Controller, controller_settings, controller_system
 from ..models import ServoModel
 from ..simulation import MISSING, Actuator, Encoder, loop_parts
-from ._blas import one_blas_thread
 from ._result import TuningResult
 from ._runs import VerificationRuns
 
