@@ -47,6 +47,7 @@ from ..models import InContact, ServoModel
 from ..observers import LinearObserver
 from ..simulation import ServoLoop
 from ._linear_loop import LoopSpec, loop_matrices
+from ._noise import h2_gains
 
 __all__ = [
     "ContactLimitCycle",
@@ -804,14 +805,10 @@ def _velocity_dither(system: LinearObserver, source: str, Ts: float) -> float:
         return 1.0
     if "omega" not in system.measures:
         return 0.0
-    from scipy.linalg import solve_discrete_lyapunov
-
     col = system.measures.index("omega")
     w = system.outputs.index("omega_hat")
-    F, G = np.asarray(system.F), np.asarray(system.G)[:, col]
-    H, E = np.asarray(system.H)[w], float(np.asarray(system.E)[w, col])
-    P = solve_discrete_lyapunov(F.T, np.outer(H, H))
-    return float(math.sqrt(E * E + G @ P @ G))
+    F, G, H, E = (np.asarray(m, dtype=float) for m in (system.F, system.G, system.H, system.E))
+    return float(h2_gains(F, G[:, col : col + 1], H[w : w + 1], E[w : w + 1, col : col + 1])[0])
 
 
 def _with_viscous_reaction(system: LinearObserver, velocity: str, gain: float):
