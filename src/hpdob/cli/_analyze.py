@@ -273,7 +273,7 @@ def _print_notes(notes) -> None:
 GRID_DEFAULTS = {"noise": ("0,1,2,3", "10:2000:25"), "tradeoff": ("0,1,2,3", "10:3000:61")}
 
 
-def _family_grid(args, model) -> list[str]:
+def _family_grid(args, model, designs: dict | None = None) -> list[str]:
     """Fill in ``args.orders`` and ``args.bandwidths`` where they were not given.
 
     The paper's family (``--type dob``) takes the defaults as they are. Another family takes
@@ -282,7 +282,8 @@ def _family_grid(args, model) -> list[str]:
     orders it designs at every such bandwidth (an ESO of extended order 2 cannot be realised in
     double precision at 10 rad/s; a Kalman design refuses bandwidths beyond pi/(2 Ts)). An
     axis the user gave is kept whole, so a point it cannot design stops the analysis, named.
-    Returns the notes of what was left out, for stderr.
+    Returns the notes of what was left out, for stderr; ``designs`` (a dict) receives the
+    designs made on the way, by ``(order, bandwidth)``, for the analysis to reuse.
     """
     from .._validation import ParameterTypeError, ParameterValueError
     from ..observers import get_family
@@ -302,8 +303,10 @@ def _family_grid(args, model) -> list[str]:
     for m in args.orders:
         for g in args.bandwidths:
             try:
-                _design(args, model, m, g)
+                design = _design(args, model, m, g)
                 works[m, g] = True
+                if designs is not None:
+                    designs[m, g] = design
             except (ParameterValueError, ParameterTypeError) as err:
                 first_error = first_error or err
                 works[m, g] = False
@@ -611,7 +614,8 @@ def _noise(args, files) -> list[str]:
 
     loop = _loop(args)
     model = loop["nominal"].discretize(loop["Ts"])
-    _print_notes(_family_grid(args, model))
+    designs: dict = {}  # those _family_grid made (another family's default grid)
+    _print_notes(_family_grid(args, model, designs))
     total = len(args.orders) * len(args.bandwidths)
     with _progress_line("analyze noise:", args) as line:
         line(0, total)
@@ -619,7 +623,8 @@ def _noise(args, files) -> list[str]:
         for m in args.orders:
             gains.append([])
             for g in args.bandwidths:
-                gains[-1].append(noise_gains(**loop, observer=_design(args, model, m, g)))
+                design = designs[m, g] if (m, g) in designs else _design(args, model, m, g)
+                gains[-1].append(noise_gains(**loop, observer=design))
                 line(len(gains[-1]) + (len(gains) - 1) * len(args.bandwidths), total)
     labels = None if _is_paper_family(args) else [_label(args, m) for m in args.orders]
     figure = noise_figure(args.bandwidths, args.orders, gains, labels=labels)
