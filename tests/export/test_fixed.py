@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+from toolchains import needs_host_cc, needs_zig
 
 from hpdob import (
     Actuator,
@@ -65,15 +66,6 @@ FAMILIES = {
         process_noise_std=kalman_process_noise(MODEL, order=m, bandwidth=100.0,
                                                position_noise_std=_R))) for m in range(3)},
 }  # fmt: skip
-
-needs_zig = pytest.mark.skipif(
-    importlib.util.find_spec("ziglang") is None or importlib.util.find_spec("unicorn") is None,
-    reason="ziglang and unicorn (the test extra) are needed for the Cortex-M checks",
-)
-needs_host_cc = pytest.mark.skipif(
-    find_compiler() is None and importlib.util.find_spec("ziglang") is None,
-    reason="no host C compiler (gcc, $CC or ziglang)",
-)
 
 
 @pytest.fixture(scope="module")

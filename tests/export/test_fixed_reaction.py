@@ -5,11 +5,11 @@ within the derived bound of the double observer, on a force-controlled run again
 
 from __future__ import annotations
 
-import importlib.util
 import math
 
 import numpy as np
 import pytest
+from toolchains import needs_host_cc, needs_zig
 
 from hpdob import (
     Actuator,
@@ -30,7 +30,6 @@ from hpdob.testing import (
     HostFixedObserver,
     cross_compile,
     export_error_bound,
-    find_compiler,
     fixed_drive_source,
 )
 
@@ -54,15 +53,6 @@ COMPOSITIONS = {
         design_observer(MODEL, order=1, bandwidth=150.0, measurement="position"),
         viscous=DELTA_B),
 }  # fmt: skip
-
-needs_zig = pytest.mark.skipif(
-    importlib.util.find_spec("ziglang") is None or importlib.util.find_spec("unicorn") is None,
-    reason="ziglang and unicorn (the test extra) are needed for the Cortex-M checks",
-)
-needs_host_cc = pytest.mark.skipif(
-    find_compiler() is None and importlib.util.find_spec("ziglang") is None,
-    reason="no host C compiler (gcc, $CC or ziglang)",
-)
 
 
 @pytest.fixture(scope="module")
