@@ -11,9 +11,12 @@ from .._validation import ParameterTypeError, ParameterValueError, as_int, as_re
 
 __all__ = [
     "DISTRIBUTIONS",
-    "LOOP_PATHS",
     "MAX_SCENARIOS",
+    "NOMINAL_PATHS",
+    "PLANT_PATHS",
+    "RUN_PATHS",
     "check_paths_apply",
+    "controller_parameters",
     "expand_scenarios",
     "replaced_plant",
     "sweep_paths",
@@ -22,22 +25,33 @@ __all__ = [
 #: Most scenarios one sweep may expand to (rows and draws are held in memory): checked up front.
 MAX_SCENARIOS = 1_000_000
 
-#: Parameters a sweep can vary besides the observer's (dotted paths into
-#: :func:`hpdob.simulate`'s arguments).
-LOOP_PATHS = (
+#: The plant's parameters a sweep can vary (dotted paths into :func:`hpdob.simulate`'s
+#: arguments; :func:`check_paths_apply` refuses those the base's plant does not have).
+PLANT_PATHS = (
     "plant.J", "plant.b", "plant.coulomb", "plant.coulomb_velocity",
     "plant.link_mass", "plant.link_length",
     "plant.J_motor", "plant.J_load", "plant.stiffness", "plant.damping",
     "plant.b_motor", "plant.b_load",
     "plant.environment.stiffness", "plant.environment.damping", "plant.environment.position",
-    "nominal.J", "nominal.b",
-    "controller.kp", "controller.kd", "controller.ki", "controller.time_constant",
-    "controller.tracking_time", "controller.bandwidth", "controller.observer_bandwidth",
-    # the force, impedance and position-force controllers' (hpdob.controllers)
-    "controller.kf", "controller.kv", "controller.M_d", "controller.D_d", "controller.K_d",
-    "controller.tau_ref", "controller.threshold",
-    "Ts", "disturbance_scale",
 )  # fmt: skip
+#: The nominal model's, and the run's own.
+NOMINAL_PATHS, RUN_PATHS = ("nominal.J", "nominal.b"), ("Ts", "disturbance_scale")
+
+
+def controller_parameters() -> tuple:
+    """``controller.<name>`` for every real-valued constructor argument of the controller
+    types (:data:`hpdob.controllers.CONTROLLER_TYPES`, the first type to name it first): each
+    is rebuilt through its constructor, so a new controller type's gains are sweep paths."""
+    import dataclasses
+
+    from ..controllers import CONTROLLER_TYPES
+
+    out: dict = {}
+    for controller in CONTROLLER_TYPES.values():
+        for f in dataclasses.fields(controller):
+            if f.init and str(f.type).startswith("float"):  # not its flags and names
+                out.setdefault(f"controller.{f.name}")
+    return tuple(out)
 
 
 def observer_parameters() -> dict:
@@ -75,7 +89,8 @@ def design_parameter(path: str):
 def sweep_paths() -> tuple:
     """Every path a sweep can vary: the loop's, the registered families' parameters and those
     of a reaction-torque observer composition."""
-    return (*LOOP_PATHS[:14], *observer_parameters(), *reaction_parameters(), *LOOP_PATHS[14:])
+    return (*PLANT_PATHS, *observer_parameters(), *reaction_parameters(), *NOMINAL_PATHS,
+            *controller_parameters(), *RUN_PATHS)  # fmt: skip
 
 
 #: Random distributions for ``vary``: name -> meaning of its two parameters.
