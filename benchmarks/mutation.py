@@ -74,6 +74,14 @@ class Target:
 # with -x a killed mutant stops at the first failing test (unmutated run times on the shared
 # machine in docs/testing.md). tests/<subpackage>/test_<module>_mutants.py runs first.
 TARGETS = {
+    "analysis.describing": Target(
+        "src/hpdob/analysis/_describing.py",
+        (
+            "tests/analysis/test_describing_mutants.py",
+            "tests/analysis/test_describing.py",
+            "tests/analysis/test_contact_limit_cycle.py",
+        ),
+    ),
     "observers.synthesis": Target(
         "src/hpdob/observers/_synthesis.py",
         ("tests/observers/test_core.py", "tests/observers/test_synthesis.py"),
