@@ -136,10 +136,12 @@ class ReactionObserverDesign(_Designed):
 
         Parameters
         ----------
-        plant : ServoModel
+        plant : ServoModel or InContact
             The rigid plant whose friction the RTOB subtracts: ``viscous = plant.b - b_n``
             (``b_n`` of the DOb's nominal model), ``coulomb = plant.coulomb``,
-            ``coulomb_velocity = plant.coulomb_velocity``.
+            ``coulomb_velocity = plant.coulomb_velocity``; an
+            :class:`~hpdob.models.InContact` of a rigid plant (what the analysis views put in
+            the loop in contact) has that plant's friction.
 
         Returns
         -------
@@ -165,8 +167,12 @@ class ReactionObserverDesign(_Designed):
         >>> both.with_plant_friction(ServoModel(3.06e-4, 5e-5, coulomb=0.02)).friction
         {'viscous': 5e-05, 'coulomb': 0.02}
         """
+        from ..models import InContact
+
+        # a plant held in contact (the analysis views' linear plant) has its plant's friction
+        rigid = plant.plant if isinstance(plant, InContact) else plant
         values = _model_friction(
-            plant, self.system, "plant",
+            rigid, self.system, "plant",
             "a rigid ServoModel for a reaction-torque observer whose friction model is the "
             "plant's (follows_plant=True; a scenario file's friction = 'plant')",
             ": the reaction-torque observer's friction model is the plant's (follows_plant=True) "
