@@ -9,7 +9,7 @@ import numpy as np
 
 from ._files import atomic_path
 
-__all__ = ["columns_to_csv", "columns_to_pandas"]
+__all__ = ["CsvTable", "columns_to_csv", "columns_to_pandas"]
 
 
 def _cell(value) -> str:
@@ -83,3 +83,29 @@ def columns_to_pandas(columns: dict, *, caller: str = "to_pandas()"):
             "`pip install hpdob[pandas]`"
         ) from err
     return pd.DataFrame(columns)
+
+
+class CsvTable:
+    """What a result with a long-format table shares: :meth:`to_csv` of the columns its
+    ``_columns()`` gives (``{name: equal-length column}``); its ``to_pandas``, which documents
+    those columns, is the result's own."""
+
+    __slots__ = ()
+
+    def _columns(self) -> dict:  # pragma: no cover - every table defines its columns
+        raise NotImplementedError
+
+    def to_csv(self, path):
+        """Write the long-format table of :meth:`to_pandas` as CSV (no pandas needed).
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            The file to write (atomically; replaced if it exists).
+
+        Returns
+        -------
+        pathlib.Path
+            ``path``.
+        """
+        return columns_to_csv(self._columns(), path)

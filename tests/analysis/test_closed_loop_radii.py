@@ -83,3 +83,25 @@ def test_bad_arguments_are_named():
     saturated = loop.replace(actuator=Actuator(torque_limit=0.4))
     with pytest.raises(ParameterValueError, match="torque_limit must be None"):
         spectral_radii(saturated, PLANTS, [0])
+
+
+def test_an_rtob_that_follows_the_plant_is_that_of_each_plants_loop():
+    """A force loop whose RTOB friction model is the plant's (friction = "plant"): each
+    plant's radius is that of loop.replace(plant=...), whose RTOB subtracts that plant's
+    viscous friction, not the base plant's."""
+    from pathlib import Path
+
+    from hpdob.simulation import load_scenario
+
+    path = Path(__file__).resolve().parents[2] / "examples" / "force_step_stiff_wall.toml"
+    loop = load_scenario(path).loop.replace(actuator=Actuator(delay_samples=1))
+    plants = [loop.plant.replace(b=b) for b in (5e-5, 5e-4, 2e-3)]
+    radii = spectral_radii(loop, plants, [0, 1])
+    for i, d in enumerate([0, 1]):
+        for j, plant in enumerate(plants):
+            full = loop.replace(plant=plant, actuator=Actuator(delay_samples=d))
+            assert full.design.viscous == plant.b  # b_n = 0
+            assert radii[i, j] == np.abs(closed_loop_poles(full)).max()  # bit for bit
+    fixed = loop.replace(observer=dataclasses.replace(loop.design, follows_plant=False))
+    other = spectral_radii(fixed, plants, [0, 1])
+    assert (other[:, 0] == radii[:, 0]).all() and (other[:, 1:] != radii[:, 1:]).all()

@@ -98,3 +98,22 @@ def test_bad_inputs():
         force_response(_loop().replace(plant=PLANT))
     with pytest.raises(ParameterValueError, match=r"asymptotically stable for a force response"):
         force_response(_loop(1000.0))
+
+
+def test_a_scenario_whose_rtob_friction_is_the_plants_is_analysed_in_contact():
+    """[reaction_observer] friction = "plant": the analysis puts the plant in contact
+    (InContact), whose friction is its plant's, so the view equals that of the same numbers
+    given as numbers (issue 21: the composition follows the plant)."""
+    import dataclasses
+    from pathlib import Path
+
+    from hpdob.simulation import load_scenario
+
+    path = Path(__file__).resolve().parents[2] / "examples" / "force_step_stiff_wall.toml"
+    loop = load_scenario(path).loop
+    fixed = loop.replace(observer=dataclasses.replace(loop.design, follows_plant=False))
+    follows, numbers = force_response(loop), force_response(fixed)
+    np.testing.assert_array_equal(follows.poles, numbers.poles)
+    assert (follows.dc_gain, follows.bandwidth) == (numbers.dc_gain, numbers.bandwidth)
+    held = loop.replace(plant=InContact(loop.plant.replace(b=1e-4)))
+    assert held.design.viscous == 1e-4 and held.design.coulomb == loop.plant.coulomb

@@ -224,3 +224,36 @@ def test_the_keyword_parts_mean_the_loop(function):
         np.testing.assert_array_equal(by_loop, by_keywords)
     else:
         assert by_loop == by_keywords
+
+
+FORCE = Path(__file__).resolve().parents[2] / "examples" / "force_step_stiff_wall.toml"
+
+
+def test_a_loop_gives_an_rtob_that_follows_the_plant_its_plants_friction():
+    """[reaction_observer] friction = "plant": the loop's RTOB subtracts the loop's plant's
+    friction, in a loop replaced with another plant too; numbers given as numbers stay."""
+    import dataclasses
+
+    from hpdob import TwoMassServo
+    from hpdob.observers import reaction_torque_observer
+    from hpdob.simulation import load_scenario
+
+    loop = load_scenario(FORCE).loop
+    assert loop.design.follows_plant and loop.design.coulomb == 0.01
+    other = loop.plant.replace(b=1e-4, coulomb=0.02, coulomb_velocity=0.005)
+    moved = loop.replace(plant=other)
+    assert moved.observer is moved.design and moved.design.follows_plant
+    numbers = (moved.design.viscous, moved.design.coulomb, moved.design.coulomb_velocity)
+    assert numbers == (1e-4, 0.02, 0.005)  # viscous = b - b_n, b_n = 0
+    expected = reaction_torque_observer(loop.design.dob, friction=other, velocity_filter=100.0)
+    for matrix in "FGHEN":
+        np.testing.assert_array_equal(getattr(moved.system, matrix), getattr(expected, matrix))
+    assert moved.system.coulomb == expected.coulomb
+    assert loop.design.coulomb == 0.01  # the original loop as it was
+    assert moved.replace(plant=loop.plant).design.friction == loop.design.friction
+    fixed = loop.replace(observer=dataclasses.replace(loop.design, follows_plant=False))
+    assert fixed.replace(plant=other).design.coulomb == 0.01
+    with pytest.raises(TypeError, match=r"^plant must be a rigid ServoModel for a reaction-"
+                       r"torque observer whose friction model is the plant's"):  # fmt: skip
+        loop.replace(plant=TwoMassServo(2e-4, 1e-4, 100.0))
+    assert loop.design.coulomb == 0.01 and loop.plant.coulomb == 0.01

@@ -146,6 +146,15 @@ def test_force_scenarios_refuse_bad_inputs():
         lambda d: d["reaction_observer"].update(friction="model"),
         r"^reaction_observer.friction must be 'plant'",
     )
+    # given with friction = "plant" a number would be replaced by the plant's: refused
+    refused(lambda d: d["reaction_observer"].update(coulomb_velocity=0.02),
+            r"^reaction_observer.coulomb_velocity = 0.02 cannot be given with friction = "
+            r"'plant' \(the \[plant\] table's b, coulomb and coulomb_velocity\): change them in "
+            r"\[plant\], or leave friction out and give the numbers$")  # fmt: skip
+    refused(
+        lambda d: d["reaction_observer"].update(viscous=1e-5),
+        r"^reaction_observer.viscous = 1e-05 cannot be given with friction = 'plant'",
+    )
     refused(lambda d: (d["reaction_observer"].pop("friction"),
                        d["reaction_observer"].update(coulomb=-1.0)),
             r"^reaction_observer.coulomb must be a non-negative finite Coulomb torque")  # fmt: skip

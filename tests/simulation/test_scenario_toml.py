@@ -32,6 +32,7 @@ def _same_loop(a: ServoLoop, b: ServoLoop) -> None:
         assert getattr(a, part) == getattr(b, part), part
     assert type(a.design) is type(b.design) is ReactionObserverDesign
     assert a.design.friction == b.design.friction
+    assert a.design.follows_plant == b.design.follows_plant
     for part in ("dob", "reaction"):
         mine, theirs = getattr(a.design, part), getattr(b.design, part)
         assert (mine is None) == (theirs is None)
@@ -124,3 +125,27 @@ def test_a_reaction_torque_observer_linear_observer_is_refused_naming_the_design
     text = scenario_toml(loop(design_reaction_observer(dob, viscous=5e-5)),
                          reference=Step(0.1, 0.05), duration=1.0)  # fmt: skip
     assert "[reaction_observer]" in text
+
+
+FORCE = Path(__file__).resolve().parents[2] / "examples" / "force_step_stiff_wall.toml"
+
+
+def test_a_friction_model_that_follows_the_plant_is_written_as_friction_plant(tmp_path):
+    """The loop of another plant than the file's: friction = "plant" is written (not the
+    numbers), and the file runs that loop bit for bit; numbers given as numbers are written as
+    numbers and stay when the plant changes."""
+    import dataclasses
+
+    scenario = load_scenario(FORCE)
+    run = {**scenario.run, "duration": 0.3}
+    loop = scenario.loop.replace(plant=scenario.loop.plant.replace(coulomb=0.02))
+    again, text = _round_trip(loop, run, tmp_path)
+    assert '[reaction_observer]\nfriction = "plant"\nvelocity_filter = 100.0\n' in text
+    assert again.loop.design.follows_plant and again.loop.design.coulomb == 0.02
+    _same_loop(loop, again.loop)
+    np.testing.assert_array_equal(simulate(loop, **run).tau_reac, again.simulate().tau_reac)
+    fixed = loop.replace(observer=dataclasses.replace(loop.design, follows_plant=False))
+    again, text = _round_trip(fixed, run, tmp_path)
+    assert "[reaction_observer]\nviscous = 5e-05\ncoulomb = 0.02\nvelocity_filter" in text
+    assert 'friction = "plant"' not in text and not again.loop.design.follows_plant
+    assert again.loop.replace(plant=scenario.loop.plant).design.coulomb == 0.02

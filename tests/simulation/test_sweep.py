@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import signal
 import threading
@@ -522,16 +523,20 @@ def test_cache_keys_tell_signed_zeros_apart():
 FORCE_STEP = Path(__file__).resolve().parents[2] / "examples" / "force_step_stiff_wall.toml"
 
 
-def _force_rows(grid, duration=0.6, errors=False):
+def _force_rows(grid, duration=0.6, errors=False, fixed=False):
     """A sweep of the force-step example (its [reaction_observer]: the HPDOb shared as the
-    RTOB, the friction model known), and the loops each row should have run, built by hand."""
+    RTOB, the friction model known; ``fixed``: the plant's numbers given as numbers, which a
+    sweep may vary), and the loops each row should have run, built by hand."""
     from hpdob.observers import design_reaction_observer
     from hpdob.simulation import load_scenario
 
     scenario = load_scenario(FORCE_STEP)
     run = {**scenario.run, "duration": duration}
     run.pop("label")
-    rows = sweep({"loop": scenario.loop, **run}, grid=grid, progress=False)
+    loop = scenario.loop
+    if fixed:  # friction = "plant" read into numbers that stay: viscous = b - b_n, coulomb
+        loop = loop.replace(observer=dataclasses.replace(loop.design, follows_plant=False))
+    rows = sweep({"loop": loop, **run}, grid=grid, progress=False)
     assert errors or (rows["error"] == "").all(), rows["error"].tolist()
 
     def direct(nominal=paper.NOMINAL, dob=None, rtob=None, **friction):
@@ -561,18 +566,20 @@ def test_sweep_over_the_dob_of_a_force_scenario_redesigns_the_composition():
 def test_sweep_over_the_reaction_observer_of_a_force_scenario():
     """reaction_observer.bandwidth gives the RTOB its own design (the DOb's spec at that
     bandwidth; the DOb keeps 100 rad/s); reaction_observer.velocity_filter and .coulomb vary the
-    friction model."""
+    friction model given as numbers (one that is the plant's follows plant.coulomb instead:
+    tests/simulation/test_sweep_plant_friction.py)."""
     rows, direct = _force_rows({"reaction_observer.bandwidth": [50.0, 200.0]})
     for _, row in rows.iterrows():
         g = row["reaction_observer.bandwidth"]
         assert row["rms_estimation_error"] == direct(rtob={"order": 1, "bandwidth": g})
     rows, direct = _force_rows({"reaction_observer.velocity_filter": [30.0],
-                                "reaction_observer.coulomb": [0.005, 0.02]})  # fmt: skip
+                                "reaction_observer.coulomb": [0.005, 0.02]},
+                               fixed=True)  # fmt: skip
     for _, row in rows.iterrows():
         c = row["reaction_observer.coulomb"]
         assert row["rms_estimation_error"] == direct(coulomb=c, velocity_filter=30.0)
     # a bad value is that row's error: a velocity filter without a Coulomb term
-    rows, _ = _force_rows({"reaction_observer.coulomb": [0.0, 0.01]}, errors=True)
+    rows, _ = _force_rows({"reaction_observer.coulomb": [0.0, 0.01]}, errors=True, fixed=True)
     assert "velocity_filter = 100.0 filters the Coulomb term's velocity, but coulomb is 0" in (
         rows["error"].iloc[0])  # fmt: skip
     assert rows["error"].iloc[1] == "" and not rows["stable"].iloc[0]

@@ -141,7 +141,10 @@ def spectral_radii(loop: ServoLoop, plants, delay_samples) -> np.ndarray:
     ``out[i, j]`` is ``max(abs(closed_loop_poles(loop.replace(plant=plants[j],
     actuator=Actuator(delay_samples=delay_samples[i])))))``, bit for bit, without building and
     validating a loop per case: the loop is checked once and only the plant's ZOH model
-    (computed once per plant) and the delay change (``tune`` scans thousands of these).
+    (computed once per plant) and the delay change (``tune`` scans thousands of these). A
+    reaction-torque observer whose friction model follows the plant
+    (:attr:`~hpdob.observers.ReactionObserverDesign.follows_plant`) is that of each plant's
+    loop, as ``loop.replace`` makes it.
 
     Parameters
     ----------
@@ -192,7 +195,14 @@ def spectral_radii(loop: ServoLoop, plants, delay_samples) -> np.ndarray:
         delays.append(int(d))
     spec = loop_spec(loop)
     models = [_linear_model(plant, loop.Ts) for plant in plants]
-    ones = [dataclasses.replace(spec, plant=model, delay=1) for model in models]
+    if getattr(loop.design, "follows_plant", False):
+        # an RTOB whose friction model is the plant's (friction = "plant"): its observer is
+        # that of loop.replace(plant=...), one per plant
+        specs = [loop_spec(loop.replace(plant=plant)) for plant in plants]
+    else:
+        specs = [spec] * len(models)
+    ones = [dataclasses.replace(s, plant=model, delay=1)
+            for s, model in zip(specs, models, strict=True)]  # fmt: skip
     templates = [loop_matrices(one)[0] for one in ones] if any(delays) else None
     out = np.empty((len(delays), len(models)))
     for i, d in enumerate(delays):

@@ -4,21 +4,18 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._table import columns_to_csv, columns_to_pandas
+from .._table import CsvTable, columns_to_pandas
 
 __all__ = ["_RadiusMap"]
 
 
-class _RadiusMap:
+class _RadiusMap(CsvTable):
     """The base of :class:`~hpdob.StabilityMap` and :class:`~hpdob.analysis.ContactStabilityMap`: a
     ``spectral_radius`` array over ``values`` x ``bandwidths`` and its table, one row per grid
-    point, whose columns the subclass's ``_columns`` gives."""
+    point, whose columns the subclass's ``_columns`` gives (``to_csv``: :class:`CsvTable`)."""
 
     __slots__ = ()
     spectral_radius: np.ndarray
-
-    def _columns(self) -> dict:  # pragma: no cover - every map defines its columns
-        raise NotImplementedError
 
     @property
     def stable(self) -> np.ndarray:
@@ -44,18 +41,3 @@ class _RadiusMap:
             If pandas is not installed (``pip install hpdob[pandas]``).
         """
         return columns_to_pandas(self._columns())
-
-    def to_csv(self, path):
-        """Write the long-format table of :meth:`to_pandas` as CSV (no pandas needed).
-
-        Parameters
-        ----------
-        path : str or os.PathLike
-            The file to write (atomically; replaced if it exists).
-
-        Returns
-        -------
-        pathlib.Path
-            ``path``.
-        """
-        return columns_to_csv(self._columns(), path)

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .._table import columns_to_csv, columns_to_pandas
+from .._table import CsvTable, columns_to_pandas
 from .._validation import (
     ParameterTypeError,
     ParameterValueError,
@@ -44,7 +44,7 @@ __all__ = ["NoiseTradeoff", "noise_tradeoff"]
 
 
 @dataclass(frozen=True, eq=False)
-class NoiseTradeoff:
+class NoiseTradeoff(CsvTable):
     """Estimation error against noise gain for several orders, families and bandwidths.
 
     Built by :func:`noise_tradeoff`. Arrays are read-only; row ``i`` belongs to ``orders[i]``
@@ -246,21 +246,6 @@ class NoiseTradeoff:
         if self.u_noise_gain is not None:
             columns[f"u_noise_gain_{self.noise}"] = self.u_noise_gain.ravel()
         return columns
-
-    def to_csv(self, path):
-        """Write the long-format table of :meth:`to_pandas` as CSV (no pandas needed).
-
-        Parameters
-        ----------
-        path : str or os.PathLike
-            The file to write (atomically; replaced if it exists).
-
-        Returns
-        -------
-        pathlib.Path
-            ``path``.
-        """
-        return columns_to_csv(self._columns(), path)
 
     def plot(
         self,

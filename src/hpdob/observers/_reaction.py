@@ -2,6 +2,7 @@ r"""The reaction-torque observer (RTOB): a disturbance observer minus a friction
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -31,6 +32,13 @@ class ReactionObserverDesign(_Designed):
     ``[reaction_observer]``) and designed again on another nominal model or with other design
     arguments (:func:`hpdob.sweep`'s ``observer.*`` and ``reaction_observer.*`` paths).
 
+    With ``follows_plant`` the friction model is not fixed numbers but the plant's (a scenario
+    file's ``friction = "plant"``): a :class:`~hpdob.ServoLoop` given this design reads
+    ``viscous``, ``coulomb`` and ``coulomb_velocity`` from its own plant
+    (:meth:`with_plant_friction`), so the loop of another plant (``loop.replace(plant=...)``,
+    each row of a sweep over ``plant.b``, ``plant.coulomb``, ...) subtracts that plant's
+    friction, and :func:`hpdob.simulation.scenario_toml` writes ``friction = "plant"`` back.
+
     Attributes
     ----------
     dob : design or LinearObserver
@@ -45,6 +53,10 @@ class ReactionObserverDesign(_Designed):
         :math:`v_n` [rad/s] of the Coulomb term.
     velocity_filter : float or None
         Bandwidth [rad/s] of the low-pass on the Coulomb term's velocity, or None.
+    follows_plant : bool
+        True: ``viscous``, ``coulomb`` and ``coulomb_velocity`` are the loop's plant's
+        (``b - b_n``, ``coulomb``, ``coulomb_velocity``), read again by every
+        :class:`~hpdob.ServoLoop` it is put in; False (default): they are fixed numbers.
     system : LinearObserver
         The composition (outputs ``tau_hat``, [``omega_hat``,] ``tau_reac``).
     model : DiscreteServoModel or None
@@ -53,7 +65,8 @@ class ReactionObserverDesign(_Designed):
     Raises
     ------
     ParameterTypeError, ParameterValueError
-        As :func:`reaction_torque_observer`.
+        As :func:`reaction_torque_observer`; ``ParameterTypeError`` if ``follows_plant`` is
+        not a bool.
 
     Examples
     --------
@@ -72,9 +85,16 @@ class ReactionObserverDesign(_Designed):
     coulomb: float = 0.0
     coulomb_velocity: float = 0.01
     velocity_filter: float | None = None
+    follows_plant: bool = False
     system: LinearObserver = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
+        if not isinstance(self.follows_plant, (bool, np.bool_)):
+            raise ParameterTypeError(
+                f"follows_plant must be True or False, got {self.follows_plant!r} of type "
+                f"{type(self.follows_plant).__name__}"
+            )
+        object.__setattr__(self, "follows_plant", bool(self.follows_plant))
         system = reaction_torque_observer(
             self.dob, self.reaction, viscous=self.viscous, coulomb=self.coulomb,
             coulomb_velocity=self.coulomb_velocity, velocity_filter=self.velocity_filter,
@@ -110,6 +130,59 @@ class ReactionObserverDesign(_Designed):
                 out[name] = value
         return out
 
+    def with_plant_friction(self, plant) -> ReactionObserverDesign:
+        """This design with the friction model read from ``plant`` (what a loop does with a
+        design that :attr:`follows_plant`).
+
+        Parameters
+        ----------
+        plant : ServoModel or InContact
+            The rigid plant whose friction the RTOB subtracts: ``viscous = plant.b - b_n``
+            (``b_n`` of the DOb's nominal model), ``coulomb = plant.coulomb``,
+            ``coulomb_velocity = plant.coulomb_velocity``; an
+            :class:`~hpdob.models.InContact` of a rigid plant (what the analysis views put in
+            the loop in contact) has that plant's friction.
+
+        Returns
+        -------
+        ReactionObserverDesign
+            ``self`` if its numbers are already the plant's, else a new design of the same
+            parts, ``velocity_filter`` and ``follows_plant`` with the plant's numbers.
+
+        Raises
+        ------
+        ParameterTypeError
+            If ``plant`` is not a rigid :class:`~hpdob.ServoModel` (a two-mass plant has two
+            friction models, the motor's and the load's).
+        ParameterValueError
+            If ``plant.b`` is below the nominal ``b_n``, or the composition refuses the
+            numbers (a ``velocity_filter`` with ``plant.coulomb = 0``).
+
+        Examples
+        --------
+        >>> from hpdob import ServoModel, design_observer
+        >>> from hpdob.observers import ReactionObserverDesign
+        >>> dob = design_observer(ServoModel(2.8e-4).discretize(1e-3), order=1, bandwidth=100.0)
+        >>> both = ReactionObserverDesign(dob, coulomb=0.01, follows_plant=True)
+        >>> both.with_plant_friction(ServoModel(3.06e-4, 5e-5, coulomb=0.02)).friction
+        {'viscous': 5e-05, 'coulomb': 0.02}
+        """
+        from ..models import InContact
+
+        # a plant held in contact (the analysis views' linear plant) has its plant's friction
+        rigid = plant.plant if isinstance(plant, InContact) else plant
+        values = _model_friction(
+            rigid, self.system, "plant",
+            "a rigid ServoModel for a reaction-torque observer whose friction model is the "
+            "plant's (follows_plant=True; a scenario file's friction = 'plant')",
+            ": the reaction-torque observer's friction model is the plant's (follows_plant=True) "
+            "and subtracts the viscous friction beyond b_n",
+        )  # fmt: skip
+        numbers = dict(zip(("viscous", "coulomb", "coulomb_velocity"), values, strict=True))
+        if all(float(getattr(self, name)) == value for name, value in numbers.items()):
+            return self
+        return dataclasses.replace(self, **numbers)
+
 
 def design_reaction_observer(
     dob,
@@ -120,12 +193,16 @@ def design_reaction_observer(
     coulomb_velocity: float = 0.01,
     friction=None,
     velocity_filter: float | None = None,
+    follows_plant: bool = False,
 ) -> ReactionObserverDesign:
     """The DOb and a reaction-torque observer as a :class:`ReactionObserverDesign`.
 
     The arguments are those of :func:`reaction_torque_observer` (without ``other_nominal``: the
     RTOB is designed on the DOb's nominal model); ``friction`` (a ServoModel) is read into
-    ``viscous``, ``coulomb`` and ``coulomb_velocity``.
+    ``viscous``, ``coulomb`` and ``coulomb_velocity``. With ``follows_plant=True`` (a scenario
+    file's ``friction = "plant"``) ``friction`` is the loop's plant and the design remembers
+    it: a loop with another plant reads that plant's friction instead
+    (:meth:`ReactionObserverDesign.with_plant_friction`).
 
     Parameters
     ----------
@@ -136,6 +213,10 @@ def design_reaction_observer(
         The RTOB's own observer (default None: the DOb itself).
     viscous, coulomb, coulomb_velocity, friction, velocity_filter
         The friction model, as in :func:`reaction_torque_observer`.
+    follows_plant : bool, optional
+        True: ``friction`` is the plant's model and follows the plant of the loop the design
+        is put in (:attr:`ReactionObserverDesign.follows_plant`); needs ``friction`` given.
+        Default False: the numbers are fixed.
 
     Returns
     -------
@@ -145,7 +226,8 @@ def design_reaction_observer(
     Raises
     ------
     ParameterTypeError, ParameterValueError
-        As :func:`reaction_torque_observer`.
+        As :func:`reaction_torque_observer`; ``ParameterValueError`` if ``follows_plant`` is
+        True without ``friction``.
 
     Examples
     --------
@@ -160,6 +242,11 @@ def design_reaction_observer(
     >>> both.system.outputs
     ('tau_hat', 'omega_hat', 'tau_reac')
     """
+    if isinstance(follows_plant, (bool, np.bool_)) and follows_plant and friction is None:
+        raise ParameterValueError(
+            "follows_plant = True reads the friction model from the plant: give the loop's "
+            "plant as friction=plant (a ServoModel), got friction=None"
+        )
     if friction is not None:
         viscous = nonnegative(
             viscous, "viscous", "a non-negative finite viscous friction [N m s/rad]"
@@ -170,7 +257,8 @@ def design_reaction_observer(
         )
     return ReactionObserverDesign(dob, reaction, viscous=viscous, coulomb=coulomb,
                                   coulomb_velocity=coulomb_velocity,
-                                  velocity_filter=velocity_filter)  # fmt: skip
+                                  velocity_filter=velocity_filter,
+                                  follows_plant=follows_plant)  # fmt: skip
 
 
 def reaction_torque_observer(
@@ -380,23 +468,30 @@ def _from_model(friction, dob: LinearObserver, viscous: float, coulomb: float) -
     """``(viscous, coulomb, coulomb_velocity)`` from a plant model of the friction."""
     from ..models import ServoModel
 
-    if not isinstance(friction, ServoModel):
-        raise ParameterTypeError(
-            "friction must be a ServoModel (e.g. identify(...).model()) or None, got "
-            f"{type(friction).__name__}"
-        )
-    if viscous or coulomb:
+    if isinstance(friction, ServoModel) and (viscous or coulomb):
         raise ParameterValueError(
             f"friction is given, so viscous and coulomb must be 0, got viscous={viscous!r}, "
             f"coulomb={coulomb!r}"
         )
+    return _model_friction(friction, dob, "friction",
+                           "a ServoModel (e.g. identify(...).model()) or None",
+                           " (the RTOB subtracts the viscous friction beyond b_n)")  # fmt: skip
+
+
+def _model_friction(model, dob: LinearObserver, name: str, expected: str, why: str) -> tuple:
+    """``(viscous, coulomb, coulomb_velocity)`` of the plant model ``model``: ``viscous`` the
+    friction beyond the nominal ``b_n`` of ``dob``'s model. Errors name ``name``, say what was
+    ``expected`` of it, and ``why`` its ``b`` must not be below ``b_n``."""
+    from ..models import ServoModel
+
+    if not isinstance(model, ServoModel):
+        raise ParameterTypeError(f"{name} must be {expected}, got {type(model).__name__}")
     b_n = dob.model.b if dob.model is not None else 0.0
-    if friction.b < b_n:
+    if model.b < b_n:
         raise ParameterValueError(
-            f"friction.b = {friction.b!r} must be at least the nominal b_n = {b_n!r} (the RTOB "
-            "subtracts the viscous friction beyond b_n)"
+            f"{name}.b = {model.b!r} must be at least the nominal b_n = {b_n!r}{why}"
         )
-    return friction.b - b_n, friction.coulomb, friction.coulomb_velocity
+    return model.b - b_n, model.coulomb, model.coulomb_velocity
 
 
 def _with_velocity_filter(bandwidth, dob: LinearObserver, F, G, H, E, N, outputs, term):

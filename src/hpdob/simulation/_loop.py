@@ -12,6 +12,7 @@ from ..models import Plant, ServoModel, as_servo_model, is_lti
 from ..observers import (
     LinearObserver,
     Observer,
+    ReactionObserverDesign,
     as_system,
     check_designed_on,
     check_spec,
@@ -79,7 +80,12 @@ class ServoLoop:
         ``initial_state(x0, 0)`` unless the run is given an ``observer_state``. The loop
         holds values only: a runtime observer (:class:`~hpdob.DisturbanceObserver`, ...) is
         refused (``TypeError``); give its ``.design`` (or ``.system``) here and its state to
-        the run, ``simulate(loop, ..., observer_state=obs.state)``. None: no observer.
+        the run, ``simulate(loop, ..., observer_state=obs.state)``. A reaction-torque observer
+        composition whose friction model follows the plant
+        (:attr:`~hpdob.observers.ReactionObserverDesign.follows_plant`, a scenario file's
+        ``friction = "plant"``) is given this loop's plant's friction
+        (:meth:`~hpdob.observers.ReactionObserverDesign.with_plant_friction`; a rigid plant
+        only). None: no observer.
     sensor : Encoder, optional
         Default: the ideal state.
     actuator : Actuator, optional
@@ -153,6 +159,11 @@ class ServoLoop:
             object.__setattr__(self, "observer", spec)
         elif isinstance(observer, Observer):  # a state is the run's, not the loop's
             raise ParameterTypeError(runtime_observer_message(observer))
+        elif isinstance(observer, ReactionObserverDesign) and observer.follows_plant:
+            # the RTOB's friction model is this loop's plant's (friction = "plant"): read here,
+            # so another plant (replace, a sweep's plant.* rows) brings its own friction
+            observer = observer.with_plant_friction(self.plant)
+            object.__setattr__(self, "observer", observer)
         if observer is not None:
             system = as_system(observer, "observer")
             check_designed_on(system, self.nominal, Ts)

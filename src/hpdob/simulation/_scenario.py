@@ -295,8 +295,9 @@ def _reaction_observer(model, dob, table: dict, plant):
     """The ``[reaction_observer]`` table: the DOb composed with an RTOB
     (:func:`hpdob.observers.design_reaction_observer`). Its :data:`FRICTION_KEYS` are the
     friction model (``friction = "plant"``: the ``[plant]``'s ``b``, ``coulomb``,
-    ``coulomb_velocity``); any other keys are the RTOB's own observer (a family spec, like
-    ``[observer]``; none: the DOb itself). Errors are named ``reaction_observer.*``."""
+    ``coulomb_velocity``, which the design follows: ``follows_plant=True``); any other keys
+    are the RTOB's own observer (a family spec, like ``[observer]``; none: the DOb itself).
+    Errors are named ``reaction_observer.*``."""
     fields = dict(table)
     options = {key: fields.pop(key) for key in FRICTION_KEYS if key in fields}
     if "friction" in options:
@@ -310,7 +311,16 @@ def _reaction_observer(model, dob, table: dict, plant):
                 "reaction_observer.friction = 'plant' needs a rigid [plant] (a ServoModel), got "
                 f"{type(plant).__name__}"
             )
-        options["friction"] = plant
+        given = [key for key in ("viscous", "coulomb", "coulomb_velocity") if key in options]
+        if given:  # else coulomb_velocity would be silently replaced by the plant's
+            raise ParameterValueError(
+                f"reaction_observer.{given[0]} = {options[given[0]]!r} cannot be given with "
+                "friction = 'plant' (the [plant] table's b, coulomb and coulomb_velocity): "
+                "change them in [plant], or leave friction out and give the numbers"
+            )
+        # the design remembers that its friction model is the plant's: a loop with another
+        # plant (a sweep's plant.* rows) reads that plant's
+        options["friction"], options["follows_plant"] = plant, True
     reaction = None
     if fields:
         fields = _with_poles(fields, "reaction_observer")

@@ -139,8 +139,13 @@ def _observer_tables(loop: ServoLoop) -> list[str]:
                 f"to be written to a scenario file, got {type(observer).__name__}"
             )
         tables[part] = spec or {}
-    # the friction model first, then the RTOB's own design (none: the DOb itself)
-    reaction = {**design.friction, **tables["reaction_observer"]}
+    # the friction model first, then the RTOB's own design (none: the DOb itself); one that
+    # follows the plant is written as such (the loop read its numbers from loop.plant)
+    friction = design.friction
+    if design.follows_plant:
+        friction = {"friction": "plant", **{k: v for k, v in friction.items()
+                                             if k == "velocity_filter"}}  # fmt: skip
+    reaction = {**friction, **tables["reaction_observer"]}
     return [*_table("observer", tables["observer"]), *_table("reaction_observer", reaction)]
 
 

@@ -285,7 +285,9 @@ def _recomposed(composition: ReactionObserverDesign, params: dict, nominal, Ts, 
     it is the DOb itself) with the ``reaction_observer.*`` design values, both on the scenario's
     nominal model (so the RTOB stays on the DOb's), and the friction model with the
     ``reaction_observer.*`` friction values. An RTOB that is the DOb itself stays so unless a
-    ``reaction_observer.*`` design argument varies: then it is a separate observer."""
+    ``reaction_observer.*`` design argument varies: then it is a separate observer. A friction
+    model that follows the plant (``friction = "plant"``) keeps following it: the scenario's
+    loop reads it from the scenario's plant (and on the scenario's nominal ``b_n``)."""
 
     def sub(prefix):
         return {k[len(prefix) :]: v for k, v in params.items() if k.startswith(prefix)}
@@ -305,7 +307,7 @@ def _recomposed(composition: ReactionObserverDesign, params: dict, nominal, Ts, 
         rtob = _designed(_varied_spec(spec_of(rtob), own), nominal, Ts, cache)
     elif rtob is None and own:
         rtob = _designed(_varied_spec(dob_spec, own), nominal, Ts, cache)
-    return ReactionObserverDesign(dob, rtob, **friction)
+    return ReactionObserverDesign(dob, rtob, **friction, follows_plant=composition.follows_plant)
 
 
 def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoLoop:
@@ -613,7 +615,9 @@ def sweep(
         ``reaction_observer.*`` of a base whose observer is a
         :class:`~hpdob.observers.ReactionObserverDesign` (its friction model ``viscous``,
         ``coulomb``, ``coulomb_velocity``, ``velocity_filter``, and the RTOB's own design
-        arguments; ``observer.*`` is then the DOb's), ``controller.kp``, ``controller.kd``,
+        arguments; ``observer.*`` is then the DOb's; a friction model that follows the plant,
+        ``friction = "plant"``, is read from each row's plant instead, and only its
+        ``velocity_filter`` is a path), ``controller.kp``, ``controller.kd``,
         ``controller.ki``,
         ``controller.time_constant``, ``controller.tracking_time``, ``controller.bandwidth``,
         ``controller.observer_bandwidth``, ``controller.kf``, ``controller.kv``,

@@ -34,6 +34,9 @@ PLANT_PATHS = (
     "plant.b_motor", "plant.b_load",
     "plant.environment.stiffness", "plant.environment.damping", "plant.environment.position",
 )  # fmt: skip
+#: The friction parameters of a reaction-torque observer composition read from the plant when
+#: it follows the plant (``friction = "plant"``), and the plant parameter each follows.
+PLANT_FRICTION = {"viscous": "b", "coulomb": "coulomb", "coulomb_velocity": "coulomb_velocity"}
 #: The nominal model's, and the run's own.
 NOMINAL_PATHS, RUN_PATHS = ("nominal.J", "nominal.b"), ("Ts", "disturbance_scale")
 
@@ -233,7 +236,9 @@ def check_paths_apply(paths, loop, spec) -> None:
     ``reaction_observer.*`` of a base without a reaction-torque observer composition. With
     such a composition (:class:`~hpdob.observers.ReactionObserverDesign`) ``observer.*`` is
     the DOb's design and ``reaction_observer.*`` the friction model or the RTOB's own design
-    (the DOb's family when the RTOB is the DOb itself). (Bad *values* are reported per
+    (the DOb's family when the RTOB is the DOb itself); a friction model that follows the
+    plant (``friction = "plant"``) takes its numbers from the plant, so only its
+    ``velocity_filter`` is a ``reaction_observer.*`` path. (Bad *values* are reported per
     scenario, in the ``error`` column.)"""
     from ..observers import FRICTION_PARAMETERS, ReactionObserverDesign, spec_of
 
@@ -279,6 +284,13 @@ def check_paths_apply(paths, loop, spec) -> None:
             why = (
                 "the base has no reaction-torque observer composition (a [reaction_observer] "
                 "table, or observer=design_reaction_observer(...))"
+            )
+        elif (kind == "reaction_observer" and composition.follows_plant
+              and name in PLANT_FRICTION):  # fmt: skip
+            why = (
+                f"its friction model is the plant's (friction = 'plant'): {name} follows "
+                f"plant.{PLANT_FRICTION[name]} in every row; vary that, or give the friction "
+                "model as numbers (viscous, coulomb, coulomb_velocity) to vary them"
             )
         elif kind == "reaction_observer" and name in FRICTION_PARAMETERS:
             pass  # the friction model: any composition has it
