@@ -303,7 +303,13 @@ def _reaction_observer(model, dob, table: dict, plant, sensor=None):
     like ``[observer]``; none: the DOb itself). Errors are named ``reaction_observer.*``."""
     fields = dict(table)
     options = {key: fields.pop(key) for key in FRICTION_KEYS if key in fields}
-    from_encoder = options.get("coulomb_deadband") == "encoder"
+    deadband = options.get("coulomb_deadband")
+    if isinstance(deadband, str) and deadband != "encoder":
+        raise ParameterValueError(
+            "reaction_observer.coulomb_deadband must be a non-negative dead band [rad/s] or "
+            f"'encoder', got {deadband!r}"
+        )
+    from_encoder = deadband == "encoder"
     if from_encoder:
         if not isinstance(sensor, Encoder) or sensor.velocity != "backward-difference":
             raise ParameterValueError(
