@@ -80,8 +80,8 @@ def test_the_resolution_is_one_count_through_the_velocity_path():
     )
     raw = reaction_torque_observer(_dob(), friction=PLANT)
     assert coulomb_velocity_resolution(raw, counts_per_rev=COUNTS) == Q / TS
-    pos = reaction_torque_observer(design_observer(MODEL, order=1, bandwidth=100.0,
-                                                   measurement="position"), coulomb=0.01)  # fmt: skip
+    position_only = design_observer(MODEL, order=1, bandwidth=100.0, measurement="position")
+    pos = reaction_torque_observer(position_only, coulomb=0.01)
     runtime = Observer.of(pos)
     runtime.reset((0.0, 0.0))
     peak = 0.0
