@@ -11,6 +11,7 @@ the old 50 % rule, the stiff and soft rows), "The describing-function verdict" (
     python examples/force_contact_verdict.py --df     # the describing-function grid alone
     python examples/force_contact_verdict.py --hunting    # its hunting points, dead band on
     python examples/force_contact_verdict.py --deadband   # the dead-band grid (DF and linear)
+    python examples/force_contact_verdict.py --deadband-off   # that grid without the dead band
 
 writes force_rtob_bandwidth.png (100 dpi) into OUT_DIR (default docs/figures) and prints the
 Markdown tables of the page, computed here from the library (copy them into the page when the
@@ -469,10 +470,12 @@ def hunting_points() -> None:
               f"{mark} |")  # fmt: skip
 
 
-def deadband_grid() -> None:
+def deadband_grid(friction=None) -> None:
     """The DF and the linear verdict against the simulation rule at every point of the fixed
     dead-band grid (DB_STIFFNESS x DB_BANDWIDTH, the term dead-banded), and the counts per
-    category (predicted / simulated) as the DF grid's table."""
+    category (predicted / simulated) as the DF grid's table. ``friction=FRICTION``: the same
+    grid and rule with the term as before (no dead band), the control."""
+    friction = DEADBAND if friction is None else friction
     from collections import Counter
 
     from hpdob.analysis import contact_limit_cycle
@@ -481,7 +484,7 @@ def deadband_grid() -> None:
     for order in (0, 1):
         cmap = contact_stability_map(loop(order, friction=FRICTION), stiffness=DB_STIFFNESS,
                                      bandwidth=DB_BANDWIDTH, observer={"order": order},
-                                     **DEADBAND)  # fmt: skip
+                                     **friction)  # fmt: skip
         print(f"\n{NAMES[order]}\n")
         print("| k_e [N m/rad] | g [rad/s] | radius | DF verdict | predicts | simulated "
               "(worst deviation) | DF agrees | linear agrees |")  # fmt: skip
@@ -528,5 +531,7 @@ if __name__ == "__main__":
         hunting_points()
     elif sys.argv[1:] == ["--deadband"]:
         deadband_grid()
+    elif sys.argv[1:] == ["--deadband-off"]:  # the control: the same grid, no dead band
+        deadband_grid(FRICTION)
     else:
         main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parents[1] / "docs/figures")
