@@ -9,9 +9,11 @@ ForceControl(kf = 1000, kv = 40). For a stiff (10 N m/rad) and a soft (0.1 N m/r
 ratio to tau_ref (the reference of the same run), the worst error over the last second, the
 time after which the error stays within 1 %, and the impact peak. Then an impedance run
 (M_d = J_n, D_d = 0.02, K_d = 0.1) against the soft wall with r = 0.5 rad: the rest angle as a
-ratio to the target static deflection K_d r / (K_d + k_e). The two walls are run twice: with
-the viscous friction model only, and with the Coulomb term too (``friction=PLANT``: c tanh(w/v)
-with w the measured velocity low-passed at 100 rad/s). Then a position-to-force switching run
+ratio to the target static deflection K_d r / (K_d + k_e). The two walls are run three times:
+with the viscous friction model only, with the Coulomb term too (``friction=PLANT``: c tanh(w/v)
+with w the measured velocity low-passed at 100 rad/s), and with that term's dead band at the
+encoder's velocity resolution through the filter (``coulomb_deadband`` = (1 - exp(-0.1)) q / Ts
+= 0.0365 rad/s; also in the step-noise and tracking rows). Then a position-to-force switching run
 on the stiff wall (PositionForceSwitch): first contact, switching time, impact peak; and the
 MuJoCo wall (MujocoServo(..., wall=0.0)): the RTOB against MuJoCo's contact torque.
 
