@@ -9,9 +9,11 @@ ForceControl(kf = 1000, kv = 40). For a stiff (10 N m/rad) and a soft (0.1 N m/r
 ratio to tau_ref (the reference of the same run), the worst error over the last second, the
 time after which the error stays within 1 %, and the impact peak. Then an impedance run
 (M_d = J_n, D_d = 0.02, K_d = 0.1) against the soft wall with r = 0.5 rad: the rest angle as a
-ratio to the target static deflection K_d r / (K_d + k_e). The two walls are run twice: with
-the viscous friction model only, and with the Coulomb term too (``friction=PLANT``: c tanh(w/v)
-with w the measured velocity low-passed at 100 rad/s). Then a position-to-force switching run
+ratio to the target static deflection K_d r / (K_d + k_e). The two walls are run three times:
+with the viscous friction model only, with the Coulomb term too (``friction=PLANT``: c tanh(w/v)
+with w the measured velocity low-passed at 100 rad/s), and with that term's dead band at the
+encoder's velocity resolution through the filter (``coulomb_deadband`` = (1 - exp(-0.1)) q / Ts
+= 0.0365 rad/s; also in the step-noise and tracking rows). Then a position-to-force switching run
 on the stiff wall (PositionForceSwitch): first contact, switching time, impact peak; and the
 MuJoCo wall (MujocoServo(..., wall=0.0)): the RTOB against MuJoCo's contact torque.
 
@@ -24,7 +26,7 @@ import numpy as np
 
 from hpdob import Environment, ServoLoop, design_observer, paper, simulate
 from hpdob.controllers import ForceControl, ImpedanceControl, PositionForceSwitch
-from hpdob.observers import reaction_torque_observer
+from hpdob.observers import coulomb_velocity_resolution, reaction_torque_observer
 
 TAU_REF = 0.05
 
@@ -34,6 +36,12 @@ def loop(k_e, controller, order=1, bandwidth=100.0, coulomb=False):
     dob = design_observer(model, order=order, bandwidth=bandwidth)
     if coulomb:  # the whole friction model known: viscous + c tanh(w/v), w low-passed
         observer = reaction_torque_observer(dob, friction=paper.PLANT, velocity_filter=100.0)
+        if coulomb == "deadband":  # c tanh(dz_d(w)/v), d the encoder's resolution through it
+            d = coulomb_velocity_resolution(
+                observer, counts_per_rev=paper.VIRTUAL_SENSOR.counts_per_rev
+            )
+            observer = reaction_torque_observer(dob, friction=paper.PLANT, velocity_filter=100.0,
+                                                coulomb_deadband=d)  # fmt: skip
     else:
         observer = reaction_torque_observer(dob, viscous=paper.PLANT.b - paper.NOMINAL.b)
     return ServoLoop(plant=paper.PLANT.replace(environment=Environment(k_e)),
@@ -46,9 +54,12 @@ def main() -> None:
     print(f"{'wall [N m/rad]':>15}{'tau_env/tau_ref':>17}{'worst last 1 s':>16}"
           f"{'within 1 % after [s]':>22}{'peak [N m]':>12}")  # fmt: skip
     for k_e, duration, coulomb in ((10.0, 3.0, False), (0.1, 60.0, False), (10.0, 3.0, True),
-                                   (0.1, 60.0, True)):  # fmt: skip
-        if coulomb and k_e == 10.0:
+                                   (0.1, 60.0, True), (10.0, 3.0, "deadband"),
+                                   (0.1, 60.0, "deadband")):  # fmt: skip
+        if coulomb is True and k_e == 10.0:
             print("with the Coulomb term (friction=PLANT, velocity_filter=100 rad/s):")
+        if coulomb == "deadband" and k_e == 10.0:
+            print("with the Coulomb term and its dead band (coulomb_deadband = 0.0365 rad/s):")
         result = simulate(loop(k_e, ForceControl(1000.0, kv=40.0), coulomb=coulomb),
                           duration=duration,
                           reference=lambda t: (np.where(t >= 0.1, TAU_REF, 0.0), 0 * t, 0 * t),
@@ -82,7 +93,9 @@ def main() -> None:
     )
     for name, order, coulomb in (("DOb, viscous", 0, False), ("HPDOb, viscous", 1, False),
                                  ("DOb, viscous + Coulomb", 0, True),
-                                 ("HPDOb, viscous + Coulomb", 1, True)):  # fmt: skip
+                                 ("HPDOb, viscous + Coulomb", 1, True),
+                                 ("DOb, Coulomb dead band", 0, "deadband"),
+                                 ("HPDOb, Coulomb dead band", 1, "deadband")):  # fmt: skip
 
         def reference(t):
             on = t >= 0.1
@@ -101,7 +114,7 @@ def main() -> None:
 def coulomb_price() -> None:
     """The Coulomb term's cost on the stiff wall: RMS of tau_reac - tau_env over 0.2-1 s of the
     force step, the viscous model alone against viscous + Coulomb (velocity low-passed)."""
-    for coulomb in (False, True):
+    for coulomb in (False, True, "deadband"):
         result = simulate(
             loop(10.0, ForceControl(1000.0, kv=40.0), coulomb=coulomb),
             duration=1.0,
@@ -110,7 +123,8 @@ def coulomb_price() -> None:
         )
         window = result.t >= 0.2
         error = result.tau_reac[window] - result.tau_contact[window]
-        model = "viscous + Coulomb" if coulomb else "viscous"
+        model = {False: "viscous", True: "viscous + Coulomb",
+                 "deadband": "viscous + Coulomb, dead band"}[coulomb]  # fmt: skip
         print(f"stiff wall, RTOB friction model {model}: RMS tau_reac - tau_env over 0.2-1 s "
               f"{np.sqrt(np.mean(error**2)):.2e} N m")  # fmt: skip
 

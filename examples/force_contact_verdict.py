@@ -9,6 +9,9 @@ the old 50 % rule, the stiff and soft rows), "The describing-function verdict" (
 
     python examples/force_contact_verdict.py [OUT_DIR]
     python examples/force_contact_verdict.py --df     # the describing-function grid alone
+    python examples/force_contact_verdict.py --hunting    # its hunting points, dead band on
+    python examples/force_contact_verdict.py --deadband   # the dead-band grid (DF and linear)
+    python examples/force_contact_verdict.py --deadband-off   # that grid without the dead band
 
 writes force_rtob_bandwidth.png (100 dpi) into OUT_DIR (default docs/figures) and prints the
 Markdown tables of the page, computed here from the library (copy them into the page when the
@@ -423,6 +426,92 @@ def describing_function_grid() -> None:
     print(f"\nagree: {agree} of {total}")
 
 
+#: The RTOB's Coulomb term with its dead band at the encoder's velocity resolution through the
+#: velocity filter (docs/force-control.md, "The Coulomb term's dead band"):
+#: (1 - exp(-100 Ts)) q / Ts = 0.0365 rad/s, derived at each point from the loop's encoder.
+DEADBAND = {**FRICTION, "coulomb_deadband": "encoder"}
+#: The 10 points of the DF grid (DF_STIFFNESS x DF_BANDWIDTH) where the DF predicted "stable"
+#: and the run hunted ("bounded") with the term on the raw spike train: (order, i, j).
+HUNTING = ((0, 0, 5), (0, 1, 5), (0, 2, 5), (1, 0, 4), (1, 0, 5), (1, 1, 4), (1, 2, 3),
+           (1, 2, 4), (1, 3, 3), (1, 3, 4))  # fmt: skip
+#: The dead-band grid and rule, fixed and committed before the grid was run: 6 x 6, regular in
+#: log and offset from the three earlier grids (7 x 7 over 0.3-300 x 30-1500, 6 x 6 over
+#: 0.1-1000 x 25-2000, the DF grid over 0.2-200 x 40-1200), both orders; the loop of the DF
+#: grid with the RTOB's term dead-banded (DEADBAND). The DF's verdict predicts the simulation
+#: rule's outcome as on the DF grid (``predicted``: stable and cycles up to SETTLED predict
+#: "stable", larger cycles "bounded", "unstable" "unstable"); the linear verdict predicts
+#: "stable" for radius < 1, else "unstable". Both are judged by ``simulated`` (unchanged).
+DB_STIFFNESS, DB_BANDWIDTH = np.geomspace(0.15, 150.0, 6), np.geomspace(45.0, 1350.0, 6)
+
+
+def hunting_points() -> None:
+    """The DF grid's hunting points, the term without and with its dead band: the simulated
+    outcome (worst deviation over the last 0.5 s), and the DF's verdict with the dead band."""
+    from hpdob.analysis import contact_limit_cycle
+
+    print("\n| order | k_e [N m/rad] | g [rad/s] | no dead band: simulated | dead band: "
+          "simulated | dead band: DF verdict | dead band: agrees |\n"
+          "|---|---:|---:|---|---|---|---|")  # fmt: skip
+    for order, i, j in HUNTING:
+        k_e, g = DF_STIFFNESS[i], DF_BANDWIDTH[j]
+        cells = []
+        for friction in (FRICTION, DEADBAND):
+            cmap = contact_stability_map(loop(order, friction=FRICTION), stiffness=[k_e],
+                                         bandwidth=[g], observer={"order": order},
+                                         **friction)  # fmt: skip
+            point = cmap.loop_at(k_e, g)
+            outcome, last = simulated(point)
+            cells.append(f"{outcome} ({100 * last:.2g} %)")
+        cycle = contact_limit_cycle(point, tau_ref=TAU_REF)
+        df = cycle.verdict + (f" {100 * cycle.amplitude:.2g} %"
+                              if cycle.verdict == "limit cycle" else "")  # fmt: skip
+        mark = "yes" if predicted(cycle) == outcome else "**no**"
+        print(f"| {NAMES[order]} | {k_e:.3g} | {g:.4g} | {cells[0]} | {cells[1]} | {df} | "
+              f"{mark} |")  # fmt: skip
+
+
+def deadband_grid(friction=None) -> None:
+    """The DF and the linear verdict against the simulation rule at every point of the fixed
+    dead-band grid (DB_STIFFNESS x DB_BANDWIDTH, the term dead-banded), and the counts per
+    category (predicted / simulated) as the DF grid's table. ``friction=FRICTION``: the same
+    grid and rule with the term as before (no dead band), the control."""
+    friction = DEADBAND if friction is None else friction
+    from collections import Counter
+
+    from hpdob.analysis import contact_limit_cycle
+
+    counts = {"df": Counter(), "linear": Counter()}
+    for order in (0, 1):
+        cmap = contact_stability_map(loop(order, friction=FRICTION), stiffness=DB_STIFFNESS,
+                                     bandwidth=DB_BANDWIDTH, observer={"order": order},
+                                     **friction)  # fmt: skip
+        print(f"\n{NAMES[order]}\n")
+        print("| k_e [N m/rad] | g [rad/s] | radius | DF verdict | predicts | simulated "
+              "(worst deviation) | DF agrees | linear agrees |")  # fmt: skip
+        print("|---:|---:|---:|---|---|---|---|---|")
+        for i, k_e in enumerate(DB_STIFFNESS):
+            for j, g in enumerate(DB_BANDWIDTH):
+                point = cmap.loop_at(k_e, g)
+                cycle = contact_limit_cycle(point, tau_ref=TAU_REF)
+                outcome, last = simulated(point)
+                guess = predicted(cycle)
+                rho = cmap.spectral_radius[i, j]
+                linear = "stable" if rho < 1.0 else "unstable"
+                counts["df"][(order, guess, outcome)] += 1
+                counts["linear"][(order, linear, outcome)] += 1
+                df = cycle.verdict + (f" {100 * cycle.amplitude:.2g} % at {cycle.frequency:.3g} Hz"
+                                      if cycle.verdict == "limit cycle" else "")  # fmt: skip
+                print(f"| {k_e:.3g} | {g:.4g} | {rho:.4f} | {df} | {guess} | {outcome} "
+                      f"({100 * last:.2g} %) | {'yes' if guess == outcome else '**no**'} | "
+                      f"{'yes' if linear == outcome else '**no**'} |", flush=True)  # fmt: skip
+    for name, table in counts.items():
+        agree = sum(n for (_, p, o), n in table.items() if p == o)
+        print(f"\n{name} verdict: agree {agree} of {sum(table.values())}")
+        print("\n| predicted / simulated | DOb | HPDOb |\n|---|---:|---:|")
+        for p, o in sorted({(p, o) for (_, p, o) in table}):
+            print(f"| {p} / {o} | {table[(0, p, o)]} | {table[(1, p, o)]} |")
+
+
 def main(out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
     describing_function_grid()
@@ -438,5 +527,11 @@ def main(out: Path) -> None:
 if __name__ == "__main__":
     if sys.argv[1:] == ["--df"]:  # the describing-function grid alone
         describing_function_grid()
+    elif sys.argv[1:] == ["--hunting"]:
+        hunting_points()
+    elif sys.argv[1:] == ["--deadband"]:
+        deadband_grid()
+    elif sys.argv[1:] == ["--deadband-off"]:  # the control: the same grid, no dead band
+        deadband_grid(FRICTION)
     else:
         main(Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parents[1] / "docs/figures")

@@ -107,6 +107,32 @@ def test_tanh_friction_df_with_gaussian_noise_is_the_dual_input_gain(sigma):
     )
 
 
+@pytest.mark.parametrize("sigma", [0.0, 0.002, 0.004, 0.03])
+def test_tanh_friction_df_with_a_dead_band_is_its_first_harmonic(sigma):
+    """The dead-banded term c tanh(dz_d(w)/v) (the RTOB's with coulomb_deadband = d): its DF
+    against the first harmonic integrated by brute force (4000 phases, and 4001 noise points
+    for the dual-input gain); 0 for a sinusoid inside the band without noise; with d = 0 the
+    plain DF itself, to the last bit."""
+    c, v, d = 0.01, 0.01, 0.0365
+    n = np.linspace(-8 * sigma, 8 * sigma, 4001) if sigma else np.zeros(1)
+    pdf = np.exp(-0.5 * (n / sigma) ** 2) if sigma else np.ones(1)
+    pdf /= pdf.sum()
+    phi = np.linspace(0, 2 * np.pi, 4001)[:-1]
+    for A in (0.003, 0.03, 0.05, 0.2, 2.0):
+        x = A * np.sin(phi)[:, None] + n[None, :]
+        mean = (c * np.tanh(np.sign(x) * np.maximum(np.abs(x) - d, 0.0) / v)) @ pdf
+        brute = 2 * np.mean(mean * np.sin(phi)) / A
+        got = tanh_friction_df(A, coulomb=c, velocity=v, sigma=sigma, deadband=d)
+        assert got == pytest.approx(brute, rel=2e-5, abs=1e-12)
+        assert got <= tanh_friction_df(A, coulomb=c, velocity=v, sigma=sigma) * (1 + 1e-12)
+        plain = tanh_friction_df(A, coulomb=c, velocity=v, sigma=sigma, deadband=0.0)
+        assert plain == tanh_friction_df(A, coulomb=c, velocity=v, sigma=sigma)
+    if sigma == 0.0:
+        assert tanh_friction_df(0.9 * d, coulomb=c, velocity=v, deadband=d) == 0.0
+    with pytest.raises(ParameterValueError, match="deadband must be"):
+        tanh_friction_df(1.0, coulomb=c, velocity=v, deadband=-1.0)
+
+
 def test_bad_inputs_are_refused_naming_the_parameter():
     with pytest.raises(ParameterValueError, match="amplitude must be positive"):
         relay_df(0.0, level=1.0)

@@ -312,11 +312,16 @@ def _rtob(kind):
     if kind == "linear":  # a separate order-2 RTOB, viscous friction only
         return reaction_torque_observer(dob, design_observer(MODEL, order=2, bandwidth=80.0),
                                         viscous=DELTA_B)  # fmt: skip
-    return reaction_torque_observer(dob, friction=PLANT, velocity_filter=100.0)
+    # "deadband": the Coulomb term's velocity through its dead band (coulomb_deadzone in C),
+    # at the 16384-count encoder's resolution through the filter, (1 - e^-0.1) q / Ts
+    deadband = (1 - np.exp(-0.1)) * 2 * np.pi / 16384 / TS if kind == "deadband" else 0.0
+    return reaction_torque_observer(dob, friction=PLANT, velocity_filter=100.0,
+                                    coulomb_deadband=deadband)  # fmt: skip
 
 
 @pytest.mark.parametrize(("kind", "nan_guard"),
-                         [("linear", False), ("coulomb", False), ("coulomb", True)])  # fmt: skip
+                         [("linear", False), ("coulomb", False), ("coulomb", True),
+                          ("deadband", False), ("deadband", True)])  # fmt: skip
 def test_export_c_gives_tau_hat_and_tau_reac(tmp_path, kind, nan_guard):
     """One exported C observer gives tau_hat (``_estimate``) and tau_reac (``_reaction``, with
     the Coulomb term: libm's tanh), and both in one call (``_estimates``): run over a
@@ -365,9 +370,13 @@ def test_export_c_gives_tau_hat_and_tau_reac(tmp_path, kind, nan_guard):
     if both.has_velocity:
         np.testing.assert_array_equal(omega_hat, result.omega_hat)
     assert np.max(np.abs(result.tau_reac)) > 0.01  # not vacuous
-    if kind == "coulomb":  # the Coulomb term matters on this trace
+    if kind in ("coulomb", "deadband"):  # the Coulomb term matters on this trace
         linear = tau_hat - DELTA_B * result.omega_measured
         assert np.max(np.abs(linear - tau_reac)) > 0.009
+    if kind == "deadband":  # and the dead band: |w| inside it at some samples, beyond at others
+        w = np.abs(result.omega_hat)
+        deadband = both.coulomb.deadband
+        assert np.any((w > 0) & (w <= deadband)) and np.any(w > deadband + 0.02)
     if nan_guard:
         assert not fault.any()
         k = 150

@@ -28,6 +28,7 @@ from ..controllers import Controller, controller_system
 from ..models import Environment, InContact, ServoModel, TwoMassServo
 from ..observers import (
     check_spec,
+    coulomb_velocity_resolution,
     design_at_bandwidth,
     get_family,
     reaction_torque_observer,
@@ -73,6 +74,7 @@ class _ContactSetting:
     fixed_bandwidth: float | None = None  # [rad/s] the other observer's, unless "both"
     friction: object = None  # the RTOB's friction model (a ServoModel), or None
     velocity_filter: float | None = None
+    coulomb_deadband: object = 0.0  # [rad/s], or "encoder": the loop's encoder's resolution
 
     @property
     def Ts(self) -> float:
@@ -100,8 +102,16 @@ class _ContactSetting:
         # loop_at, left out of the linear analysis like the plant's Coulomb friction
         friction = {"viscous": self.viscous} if self.friction is None else {
             "friction": self.friction, "velocity_filter": self.velocity_filter}  # fmt: skip
-        return reaction_torque_observer(dob, rtob, **friction,
-                                        other_nominal=self.nominal_of == "reaction")  # fmt: skip
+        other = self.nominal_of == "reaction"
+        deadband = self.coulomb_deadband
+        if isinstance(deadband, str):  # "encoder": the resolution of this point's term
+            plain = reaction_torque_observer(dob, rtob, **friction, other_nominal=other)
+            deadband = coulomb_velocity_resolution(
+                plain, counts_per_rev=self.loop.sensor.counts_per_rev
+            )
+        if deadband:
+            friction["coulomb_deadband"] = deadband
+        return reaction_torque_observer(dob, rtob, **friction, other_nominal=other)
 
     def loop_at(self, parameter: str, value: float, bandwidth: float, *, bonded: bool):
         plant, nominal, reaction_nominal = self.parts(parameter, value)
@@ -449,6 +459,7 @@ def contact_stability_map(
     fixed_bandwidth: float | None = None,
     friction=None,
     velocity_filter: float | None = None,
+    coulomb_deadband=0.0,
     progress=None,
 ) -> ContactStabilityMap:
     r"""Stability of the force loop in contact over stiffness or :math:`J_n/J`, and bandwidth.
@@ -495,6 +506,13 @@ def contact_stability_map(
     velocity_filter : float, optional
         The Coulomb term's velocity low-pass [rad/s] (with ``friction``), as in
         :func:`~hpdob.observers.reaction_torque_observer`; its state is in the linear loop.
+    coulomb_deadband : float or "encoder", optional
+        The Coulomb term's dead band [rad/s] (with ``friction``), as in
+        :func:`~hpdob.observers.reaction_torque_observer`; ``"encoder"``: at each point the
+        velocity resolution of the term's velocity path behind the loop's encoder
+        (:func:`~hpdob.observers.coulomb_velocity_resolution`; the loop needs a backward-difference
+        :class:`~hpdob.Encoder`). Default 0: none. Non-linear, so the map leaves it out with
+        the term; :meth:`~ContactStabilityMap.loop_at` keeps it.
     nominal_of : {"loop", "reaction"}, optional
         What a ``nominal_ratio`` grid varies: ``"loop"`` (default), the nominal model of DOb,
         RTOB and controller; ``"reaction"``, the RTOB's alone (needs ``reaction``; DOb and
@@ -578,6 +596,27 @@ def contact_stability_map(
             "velocity_filter low-passes the velocity of the RTOB's Coulomb term: give it with "
             f"friction, got velocity_filter={velocity_filter!r} and friction=None"
         )
+    if isinstance(coulomb_deadband, str):
+        sensor = loop.sensor
+        if coulomb_deadband != "encoder":
+            raise ParameterValueError(
+                "coulomb_deadband must be a non-negative dead band [rad/s] or 'encoder', got "
+                f"{coulomb_deadband!r}"
+            )
+        if getattr(sensor, "velocity", None) != "backward-difference":
+            raise ParameterValueError(
+                "coulomb_deadband = 'encoder' needs the loop's sensor to be an encoder with "
+                f"backward-difference velocity, got {sensor!r}"
+            )
+    elif coulomb_deadband is not None:
+        coulomb_deadband = nonnegative(
+            coulomb_deadband, "coulomb_deadband", "a non-negative dead band [rad/s] or 'encoder'"
+        )
+    if friction is None and coulomb_deadband:
+        raise ParameterValueError(
+            "coulomb_deadband is the dead band of the RTOB's Coulomb term: give it with "
+            f"friction, got coulomb_deadband={coulomb_deadband!r} and friction=None"
+        )
     if friction is not None and viscous:
         raise ParameterValueError(
             f"give the RTOB's friction as viscous or as friction, not both, got viscous={viscous!r}"
@@ -625,6 +664,7 @@ def contact_stability_map(
         fixed_bandwidth=fixed_bandwidth,
         friction=friction,
         velocity_filter=velocity_filter,
+        coulomb_deadband=coulomb_deadband,
     )
     # every design of the first row (and its plant) before the grid: a bad spec fails first
     setting.radius(parameter, float(values[0]), float(bandwidths[0]))

@@ -71,6 +71,9 @@ _HERMITE_W = _HERMITE_W / np.sqrt(np.pi)
 # Gauss-Legendre on [0, 20] (units of v) for the remainder sign(u) - tanh(u) ~ 2 exp(-2u)
 _TAIL_U, _TAIL_W = np.polynomial.legendre.leggauss(200)
 _TAIL_U, _TAIL_W = (_TAIL_U + 1.0) * 10.0, _TAIL_W * 10.0
+# Gauss-Legendre on [-1, 1], mapped per phase onto the noise's half-lines beyond the dead band
+_BAND_X, _BAND_W = np.polynomial.legendre.leggauss(120)
+_BAND_T = 8.0  # the Gaussian noise truncated at 8 sigma (its tail beyond: 1e-15)
 
 
 #: Beyond this many quantisation steps of amplitude the quantiser's DF is 1: the exact sum
@@ -142,7 +145,9 @@ def relay_df(amplitude, *, level: float):
     return _out(4.0 * h / (np.pi * a), amplitude)
 
 
-def tanh_friction_df(amplitude, *, coulomb: float, velocity: float, sigma: float = 0.0):
+def tanh_friction_df(
+    amplitude, *, coulomb: float, velocity: float, sigma: float = 0.0, deadband: float = 0.0
+):
     r"""Describing function of the smooth Coulomb friction :math:`c\tanh(\omega/v)`.
 
     .. math:: N(A) = \frac{4c}{\pi A}\int_0^{\pi/2}\tanh\left(\frac{A\sin\phi}{v}\right)
@@ -157,6 +162,14 @@ def tanh_friction_df(amplitude, *, coulomb: float, velocity: float, sigma: float
     tends to the mean slope :math:`E[c/v\,\mathrm{sech}^2(n/v)]`, about
     :math:`c\sqrt{2/\pi}/\sigma` for :math:`\sigma \gg v`.
 
+    With ``deadband`` :math:`d > 0` the nonlinearity is the RTOB's dead-banded term
+    :math:`c\tanh(\operatorname{dz}_d(\omega)/v)` (:func:`hpdob.observers.coulomb_torque`):
+    :math:`\tanh` is replaced by :math:`\tanh(\operatorname{dz}_d(\cdot)/v)`, 0 for
+    :math:`|\omega| \le d` (so :math:`N = 0` for :math:`A \le d` without noise); with noise
+    its mean is the sum of two integrals over the noise's half-lines beyond :math:`\pm d`,
+    where it is smooth (120-point Gauss-Legendre each, the noise truncated at
+    :math:`8\sigma`).
+
     Parameters
     ----------
     amplitude : float or array_like
@@ -168,6 +181,9 @@ def tanh_friction_df(amplitude, *, coulomb: float, velocity: float, sigma: float
     sigma : float, optional
         Standard deviation [rad/s] of Gaussian noise added to the sinusoid, non-negative.
         Default 0.
+    deadband : float, optional
+        :math:`d` [rad/s], the dead band on the input, non-negative. Default 0 (none: the
+        computation above, unchanged).
 
     Returns
     -------
@@ -191,11 +207,14 @@ def tanh_friction_df(amplitude, *, coulomb: float, velocity: float, sigma: float
     c = nonnegative(coulomb, "coulomb", "a non-negative Coulomb torque [N m]")
     v = positive(velocity, "velocity", "a positive velocity scale [rad/s]")
     sigma = nonnegative(sigma, "sigma", "a non-negative noise standard deviation [rad/s]")
+    d = nonnegative(deadband, "deadband", "a non-negative dead band [rad/s]")
     a = _amplitude(amplitude)
     with np.errstate(over="ignore"):  # A/v beyond the float range: tanh is 1 long before
         ratio = np.minimum(a / v, _X_MAX)
     x = np.multiply.outer(ratio, np.sin(_PHI))
-    if sigma == 0.0:
+    if d > 0.0:
+        f = _deadband_mean(x, d / v, sigma / v)
+    elif sigma == 0.0:
         f = np.tanh(x)
     elif sigma <= v:  # E[tanh((x + n)/v)], n ~ N(0, sigma^2): smooth on the noise's scale
         shift = np.sqrt(2.0) * sigma / v * _HERMITE_X
@@ -213,6 +232,25 @@ def tanh_friction_df(amplitude, *, coulomb: float, velocity: float, sigma: float
         f = erf(x / (np.sqrt(2.0) * s)) - (pdf @ gap) / (s * np.sqrt(2 * np.pi))
     n = 4.0 * c / (np.pi * a) * (f @ (np.sin(_PHI) * _W))
     return _out(n, amplitude)
+
+
+def _deadband_mean(x: np.ndarray, d: float, s: float) -> np.ndarray:
+    """E[tanh(dz_d(x + n))] with n ~ N(0, s^2), all in units of v (s = 0: no noise): beyond
+    +d the integrand is tanh(u - d), below -d tanh(u + d), between 0; each half-line's part
+    is a Gauss-Legendre integral over the standard normal's t (u = x + s t), truncated at
+    +-8, on which the integrand is smooth."""
+    if s == 0.0:
+        return np.sign(x) * np.tanh(np.maximum(np.abs(x) - d, 0.0))
+    upper = np.clip((d - x) / s, -_BAND_T, _BAND_T)  # u > d from t > upper
+    lower = np.clip((-d - x) / s, -_BAND_T, _BAND_T)  # u < -d from t < lower
+    total = np.zeros_like(x)
+    for lo, hi, shift in ((upper, np.full_like(x, _BAND_T), -d),
+                          (np.full_like(x, -_BAND_T), lower, d)):  # fmt: skip
+        half = 0.5 * (hi - lo)
+        t = (lo + half)[..., None] + half[..., None] * _BAND_X
+        pdf = np.exp(-0.5 * t**2) / np.sqrt(2.0 * np.pi)
+        total += half * ((np.tanh(x[..., None] + s * t + shift) * pdf) @ _BAND_W)
+    return total
 
 
 def quantiser_df(amplitude, *, step: float, offset: float = 0.0):
@@ -732,7 +770,8 @@ def contact_limit_cycle(
             # backward difference (white q^2/12 at one and more per sample)
             rate = 2.0 / np.pi * amp["theta"] / q * angle if dither else 0.0
             sigma = dither * q / Ts * math.sqrt(min(rate, 1.0 / 6.0))
-            return tanh_friction_df(a, coulomb=coulomb.c, velocity=coulomb.v, sigma=sigma)
+            return tanh_friction_df(a, coulomb=coulomb.c, velocity=coulomb.v, sigma=sigma,
+                                    deadband=coulomb.deadband)  # fmt: skip
 
         gains[source] = reaction_gain
         used.append("reaction_friction")

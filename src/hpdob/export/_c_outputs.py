@@ -3,7 +3,8 @@
 An RTOB's Coulomb term (``LinearObserver.coulomb``) is printed as the Python runtime and the
 kernel evaluate it (:func:`hpdob.observers.coulomb_torque`): the linear ``tau_reac`` row, then
 ``- COULOMB_C * tanh(velocity / COULOMB_V)`` (``tanhf`` in float), the only library call of
-the export (``math.h``, link with ``-lm``).
+the export (``math.h``, link with ``-lm``); with a dead band the velocity first passes through
+``coulomb_deadzone`` (``COULOMB_D``), the same three branches as the runtime's.
 """
 
 from __future__ import annotations
@@ -111,6 +112,8 @@ void {prefix}_estimates({const}{prefix}_state *s, {signature(system, dtype, with
 def coulomb_expression(system, linear: str, dtype: str, velocity: str) -> str:
     """``tau_reac``'s expression: the linear row minus the Coulomb term, in the runtime's order."""
     tanh = "tanhf" if dtype == "float" else "tanh"
+    if system.coulomb.deadband > 0.0:
+        velocity = f"coulomb_deadzone({velocity})"
     return f"({linear}) - COULOMB_C * {tanh}({velocity} / COULOMB_V)"
 
 
@@ -119,12 +122,27 @@ def coulomb_constants(system, dtype: str, literal) -> list:
     term = system.coulomb
     if term is None:
         return []
-    return [
+    lines = [
         f"static const {dtype} COULOMB_C = {literal(term.c, dtype, 'COULOMB_C')};"
         " /* Coulomb torque c_n of the friction model [N m] */",
         f"static const {dtype} COULOMB_V = {literal(term.v, dtype, 'COULOMB_V')};"
         " /* its velocity scale v_n [rad/s] */",
     ]
+    if term.deadband > 0.0:
+        zero = "0.0f" if dtype == "float" else "0.0"
+        lines += [
+            f"static const {dtype} COULOMB_D = {literal(term.deadband, dtype, 'COULOMB_D')};"
+            " /* the dead band d on its velocity [rad/s] */",
+            "",
+            "/* The dead band: w - d above d, w + d below -d, 0 between (0 * w: NaN stays NaN). */",
+            f"static {dtype} coulomb_deadzone({dtype} w)",
+            "{",
+            "    if (w > COULOMB_D) return w - COULOMB_D;",
+            "    if (w < -COULOMB_D) return w + COULOMB_D;",
+            f"    return {zero} * w;",
+            "}",
+        ]
+    return lines
 
 
 def coulomb_include(system) -> str:

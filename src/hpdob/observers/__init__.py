@@ -19,6 +19,8 @@ Family, Parameter, register_family, unregister_family, families, get_family
 reaction_torque_observer, design_reaction_observer, ReactionObserverDesign
     The DOb and a reaction-torque observer as one observer (force control without a force
     sensor); the design keeps its parts, for scenario files and sweeps.
+    ``coulomb_velocity_resolution`` gives the encoder's velocity resolution through the
+    Coulomb term's velocity path (its ``coulomb_deadband``).
 CoulombFriction, coulomb_torque
     The one nonlinear observer term: the Coulomb part of a reaction-torque observer's friction
     model (``reaction_torque_observer(..., coulomb=)``).
@@ -42,6 +44,7 @@ from ._program import render_sum as render_sum
 from ._reaction import FRICTION_PARAMETERS as FRICTION_PARAMETERS
 from ._reaction import (
     ReactionObserverDesign,
+    coulomb_velocity_resolution,
     design_reaction_observer,
     reaction_torque_observer,
 )
@@ -100,6 +103,7 @@ __all__ = [
     "characteristic_polynomial",
     "check_spec",
     "coulomb_torque",
+    "coulomb_velocity_resolution",
     "design_at_bandwidth",
     "design_eso",
     "design_from_spec",

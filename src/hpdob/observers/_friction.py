@@ -25,8 +25,13 @@ __all__ = ["CoulombFriction", "coulomb_torque"]
 VELOCITY_SOURCES = ("omega", "omega_hat")
 
 
-def coulomb_torque(c: float, v: float, omega: float) -> float:
+def coulomb_torque(c: float, v: float, omega: float, deadband: float = 0.0) -> float:
     r"""The smoothed Coulomb friction :math:`c\tanh(\omega/v)` [N m] (the plant's shape).
+
+    With a ``deadband`` :math:`d > 0` the velocity is first passed through a dead zone,
+    :math:`c\tanh(\operatorname{dz}_d(\omega)/v)` with
+    :math:`\operatorname{dz}_d(\omega) = \omega - d` above :math:`d`, :math:`\omega + d` below
+    :math:`-d` and 0 between (``0 * omega``: a NaN velocity stays NaN).
 
     Parameters
     ----------
@@ -36,19 +41,31 @@ def coulomb_torque(c: float, v: float, omega: float) -> float:
         Velocity scale [rad/s] of the smoothing.
     omega : float
         Velocity [rad/s].
+    deadband : float, optional
+        :math:`d` [rad/s], the dead zone's half-width. Default 0: none, and the result is
+        ``c * math.tanh(omega / v)`` itself (the same operations, bit for bit).
 
     Returns
     -------
     float
-        ``c * math.tanh(omega / v)``, in that operation order (the numba kernel and the
-        exported C evaluate the same expression).
+        ``c * math.tanh(omega / v)`` (dead-zoned ``omega`` with a ``deadband``), in that
+        operation order (the numba kernel and the exported C evaluate the same expression).
 
     Examples
     --------
     >>> from hpdob.observers import coulomb_torque
     >>> coulomb_torque(0.01, 0.01, 1.0)   # tanh(100) = 1 to double precision
     0.01
+    >>> coulomb_torque(0.01, 0.01, 0.03, deadband=0.04)   # inside the dead zone
+    0.0
     """
+    if deadband > 0.0:  # the dead zone; with none the expression is the plain one
+        if omega > deadband:
+            omega = omega - deadband
+        elif omega < -deadband:
+            omega = omega + deadband
+        else:
+            omega = 0.0 * omega
     return c * math.tanh(omega / v)
 
 
@@ -65,6 +82,10 @@ class CoulombFriction:
     velocity : {"omega", "omega_hat"}
         The velocity it reads: the measured ``omega`` (an observer measuring the state) or the
         observer's ``omega_hat`` output (a position-only observer).
+    deadband : float, optional
+        :math:`d` [rad/s], non-negative: the dead zone on that velocity
+        (:func:`coulomb_torque`), e.g. the velocity resolution of the measurement path
+        (:func:`hpdob.observers.encoder_velocity_resolution`). Default 0: none.
 
     Examples
     --------
@@ -76,6 +97,7 @@ class CoulombFriction:
     c: float
     v: float
     velocity: str = "omega"
+    deadband: float = 0.0
 
     def __post_init__(self):
         object.__setattr__(
@@ -85,6 +107,13 @@ class CoulombFriction:
             self,
             "v",
             positive(self.v, "coulomb_velocity", "a positive finite velocity scale [rad/s]"),
+        )
+        object.__setattr__(
+            self,
+            "deadband",
+            nonnegative(
+                self.deadband, "coulomb_deadband", "a non-negative finite dead band [rad/s]"
+            ),
         )
         if self.velocity not in VELOCITY_SOURCES:
             raise ParameterValueError(
@@ -102,6 +131,7 @@ class CoulombFriction:
         Returns
         -------
         float
-            :math:`c\tanh(\omega/v)` [N m].
+            :math:`c\tanh(\operatorname{dz}_d(\omega)/v)` [N m] (:math:`c\tanh(\omega/v)`
+            without a dead band).
         """
-        return coulomb_torque(self.c, self.v, omega)
+        return coulomb_torque(self.c, self.v, omega, self.deadband)

@@ -12,14 +12,14 @@ from .._validation import ParameterTypeError, ParameterValueError, nonnegative, 
 from ._friction import CoulombFriction
 from ._system import LinearObserver, _Designed, as_system
 
-__all__ = ["FRICTION_PARAMETERS", "ReactionObserverDesign", "design_reaction_observer",
-           "reaction_torque_observer"]  # fmt: skip
+__all__ = ["FRICTION_PARAMETERS", "ReactionObserverDesign", "coulomb_velocity_resolution",
+           "design_reaction_observer", "reaction_torque_observer"]  # fmt: skip
 
 #: The friction model's parameters of a composition (:class:`ReactionObserverDesign`), with
 #: their defaults: the keys of a scenario file's ``[reaction_observer]`` table besides the RTOB's
 #: own design, and the sweep paths ``reaction_observer.<name>``.
 FRICTION_PARAMETERS = {"viscous": 0.0, "coulomb": 0.0, "coulomb_velocity": 0.01,
-                       "velocity_filter": None}  # fmt: skip
+                       "velocity_filter": None, "coulomb_deadband": 0.0}  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,6 +57,8 @@ class ReactionObserverDesign(_Designed):
         True: ``viscous``, ``coulomb`` and ``coulomb_velocity`` are the loop's plant's
         (``b - b_n``, ``coulomb``, ``coulomb_velocity``), read again by every
         :class:`~hpdob.ServoLoop` it is put in; False (default): they are fixed numbers.
+    coulomb_deadband : float
+        :math:`d` [rad/s], the dead band on the Coulomb term's velocity (0: none).
     system : LinearObserver
         The composition (outputs ``tau_hat``, [``omega_hat``,] ``tau_reac``).
     model : DiscreteServoModel or None
@@ -86,6 +88,7 @@ class ReactionObserverDesign(_Designed):
     coulomb_velocity: float = 0.01
     velocity_filter: float | None = None
     follows_plant: bool = False
+    coulomb_deadband: float = 0.0
     system: LinearObserver = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -98,9 +101,10 @@ class ReactionObserverDesign(_Designed):
         system = reaction_torque_observer(
             self.dob, self.reaction, viscous=self.viscous, coulomb=self.coulomb,
             coulomb_velocity=self.coulomb_velocity, velocity_filter=self.velocity_filter,
+            coulomb_deadband=self.coulomb_deadband,
         )  # fmt: skip
         # the values as validated (a sweep's numpy floats and ints become floats)
-        for name in ("viscous", "coulomb", "coulomb_velocity"):
+        for name in ("viscous", "coulomb", "coulomb_velocity", "coulomb_deadband"):
             object.__setattr__(self, name, float(getattr(self, name)))
         if self.velocity_filter is not None:
             object.__setattr__(self, "velocity_filter", float(self.velocity_filter))
@@ -119,7 +123,8 @@ class ReactionObserverDesign(_Designed):
         -------
         dict
             A subset of ``viscous``, ``coulomb``, ``coulomb_velocity`` (only with a Coulomb
-            term) and ``velocity_filter``: the friction keys of ``[reaction_observer]``.
+            term), ``velocity_filter`` and ``coulomb_deadband``: the friction keys of
+            ``[reaction_observer]``.
         """
         out = {}
         for name, default in FRICTION_PARAMETERS.items():
@@ -194,6 +199,7 @@ def design_reaction_observer(
     friction=None,
     velocity_filter: float | None = None,
     follows_plant: bool = False,
+    coulomb_deadband: float = 0.0,
 ) -> ReactionObserverDesign:
     """The DOb and a reaction-torque observer as a :class:`ReactionObserverDesign`.
 
@@ -211,7 +217,7 @@ def design_reaction_observer(
         to a scenario file or swept.
     reaction : design or LinearObserver, optional
         The RTOB's own observer (default None: the DOb itself).
-    viscous, coulomb, coulomb_velocity, friction, velocity_filter
+    viscous, coulomb, coulomb_velocity, friction, velocity_filter, coulomb_deadband
         The friction model, as in :func:`reaction_torque_observer`.
     follows_plant : bool, optional
         True: ``friction`` is the plant's model and follows the plant of the loop the design
@@ -258,7 +264,8 @@ def design_reaction_observer(
     return ReactionObserverDesign(dob, reaction, viscous=viscous, coulomb=coulomb,
                                   coulomb_velocity=coulomb_velocity,
                                   velocity_filter=velocity_filter,
-                                  follows_plant=follows_plant)  # fmt: skip
+                                  follows_plant=follows_plant,
+                                  coulomb_deadband=coulomb_deadband)  # fmt: skip
 
 
 def reaction_torque_observer(
@@ -270,6 +277,7 @@ def reaction_torque_observer(
     coulomb_velocity: float = 0.01,
     friction=None,
     velocity_filter: float | None = None,
+    coulomb_deadband: float = 0.0,
     other_nominal: bool = False,
 ) -> LinearObserver:
     r"""The DOb and a reaction-torque observer as one :class:`LinearObserver`.
@@ -277,16 +285,19 @@ def reaction_torque_observer(
     .. math::
 
         \hat\tau_{reac,k} = \hat\tau^R_k - \hat f(\omega_k),\qquad
-        \hat f(\omega) = \Delta b\,\omega + c_n\tanh(\omega/v_n),
+        \hat f(\omega) = \Delta b\,\omega + c_n\tanh(\operatorname{dz}_d(w)/v_n),
 
     with :math:`\hat\tau^R` the disturbance estimate of ``reaction`` (an observer of any
     registered family and order on the same nominal model, with its own bandwidth) and
     :math:`\Delta b` the viscous friction beyond the nominal :math:`b_n` (:math:`b - b_n`),
     :math:`c_n\tanh(\omega/v_n)` the Coulomb friction in the plant's smooth shape
-    (:meth:`hpdob.ServoModel.coulomb_torque`). The viscous part is the linear ``tau_reac``
-    row; the Coulomb part is not linear, so it is the observer's :attr:`LinearObserver.coulomb`
-    term, subtracted after the linear outputs of each sample by the Python runtime, the
-    compiled kernel and the exported C (``<prefix>_reaction``) alike.
+    (:meth:`hpdob.ServoModel.coulomb_torque`), read on the velocity :math:`w` (measured,
+    low-passed or estimated) through an optional dead band :math:`\operatorname{dz}_d`
+    (``coulomb_deadband``; none by default, :math:`\operatorname{dz}_0(w) = w`). The viscous
+    part is the linear ``tau_reac`` row; the Coulomb part is not linear, so it is the
+    observer's :attr:`LinearObserver.coulomb` term, subtracted after the linear outputs of
+    each sample by the Python runtime, the compiled kernel and the exported C
+    (``<prefix>_reaction``) alike.
     The state is the DOb's followed by the RTOB's, the outputs are the DOb's (``tau_hat``
     and, if it has one, ``omega_hat``) then ``tau_reac``: the loop compensates with
     ``tau_hat`` as before and a controller input named ``tau_reac`` reads the reaction-torque
@@ -324,6 +335,17 @@ def reaction_torque_observer(
         :math:`\tanh(\omega_m/v_n)` of it averages to much less than the friction of the mean
         velocity; low-passed, it does not. Default None (the velocity as measured). Needs a
         non-zero ``coulomb``, a measured velocity and a ``dob`` without ``omega_hat``.
+    coulomb_deadband : float, optional
+        :math:`d` [rad/s], non-negative: a dead band on the Coulomb term's velocity,
+        :math:`c_n\tanh(\operatorname{dz}_d(w)/v_n)` with :math:`\operatorname{dz}_d(w) =
+        w \mp d` beyond :math:`\pm d` and 0 between (:func:`coulomb_torque`). Set it to the
+        velocity resolution of the measurement path,
+        :func:`coulomb_velocity_resolution` (one encoder count through the filter:
+        :math:`(1 - e^{-\omega_f T_s})\,q/T_s`, 0.0365 rad/s for 16384 counts, 1 kHz and
+        100 rad/s), and a single count change from rest no longer moves the term at all: the
+        term answers motion the sensor resolves, not quantisation
+        (``docs/force-control.md``, "The Coulomb term's dead band"). Default 0: none, the
+        term as without the option, bit for bit. Needs a non-zero ``coulomb``.
     other_nominal : bool, optional
         Accept a ``reaction`` designed on another nominal model than ``dob``'s (the RTOB's own
         ``J_n/J`` study, ``contact_stability_map(..., nominal_of="reaction")``). Default
@@ -340,9 +362,10 @@ def reaction_torque_observer(
     ParameterValueError
         If the observers measure different signals, were designed at different ``Ts`` or on
         different nominal models, or
-        ``viscous`` or ``coulomb`` is negative; if no velocity is available for a non-zero
-        ``viscous`` or ``coulomb``; if ``friction`` is given with ``viscous`` or ``coulomb``,
-        or its ``b`` is below ``b_n``.
+        ``viscous``, ``coulomb`` or ``coulomb_deadband`` is negative; if
+        ``coulomb_deadband`` is given without a Coulomb term; if no velocity is available for
+        a non-zero ``viscous`` or ``coulomb``; if ``friction`` is given with ``viscous`` or
+        ``coulomb``, or its ``b`` is below ``b_n``.
     ParameterTypeError
         If an argument is not an observer, or ``friction`` is not a ServoModel.
 
@@ -379,6 +402,9 @@ def reaction_torque_observer(
     coulomb = nonnegative(coulomb, "coulomb", "a non-negative finite Coulomb torque [N m]")
     coulomb_velocity = positive(
         coulomb_velocity, "coulomb_velocity", "a positive finite velocity scale [rad/s]"
+    )
+    coulomb_deadband = nonnegative(
+        coulomb_deadband, "coulomb_deadband", "a non-negative finite dead band [rad/s]"
     )
     if friction is not None:
         viscous, coulomb, coulomb_velocity = _from_model(friction, first, viscous, coulomb)
@@ -436,9 +462,16 @@ def reaction_torque_observer(
                 f"coulomb = {coulomb!r} needs a velocity: the observers measure "
                 f"{first.measures} and dob has no omega_hat"
             )
-        term = CoulombFriction(coulomb, coulomb_velocity, source)
+        term = CoulombFriction(coulomb, coulomb_velocity, source, coulomb_deadband)
         info.append(("Coulomb friction subtracted",
                      f"{term.c!r} N m * tanh({source} / {term.v!r} rad/s)"))  # fmt: skip
+        if coulomb_deadband:
+            info.append(("Coulomb dead band", f"{coulomb_deadband!r} rad/s"))
+    elif coulomb_deadband:
+        raise ParameterValueError(
+            f"coulomb_deadband = {coulomb_deadband!r} is the Coulomb term's dead band, but "
+            "coulomb is 0; leave it 0"
+        )
     pad = F.shape[0] - n1
     H = np.vstack([np.hstack([first.H, np.zeros((len(first.outputs), pad))]), row_H])
     E = np.vstack([first.E, row_E])
@@ -446,7 +479,7 @@ def reaction_torque_observer(
         F, G, H, E, N, outputs = _with_velocity_filter(
             velocity_filter, first, F, G, H, E, N, outputs, term
         )
-        term = CoulombFriction(term.c, term.v, "omega_hat")
+        term = CoulombFriction(term.c, term.v, "omega_hat", term.deadband)
         info.append(("Coulomb velocity", f"omega low-passed at {velocity_filter!r} rad/s"))
     return LinearObserver(
         F=F,
@@ -519,3 +552,74 @@ def _with_velocity_filter(bandwidth, dob: LinearObserver, F, G, H, E, N, outputs
     E = np.vstack([E[:-1], gain, E[-1]])
     N = np.vstack([N, [0.0, 1.0, 0.0]])
     return F, G, H, E, N, (*outputs[:-1], "omega_hat", "tau_reac")
+
+
+def coulomb_velocity_resolution(observer, *, counts_per_rev: int, samples: int = 2000) -> float:
+    r"""The velocity resolution [rad/s] of an RTOB's Coulomb term behind an encoder.
+
+    The largest :math:`|w_k|` the term's velocity shows when the encoder's count changes once,
+    from rest: the angle steps by one count :math:`q = 2\pi/\text{counts}` at sample 0, its
+    backward difference is :math:`q/T_s` at that sample and 0 after, and the composition's
+    velocity (the measured one, its low-pass, or the observer's ``omega_hat``) answers. For
+    the measured velocity it is :math:`q/T_s` (one count per sample); low-passed at
+    :math:`\omega_f` it is :math:`(1 - e^{-\omega_f T_s})\,q/T_s`. A Coulomb term whose
+    ``coulomb_velocity`` lies below it answers each count change with up to ``c_n``; with
+    it as ``coulomb_deadband`` an isolated count change leaves the term at 0.
+
+    Parameters
+    ----------
+    observer : LinearObserver or design
+        An RTOB composition with a Coulomb term (:func:`reaction_torque_observer`).
+    counts_per_rev : int
+        The encoder's counts per revolution, positive.
+    samples : int, optional
+        How many samples of the response to search (default 2000).
+
+    Returns
+    -------
+    float
+        The resolution [rad/s].
+
+    Raises
+    ------
+    ParameterValueError
+        If the observer has no Coulomb term, or ``counts_per_rev`` or ``samples`` is not a
+        positive integer.
+    ParameterTypeError
+        If ``observer`` is not an observer.
+
+    Examples
+    --------
+    >>> from hpdob import paper, design_observer
+    >>> from hpdob.observers import coulomb_velocity_resolution, reaction_torque_observer
+    >>> dob = design_observer(paper.NOMINAL.discretize(1e-3), order=1, bandwidth=100.0)
+    >>> rtob = reaction_torque_observer(dob, friction=paper.PLANT, velocity_filter=100.0)
+    >>> round(coulomb_velocity_resolution(rtob, counts_per_rev=16384), 5)   # rad/s
+    0.03649
+    """
+    from .._validation import as_int
+
+    system = as_system(observer, "observer")
+    counts = as_int(counts_per_rev, "counts_per_rev", "a positive integer count", minimum=1)
+    samples = as_int(samples, "samples", "a positive integer number of samples", minimum=1)
+    term = system.coulomb
+    if term is None:
+        raise ParameterValueError(
+            f"observer {system.name!r} has no Coulomb term (coulomb = 0): it has no velocity "
+            "resolution to compute"
+        )
+    q = 2.0 * math.pi / counts
+    if term.velocity == "omega":  # the measured backward difference itself
+        return q / system.Ts
+    F, G, H, E = (np.asarray(m, dtype=float) for m in (system.F, system.G, system.H, system.E))
+    row = system.outputs.index("omega_hat")
+    x = np.zeros(F.shape[0])
+    worst = 0.0
+    for k in range(samples):
+        u = np.zeros(G.shape[1])
+        u[system.measures.index("theta")] = q
+        if "omega" in system.measures and k == 0:
+            u[system.measures.index("omega")] = q / system.Ts
+        worst = max(worst, abs(float(H[row] @ x + E[row] @ u)))
+        x = F @ x + G @ u
+    return worst

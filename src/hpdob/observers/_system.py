@@ -455,20 +455,20 @@ def _check_coulomb(coulomb, measures: tuple, outputs: tuple) -> None:
 def _with_coulomb(system: LinearObserver, linear):
     """``outputs`` of ``system`` with its Coulomb term subtracted from ``tau_reac``: the linear
     row first, then ``- c tanh(omega / v)`` (the kernel's and the C's order)."""
-    c, v = system.coulomb.c, system.coulomb.v
+    c, v, d = system.coulomb.c, system.coulomb.v, system.coulomb.deadband
     r = system.outputs.index("tau_reac")
     if system.coulomb.velocity == "omega":
         j = system.measures.index("omega")
 
         def outputs(s, *values):
             y = linear(s, *values)
-            return (*y[:r], y[r] - coulomb_torque(c, v, values[j]), *y[r + 1 :])
+            return (*y[:r], y[r] - coulomb_torque(c, v, values[j], d), *y[r + 1 :])
     else:
         j = system.outputs.index("omega_hat")
 
         def outputs(s, *values):
             y = linear(s, *values)
-            return (*y[:r], y[r] - coulomb_torque(c, v, y[j]), *y[r + 1 :])
+            return (*y[:r], y[r] - coulomb_torque(c, v, y[j], d), *y[r + 1 :])
 
     return outputs
 

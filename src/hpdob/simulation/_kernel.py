@@ -395,7 +395,7 @@ def loop_source(structure: tuple) -> str:
         put(2, f"est = {rows[0]}", *(f"y{j} = {rows[j]}" for j in range(1, q)))
         if coulomb_source:  # the RTOB's Coulomb term, after the linear rows
             speed = "omm" if coulomb_source == 1 else f"y{velocity_row}"
-            put(2, f"y{reaction_row} = y{reaction_row} - coulomb_torque(c_n, v_n, {speed})")
+            put(2, f"y{reaction_row} = y{reaction_row} - coulomb_torque(c_n, v_n, {speed}, d_n)")
         if velocity_row > 0:
             put(2, f"omega_hat[k] = y{velocity_row}")
         if reaction_row > 0:
@@ -524,6 +524,7 @@ PARAMETERS = (
     ("offset", "ctl", "switch_offset"),
     ("ou", "obs", "update_coefficient"), ("oo", "obs", "output_coefficient"),
     ("c_n", "obs", "coulomb"), ("v_n", "obs", "coulomb_velocity"),
+    ("d_n", "obs", "coulomb_deadband"),
     *((name, "plant", name) for name in ("A_h", "B_h", "D_h", "A_half", "B_half", "D_half",
                                          "internal", "shared")),
     ("c", "plant", "coulomb"), ("c_scale", "plant", "coulomb_velocity"),

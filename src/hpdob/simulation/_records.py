@@ -84,6 +84,7 @@ class ObserverRecord(NamedTuple):
     coulomb_source: int  # the Coulomb term's velocity: 0 none, 1 measured omega, 2 omega_hat
     coulomb: float  # its c_n [N m]
     coulomb_velocity: float  # its v_n [rad/s]
+    coulomb_deadband: float  # its dead band d [rad/s] (0: none)
     update_pointer: np.ndarray
     update_coefficient: np.ndarray
     update_operand: np.ndarray

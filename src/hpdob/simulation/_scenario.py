@@ -26,6 +26,7 @@ from ..models import Environment, MujocoServo, ServoModel, TwoMassServo
 from ..observers import (
     FRICTION_PARAMETERS,
     check_spec,
+    coulomb_velocity_resolution,
     design_from_spec,
     design_reaction_observer,
     get_family,
@@ -252,7 +253,8 @@ def scenario_from_dict(data: dict, *, build_observer: bool = True) -> dict:
         if "reaction_observer" in data:
             # a ReactionObserverDesign: it keeps its parts, so a sweep designs it again
             table = _table(data, "reaction_observer")
-            kwargs["observer"] = _reaction_observer(model, design, table, kwargs["plant"])
+            kwargs["observer"] = _reaction_observer(model, design, table, kwargs["plant"],
+                                                    kwargs.get("sensor"))  # fmt: skip
     elif "reaction_observer" in data:
         raise ParameterValueError(
             "reaction_observer needs an [observer] table: the DOb it is composed with"
@@ -291,15 +293,31 @@ def _observer(model, spec: dict, key: str = "observer"):
         raise _prefixed(key, err, ("type", *family.keys)) from None
 
 
-def _reaction_observer(model, dob, table: dict, plant):
+def _reaction_observer(model, dob, table: dict, plant, sensor=None):
     """The ``[reaction_observer]`` table: the DOb composed with an RTOB
     (:func:`hpdob.observers.design_reaction_observer`). Its :data:`FRICTION_KEYS` are the
     friction model (``friction = "plant"``: the ``[plant]``'s ``b``, ``coulomb``,
-    ``coulomb_velocity``, which the design follows: ``follows_plant=True``); any other keys
+    ``coulomb_velocity``, which the design follows: ``follows_plant=True``;
+    ``coulomb_deadband = "encoder"``: the ``[sensor]``'s velocity resolution through the
+    term's velocity path, :func:`hpdob.observers.coulomb_velocity_resolution`); any other keys
     are the RTOB's own observer (a family spec, like ``[observer]``; none: the DOb itself).
     Errors are named ``reaction_observer.*``."""
     fields = dict(table)
     options = {key: fields.pop(key) for key in FRICTION_KEYS if key in fields}
+    deadband = options.get("coulomb_deadband")
+    if isinstance(deadband, str) and deadband != "encoder":
+        raise ParameterValueError(
+            "reaction_observer.coulomb_deadband must be a non-negative dead band [rad/s] or "
+            f"'encoder', got {deadband!r}"
+        )
+    from_encoder = deadband == "encoder"
+    if from_encoder:
+        if not isinstance(sensor, Encoder) or sensor.velocity != "backward-difference":
+            raise ParameterValueError(
+                "reaction_observer.coulomb_deadband = 'encoder' needs a [sensor] encoder with "
+                f"backward-difference velocity, got {sensor!r}"
+            )
+        options["coulomb_deadband"] = 0.0
     if "friction" in options:
         if options["friction"] != "plant":
             raise ParameterValueError(
@@ -326,7 +344,18 @@ def _reaction_observer(model, dob, table: dict, plant):
         fields = _with_poles(fields, "reaction_observer")
         reaction = _observer(model, fields, "reaction_observer")
     try:
-        return design_reaction_observer(dob, reaction, **options)
+        design = design_reaction_observer(dob, reaction, **options)
+        if from_encoder:  # the resolution of the term's own velocity path, then the term again
+            if not design.coulomb:
+                raise ParameterValueError(
+                    "coulomb_deadband = 'encoder' is the Coulomb term's dead band, but coulomb "
+                    "is 0; leave it out"
+                )
+            options["coulomb_deadband"] = coulomb_velocity_resolution(
+                design.system, counts_per_rev=sensor.counts_per_rev
+            )
+            design = design_reaction_observer(dob, reaction, **options)
+        return design
     except (ParameterTypeError, ParameterValueError) as err:
         raise _prefixed("reaction_observer", err, FRICTION_KEYS) from None
 

@@ -144,7 +144,8 @@ def _observer_tables(loop: ServoLoop) -> list[str]:
     friction = design.friction
     if design.follows_plant:
         friction = {"friction": "plant", **{k: v for k, v in friction.items()
-                                             if k == "velocity_filter"}}  # fmt: skip
+                                             if k in ("velocity_filter",
+                                                      "coulomb_deadband")}}  # fmt: skip
     reaction = {**friction, **tables["reaction_observer"]}
     return [*_table("observer", tables["observer"]), *_table("reaction_observer", reaction)]
 

@@ -448,8 +448,8 @@ def _sample_signals(reference, disturbance, *, Ts: float, n: int, substeps: int)
 def _observer_record(system) -> ObserverRecord:
     if system is None:
         empty_i, empty_f = np.zeros(1, dtype=np.int64), np.zeros(0)
-        return ObserverRecord(False, 0, 1, 1, -1, -1, 0, 0.0, 1.0, empty_i, empty_f, empty_i[:0],
-                              empty_i, empty_f, empty_i[:0])  # fmt: skip
+        return ObserverRecord(False, 0, 1, 1, -1, -1, 0, 0.0, 1.0, 0.0, empty_i, empty_f,
+                              empty_i[:0], empty_i, empty_f, empty_i[:0])  # fmt: skip
     update, output, _ = system.kernel_arrays
     outputs = system.outputs
     velocity = outputs.index("omega_hat") if "omega_hat" in outputs else -1
@@ -466,6 +466,7 @@ def _observer_record(system) -> ObserverRecord:
         source,
         0.0 if term is None else term.c,
         1.0 if term is None else term.v,
+        0.0 if term is None else term.deadband,
         *update,
         *output,
     )
