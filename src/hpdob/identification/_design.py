@@ -171,7 +171,7 @@ ONE_WAY_TRAVEL = 0.01
 def directions(run) -> tuple[float, float]:
     """+1 or -1 if the log moves one way (all but :data:`ONE_WAY_TRAVEL` of its travel over
     the regression rows in that direction), else 0; and the fraction of the travel that way."""
-    velocity = run.regression.velocity[run.regression.index]
+    velocity = run.regression.velocity  # at the regression's rows
     forward, backward = float(velocity[velocity > 0].sum()), float(-velocity[velocity < 0].sum())
     total = forward + backward
     if total == 0.0:

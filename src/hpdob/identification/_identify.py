@@ -509,7 +509,7 @@ def identify(
         settings=record,
         n_samples=int(sum(run.theta.size for run in runs)),
         condition_number=float(singular[0] / singular[-1]),
-        max_speed=float(max(np.max(np.abs(run.regression.velocity)) for run in runs)),
+        max_speed=max(run.regression.max_speed for run in runs),
         iterations=solution.iterations,
         converged=solution.converged,
         simulation=simulation,

@@ -179,7 +179,7 @@ def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tol
             )
             simulated, _ = simulate_loop(
                 loop, parameters, Ts=run.Ts, theta0=run.theta[0],
-                velocity0=float(run.regression.velocity[0]),
+                velocity0=run.regression.velocity0,
             )  # fmt: skip
             if through_loop and iteration == 1:
                 mismatch = relative_error(run.theta, simulated)
