@@ -134,3 +134,41 @@ def decimated(sos: np.ndarray, n: int, read, factor: int, block: int = BLOCK) ->
         first = -(-lo // factor) * factor  # the first multiple of factor at or after lo
         out[first // factor : -(-hi // factor)] = y[first - lo :: factor]
     return out
+
+
+def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int = 64):
+    """``scipy.signal.welch(x, fs=fs, window=window, nperseg=nperseg)`` of a 1-D float64
+    array (its other defaults: half-overlapping segments, constant detrend, one-sided density,
+    mean), bit for bit, with the spectrogram computed ``segments`` segments at a time: it holds
+    the segments' periodograms (about ``x.size`` values) instead of their detrended, windowed
+    and transformed copies as well (four times as much).
+
+    ``window`` None is ``welch``'s default window. ``nperseg`` must not exceed ``x.size``.
+    """
+    import inspect
+
+    from scipy import signal
+
+    if window is None:
+        window = inspect.signature(signal.welch).parameters["window"].default
+    n = x.size
+    if not 0 < nperseg <= n:
+        raise ValueError(f"nperseg must be from 1 to {n}, got {nperseg}")
+    noverlap = nperseg // 2
+    sft = signal.ShortTimeFFT(signal.get_window(window, nperseg), nperseg - noverlap, fs,
+                              fft_mode="onesided", mfft=nperseg, scale_to="psd",
+                              phase_shift=None)  # fmt: skip
+    count = (n - noverlap) // sft.hop  # as scipy.signal.csd
+    power = None
+    for a in range(0, count, segments):
+        b = min(a + segments, count)
+        block = sft.spectrogram(x, x, detr="constant", p0=a, p1=b, k_offset=nperseg // 2)
+        if power is None:
+            power = np.empty((block.shape[0], count))
+        power[:, a:b] = block
+    # csd's one-sided doubling and its mean over the segments, on the same layout
+    power = np.moveaxis(power, 0, -1)
+    power[..., 1 : -1 if sft.mfft % 2 == 0 else None] *= 2
+    power = np.moveaxis(power, -1, 0)
+    power = power.mean(axis=-1) if power.shape[-1] > 1 else power.reshape(power.shape[:-1])
+    return sft.f, power

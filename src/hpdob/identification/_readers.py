@@ -210,8 +210,8 @@ def _read_parquet(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
         for role, values in block.items():
             out[role][start:stop] = values
         start = stop
-    for array in out.values():
-        array.setflags(write=False)  # nobody else holds it: a Log takes it without a copy
+    for column in out.values():
+        column.setflags(write=False)  # nobody else holds it: a Log takes it without a copy
     return out
 
 
