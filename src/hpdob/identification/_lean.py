@@ -17,16 +17,20 @@ import numpy as np
 
 __all__ = [
     "BLOCK",
+    "SEGMENTS",
     "decimated",
     "filtfilt",
     "filtfilt_blocks",
     "gradient_block",
     "gradient_inplace",
     "pad_length",
+    "welch",
 ]
 
-#: Samples per block (0.5 MB of float64).
+#: Samples per block (0.5 MB of float64); read when a function runs (None: this).
 BLOCK = 1 << 16
+#: Segments of :func:`welch`'s spectrogram computed at a time (None: this).
+SEGMENTS = 64
 
 
 def pad_length(sos: np.ndarray) -> int:
@@ -36,7 +40,7 @@ def pad_length(sos: np.ndarray) -> int:
     return 3 * ntaps
 
 
-def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int = BLOCK):
+def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
     """``scipy.signal.sosfiltfilt(sos, x)`` of a signal of ``n`` samples in blocks.
 
     ``read(lo, hi)`` returns ``x[lo:hi]`` as float64 (it is called twice per block). Yields
@@ -50,6 +54,7 @@ def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int = BLOCK):
     """
     from scipy import signal
 
+    block = BLOCK if block is None else block
     edge = pad_length(sos)
     if n <= edge:
         raise ValueError(
@@ -82,7 +87,7 @@ def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int = BLOCK):
             yield lo, hi, b[::-1]
 
 
-def filtfilt(sos: np.ndarray, x: np.ndarray, block: int = BLOCK) -> np.ndarray:
+def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None) -> np.ndarray:
     """``scipy.signal.sosfiltfilt(sos, x)`` of a 1-D float64 array, bit for bit, holding one
     new array of ``x``'s size (``sosfiltfilt`` holds three, of the padded size)."""
     out = np.empty(x.size)
@@ -91,9 +96,10 @@ def filtfilt(sos: np.ndarray, x: np.ndarray, block: int = BLOCK) -> np.ndarray:
     return out
 
 
-def gradient_inplace(f: np.ndarray, dx: float, block: int = BLOCK) -> np.ndarray:
+def gradient_inplace(f: np.ndarray, dx: float, block: int | None = None) -> np.ndarray:
     """Overwrite ``f`` (1-D float64, at least 2 samples) with ``np.gradient(f, dx)``, bit for
     bit (central differences inside, one-sided at the ends), holding a block beside it."""
+    block = BLOCK if block is None else block
     n = f.size
     first = (f[1] - f[0]) / dx
     last = (f[-1] - f[-2]) / dx
@@ -126,7 +132,7 @@ def gradient_block(f: np.ndarray, lo: int, hi: int, dx: float) -> np.ndarray:
     return out
 
 
-def decimated(sos: np.ndarray, n: int, read, factor: int, block: int = BLOCK) -> np.ndarray:
+def decimated(sos: np.ndarray, n: int, read, factor: int, block: int | None = None) -> np.ndarray:
     """``scipy.signal.sosfiltfilt(sos, x)[::factor]`` of the signal ``read`` gives (see
     :func:`filtfilt_blocks`), holding blocks only."""
     out = np.empty(-(-n // factor))
@@ -136,7 +142,7 @@ def decimated(sos: np.ndarray, n: int, read, factor: int, block: int = BLOCK) ->
     return out
 
 
-def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int = 64):
+def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int | None = None):
     """``scipy.signal.welch(x, fs=fs, window=window, nperseg=nperseg)`` of a 1-D float64
     array (its other defaults: half-overlapping segments, constant detrend, one-sided density,
     mean), bit for bit, with the spectrogram computed ``segments`` segments at a time: it holds
@@ -149,6 +155,7 @@ def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int 
 
     from scipy import signal
 
+    segments = SEGMENTS if segments is None else segments
     if window is None:
         window = inspect.signature(signal.welch).parameters["window"].default
     n = x.size

@@ -28,7 +28,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .._validation import ParameterValueError, as_int, nonnegative, positive
-from ._lean import BLOCK, decimated, filtfilt, gradient_block, gradient_inplace, welch
+from . import _lean
+from ._lean import decimated, filtfilt, gradient_block, gradient_inplace, welch
 
 __all__ = [
     "MIN_ROWS",
@@ -104,8 +105,8 @@ def _whitened_psd(theta: np.ndarray, Ts: float):
 def second_difference(x: np.ndarray) -> np.ndarray:
     """``np.diff(x, 2)`` bit for bit, block by block (one new array of its size)."""
     out = np.empty(max(x.size - 2, 0))
-    for lo in range(0, out.size, BLOCK):
-        out[lo : lo + BLOCK] = np.diff(x[lo : lo + BLOCK + 2], 2)
+    for lo in range(0, out.size, _lean.BLOCK):
+        out[lo : lo + _lean.BLOCK] = np.diff(x[lo : lo + _lean.BLOCK + 2], 2)
     return out
 
 
@@ -117,8 +118,8 @@ def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
     median PSD of the top quarter of the band, where a motion system's position is noise.
     """
     q = math.inf  # the smallest positive |step|, block by block (a minimum is exact)
-    for lo in range(0, theta.size - 1, BLOCK):
-        steps = np.abs(np.diff(theta[lo : lo + BLOCK + 1]))
+    for lo in range(0, theta.size - 1, _lean.BLOCK):
+        steps = np.abs(np.diff(theta[lo : lo + _lean.BLOCK + 1]))
         steps = steps[steps > 0]
         if steps.size:
             q = min(q, float(steps.min()))
@@ -329,16 +330,16 @@ def instrument_rows(theta: np.ndarray, regression: Regression, settings: Setting
 
 def _largest_speed(velocity: np.ndarray) -> float:
     """``max(|velocity|)``, block by block (a maximum is exact in any order)."""
-    return max(float(np.max(np.abs(velocity[lo : lo + BLOCK])))
-               for lo in range(0, velocity.size, BLOCK))  # fmt: skip
+    return max(float(np.max(np.abs(velocity[lo : lo + _lean.BLOCK])))
+               for lo in range(0, velocity.size, _lean.BLOCK))  # fmt: skip
 
 
 def near_slow(velocity: np.ndarray, index: np.ndarray, speed: float, half: int) -> np.ndarray:
     """Whether ``|velocity| < speed`` somewhere within ``half`` samples of each of ``index``
     (the decimation filter's main lobe around a row), counted block by block of rows."""
     n, out = velocity.size, np.zeros(index.size, dtype=bool)
-    for a in range(0, index.size, BLOCK):
-        rows = index[a : a + BLOCK]
+    for a in range(0, index.size, _lean.BLOCK):
+        rows = index[a : a + _lean.BLOCK]
         lo, hi = max(int(rows[0]) - half, 0), min(int(rows[-1]) + half + 1, n)
         slow = np.abs(velocity[lo:hi]) < speed
         count = np.concatenate([[0], np.cumsum(slow)])
@@ -404,8 +405,10 @@ def rest_rows_mask(velocity: np.ndarray, index: np.ndarray, length: int, margin:
     n = velocity.size
     rest_speed = REST_SPEED_FRACTION * float(np.abs(velocity[index]).max()) if index.size else 0.0
     slow = np.empty(n, dtype=bool)
-    for lo in range(0, n, BLOCK):
-        np.less(np.abs(velocity[lo : lo + BLOCK]), rest_speed, out=slow[lo : lo + BLOCK])
+    for lo in range(0, n, _lean.BLOCK):
+        np.less(
+            np.abs(velocity[lo : lo + _lean.BLOCK]), rest_speed, out=slow[lo : lo + _lean.BLOCK]
+        )
     # the edges of the stretches of consecutive slow samples: where [0, slow, 0] changes
     edges = np.flatnonzero(slow[1:] != slow[:-1]) + 1
     edges = np.concatenate([[0] if n and slow[0] else [], edges, [n] if n and slow[-1] else []])

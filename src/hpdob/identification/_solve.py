@@ -156,12 +156,19 @@ class Solution:
     converged: bool
 
 
+def _stacked(blocks: list) -> np.ndarray:
+    """``np.vstack(blocks)`` (``np.concatenate`` of vectors); one block as it is, not copied."""
+    if len(blocks) == 1:
+        return blocks[0]
+    return np.vstack(blocks) if blocks[0].ndim == 2 else np.concatenate(blocks)
+
+
 def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tolerance,
           report=None):  # fmt: skip
     """The estimate of one set of regressions: least squares, then the IV iteration
     (``report(k)`` after iteration ``k``, if given)."""
-    X = np.vstack([layout.columns(run.regression.X, i) for i, run in enumerate(runs)])
-    y = np.concatenate([run.regression.y - layout.known(run.regression.X) for run in runs])
+    X = _stacked([layout.columns(run.regression.X, i) for i, run in enumerate(runs)])
+    y = _stacked([run.regression.y - layout.known(run.regression.X) for run in runs])
     check_design(runs, layout, X)
     sizes = np.cumsum([0] + [run.regression.X.shape[0] for run in runs])
     logs = list(itertools.pairwise(sizes.tolist()))  # the row range of each log
@@ -201,7 +208,8 @@ def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tol
                 # the simulated one jumps with every stick event (IV then does not converge)
                 Z[:, 2] = run.regression.X[:, 2]
             blocks.append(layout.columns(Z, i))
-        Z = np.vstack(blocks)
+        Z = _stacked(blocks)
+        del blocks
         try:
             if scaled_condition(Z) > MAX_CONDITION:
                 raise np.linalg.LinAlgError
