@@ -67,7 +67,10 @@ class Layout:
         return len(self.free) + self.n_offsets
 
     def columns(self, M: np.ndarray, run: int) -> np.ndarray:
-        """The estimated columns of run ``run`` from its rows ``[qdd, qd, sign(qd), 1]``."""
+        """The estimated columns of run ``run`` from its rows ``[qdd, qd, sign(qd), 1]`` (``M``
+        itself when those are all four, in order: the same numbers, not a copy)."""
+        if self.free == (0, 1, 2) and self.offset_column(run) == 3 and M.shape[1] == 4:
+            return M
         out = np.zeros((M.shape[0], self.size))
         out[:, : len(self.free)] = M[:, list(self.free)]
         column = self.offset_column(run)
@@ -171,7 +174,7 @@ ONE_WAY_TRAVEL = 0.01
 def directions(run) -> tuple[float, float]:
     """+1 or -1 if the log moves one way (all but :data:`ONE_WAY_TRAVEL` of its travel over
     the regression rows in that direction), else 0; and the fraction of the travel that way."""
-    velocity = run.regression.velocity[run.regression.index]
+    velocity = run.regression.velocity  # at the regression's rows
     forward, backward = float(velocity[velocity > 0].sum()), float(-velocity[velocity < 0].sum())
     total = forward + backward
     if total == 0.0:

@@ -101,8 +101,10 @@ class LogFile:
                    time_tolerance=self.time_tolerance)  # fmt: skip
 
 
-def log_blocks(log: Log, size: int = BLOCK):
-    """``(t, theta, u)`` of a :class:`Log` in blocks of ``size`` samples (views)."""
+def log_blocks(log: Log, size: int | None = None):
+    """``(t, theta, u)`` of a :class:`Log` in blocks of ``size`` samples (views; default
+    :data:`BLOCK`, read when called)."""
+    size = BLOCK if size is None else size
     for start in range(0, len(log), size):
         stop = start + size
         yield log.t[start:stop], log.theta[start:stop], log.u[start:stop]

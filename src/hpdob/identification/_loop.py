@@ -425,6 +425,16 @@ def simulate_loop(
         diverges.
     """
     loop = require_instance(loop, FeedbackLoop, "loop")
+    return run_simulation(loop, parameters, Ts=Ts, theta0=theta0, velocity0=velocity0)
+
+
+def run_simulation(loop, parameters, *, Ts, theta0=0.0, velocity0=0.0, command=True,
+                   reference=None, feedforward=None):  # fmt: skip
+    """:func:`simulate_loop` (checked as there); ``command=False`` does not record the command
+    (returned as None), and ``reference``/``feedforward`` replace the loop's (``loop`` may then
+    be a length ``n``: an open-loop run, the logged input applied as it is, needs no
+    :class:`FeedbackLoop` and no array of zeros). A missing input is one 0, not an array of
+    the log's length: the same simulation in less memory."""
     if len(parameters) != 4:
         raise ParameterTypeError(f"parameters must be (J, b, coulomb, offset), got {parameters!r}")
     J, b, coulomb, offset = (as_real(p, "parameters", "a finite number") for p in parameters)
@@ -434,31 +444,37 @@ def simulate_loop(
             f"J = {J:.6g}, b = {b:.6g}, coulomb = {coulomb:.6g}"
         )
     Ts = positive(Ts, "Ts", "a positive finite sampling period [s]")
-    n = len(loop)
-    zeros = np.zeros(n)
-    r_dot = zeros if loop.reference_velocity is None else loop.reference_velocity
-    feedforward = zeros if loop.feedforward is None else loop.feedforward
-    r_ddot = zeros if loop.reference_acceleration is None else loop.reference_acceleration
-    exact = loop.velocity_filter is None
-    c = np.array((1.0, -1.0) if exact else loop.velocity_filter)
-    limit = math.inf if loop.limit is None else loop.limit
-    theta, u = np.empty(n), np.empty(n)
+    if isinstance(loop, int):  # open loop: the input alone
+        n, kp, kd, c, exact, limit, controller = loop, 0.0, 0.0, None, True, None, None
+        r_dot = r_ddot = None
+    else:
+        n, kp, kd, c, limit = len(loop), loop.kp, loop.kd, loop.velocity_filter, loop.limit
+        exact, controller = loop.velocity_filter is None, loop.controller
+        r_dot, r_ddot = loop.reference_velocity, loop.reference_acceleration
+        reference = loop.reference if reference is None else reference
+        feedforward = loop.feedforward if feedforward is None else feedforward
+    zero = np.zeros(1)  # a missing input: one 0 (the kernel's stride 0)
+    c = np.array((1.0, -1.0) if exact else c)
+    limit = math.inf if limit is None else limit
+    theta, u = np.empty(n), np.empty(n if command else 1)
     state, source, signal_rows, update_rows = _program(
-        loop.controller, Ts, float(theta0), float(velocity0)
+        controller, Ts, float(theta0), float(velocity0)
     )
+
+    def given(x):
+        return zero if x is None else np.ascontiguousarray(x)
+
     done = loop_kernel()(
-        J, b, coulomb, offset, Ts, float(theta0), float(velocity0),
-        np.ascontiguousarray(loop.reference), np.ascontiguousarray(r_dot),
-        np.ascontiguousarray(feedforward), loop.kp, loop.kd, c, exact, limit,
-        DIVERGENCE_LIMIT, theta, u, np.ascontiguousarray(r_ddot), state, source, signal_rows,
-        update_rows,
+        J, b, coulomb, offset, Ts, float(theta0), float(velocity0), given(reference),
+        given(r_dot), given(feedforward), kp, kd, c, exact, limit, DIVERGENCE_LIMIT, theta, u,
+        given(r_ddot), state, source, signal_rows, update_rows,
     )  # fmt: skip
     if done < n:
         raise ParameterValueError(
             f"the simulated loop diverged at t = {done * Ts:.6g} s with J = {J:.6g}, b = {b:.6g}, "
             f"coulomb = {coulomb:.6g}, offset = {offset:.6g}: check the loop's gains and units"
         )
-    return theta, u
+    return theta, (u if command else None)
 
 
 #: The kernel's arguments for the PD law: no controller state, inputs or rows.

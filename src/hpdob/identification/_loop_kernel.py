@@ -69,14 +69,24 @@ def run_loop(
     signal_rows,
     update_rows,
 ):
-    """Simulate ``r.size`` samples; fill ``q_out`` and ``u_out``; return the samples completed.
+    """Simulate ``q_out.size`` samples; fill ``q_out`` and ``u_out``; return the samples
+    completed.
 
-    A return value below ``r.size`` means ``|q|`` or ``|v|`` left ``divergence_limit`` (or
+    ``r``, ``r_dot``, ``feedforward``, ``r_ddot`` and ``u_out`` hold one value per sample, or a
+    single one: a constant input (0 for one the loop lacks, without an array of zeros of the
+    log's length) or, for ``u_out``, a command not recorded. A return value below
+    ``q_out.size`` means ``|q|`` or ``|v|`` left ``divergence_limit`` (or
     became non-finite) at the end of the last completed sample. ``state`` (the controller's
     initial state, updated in place), ``source`` and the ``(pointer, coefficient, operand)``
     rows are those of a controller program; no signal rows (``pointer == [0]``): the PD law.
     """
-    n = r.shape[0]
+    n = q_out.shape[0]
+    # the stride of each per-sample array: 1, or 0 for an array of a single value
+    sr = 1 if r.shape[0] == n else 0
+    srd = 1 if r_dot.shape[0] == n else 0
+    sff = 1 if feedforward.shape[0] == n else 0
+    srdd = 1 if r_ddot.shape[0] == n else 0
+    su = 1 if u_out.shape[0] == n else 0
     m = velocity_filter.shape[0]
     history = np.empty(m)
     for i in range(m):
@@ -105,9 +115,9 @@ def run_loop(
                 velocity += velocity_filter[i] * history[i]
             velocity /= Ts
         if programmed:
-            inputs[0] = r[k]
-            inputs[1] = r_dot[k]
-            inputs[2] = r_ddot[k]
+            inputs[0] = r[k * sr]
+            inputs[1] = r_dot[k * srd]
+            inputs[2] = r_ddot[k * srdd]
             inputs[3] = y
             inputs[4] = velocity
             for i in range(nc):
@@ -120,9 +130,9 @@ def run_loop(
                     term = sig_c[t] * operands[sig_i[t]]
                     acc = term if t == sig_ptr[j] else acc + term
                 operands[first + j] = acc
-            uk = operands[first + qc - 1] + feedforward[k]
+            uk = operands[first + qc - 1] + feedforward[k * sff]
         else:
-            uk = kp * (r[k] - y) + kd * (r_dot[k] - velocity) + feedforward[k]
+            uk = kp * (r[k * sr] - y) + kd * (r_dot[k * srd] - velocity) + feedforward[k * sff]
         if uk > limit:
             uk = limit
         elif uk < -limit:
@@ -138,7 +148,7 @@ def run_loop(
             for i in range(nc):
                 state[i] = new_state[i]
         q_out[k] = y
-        u_out[k] = uk
+        u_out[k * su] = uk
         force = uk - offset
         h = Ts
         for _segment in range(2):  # at most: slide to rest, then the rest of the sample

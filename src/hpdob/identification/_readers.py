@@ -6,6 +6,7 @@ names the file holds; :func:`hpdob.identification.read_log` validates the values
 
 from __future__ import annotations
 
+import array
 import csv
 from pathlib import Path
 
@@ -108,7 +109,8 @@ def _parse_csv(path: Path, wanted: dict[str, str], progress=None) -> dict[str, n
         header = [cell.strip() for cell in next(rows, [])]
         _missing(path, wanted, header)
         index = {role: header.index(name) for role, name in wanted.items()}
-        values: dict[str, list[float]] = {role: [] for role in wanted}
+        # 8 bytes a value (a list of floats holds 32: a pointer and a float object)
+        values = {role: array.array("d") for role in wanted}
         for line, row in enumerate(rows, start=2):
             if not row or all(not cell.strip() for cell in row):
                 continue  # blank line
@@ -118,7 +120,13 @@ def _parse_csv(path: Path, wanted: dict[str, str], progress=None) -> dict[str, n
                 )
             for role, column in index.items():
                 values[role].append(_number(row[column], role, wanted[role], line, path))
-    return {role: np.array(v, dtype=float) for role, v in values.items()}
+    out = {}
+    for role in list(values):  # each column moved into numpy's memory and released in turn
+        column = values.pop(role)
+        out[role] = np.frombuffer(column, dtype=float).copy() if column else np.zeros(0)
+        del column
+        out[role].setflags(write=False)  # nobody else holds it: a Log takes it without a copy
+    return out
 
 
 def _number(cell: str, role: str, name: str, line: int, path: Path) -> float:
@@ -202,8 +210,8 @@ def _read_parquet(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
         for role, values in block.items():
             out[role][start:stop] = values
         start = stop
-    for array in out.values():
-        array.setflags(write=False)  # nobody else holds it: a Log takes it without a copy
+    for column in out.values():
+        column.setflags(write=False)  # nobody else holds it: a Log takes it without a copy
     return out
 
 

@@ -28,6 +28,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from .._validation import ParameterValueError, as_int, nonnegative, positive
+from . import _lean
+from ._lean import decimated, filtfilt, gradient_block, gradient_inplace, welch
 
 __all__ = [
     "MIN_ROWS",
@@ -91,15 +93,21 @@ def _whitened_psd(theta: np.ndarray, Ts: float):
     """Frequencies [Hz] and PSD of the position [unit^2/Hz] estimated from its second
     difference (Welch) divided by the difference's gain ``(2 sin(pi f Ts))^4``: the window's
     leakage from the large slow motion would otherwise mask the noise floor."""
-    from scipy import signal
-
-    second = np.diff(theta, 2)
-    f, psd = signal.welch(
-        second, fs=1.0 / Ts, window="blackmanharris", nperseg=min(second.size, 4096)
-    )
+    second = second_difference(theta)
+    # scipy.signal.welch bit for bit, in a quarter of its memory
+    f, psd = welch(second, fs=1.0 / Ts, window="blackmanharris", nperseg=min(second.size, 4096))
+    del second
     gain = (2.0 * np.sin(np.pi * f * Ts)) ** 4
     with np.errstate(divide="ignore", invalid="ignore"):
         return f[1:], psd[1:] / gain[1:]
+
+
+def second_difference(x: np.ndarray) -> np.ndarray:
+    """``np.diff(x, 2)`` bit for bit, block by block (one new array of its size)."""
+    out = np.empty(max(x.size - 2, 0))
+    for lo in range(0, out.size, _lean.BLOCK):
+        out[lo : lo + _lean.BLOCK] = np.diff(x[lo : lo + _lean.BLOCK + 2], 2)
+    return out
 
 
 def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
@@ -109,9 +117,13 @@ def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
     between consecutive samples; white noise of variance ``q^2/12`` over ``fs/2``) and the
     median PSD of the top quarter of the band, where a motion system's position is noise.
     """
-    steps = np.abs(np.diff(theta))
-    steps = steps[steps > 0]
-    q = float(steps.min()) if steps.size else 0.0
+    q = math.inf  # the smallest positive |step|, block by block (a minimum is exact)
+    for lo in range(0, theta.size - 1, _lean.BLOCK):
+        steps = np.abs(np.diff(theta[lo : lo + _lean.BLOCK + 1]))
+        steps = steps[steps > 0]
+        if steps.size:
+            q = min(q, float(steps.min()))
+    q = 0.0 if q == math.inf else q
     f, psd = _whitened_psd(theta, Ts)
     top = psd[f >= 0.375 / Ts]
     return max(q * q * Ts / 6.0, float(np.median(top)) if top.size else 0.0), q
@@ -209,9 +221,25 @@ def kinematics(theta: np.ndarray, settings: Settings):
     return position, velocity, acceleration
 
 
+def filtered_velocity(theta: np.ndarray, settings: Settings, *, overwrite: bool = False):
+    """``kinematics(theta, settings)[1]`` bit for bit, holding one new array of ``theta``'s
+    size (the filtered position is differenced in place, :mod:`._lean`), or none with
+    ``overwrite`` (the velocity written over ``theta``)."""
+    from scipy import signal
+
+    sos = signal.butter(settings.order, settings.cutoff, fs=1.0 / settings.Ts, output="sos")
+    return gradient_inplace(filtfilt(sos, theta, out=theta if overwrite else None), settings.Ts)
+
+
 def observation(velocity: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
     """Rows ``[qdd, qd, sign(qd), 1]`` of the inverse dynamic model (EMPS eq. 2)."""
     return np.column_stack([acceleration, velocity, np.sign(velocity), np.ones_like(velocity)])
+
+
+def _decimate_sos(factor: int) -> np.ndarray:
+    from scipy import signal
+
+    return signal.cheby1(_DECIMATE_ORDER, _DECIMATE_RIPPLE, 0.8 / factor, output="sos")
 
 
 def decimate(x: np.ndarray, factor: int) -> np.ndarray:
@@ -225,8 +253,48 @@ def decimate(x: np.ndarray, factor: int) -> np.ndarray:
         return np.array(x, dtype=float)
     from scipy import signal
 
-    sos = signal.cheby1(_DECIMATE_ORDER, _DECIMATE_RIPPLE, 0.8 / factor, output="sos")
-    return signal.sosfiltfilt(sos, x, axis=0)[::factor]
+    return signal.sosfiltfilt(_decimate_sos(factor), x, axis=0)[::factor]
+
+
+def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, rows=None) -> np.ndarray:
+    """``decimate(observation(velocity, np.gradient(velocity, Ts)), factor)`` bit for bit,
+    column by column from ``velocity`` in blocks: the full-rate observation matrix (four
+    columns) and the filter's padded copies of it are never held. ``rows``: only those rows
+    of it (indices into the decimated samples)."""
+    if factor == 1:
+        full = observation(velocity, np.gradient(velocity, Ts))
+        return full if rows is None else full[rows]
+    sos, n = _decimate_sos(factor), velocity.size
+    columns = (
+        lambda lo, hi: gradient_block(velocity, lo, hi, Ts),
+        lambda lo, hi: velocity[lo:hi],
+        lambda lo, hi: np.sign(velocity[lo:hi]),
+        lambda lo, hi: np.ones(hi - lo),
+    )
+    X = np.empty((-(-n // factor) if rows is None else rows.size, len(columns)))
+    for j, column in enumerate(columns):
+        values = decimated(sos, n, column, factor)
+        X[:, j] = values if rows is None else values[rows]
+    return X
+
+
+def decimated_input(u: np.ndarray, settings: Settings) -> np.ndarray:
+    """``decimate(u, decimation)`` of the input, aligned first with ``zoh`` (see
+    :func:`build_regression`), bit for bit, in blocks."""
+
+    def aligned(lo: int, hi: int) -> np.ndarray:
+        if not settings.zoh:
+            return u[lo:hi]
+        out = np.empty(hi - lo)
+        start = max(lo, 1)
+        out[start - lo :] = 0.5 * (u[start:hi] + u[start - 1 : hi - 1])
+        if lo == 0:
+            out[0] = u[0]
+        return out
+
+    if settings.decimation == 1:
+        return np.array(aligned(0, u.size), dtype=float)
+    return decimated(_decimate_sos(settings.decimation), u.size, aligned, settings.decimation)
 
 
 @dataclass(frozen=True)
@@ -236,10 +304,12 @@ class Regression:
     X: np.ndarray  # observation matrix, one row per kept decimated sample
     y: np.ndarray  # decimated input [N m or N]
     index: np.ndarray  # raw sample index of each row
-    velocity: np.ndarray  # filtered velocity at full rate [rad/s or m/s]
+    velocity: np.ndarray  # filtered velocity at the rows [rad/s or m/s]
     kept: np.ndarray  # mask over the decimated samples inside the border: row kept?
     rest_speed: float = 0.0  # speed below which the log rests [rad/s or m/s] (rests only)
     rest_rows: int = 0  # rows dropped as rests
+    velocity0: float = 0.0  # filtered velocity at the first sample
+    max_speed: float = 0.0  # largest |filtered velocity| over every sample
 
 
 def rows_inside_border(n: int, settings: Settings) -> np.ndarray:
@@ -257,22 +327,41 @@ def minimum_samples(settings: Settings) -> int:
 
 def instrument_rows(theta: np.ndarray, regression: Regression, settings: Settings) -> np.ndarray:
     """The observation matrix of another position trace, on the same rows as ``regression``."""
-    _, velocity, acceleration = kinematics(theta, settings)
-    full = decimate(observation(velocity, acceleration), settings.decimation)
     inside = rows_inside_border(theta.size, settings) // settings.decimation
-    return full[inside][regression.kept]
+    # = decimate(...)[inside][kept], without the whole decimated matrix
+    return decimated_rows(filtered_velocity(theta, settings), settings.Ts, settings.decimation,
+                          inside[regression.kept])  # fmt: skip
+
+
+def _largest_speed(velocity: np.ndarray) -> float:
+    """``max(|velocity|)``, block by block (a maximum is exact in any order)."""
+    return max(float(np.max(np.abs(velocity[lo : lo + _lean.BLOCK])))
+               for lo in range(0, velocity.size, _lean.BLOCK))  # fmt: skip
+
+
+def near_slow(velocity: np.ndarray, index: np.ndarray, speed: float, half: int) -> np.ndarray:
+    """Whether ``|velocity| < speed`` somewhere within ``half`` samples of each of ``index``
+    (the decimation filter's main lobe around a row), counted block by block of rows."""
+    n, out = velocity.size, np.zeros(index.size, dtype=bool)
+    for a in range(0, index.size, _lean.BLOCK):
+        rows = index[a : a + _lean.BLOCK]
+        lo, hi = max(int(rows[0]) - half, 0), min(int(rows[-1]) + half + 1, n)
+        slow = np.abs(velocity[lo:hi]) < speed
+        count = np.concatenate([[0], np.cumsum(slow)])
+        out[a : a + rows.size] = (
+            count[np.minimum(rows + half + 1, n) - lo] - count[np.maximum(rows - half, 0) - lo]
+        ) > 0
+    return out
 
 
 def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Regression:
-    """Build the decimated observation matrix and input (steps 1-4 of the module docstring)."""
-    _, velocity, acceleration = kinematics(theta, settings)
-    X = decimate(observation(velocity, acceleration), settings.decimation)
-    if settings.zoh:
-        # with the input held over each sample, the second central difference of the
-        # position at k sees (u_(k-1) + u_k) / 2, exactly for an inertia (ZOH of 1/s^2 is
-        # Ts^2 (z + 1) / (2 (z - 1)^2)): align the input with it, half a sample later
-        u = np.concatenate([u[:1], 0.5 * (u[1:] + u[:-1])])
-    y = decimate(u, settings.decimation)
+    """Build the decimated observation matrix and input (steps 1-4 of the module docstring).
+
+    Bit for bit the straightforward construction (``tests/identification/test_lean.py``
+    keeps it), in blocks: besides its result it holds one array of the log's length, the
+    filtered velocity.
+    """
+    velocity = filtered_velocity(theta, settings)
     index = rows_inside_border(theta.size, settings)
     inside = index // settings.decimation
     kept = np.ones(index.size, dtype=bool)
@@ -280,9 +369,7 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
     if settings.min_speed > 0.0:
         # keep a row only if the speed stays above min_speed over the decimation filter's
         # main lobe around it
-        slow = (np.abs(velocity) < settings.min_speed).astype(float)
-        near_slow = np.convolve(slow, np.ones(width), mode="same") > 0.5
-        kept = ~near_slow[index]
+        kept = ~near_slow(velocity, index, settings.min_speed, width // 2)
     rest_speed, rest_rows = 0.0, 0
     if settings.rests:
         resting, rest_speed = rest_rows_mask(
@@ -290,14 +377,20 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
         )
         rest_rows = int(np.count_nonzero(resting & kept))
         kept &= ~resting
+    rows = inside[kept]  # X[inside][kept] of the whole decimated X, without it
+    # y: with zoh, the input held over each sample: the second central difference of the
+    # position at k sees (u_(k-1) + u_k) / 2, exactly for an inertia (ZOH of 1/s^2 is
+    # Ts^2 (z + 1) / (2 (z - 1)^2)): the input is aligned with it, half a sample later
     return Regression(
-        X=X[inside][kept],
-        y=y[inside][kept],
+        X=decimated_rows(velocity, settings.Ts, settings.decimation, rows),
+        y=decimated_input(u, settings)[rows],
         index=index[kept],
-        velocity=velocity,
+        velocity=velocity[index[kept]],
         kept=kept,
         rest_speed=rest_speed,
         rest_rows=rest_rows,
+        velocity0=float(velocity[0]),
+        max_speed=_largest_speed(velocity),
     )
 
 
@@ -313,17 +406,27 @@ def rest_rows_mask(velocity: np.ndarray, index: np.ndarray, length: int, margin:
     or Coulomb friction. Brief slow instants (the reversals of an oscillating motion) are not rests
     and are kept.
     """
-    speed = np.abs(velocity)
-    rest_speed = REST_SPEED_FRACTION * float(speed[index].max()) if index.size else 0.0
-    slow = speed < rest_speed
-    # stretches of consecutive slow samples longer than width
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], slow.astype(np.int8), [0]])))
+    n = velocity.size
+    rest_speed = REST_SPEED_FRACTION * float(np.abs(velocity[index]).max()) if index.size else 0.0
+    slow = np.empty(n, dtype=bool)
+    for lo in range(0, n, _lean.BLOCK):
+        np.less(
+            np.abs(velocity[lo : lo + _lean.BLOCK]), rest_speed, out=slow[lo : lo + _lean.BLOCK]
+        )
+    # the edges of the stretches of consecutive slow samples: where [0, slow, 0] changes
+    edges = np.flatnonzero(slow[1:] != slow[:-1]) + 1
+    edges = np.concatenate([[0] if n and slow[0] else [], edges, [n] if n and slow[-1] else []])
+    edges = edges.astype(np.int64)
+    del slow
     starts, stops = edges[0::2], edges[1::2]
-    long = stops - starts > length
-    resting = np.zeros(speed.size + 1, dtype=np.int64)
-    np.add.at(resting, np.maximum(starts[long] - margin, 0), 1)
-    np.add.at(resting, np.minimum(stops[long] + margin, speed.size), -1)
-    return np.cumsum(resting)[:-1][index] > 0, rest_speed
+    long = stops - starts > length  # longer than length samples
+    # a row rests where more stretches (widened by margin) have begun than have ended
+    begun = np.maximum(starts[long] - margin, 0)
+    ended = np.minimum(stops[long] + margin, n)
+    resting = np.searchsorted(begun, index, side="right") - np.searchsorted(
+        ended, index, side="right"
+    )
+    return resting > 0, rest_speed
 
 
 def differentiate(x, Ts: float, *, cutoff: float | None = None, order: int = 4, like=None):
@@ -376,5 +479,5 @@ def differentiate(x, Ts: float, *, cutoff: float | None = None, order: int = 4, 
         reference = x if like is None else sample_vector(like, "like", "positions [rad or m]")
         cutoff = 5.0 * adaptive_bandwidth(reference, Ts)
     settings = resolve_settings(Ts, cutoff=cutoff, order=order, decimation=1, border=0)
-    _, velocity, acceleration = kinematics(x, settings)
-    return velocity, acceleration
+    velocity = filtered_velocity(x, settings)  # as kinematics(x, settings), in less memory
+    return velocity, np.gradient(velocity, settings.Ts)

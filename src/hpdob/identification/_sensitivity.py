@@ -11,6 +11,7 @@ import numpy as np
 from .._validation import (
     ParameterValueError,
 )
+from ._lean import welch
 from ._regression import (
     MIN_ROWS,
     build_regression,
@@ -64,13 +65,22 @@ def excitation_bandwidth(run) -> float:
     :data:`EXCITATION_POWER` of the input's power lies (Welch), capped at the position's
     signal bandwidth (above it the input is the loop's response to the encoder's noise, not
     excitation: a PD's input on a coarse encoder)."""
-    from scipy.signal import welch
-
     u = run.u - np.mean(run.u)
-    f, p = welch(u, fs=1.0 / run.Ts, nperseg=min(u.size, 8192))
+    f, p = welch(u, fs=1.0 / run.Ts, nperseg=min(u.size, 8192))  # scipy's, bit for bit
+    del u
     power = np.cumsum(p)
     band = float(f[min(np.searchsorted(power, EXCITATION_POWER * power[-1]), f.size - 1)])
     return min(band, signal_bandwidth(run.theta, run.Ts))
+
+
+def squares(signals) -> np.ndarray:
+    """``np.concatenate(signals) ** 2`` in one new array (not two)."""
+    out = np.empty(sum(x.size for x in signals))
+    start = 0
+    for x in signals:
+        np.square(x, out=out[start : start + x.size])  # what ** 2 computes
+        start += x.size
+    return out
 
 
 def allowances(solution, layout, runs) -> dict:
@@ -78,7 +88,7 @@ def allowances(solution, layout, runs) -> dict:
     (:data:`SENSITIVITY_TOLERANCE`, :data:`B_FLOOR`, :data:`COULOMB_FLOOR`)."""
     J, b, coulomb, _ = layout.parameters(solution.estimate, 0)
     band = max(excitation_bandwidth(run) for run in runs)
-    rms = math.sqrt(np.mean(np.concatenate([run.u for run in runs]) ** 2))
+    rms = math.sqrt(np.mean(squares([run.u for run in runs])))
     tol = SENSITIVITY_TOLERANCE
     return {
         "J": tol["J"] * abs(J),

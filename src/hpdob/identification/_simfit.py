@@ -20,8 +20,8 @@ import numpy as np
 
 from .._validation import ParameterValueError, as_real, require_instance
 from ._log import Log
-from ._loop import FeedbackLoop, simulate_loop
-from ._regression import PARAMETERS, Settings, kinematics, resolve_settings
+from ._loop import FeedbackLoop, run_simulation
+from ._regression import PARAMETERS, Settings, filtered_velocity, resolve_settings
 
 __all__ = ["MIN_FIT", "SimulationFit", "Validation", "nrmse_fit", "simulate_fit", "validate"]
 
@@ -32,11 +32,14 @@ __all__ = ["MIN_FIT", "SimulationFit", "Validation", "nrmse_fit", "simulate_fit"
 MIN_FIT = 90.0
 
 
-def nrmse_fit(measured: np.ndarray, simulated: np.ndarray) -> float:
+def nrmse_fit(measured: np.ndarray, simulated: np.ndarray, *, spread=None, out=None) -> float:
     """``100 (1 - ||y - y_hat|| / ||y - mean(y)||)`` [%] (MATLAB ``compare``); -inf for a
-    constant ``y`` that is not matched exactly."""
-    spread = float(np.linalg.norm(measured - measured.mean()))
-    error = float(np.linalg.norm(measured - simulated))
+    constant ``y`` that is not matched exactly. ``spread``: ``||y - mean(y)||`` computed
+    before; ``out``: an array of ``y``'s size the difference may be written to (the same
+    numbers as numpy's temporary)."""
+    if spread is None:
+        spread = float(np.linalg.norm(measured - measured.mean()))
+    error = float(np.linalg.norm(np.subtract(measured, simulated, out=out)))
     if spread == 0.0:
         return 100.0 if error == 0.0 else -math.inf
     return 100.0 * (1.0 - error / spread)
@@ -70,22 +73,48 @@ def open_loop(u: np.ndarray) -> FeedbackLoop:
 
 
 def simulate_fit(
-    parameters, t: np.ndarray, theta: np.ndarray, u: np.ndarray, loop, settings: Settings
+    parameters,
+    t: np.ndarray,
+    theta: np.ndarray,
+    u: np.ndarray,
+    loop,
+    settings: Settings,
+    *,
+    keep: bool = True,
 ) -> SimulationFit:
     """Simulate ``parameters = (J, b, coulomb, offset)`` on a log (through ``loop``, or open
     loop from ``u`` if it is None) from the log's initial position and filtered velocity.
-    Negative friction is simulated as 0."""
+    Negative friction is simulated as 0. With ``keep=False`` the velocities are not kept
+    (None; the fits are the same numbers) and the run holds at most four arrays of the log's
+    length at a time, the simulated position and command among them."""
     J, b, coulomb, offset = (float(p) for p in parameters)
-    _, velocity, _ = kinematics(theta, settings)
+    velocity = filtered_velocity(theta, settings)  # kinematics(theta, settings)[1], bit for bit
     closed = loop is not None
-    simulated, u_simulated = simulate_loop(
-        loop if closed else open_loop(u),
+    velocity_spread = float(np.linalg.norm(velocity - velocity.mean()))
+    # the open loop: the logged input applied as it is (no feedback), feed-forward only; as
+    # open_loop(u) without its arrays of zeros
+    simulated, u_simulated = run_simulation(
+        loop if closed else u.size,
         (J, max(b, 0.0), max(coulomb, 0.0), offset),
         Ts=settings.Ts,
         theta0=float(theta[0]),
         velocity0=float(velocity[0]),
+        feedforward=None if closed else u,
+        command=keep or closed,
     )
-    _, velocity_simulated, _ = kinematics(simulated, settings)
+    position_fit = nrmse_fit(theta, simulated)  # before another array of the log's length
+    # the simulated position is not kept by an open-loop fit with keep=False: its velocity
+    # is written over it
+    velocity_simulated = filtered_velocity(simulated, settings, overwrite=not (keep or closed))
+    if not (keep or closed):
+        simulated = None
+    if not keep:
+        velocity_fit = nrmse_fit(velocity, velocity_simulated, spread=velocity_spread,
+                                 out=velocity_simulated)  # fmt: skip
+        return SimulationFit(t=t, theta=theta, theta_simulated=simulated, velocity=None,
+                             velocity_simulated=None, u_simulated=u_simulated,
+                             closed_loop=closed, position_fit=position_fit,
+                             velocity_fit=velocity_fit)  # fmt: skip
     return SimulationFit(
         t=t,
         theta=theta,
@@ -94,8 +123,8 @@ def simulate_fit(
         velocity_simulated=velocity_simulated,
         u_simulated=u_simulated,
         closed_loop=closed,
-        position_fit=nrmse_fit(theta, simulated),
-        velocity_fit=nrmse_fit(velocity, velocity_simulated),
+        position_fit=position_fit,
+        velocity_fit=nrmse_fit(velocity, velocity_simulated, spread=velocity_spread),
     )
 
 

@@ -11,9 +11,11 @@ import numpy as np
 
 from .._validation import (
     ParameterValueError,
+    readonly,
 )
 from ._design import MAX_CONDITION, Layout, check_design, scaled_condition
-from ._loop import FeedbackLoop, simulate_loop
+from ._lean import filtfilt, gradient_inplace
+from ._loop import FeedbackLoop, run_simulation
 from ._regression import (
     instrument_rows,
 )
@@ -131,12 +133,13 @@ def input_loop(theta: np.ndarray, u: np.ndarray, J: float, settings) -> Feedback
 
     omega = 2.0 * math.pi * INPUT_LOOP_FRACTION * settings.decimation_cutoff
     sos = signal.butter(2, omega / (2 * math.pi), fs=1.0 / settings.Ts, output="sos")
-    slow = signal.sosfiltfilt(sos, theta)
+    # sosfiltfilt and np.gradient bit for bit in less memory; read-only: the loop shares them
+    slow = readonly(filtfilt(sos, theta))
     return FeedbackLoop(
         slow,
         kp=J * omega**2,
         kd=2.0 * J * omega,
-        reference_velocity=np.gradient(slow, settings.Ts),
+        reference_velocity=readonly(gradient_inplace(slow.copy(), settings.Ts)),
         feedforward=u,
         velocity_filter=None,
     )
@@ -153,12 +156,19 @@ class Solution:
     converged: bool
 
 
+def _stacked(blocks: list) -> np.ndarray:
+    """``np.vstack(blocks)`` (``np.concatenate`` of vectors); one block as it is, not copied."""
+    if len(blocks) == 1:
+        return blocks[0]
+    return np.vstack(blocks) if blocks[0].ndim == 2 else np.concatenate(blocks)
+
+
 def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tolerance,
           report=None):  # fmt: skip
     """The estimate of one set of regressions: least squares, then the IV iteration
     (``report(k)`` after iteration ``k``, if given)."""
-    X = np.vstack([layout.columns(run.regression.X, i) for i, run in enumerate(runs)])
-    y = np.concatenate([run.regression.y - layout.known(run.regression.X) for run in runs])
+    X = _stacked([layout.columns(run.regression.X, i) for i, run in enumerate(runs)])
+    y = _stacked([run.regression.y - layout.known(run.regression.X) for run in runs])
     check_design(runs, layout, X)
     sizes = np.cumsum([0] + [run.regression.X.shape[0] for run in runs])
     logs = list(itertools.pairwise(sizes.tolist()))  # the row range of each log
@@ -177,10 +187,11 @@ def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tol
                 if through_loop
                 else input_loop(run.theta, run.u, parameters[0], run.settings)
             )
-            simulated, _ = simulate_loop(
+            simulated, _ = run_simulation(
                 loop, parameters, Ts=run.Ts, theta0=run.theta[0],
-                velocity0=float(run.regression.velocity[0]),
+                velocity0=run.regression.velocity0, command=False,
             )  # fmt: skip
+            del loop  # the input-driven loop's arrays: not beside the instruments
             if through_loop and iteration == 1:
                 mismatch = relative_error(run.theta, simulated)
                 if mismatch > MAX_LOOP_MISMATCH:
@@ -191,12 +202,14 @@ def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tol
                         "reference, gains, velocity filter and units"
                     )
             Z = instrument_rows(simulated, run.regression, run.settings)
+            del simulated
             if own_sign:
                 # sign(velocity) is its own instrument: noise changes it only near rest, and
                 # the simulated one jumps with every stick event (IV then does not converge)
                 Z[:, 2] = run.regression.X[:, 2]
             blocks.append(layout.columns(Z, i))
-        Z = np.vstack(blocks)
+        Z = _stacked(blocks)
+        del blocks
         try:
             if scaled_condition(Z) > MAX_CONDITION:
                 raise np.linalg.LinAlgError

@@ -1,0 +1,183 @@
+"""Forward-backward filtering and differences of long signals in blocks, bit for bit.
+
+:func:`filtfilt_blocks` gives ``scipy.signal.sosfiltfilt(sos, x)`` (odd padding, the default
+pad length) block by block, holding a block and the filter's state at each block's start
+instead of the padded signal and two filtered copies of it: the forward pass runs once to
+record those states and again, block by block from the end, in front of the backward pass.
+Both passes are ``scipy.signal.sosfilt`` with its state carried from block to block, the
+same recursion on the same numbers, so the result is the same to the last bit
+(``tests/identification/test_lean.py`` compares it with ``sosfiltfilt`` and ``np.gradient``).
+
+This keeps :func:`hpdob.identify` within two copies of a log (docs/performance.md, issue 25).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "BLOCK",
+    "SEGMENTS",
+    "decimated",
+    "filtfilt",
+    "filtfilt_blocks",
+    "gradient_block",
+    "gradient_inplace",
+    "pad_length",
+    "welch",
+]
+
+#: Samples per block (0.5 MB of float64); read when a function runs (None: this).
+BLOCK = 1 << 16
+#: Segments of :func:`welch`'s spectrogram computed at a time (None: this).
+SEGMENTS = 64
+
+
+def pad_length(sos: np.ndarray) -> int:
+    """``sosfiltfilt``'s default pad length for ``sos``: three times its number of taps."""
+    ntaps = 2 * sos.shape[0] + 1
+    ntaps -= min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+    return 3 * ntaps
+
+
+def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
+    """``scipy.signal.sosfiltfilt(sos, x)`` of a signal of ``n`` samples in blocks.
+
+    ``read(lo, hi)`` returns ``x[lo:hi]`` as float64 (it is called twice per block). Yields
+    ``(lo, hi, y)`` with ``y`` equal to ``sosfiltfilt(sos, x)[lo:hi]``, from the last block
+    to the first.
+
+    Raises
+    ------
+    ValueError
+        As ``sosfiltfilt``, if ``n`` is not above the pad length.
+    """
+    from scipy import signal
+
+    block = BLOCK if block is None else block
+    edge = pad_length(sos)
+    if n <= edge:
+        raise ValueError(
+            f"The length of the input vector x must be greater than padlen, which is {edge}."
+        )
+    # odd extension, as scipy.signal._arraytools.odd_ext
+    left = 2 * read(0, 1) - read(1, edge + 1)[::-1]
+    right = 2 * read(n - 1, n) - read(n - 1 - edge, n - 1)[::-1]
+    pieces = [(-edge, 0)] + [(lo, min(lo + block, n)) for lo in range(0, n, block)]
+    pieces.append((n, n + edge))
+
+    def get(lo, hi):
+        if lo < 0:
+            return left
+        if lo >= n:
+            return right
+        return read(lo, hi)
+
+    zi = signal.sosfilt_zi(sos)
+    state = zi * left[:1]
+    starts = []
+    for lo, hi in pieces:
+        starts.append(state)
+        y, state = signal.sosfilt(sos, get(lo, hi), zi=state)
+    back = zi * y[-1:]
+    for (lo, hi), start in zip(reversed(pieces), reversed(starts), strict=True):
+        y, _ = signal.sosfilt(sos, get(lo, hi), zi=start)  # the forward pass again
+        b, back = signal.sosfilt(sos, y[::-1], zi=back)
+        if 0 <= lo < n:
+            yield lo, hi, b[::-1]
+
+
+def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=None):
+    """``scipy.signal.sosfiltfilt(sos, x)`` of a 1-D float64 array, bit for bit, holding one
+    new array of ``x``'s size (``sosfiltfilt`` holds three, of the padded size), or none with
+    ``out=x``: a block is written only after the blocks before it were last read, and the
+    padding is built first."""
+    out = np.empty(x.size) if out is None else out
+    for lo, hi, y in filtfilt_blocks(sos, x.size, lambda a, b: x[a:b], block):
+        out[lo:hi] = y
+    return out
+
+
+def gradient_inplace(f: np.ndarray, dx: float, block: int | None = None) -> np.ndarray:
+    """Overwrite ``f`` (1-D float64, at least 2 samples) with ``np.gradient(f, dx)``, bit for
+    bit (central differences inside, one-sided at the ends), holding a block beside it."""
+    block = BLOCK if block is None else block
+    n = f.size
+    first = (f[1] - f[0]) / dx
+    last = (f[-1] - f[-2]) / dx
+    twice = 2.0 * dx
+    before = np.empty(min(block, n))
+    previous = f[0]  # f[lo - 1] before it was overwritten
+    for lo in range(1, n - 1, block):
+        hi = min(lo + block, n - 1)
+        m = hi - lo
+        before[0] = previous
+        before[1:m] = f[lo : hi - 1]
+        previous = f[hi - 1]
+        f[lo:hi] = (f[lo + 1 : hi + 1] - before[:m]) / twice
+    f[0] = first
+    f[-1] = last
+    return f
+
+
+def gradient_block(f: np.ndarray, lo: int, hi: int, dx: float) -> np.ndarray:
+    """``np.gradient(f, dx)[lo:hi]`` (1-D ``f`` of at least 2 samples), bit for bit."""
+    n = f.size
+    a, b = max(lo, 1), min(hi, n - 1)
+    out = np.empty(hi - lo)
+    if b > a:
+        out[a - lo : b - lo] = (f[a + 1 : b + 1] - f[a - 1 : b - 1]) / (2.0 * dx)
+    if lo == 0:
+        out[0] = (f[1] - f[0]) / dx
+    if hi == n:
+        out[-1] = (f[-1] - f[-2]) / dx
+    return out
+
+
+def decimated(sos: np.ndarray, n: int, read, factor: int, block: int | None = None) -> np.ndarray:
+    """``scipy.signal.sosfiltfilt(sos, x)[::factor]`` of the signal ``read`` gives (see
+    :func:`filtfilt_blocks`), holding blocks only."""
+    out = np.empty(-(-n // factor))
+    for lo, hi, y in filtfilt_blocks(sos, n, read, block):
+        first = -(-lo // factor) * factor  # the first multiple of factor at or after lo
+        out[first // factor : -(-hi // factor)] = y[first - lo :: factor]
+    return out
+
+
+def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int | None = None):
+    """``scipy.signal.welch(x, fs=fs, window=window, nperseg=nperseg)`` of a 1-D float64
+    array (its other defaults: half-overlapping segments, constant detrend, one-sided density,
+    mean), bit for bit, with the spectrogram computed ``segments`` segments at a time: it holds
+    the segments' periodograms (about ``x.size`` values) instead of their detrended, windowed
+    and transformed copies as well (four times as much).
+
+    ``window`` None is ``welch``'s default window. ``nperseg`` must not exceed ``x.size``.
+    """
+    import inspect
+
+    from scipy import signal
+
+    segments = SEGMENTS if segments is None else segments
+    if window is None:
+        window = inspect.signature(signal.welch).parameters["window"].default
+    n = x.size
+    if not 0 < nperseg <= n:
+        raise ValueError(f"nperseg must be from 1 to {n}, got {nperseg}")
+    noverlap = nperseg // 2
+    sft = signal.ShortTimeFFT(signal.get_window(window, nperseg), nperseg - noverlap, fs,
+                              fft_mode="onesided", mfft=nperseg, scale_to="psd",
+                              phase_shift=None)  # fmt: skip
+    count = (n - noverlap) // sft.hop  # as scipy.signal.csd
+    power = None
+    for a in range(0, count, segments):
+        b = min(a + segments, count)
+        block = sft.spectrogram(x, x, detr="constant", p0=a, p1=b, k_offset=nperseg // 2)
+        if power is None:
+            power = np.empty((block.shape[0], count))
+        power[:, a:b] = block
+    # csd's one-sided doubling and its mean over the segments, on the same layout
+    power = np.moveaxis(power, 0, -1)
+    power[..., 1 : -1 if sft.mfft % 2 == 0 else None] *= 2
+    power = np.moveaxis(power, -1, 0)
+    power = power.mean(axis=-1) if power.shape[-1] > 1 else power.reshape(power.shape[:-1])
+    return sft.f, power

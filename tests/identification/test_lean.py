@@ -1,0 +1,176 @@
+"""The block-wise filters and the regression built from them (issue 25: memory), bit for bit
+against scipy's ``sosfiltfilt``, numpy's ``gradient`` and the straightforward construction
+the regression had before (written out below as the reference)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from hpdob.identification._lean import (
+    decimated,
+    filtfilt,
+    gradient_block,
+    gradient_inplace,
+)
+from hpdob.identification._regression import (
+    REST_LENGTH,
+    REST_SPEED_FRACTION,
+    build_regression,
+    differentiate,
+    instrument_rows,
+    kinematics,
+    resolve_settings,
+    rows_inside_border,
+)
+
+FILTERS = {
+    "butter4": signal.butter(4, 0.05, output="sos"),
+    "cheby8": signal.cheby1(8, 0.05, 0.8 / 31, output="sos"),
+    "butter2-slow": signal.butter(2, 0.002, output="sos"),
+}
+
+
+def same_bits(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    if a.dtype != b.dtype or a.shape != b.shape:
+        return False
+    if a.dtype != np.float64:
+        return np.array_equal(a, b)
+    return np.array_equal(a.view(np.int64), b.view(np.int64))  # signed zeros, NaN payloads
+
+
+@pytest.mark.parametrize("name", sorted(FILTERS))
+@pytest.mark.parametrize("n", [61, 100, 4097, 20000])
+@pytest.mark.parametrize("block", [7, 64, 4096])
+def test_filtfilt_in_blocks_is_sosfiltfilt_bit_for_bit(name, n, block):
+    sos = FILTERS[name]
+    x = np.cumsum(np.random.default_rng(n).standard_normal(n))
+    if n <= 3 * (2 * sos.shape[0] + 1):
+        with pytest.raises(ValueError, match="padlen"):
+            filtfilt(sos, x, block)
+        return
+    reference = signal.sosfiltfilt(sos, x)
+    assert same_bits(filtfilt(sos, x, block), reference)
+    overwritten = x.copy()
+    assert filtfilt(sos, overwritten, block, out=overwritten) is overwritten
+    assert same_bits(overwritten, reference)  # in place: each block read before it is written
+    for factor in (1, 3, 31):
+        assert same_bits(decimated(sos, n, lambda lo, hi: x[lo:hi], factor, block),
+                         reference[::factor])  # fmt: skip
+
+
+@pytest.mark.parametrize("n", [2, 3, 5, 100, 4097])
+@pytest.mark.parametrize("block", [1, 7, 4096])
+def test_gradient_in_place_and_in_blocks_is_numpy_gradient(n, block):
+    x = np.random.default_rng(n).standard_normal(n)
+    reference = np.gradient(x, 1e-3)
+    assert same_bits(gradient_inplace(x.copy(), 1e-3, block), reference)
+    for lo, hi in ((0, n), (0, 1), (n - 1, n), (1, n - 1), (min(2, n - 1), n)):
+        assert same_bits(gradient_block(x, lo, hi, 1e-3), reference[lo:hi])
+
+
+# --- the regression as it was built before (issue 25), whole arrays at a time -------------
+
+
+def _decimate(x, factor):
+    if factor == 1:
+        return np.array(x, dtype=float)
+    sos = signal.cheby1(8, 0.05, 0.8 / factor, output="sos")
+    return signal.sosfiltfilt(sos, x, axis=0)[::factor]
+
+
+def _observation(velocity, acceleration):
+    return np.column_stack([acceleration, velocity, np.sign(velocity), np.ones_like(velocity)])
+
+
+def _rest_rows_mask(velocity, index, length, margin):
+    speed = np.abs(velocity)
+    rest_speed = REST_SPEED_FRACTION * float(speed[index].max()) if index.size else 0.0
+    slow = speed < rest_speed
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], slow.astype(np.int8), [0]])))
+    starts, stops = edges[0::2], edges[1::2]
+    long = stops - starts > length
+    resting = np.zeros(speed.size + 1, dtype=np.int64)
+    np.add.at(resting, np.maximum(starts[long] - margin, 0), 1)
+    np.add.at(resting, np.minimum(stops[long] + margin, speed.size), -1)
+    return np.cumsum(resting)[:-1][index] > 0, rest_speed
+
+
+def reference_regression(theta, u, settings):
+    """The construction before issue 25's memory work: full-rate arrays throughout."""
+    _, velocity, acceleration = kinematics(theta, settings)
+    X = _decimate(_observation(velocity, acceleration), settings.decimation)
+    if settings.zoh:
+        u = np.concatenate([u[:1], 0.5 * (u[1:] + u[:-1])])
+    y = _decimate(u, settings.decimation)
+    index = rows_inside_border(theta.size, settings)
+    inside = index // settings.decimation
+    kept = np.ones(index.size, dtype=bool)
+    width = 4 * settings.decimation + 1
+    if settings.min_speed > 0.0:
+        slow = (np.abs(velocity) < settings.min_speed).astype(float)
+        kept = ~(np.convolve(slow, np.ones(width), mode="same") > 0.5)[index]
+    rest_speed, rest_rows = 0.0, 0
+    if settings.rests:
+        resting, rest_speed = _rest_rows_mask(
+            velocity, index, REST_LENGTH * settings.decimation, width // 2
+        )
+        rest_rows = int(np.count_nonzero(resting & kept))
+        kept &= ~resting
+    return {
+        "X": X[inside][kept], "y": y[inside][kept], "index": index[kept],
+        "velocity": velocity[index[kept]], "kept": kept, "rest_speed": rest_speed,
+        "rest_rows": rest_rows, "velocity0": float(velocity[0]),
+        "max_speed": float(np.max(np.abs(velocity))),
+    }  # fmt: skip
+
+
+def _log(n=150_000, Ts=1e-3, seed=3):
+    """A quantised two-sine motion with rests and a noisy input (synthetic, seeded); longer
+    than two blocks of the block-wise filters."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * Ts
+    q = 0.4 * np.sin(2 * np.pi * 0.4 * t) + 0.1 * np.sin(2 * np.pi * 2.3 * t)
+    q = np.where((t % 20.0) < 3.0, q[0], q)  # rests of 3 s
+    q = np.round(q / 1e-3) * 1e-3
+    u = np.gradient(np.gradient(q, Ts), Ts) + 0.01 * rng.standard_normal(n)
+    return q, u
+
+
+CASES = {
+    "benchmark rules": {},
+    "auto (zoh, rests)": {"zoh": True, "rests": True, "bandwidth": 6.5},
+    "min_speed": {"min_speed": 0.05},
+    "min_speed and rests": {"min_speed": 0.05, "rests": True, "zoh": True},
+    "decimation 1": {"decimation": 1, "cutoff": 30.0, "border": 60, "rests": True},
+    "decimation 3": {"decimation": 3, "cutoff": 150.0, "zoh": True},
+}
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_regression_is_the_straightforward_construction_bit_for_bit(case):
+    theta, u = _log()
+    settings = resolve_settings(1e-3, **CASES[case])
+    got = build_regression(theta, u, settings)
+    want = reference_regression(theta, u, settings)
+    for name, value in want.items():
+        assert same_bits(getattr(got, name), value), name
+    # the instruments of another trace on the same rows
+    other = theta + 1e-4 * np.sin(np.arange(theta.size))
+    _, velocity, acceleration = kinematics(other, settings)
+    full = _decimate(_observation(velocity, acceleration), settings.decimation)
+    inside = rows_inside_border(other.size, settings) // settings.decimation
+    assert same_bits(instrument_rows(other, got, settings), full[inside][got.kept])
+
+
+def test_differentiate_is_the_filtered_kinematics_bit_for_bit():
+    theta, _ = _log(20000)
+    settings = resolve_settings(1e-3, cutoff=25.0, decimation=1, border=0)
+    _, velocity, acceleration = kinematics(theta, settings)
+    got = differentiate(theta, 1e-3, cutoff=25.0)
+    assert same_bits(got[0], velocity) and same_bits(got[1], acceleration)
+    assert math.isfinite(float(got[1].sum()))
