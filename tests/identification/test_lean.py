@@ -55,9 +55,6 @@ def test_filtfilt_in_blocks_is_sosfiltfilt_bit_for_bit(name, n, block):
         return
     reference = signal.sosfiltfilt(sos, x)
     assert same_bits(filtfilt(sos, x, block), reference)
-    overwritten = x.copy()
-    assert filtfilt(sos, overwritten, block, out=overwritten) is overwritten
-    assert same_bits(overwritten, reference)  # in place: each block read before it is written
     for factor in (1, 3, 31):
         assert same_bits(decimated(sos, n, lambda lo, hi: x[lo:hi], factor, block),
                          reference[::factor])  # fmt: skip

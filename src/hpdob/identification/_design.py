@@ -67,10 +67,7 @@ class Layout:
         return len(self.free) + self.n_offsets
 
     def columns(self, M: np.ndarray, run: int) -> np.ndarray:
-        """The estimated columns of run ``run`` from its rows ``[qdd, qd, sign(qd), 1]`` (``M``
-        itself when those are all four, in order: the same numbers, not a copy)."""
-        if self.free == (0, 1, 2) and self.offset_column(run) == 3 and M.shape[1] == 4:
-            return M
+        """The estimated columns of run ``run`` from its rows ``[qdd, qd, sign(qd), 1]``."""
         out = np.zeros((M.shape[0], self.size))
         out[:, : len(self.free)] = M[:, list(self.free)]
         column = self.offset_column(run)

@@ -87,12 +87,10 @@ def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
             yield lo, hi, b[::-1]
 
 
-def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=None):
+def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None) -> np.ndarray:
     """``scipy.signal.sosfiltfilt(sos, x)`` of a 1-D float64 array, bit for bit, holding one
-    new array of ``x``'s size (``sosfiltfilt`` holds three, of the padded size), or none with
-    ``out=x``: a block is written only after the blocks before it were last read, and the
-    padding is built first."""
-    out = np.empty(x.size) if out is None else out
+    new array of ``x``'s size (``sosfiltfilt`` holds three, of the padded size)."""
+    out = np.empty(x.size)
     for lo, hi, y in filtfilt_blocks(sos, x.size, lambda a, b: x[a:b], block):
         out[lo:hi] = y
     return out

@@ -103,11 +103,7 @@ def simulate_fit(
         command=keep or closed,
     )
     position_fit = nrmse_fit(theta, simulated)  # before another array of the log's length
-    # the simulated position is not kept by an open-loop fit with keep=False: its velocity
-    # is written over it
-    velocity_simulated = filtered_velocity(simulated, settings, overwrite=not (keep or closed))
-    if not (keep or closed):
-        simulated = None
+    velocity_simulated = filtered_velocity(simulated, settings)
     if not keep:
         velocity_fit = nrmse_fit(velocity, velocity_simulated, spread=velocity_spread,
                                  out=velocity_simulated)  # fmt: skip
