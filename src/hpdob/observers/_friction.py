@@ -85,7 +85,7 @@ class CoulombFriction:
     deadband : float, optional
         :math:`d` [rad/s], non-negative: the dead zone on that velocity
         (:func:`coulomb_torque`), e.g. the velocity resolution of the measurement path
-        (:func:`hpdob.observers.encoder_velocity_resolution`). Default 0: none.
+        (:func:`hpdob.observers.coulomb_velocity_resolution`). Default 0: none.
 
     Examples
     --------
