@@ -9,19 +9,16 @@ import math
 import numpy as np
 import pytest
 
+from force_step import force_step_run  # tests/force_step.py
 from hpdob import (
-    Environment,
     LinearObserver,
     Observer,
     ParameterTypeError,
     ParameterValueError,
-    ServoLoop,
     ServoModel,
     design_observer,
     paper,
-    simulate,
 )
-from hpdob.controllers import ForceControl
 from hpdob.export import fixed_point_design
 from hpdob.observers import CoulombFriction, coulomb_torque, outputs, reaction_torque_observer
 
@@ -29,17 +26,6 @@ TS = paper.TS
 MODEL = paper.NOMINAL.discretize(TS)
 PLANT = paper.PLANT  # c = 0.01 N m, v = 0.01 rad/s, b = 5e-5 N m s/rad
 DELTA_B = PLANT.b - paper.NOMINAL.b
-
-
-def _run(observer, duration=0.6):
-    loop = ServoLoop(plant=PLANT.replace(environment=Environment(10.0)), nominal=paper.NOMINAL,
-                     Ts=TS, observer=observer, controller=ForceControl(1000.0, kv=40.0),
-                     sensor=paper.VIRTUAL_SENSOR, actuator=paper.VIRTUAL_ACTUATOR)  # fmt: skip
-
-    def reference(t):
-        return np.where(t >= 0.1, 0.05, 0.0), 0 * t, 0 * t
-
-    return simulate(loop, reference=reference, duration=duration, x0=(-0.01, 0.0))
 
 
 def test_coulomb_torque_is_the_plants_shape():
@@ -68,7 +54,7 @@ def test_tau_reac_is_the_literal_equation():
     dob = design_observer(MODEL, order=1, bandwidth=100.0)
     both = reaction_torque_observer(dob, friction=PLANT, velocity_filter=100.0)
     assert both.outputs == ("tau_hat", "omega_hat", "tau_reac") and both.n_states == 3
-    result = _run(both)
+    result = force_step_run(both)
     alone = Observer.of(dob)
     alone.reset((-0.01, 0.0))
     a, w = math.exp(-100.0 * TS), 0.0
@@ -91,7 +77,7 @@ def test_kernel_and_python_runtime_agree_bit_for_bit(velocity_filter):
     same measurements and commands) to the last bit: one definition of the Coulomb term."""
     dob = design_observer(MODEL, order=1, bandwidth=100.0)
     both = reaction_torque_observer(dob, friction=PLANT, velocity_filter=velocity_filter)
-    result = _run(both, duration=0.3)
+    result = force_step_run(both, duration=0.3)
     runtime = Observer.of(both)
     runtime.reset((-0.01, 0.0))
     state = runtime.state

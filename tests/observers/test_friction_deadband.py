@@ -12,17 +12,14 @@ import math
 import numpy as np
 import pytest
 
+from force_step import force_step_run  # tests/force_step.py
 from hpdob import (
-    Environment,
     Observer,
     ParameterTypeError,
     ParameterValueError,
-    ServoLoop,
     design_observer,
     paper,
-    simulate,
 )
-from hpdob.controllers import ForceControl
 from hpdob.observers import (
     CoulombFriction,
     coulomb_torque,
@@ -149,17 +146,6 @@ def test_a_count_train_moves_the_term_by_at_most_the_derived_bound(every):
         assert bound < 0.1 * 0.01
 
 
-def _run(observer, duration=0.6):
-    loop = ServoLoop(plant=PLANT.replace(environment=Environment(10.0)), nominal=paper.NOMINAL,
-                     Ts=TS, observer=observer, controller=ForceControl(1000.0, kv=40.0),
-                     sensor=paper.VIRTUAL_SENSOR, actuator=paper.VIRTUAL_ACTUATOR)  # fmt: skip
-
-    def reference(t):
-        return np.where(t >= 0.1, 0.05, 0.0), 0 * t, 0 * t
-
-    return simulate(loop, reference=reference, duration=duration, x0=(-0.01, 0.0))
-
-
 def test_no_dead_band_is_the_old_term_bit_for_bit():
     """coulomb_deadband = 0 builds the same observer (matrices and term) as leaving it out, and
     the kernel's run is the same to the last bit."""
@@ -168,7 +154,7 @@ def test_no_dead_band_is_the_old_term_bit_for_bit():
     assert new.coulomb == old.coulomb == CoulombFriction(0.01, 0.01, "omega_hat")
     for name in ("F", "G", "H", "E", "N"):
         np.testing.assert_array_equal(getattr(new, name), getattr(old, name))
-    a, b = _run(old), _run(new)
+    a, b = force_step_run(old), force_step_run(new)
     for name in ("tau_reac", "tau_contact", "u", "theta"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
 
@@ -177,7 +163,7 @@ def test_kernel_and_python_runtime_agree_bit_for_bit_with_the_dead_band():
     """The compiled kernel's tau_reac is the Python runtime's to the last bit with a dead band,
     on a trace where the velocity is inside the band at some samples and beyond at others."""
     both = _rtob(RESOLUTION)
-    result = _run(both, duration=0.4)
+    result = force_step_run(both, duration=0.4)
     runtime = Observer.of(both)
     runtime.reset((-0.01, 0.0))
     tau_reac = []
