@@ -102,8 +102,9 @@ def _peak(args: list, out) -> int:
     return peak
 
 
-def copies(tmp_path, command: list, files: dict, read: int, *, n0=N0_IDENTIFY,
-           n1=N1_IDENTIFY) -> float:
+def copies(
+    tmp_path, command: list, files: dict, read: int, *, n0=N0_IDENTIFY, n1=N1_IDENTIFY
+) -> float:
     """The slope of the command's peak against its log, in copies (module docstring).
 
     ``files``: name -> (suffix, seed, way) of the logs the command's ``command`` words name
