@@ -158,7 +158,12 @@ TARGETS = {
         "derived_reset or pyadrc or place_design or test_external",
     ),
     "observers.friction": Target(
-        "src/hpdob/observers/_friction.py", ("tests/observers/test_friction.py",)
+        "src/hpdob/observers/_friction.py",
+        (
+            "tests/observers/test_friction_mutants.py",
+            "tests/observers/test_friction.py",
+            "tests/observers/test_friction_deadband.py",
+        ),
     ),
     "models.servo": Target("src/hpdob/models/_servo.py", ("tests/models/test_servo.py",)),
     "models.two_mass": Target("src/hpdob/models/_two_mass.py", ("tests/models/test_two_mass.py",)),
