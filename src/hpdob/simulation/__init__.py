@@ -16,10 +16,15 @@ PlantType, register_plant_type, unregister_plant_type, plant_types, get_plant_ty
     which loop runs it (the N-joint arms register theirs from :mod:`hpdob.robots`).
 sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
+build_loop_extension, LoopBuildError, AheadOfTimeWarning
+    A run structure's sample loop built ahead of time with ``numba.pycc`` (opt-in), which
+    :func:`simulate` runs in a later process without numba.
 """
 
 from ..controllers import PD as PD  # the PD lives in hpdob.controllers; kept importable here
 from . import _canonical as canonical  # noqa: F401 (the paper's set-up as one namespace)
+from ._aot import AheadOfTimeWarning
+from ._aot_build import LoopBuildError, build_loop_extension
 from ._devices import Actuator, Encoder
 from ._force_run import force_reference as force_reference
 from ._force_run import force_run_columns as force_run_columns
@@ -73,7 +78,9 @@ def __getattr__(name: str):
 __all__ = [
     "LOOP_KEYS",
     "Actuator",
+    "AheadOfTimeWarning",
     "Encoder",
+    "LoopBuildError",
     "PlantType",
     "Scenario",
     "ServoLoop",
@@ -81,6 +88,7 @@ __all__ = [
     "SimulationResult",
     "SweepIncomplete",
     "SweepInterrupted",
+    "build_loop_extension",
     "get_plant_type",
     "load_scenario",
     "plant_types",
