@@ -183,21 +183,37 @@ def _listing(folder: Path) -> frozenset:
     return names
 
 
+def record_path(path: Path) -> Path:
+    """The file beside extension ``path`` holding its size and SHA-256 (:func:`file_record`)."""
+    return path.with_name(path.name[: -len(SUFFIX)] + ".sha256")
+
+
+def file_record(path: Path) -> str:
+    """``"<size> <sha256>"`` of the file at ``path``."""
+    data = path.read_bytes()
+    return f"{len(data)} {hashlib.sha256(data).hexdigest()}"
+
+
 def load_extension(path: Path):
     """The ``run`` function of the extension at ``path`` (its module named as the file), or
-    None with an :class:`AheadOfTimeWarning` if it cannot be loaded (a corrupt file, one built
-    for another module name)."""
+    None with an :class:`AheadOfTimeWarning` if it cannot be loaded: its size and SHA-256 are
+    not those its build recorded (:func:`record_path`; loading a truncated shared object can
+    crash the process, so it is checked first), or the import fails (one built for another
+    module name)."""
     with _LOCK:
         if path in _LOADED:
             return _LOADED[path]
         name = path.name[: -len(SUFFIX)]
         try:
+            recorded = record_path(path).read_text(encoding="ascii").strip()
+            if file_record(path) != recorded:
+                raise ImportError("its size or SHA-256 is not the one its build recorded")
             loader = importlib.machinery.ExtensionFileLoader(name, str(path))
             spec = importlib.util.spec_from_file_location(name, path, loader=loader)
             module = importlib.util.module_from_spec(spec)
             loader.exec_module(module)
             function = module.run
-        except (ImportError, OSError, AttributeError) as error:
+        except (ImportError, OSError, AttributeError, UnicodeDecodeError) as error:
             warnings.warn(
                 f"the built sample loop {path} could not be loaded ({error}); the run uses "
                 "the JIT-compiled loop (delete the file, or build it again with "
