@@ -23,8 +23,6 @@ build_loop_extension, LoopBuildError, AheadOfTimeWarning
 
 from ..controllers import PD as PD  # the PD lives in hpdob.controllers; kept importable here
 from . import _canonical as canonical  # noqa: F401 (the paper's set-up as one namespace)
-from ._aot import AheadOfTimeWarning
-from ._aot_build import LoopBuildError, build_loop_extension
 from ._devices import Actuator, Encoder
 from ._force_run import force_reference as force_reference
 from ._force_run import force_run_columns as force_run_columns
@@ -67,11 +65,20 @@ from ._sweep import SweepIncomplete, SweepInterrupted, sweep
 def __getattr__(name: str):
     """``program_row`` (hpdob-internal, for the robots' kernel), imported on first use: it is
     compiled by numba, and importing numba (~0.3 s) is for the first simulation, not for every
-    user of a loop, an analysis or the paper's set-up."""
+    user of a loop, an analysis or the paper's set-up; the ahead-of-time build's names
+    likewise (its modules are for the few who build a loop)."""
     if name == "program_row":
         from ._kernel import program_row
 
         return program_row
+    if name in ("build_loop_extension", "LoopBuildError"):  # not needed by ``import hpdob``
+        from . import _aot_build
+
+        return getattr(_aot_build, name)
+    if name == "AheadOfTimeWarning":
+        from ._aot import AheadOfTimeWarning
+
+        return AheadOfTimeWarning
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

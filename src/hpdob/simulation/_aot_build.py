@@ -69,87 +69,88 @@ def build_loop_extension(
     timeout: float = 600.0,
 ) -> Path:
     r"""Build the sample loop of ``loop``'s runs ahead of time, so that :func:`~hpdob.simulate`
-        runs it in a later process without numba.
+    runs it in a later process without numba.
 
-        :func:`~hpdob.simulate` compiles a loop per run *structure* with numba and caches its
-        machine code, but every process that loads it first initialises numba (~0.3 s with its
-        import, docs/performance.md). This function generates the same loop source the JIT path
-        compiles, for the structure and argument types of ``simulate(loop, reference=reference,
-        disturbance=disturbance, duration=duration, substeps=substeps, x0=x0)``, and builds it with
-        ``numba.pycc`` into a C extension in ``folder``. A later :func:`~hpdob.simulate` of a run
-        of the same structure (the same loop parts and sensor mode, the same kind of disturbance
-        and any ``duration``, ``x0``, gains or bandwidths that keep the program's shape) finds it
-        there, checks that every argument has the type it was built for and calls it, without
-        importing numba; its results are bit for bit the JIT loop's. Any other run, sweeps and
-        ``tune()`` (whose threads need the JIT loop's ``nogil``) run the JIT loop.
+    :func:`~hpdob.simulate` compiles a loop per run *structure* with numba and caches its
+    machine code, but every process that loads it first initialises numba (~0.3 s with its
+    import, docs/performance.md). This function generates the same loop source the JIT path
+    compiles, for the structure and argument types of ``simulate(loop, reference=reference,
+    disturbance=disturbance, duration=duration, substeps=substeps, x0=x0)``, and builds it with
+    ``numba.pycc`` into a C extension in ``folder``. A later :func:`~hpdob.simulate` of a run
+    of the same structure (the same loop parts and sensor mode, the same kind of disturbance
+    and any ``duration``, ``x0``, gains or bandwidths that keep the program's shape) finds it
+    there, checks that every argument has the type it was built for and calls it, without
+    importing numba; its results are bit for bit the JIT loop's. Any other run, sweeps and
+    ``tune()`` (whose threads need the JIT loop's ``nogil``) run the JIT loop.
 
-        The extension's name is a hash of the generated source, the argument types and the numba,
-        numpy and Python versions and the platform: a change of any (a new hpdob or numba) builds
-        and uses a new one. It is built in a temporary folder inside ``folder`` and renamed into
-        place, its size and SHA-256 recorded beside it (a run checks both before loading it), so
-    an interrupted or failed build leaves no file a run would load. Set
-        ``HPDOB_AOT=0`` to have :func:`~hpdob.simulate` ignore built loops.
+    The extension's name is a hash of the generated source, the argument types and the numba,
+    numpy and Python versions and the platform: a change of any (a new hpdob or numba) builds
+    and uses a new one. It is built in a temporary folder inside ``folder`` and renamed into
+    place, its size and SHA-256 recorded beside it (a run checks both before loading it), so
+    an interrupted or failed build leaves no file a run would load. Set ``HPDOB_AOT=0`` to
+    have :func:`~hpdob.simulate` ignore built loops.
 
-        ``numba.pycc`` is *pending deprecation* in numba (since 0.57; numba's deprecation notices
-        promise deprecation warnings and two releases before removal). Where it is gone the build
-        raises :class:`LoopBuildError` and :func:`~hpdob.simulate` runs the JIT loop, as before.
+    ``numba.pycc`` is *pending deprecation* in numba (since 0.57; numba's deprecation notices
+    promise deprecation warnings and two releases before removal). Where it is gone the build
+    raises :class:`~hpdob.simulation.LoopBuildError` and :func:`~hpdob.simulate` runs the JIT
+    loop, as before.
 
-        Parameters
-        ----------
-        loop : ServoLoop
-            The loop (plant, nominal model, ``Ts``, controller, observer, sensor, actuator); or its
-            parts as keyword arguments (:data:`hpdob.simulation.LOOP_KEYS`). A plant advanced from
-            Python (MuJoCo) runs no compiled loop and is rejected.
-        reference : Signal or callable
-            The runs' reference, as for :func:`~hpdob.simulate`.
-        disturbance : callable, optional
-            The runs' disturbance, as for :func:`~hpdob.simulate` (its kind decides how the loop
-            evaluates it).
-        duration : float, optional
-            A duration of the runs [s] (it does not change the loop); default ``10 Ts``.
-        substeps : int, optional
-            Plant sub-steps per sample, as for :func:`~hpdob.simulate`.
-        x0 : sequence of 2 floats, optional
-            Initial motor state ``[theta (rad), omega (rad/s)]``, as for :func:`~hpdob.simulate`.
-        folder : str or path-like, optional
-            Where the extension is written and where :func:`~hpdob.simulate` looks: default
-            ``$HPDOB_AOT_DIR``, else ``~/.cache/hpdob/aot`` (``$XDG_CACHE_HOME/hpdob/aot``).
-            :func:`~hpdob.simulate` looks only in that default, so a build into another folder is
-            used by processes that set ``HPDOB_AOT_DIR`` to it.
-        compiler : str or list of str, optional
-            The C compiler command (``"clang"``, ``["gcc", "-O2"]``), also used for numba's C++
-            runtime and the link unless ``cxx_compiler`` is given; ``"zig"``: the ``ziglang``
-            package's ``zig cc`` and ``zig c++`` (no compiler installed on the machine needed).
-            Default: ``$CC``, else the one ``setuptools`` finds.
-        cxx_compiler : str or list of str, optional
-            The C++ compiler command, for numba's runtime and the link (with ``compiler``).
-        timeout : float, optional
-            Seconds the build may take before it is stopped (default 600).
+    Parameters
+    ----------
+    loop : ServoLoop
+        The loop (plant, nominal model, ``Ts``, controller, observer, sensor, actuator); or its
+        parts as keyword arguments (:data:`hpdob.simulation.LOOP_KEYS`). A plant advanced from
+        Python (MuJoCo) runs no compiled loop and is rejected.
+    reference : Signal or callable
+        The runs' reference, as for :func:`~hpdob.simulate`.
+    disturbance : callable, optional
+        The runs' disturbance, as for :func:`~hpdob.simulate` (its kind decides how the loop
+        evaluates it).
+    duration : float, optional
+        A duration of the runs [s] (it does not change the loop); default ``10 Ts``.
+    substeps : int, optional
+        Plant sub-steps per sample, as for :func:`~hpdob.simulate`.
+    x0 : sequence of 2 floats, optional
+        Initial motor state ``[theta (rad), omega (rad/s)]``, as for :func:`~hpdob.simulate`.
+    folder : str or path-like, optional
+        Where the extension is written and where :func:`~hpdob.simulate` looks: default
+        ``$HPDOB_AOT_DIR``, else ``~/.cache/hpdob/aot`` (``$XDG_CACHE_HOME/hpdob/aot``).
+        :func:`~hpdob.simulate` looks only in that default, so a build into another folder is
+        used by processes that set ``HPDOB_AOT_DIR`` to it.
+    compiler : str or list of str, optional
+        The C compiler command (``"clang"``, ``["gcc", "-O2"]``), also used for numba's C++
+        runtime and the link unless ``cxx_compiler`` is given; ``"zig"``: the ``ziglang``
+        package's ``zig cc`` and ``zig c++`` (no compiler installed on the machine needed).
+        Default: ``$CC``, else the one ``setuptools`` finds.
+    cxx_compiler : str or list of str, optional
+        The C++ compiler command, for numba's runtime and the link (with ``compiler``).
+    timeout : float, optional
+        Seconds the build may take before it is stopped (default 600).
 
-        Returns
-        -------
-        pathlib.Path
-            The extension's file (already there and not rebuilt if the same loop was built).
+    Returns
+    -------
+    pathlib.Path
+        The extension's file (already there and not rebuilt if the same loop was built).
 
-        Raises
-        ------
-        TypeError, ValueError
-            For arguments of the wrong type or value, with the parameter named (the run's
-            arguments are checked as :func:`~hpdob.simulate` checks them).
-        LoopBuildError
-            If ``numba.pycc`` (it needs numba, ``setuptools``: the ``aot`` extra, and a C compiler)
-            or the compiler fails, or the build times out; nothing is written.
+    Raises
+    ------
+    TypeError, ValueError
+        For arguments of the wrong type or value, with the parameter named (the run's
+        arguments are checked as :func:`~hpdob.simulate` checks them).
+    LoopBuildError
+        If ``numba.pycc`` (it needs numba, ``setuptools``: the ``aot`` extra, and a C compiler)
+        or the compiler fails, or the build times out; no extension is written.
 
-        Examples
-        --------
-        Build the canonical loop once (a few seconds), then a later process's first
-        ``simulate(**kw)`` of that structure runs it without importing numba:
+    Examples
+    --------
+    Build the canonical loop once (a few seconds), then a later process's first
+    ``simulate(**kw)`` of that structure runs it without importing numba:
 
-        >>> from hpdob import paper
-        >>> from hpdob.simulation import build_loop_extension
-        >>> kw = paper.scenario()
-        >>> kw["observer"] = paper.observer("HPDOb-100").design
-        >>> path = build_loop_extension(**kw, compiler="zig")  # doctest: +SKIP
+    >>> from hpdob import paper
+    >>> from hpdob.simulation import build_loop_extension
+    >>> kw = paper.scenario()
+    >>> kw["observer"] = paper.observer("HPDOb-100").design
+    >>> path = build_loop_extension(**kw, compiler="zig")  # doctest: +SKIP
     """
     if not isinstance(loop, ServoLoop):
         raise ParameterTypeError(f"loop must be a ServoLoop, got {type(loop).__name__}")
