@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shlex
 import shutil
 import subprocess
@@ -226,7 +227,10 @@ def _compile(work: Path, command: tuple | None, timeout: float) -> None:
     except subprocess.TimeoutExpired as error:
         raise LoopBuildError(f"the build took longer than timeout={timeout:g} s") from error
     if done.returncode != 0:
-        tail = "\n".join((done.stderr or done.stdout).strip().splitlines()[-60:])
+        lines = (done.stderr or done.stdout).strip().splitlines()
+        errors = [line for line in lines if re.match(r"[\w.]+(Error|Exception): ", line)]
+        reason = errors[-1] if errors else lines[-1] if lines else "no output"
+        tail = "\n".join(lines[-60:])
         raise LoopBuildError(
-            f"numba.pycc failed to build the loop (exit {done.returncode}):\n{tail}"
+            f"numba.pycc failed to build the loop (exit {done.returncode}): {reason}\n{tail}"
         )
