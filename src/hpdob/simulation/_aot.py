@@ -213,6 +213,21 @@ def file_record(path: Path) -> str:
     return f"{len(data)} {hashlib.sha256(data).hexdigest()}"
 
 
+def intact(path: Path) -> bool:
+    """Whether the extension at ``path`` has the size and SHA-256 its build recorded."""
+    try:
+        return file_record(path) == record_path(path).read_text(encoding="ascii").strip()
+    except (OSError, UnicodeDecodeError):
+        return False
+
+
+def forget(path: Path) -> None:
+    """Let the next :func:`load_extension` of ``path`` try again (after a new build)."""
+    with _LOCK:
+        if _LOADED.get(path, 0) is None:
+            del _LOADED[path]
+
+
 def load_extension(path: Path):
     """The ``run`` function of the extension at ``path`` (its module named as the file), or
     None with an :class:`AheadOfTimeWarning` if it cannot be loaded: its size and SHA-256 are
@@ -224,15 +239,14 @@ def load_extension(path: Path):
             return _LOADED[path]
         name = path.name[: -len(SUFFIX)]
         try:
-            recorded = record_path(path).read_text(encoding="ascii").strip()
-            if file_record(path) != recorded:
+            if not intact(path):
                 raise ImportError("its size or SHA-256 is not the one its build recorded")
             loader = importlib.machinery.ExtensionFileLoader(name, str(path))
             spec = importlib.util.spec_from_file_location(name, path, loader=loader)
             module = importlib.util.module_from_spec(spec)
             loader.exec_module(module)
             function = module.run
-        except (ImportError, OSError, AttributeError, UnicodeDecodeError) as error:
+        except (ImportError, OSError, AttributeError) as error:
             warnings.warn(
                 f"the built sample loop {path} could not be loaded ({error}); the run uses "
                 "the JIT-compiled loop (delete the file, or build it again with "

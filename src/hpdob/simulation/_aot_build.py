@@ -181,7 +181,7 @@ def build_loop_extension(
     target = _aot.extension_folder(folder)
     name = _aot.extension_name(seen["source"], seen["types"])
     path = target / (name + _aot.SUFFIX)
-    if path.is_file() and _aot.load_extension(path) is not None:
+    if path.is_file() and _aot.intact(path):
         return path
     target.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=".build-", dir=target))  # same file system: rename
@@ -199,6 +199,7 @@ def build_loop_extension(
         record.write_text(_aot.file_record(built), encoding="ascii")
         os.replace(record, _aot.record_path(path))
         os.replace(built, path)
+        _aot.forget(path)  # a file this process could not load before: try the new one
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return path
