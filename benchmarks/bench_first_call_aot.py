@@ -44,8 +44,8 @@ original = _kernel.run_samples
 
 
 def spy(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, out, work, limit,
-        midpoint=None):
-    structure = _kernel.loop_structure(plant, ctl, sen, obs, sig, work.x.shape[0], midpoint)
+        midpoint=None, errors=False):
+    structure = _kernel.run_structure(plant, ctl, sen, act, obs, sig, work, midpoint, errors)
     kernel, fields = _kernel.sample_loop(structure)
     records = {"plant": plant, "ctl": ctl, "sen": sen, "act": act, "obs": obs, "sig": sig,
                "out": out, "work": work}
@@ -60,6 +60,7 @@ def spy(k_start, k_stop, substeps, Ts, plant, ctl, sen, act, obs, sig, out, work
 
 
 _kernel.run_samples = spy
+os.environ["HPDOB_AOT"] = "0"  # the JIT loop (not one built by hpdob.simulation)
 simulate(loop, reference=kw["reference"], disturbance=kw["disturbance"],
          duration=kw["duration"])
 from pathlib import Path

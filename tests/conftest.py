@@ -3,12 +3,27 @@
 from __future__ import annotations
 
 import contextlib
+import os
+import shutil
+import tempfile
 import warnings
 
 import numpy as np
 import pytest
 
 from hpdob import ServoModel
+
+# simulate runs a loop built ahead of time from $HPDOB_AOT_DIR (default ~/.cache/hpdob/aot):
+# the suite (and the processes it starts) looks in a folder of its own, so that neither a
+# user's built loops nor the docs' example build changes which loop a test runs.
+_AOT_FOLDER = tempfile.mkdtemp(prefix="hpdob-aot-tests-")
+os.environ["HPDOB_AOT_DIR"] = _AOT_FOLDER
+os.environ.pop("HPDOB_AOT", None)
+
+
+def pytest_unconfigure(config):
+    shutil.rmtree(_AOT_FOLDER, ignore_errors=True)
+
 
 # The paper's set-up (section IV): Maxon EC 90 flat class motor, Ts = 1 ms.
 PAPER_J = 3.06e-4  # kg m^2

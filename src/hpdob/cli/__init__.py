@@ -34,6 +34,7 @@ __all__ = ["CLIError", "main"]
 _COMMANDS = (
     "_reproduce",
     "_simulate",
+    "_build_loop",
     "_sweep",
     "_design",
     "_export_c",

@@ -16,6 +16,9 @@ PlantType, register_plant_type, unregister_plant_type, plant_types, get_plant_ty
     which loop runs it (the N-joint arms register theirs from :mod:`hpdob.robots`).
 sweep
     Batch sweeps and Monte Carlo studies, locally or on a dask cluster.
+build_loop_extension, LoopBuildError, AheadOfTimeWarning
+    A run structure's sample loop built ahead of time with ``numba.pycc`` (opt-in), which
+    :func:`simulate` runs in a later process without numba.
 """
 
 from ..controllers import PD as PD  # the PD lives in hpdob.controllers; kept importable here
@@ -62,18 +65,29 @@ from ._sweep import SweepIncomplete, SweepInterrupted, sweep
 def __getattr__(name: str):
     """``program_row`` (hpdob-internal, for the robots' kernel), imported on first use: it is
     compiled by numba, and importing numba (~0.3 s) is for the first simulation, not for every
-    user of a loop, an analysis or the paper's set-up."""
+    user of a loop, an analysis or the paper's set-up; the ahead-of-time build's names
+    likewise (its modules are for the few who build a loop)."""
     if name == "program_row":
         from ._kernel import program_row
 
         return program_row
+    if name in ("build_loop_extension", "LoopBuildError"):  # not needed by ``import hpdob``
+        from . import _aot_build
+
+        return getattr(_aot_build, name)
+    if name == "AheadOfTimeWarning":
+        from ._aot import AheadOfTimeWarning
+
+        return AheadOfTimeWarning
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 __all__ = [
     "LOOP_KEYS",
     "Actuator",
+    "AheadOfTimeWarning",
     "Encoder",
+    "LoopBuildError",
     "PlantType",
     "Scenario",
     "ServoLoop",
@@ -81,6 +95,7 @@ __all__ = [
     "SimulationResult",
     "SweepIncomplete",
     "SweepInterrupted",
+    "build_loop_extension",
     "get_plant_type",
     "load_scenario",
     "plant_types",

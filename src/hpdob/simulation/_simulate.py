@@ -272,7 +272,8 @@ def simulate(
             f"progress must be a callable progress(done, total), got {progress!r}"
         )
     signals = sample_signals(reference, disturbance, Ts=Ts, n=n, substeps=S)
-    result = run_loop(loop, signals, x0, label=label, observer_state=state, progress=progress)
+    result = run_loop(loop, signals, x0, label=label, observer_state=state, progress=progress,
+                      ahead_of_time=True)  # fmt: skip
     if result.diverged:
         warnings.warn(result.message, SimulationDivergedWarning, stacklevel=3)
     return result
@@ -569,23 +570,39 @@ def _plant_record(sampler: ExactSubsteps) -> LinearPlantRecord:
     )  # fmt: skip
 
 
-def _run_compiled(signals, records, out, work, midpoint, *, progress=None, errors=False) -> int:
+def _run_compiled(signals, records, out, work, midpoint, *, progress=None, errors=False,
+                  ahead_of_time=False) -> int:  # fmt: skip
     """Run the compiled loop over the whole run (in chunks of :data:`PROGRESS_PLANT_STEPS` plant
-    steps with ``progress``); the number of samples completed."""
-    from . import _kernel  # numba is imported on the first run, not by ``import hpdob``
-
+    steps with ``progress``); the number of samples completed. ``ahead_of_time``: a built loop
+    matching the run (:func:`~hpdob.simulation._aot.simulate_loop`) if there is one, without
+    importing numba; else, and by default, the JIT loop."""
     Ts, S, n = signals.Ts, signals.substeps, signals.t.size
+    form = None if midpoint is None else midpoint[0]
+    run = None
+    if ahead_of_time:
+        from . import _aot
+
+        run = _aot.simulate_loop(
+            n, S, Ts, records["plant"], records["ctl"], records["sen"], records["act"],
+            records["obs"], records["sig"], out, work, DIVERGENCE_LIMIT, form,
+        )  # fmt: skip
+    if run is None:
+        from . import _kernel  # numba is imported on the first run, not by ``import hpdob``
+
+        def run(start: int, stop: int) -> int:
+            return _kernel.run_samples(
+                start, stop, S, Ts, records["plant"], records["ctl"], records["sen"],
+                records["act"], records["obs"], records["sig"], out, work, DIVERGENCE_LIMIT,
+                form, errors,
+            )  # fmt: skip
+
     chunk = n if progress is None else max(1, PROGRESS_PLANT_STEPS // S)
     done = 0
     if progress is not None:
         progress(0, n)
     while done < n:  # one call without progress: the chunk is the whole run
         stop = min(n, done + chunk)
-        done = _kernel.run_samples(
-            done, stop, S, Ts, records["plant"], records["ctl"], records["sen"], records["act"],
-            records["obs"], records["sig"], out, work, DIVERGENCE_LIMIT,
-            None if midpoint is None else midpoint[0], errors,
-        )  # fmt: skip
+        done = run(done, stop)
         if progress is not None:
             progress(done, n)
         if done < stop:  # diverged
@@ -602,7 +619,8 @@ def _diverged_message(label: str, done: int, Ts: float, unstable: str = "") -> s
 
 
 def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
-             observer_state=None, progress=None) -> SimulationResult:  # fmt: skip
+             observer_state=None, progress=None,
+             ahead_of_time=False) -> SimulationResult:  # fmt: skip
     """Run ``loop`` on pre-sampled signals from the motor state ``x0`` (no warning).
 
     The shared engine of :func:`simulate` and :func:`hpdob.sweep`. The plant's sampler decides
@@ -612,7 +630,9 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     after every :data:`PROGRESS_PLANT_STEPS` plant steps: the kernel then runs the samples in
     consecutive chunks, its whole state (observer, controller, plant, encoder) carried in
     ``work`` and the actuator's delay line read from ``out``, as every sample does within one
-    call, so the result is bit for bit the same.
+    call, so the result is bit for bit the same. ``ahead_of_time`` (:func:`simulate`'s single
+    runs): a loop built by :func:`~hpdob.simulation.build_loop_extension` for the run's
+    structure is used if one is there; a sweep and ``tune()`` keep the JIT loop (``nogil``).
     """
     Ts, S, t = signals.Ts, signals.substeps, signals.t
     n = t.size
@@ -635,7 +655,8 @@ def run_loop(loop: ServoLoop, signals: SampledSignals, x0, *, label: str = "",
     )
     environment = getattr(plant, "environment", None)
     if compiled:
-        done = _run_compiled(signals, records, out, work, midpoint, progress=progress)
+        done = _run_compiled(signals, records, out, work, midpoint, progress=progress,
+                             ahead_of_time=ahead_of_time)  # fmt: skip
         unstable = ""
     else:
         from ._python_plant import run_python_plant

@@ -1,0 +1,240 @@
+"""Build a run structure's sample loop ahead of time: :func:`build_loop_extension`."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from .._validation import ParameterTypeError, ParameterValueError
+from . import _aot
+from ._loop import ServoLoop, accepts_loop
+from ._simulate import AT_REST, simulate
+
+__all__ = ["LoopBuildError", "build_loop_extension"]
+
+
+class LoopBuildError(RuntimeError):
+    """``numba.pycc`` or the C compiler failed to build a loop; nothing was written."""
+
+
+def _command(compiler, name: str) -> str:
+    if isinstance(compiler, (str, os.PathLike)):
+        parts = shlex.split(os.fspath(compiler))
+    elif isinstance(compiler, (list, tuple)) and all(isinstance(p, str) for p in compiler):
+        parts = list(compiler)
+    else:
+        raise ParameterTypeError(
+            f"{name} must be a command line (a str such as 'clang', or a list of str), "
+            f"got {compiler!r}"
+        )
+    if not parts or not all(parts):
+        raise ParameterValueError(f"{name} must name a compiler command, got {compiler!r}")
+    return shlex.join(parts)
+
+
+def _compiler_commands(compiler, cxx_compiler) -> tuple | None:
+    """``(C command, C++ command)`` for the build, or None: the one setuptools finds."""
+    if compiler is None:
+        if cxx_compiler is not None:
+            raise ParameterValueError(
+                f"cxx_compiler needs a compiler as well, got cxx_compiler={cxx_compiler!r} "
+                "and compiler=None"
+            )
+        return None
+    if compiler == "zig":  # the ziglang package (the test extra's)
+        zig = [sys.executable, "-m", "ziglang"]
+        # -nostdlib for the link: an extension's C library calls are bound by the Python
+        # process that loads it, and without the flag zig first builds its own C runtime and
+        # glibc stubs (~40 s on the first build of a machine, against ~0.1 s)
+        return shlex.join([*zig, "cc", "-nostdlib"]), shlex.join([*zig, "c++"])
+    c = _command(compiler, "compiler")
+    return c, c if cxx_compiler is None else _command(cxx_compiler, "cxx_compiler")
+
+
+@accepts_loop
+def build_loop_extension(
+    loop: ServoLoop,
+    *,
+    reference,
+    disturbance=None,
+    duration: float | None = None,
+    substeps: int | None = None,
+    x0=AT_REST,
+    folder=None,
+    compiler=None,
+    cxx_compiler=None,
+    timeout: float = 600.0,
+) -> Path:
+    r"""Build the sample loop of ``loop``'s runs ahead of time, so that :func:`~hpdob.simulate`
+    runs it in a later process without numba.
+
+    :func:`~hpdob.simulate` compiles a loop per run *structure* with numba and caches its
+    machine code, but every process that loads it first initialises numba (~0.3 s with its
+    import, docs/performance.md). This function generates the same loop source the JIT path
+    compiles, for the structure and argument types of ``simulate(loop, reference=reference,
+    disturbance=disturbance, duration=duration, substeps=substeps, x0=x0)``, and builds it with
+    ``numba.pycc`` into a C extension in ``folder``. A later :func:`~hpdob.simulate` of a run
+    of the same structure (the same loop parts and sensor mode, the same kind of disturbance
+    and any ``duration``, ``x0``, gains or bandwidths that keep the program's shape) finds it
+    there, checks that every argument has the type it was built for and calls it, without
+    importing numba; its results are bit for bit the JIT loop's. Any other run, sweeps and
+    ``tune()`` (whose threads need the JIT loop's ``nogil``) run the JIT loop.
+
+    The extension's name is a hash of the generated source, the argument types and the numba,
+    numpy and Python versions and the platform: a change of any (a new hpdob or numba) builds
+    and uses a new one. It is built in a temporary folder inside ``folder`` and renamed into
+    place, its size and SHA-256 recorded beside it (a run checks both before loading it), so
+    an interrupted or failed build leaves no file a run would load. Set ``HPDOB_AOT=0`` to
+    have :func:`~hpdob.simulate` ignore built loops.
+
+    ``numba.pycc`` is *pending deprecation* in numba (since 0.57; numba's deprecation notices
+    promise deprecation warnings and two releases before removal). Where it is gone the build
+    raises :class:`~hpdob.simulation.LoopBuildError` and :func:`~hpdob.simulate` runs the JIT
+    loop, as before.
+
+    Parameters
+    ----------
+    loop : ServoLoop
+        The loop (plant, nominal model, ``Ts``, controller, observer, sensor, actuator); or its
+        parts as keyword arguments (:data:`hpdob.simulation.LOOP_KEYS`). A plant advanced from
+        Python (MuJoCo) runs no compiled loop and is rejected.
+    reference : Signal or callable
+        The runs' reference, as for :func:`~hpdob.simulate`.
+    disturbance : callable, optional
+        The runs' disturbance, as for :func:`~hpdob.simulate` (its kind decides how the loop
+        evaluates it).
+    duration : float, optional
+        A duration of the runs [s] (it does not change the loop); default ``10 Ts``.
+    substeps : int, optional
+        Plant sub-steps per sample, as for :func:`~hpdob.simulate`.
+    x0 : sequence of 2 floats, optional
+        Initial motor state ``[theta (rad), omega (rad/s)]``, as for :func:`~hpdob.simulate`.
+    folder : str or path-like, optional
+        Where the extension is written and where :func:`~hpdob.simulate` looks: default
+        ``$HPDOB_AOT_DIR``, else ``~/.cache/hpdob/aot`` (``$XDG_CACHE_HOME/hpdob/aot``).
+        :func:`~hpdob.simulate` looks only in that default, so a build into another folder is
+        used by processes that set ``HPDOB_AOT_DIR`` to it.
+    compiler : str or list of str, optional
+        The C compiler command (``"clang"``, ``["gcc", "-O2"]``), also used for numba's C++
+        runtime and the link unless ``cxx_compiler`` is given; ``"zig"``: the ``ziglang``
+        package's ``zig cc`` and ``zig c++`` (no compiler installed on the machine needed).
+        Default: ``$CC``, else the one ``setuptools`` finds.
+    cxx_compiler : str or list of str, optional
+        The C++ compiler command, for numba's runtime and the link (with ``compiler``).
+    timeout : float, optional
+        Seconds the build may take before it is stopped (default 600).
+
+    Returns
+    -------
+    pathlib.Path
+        The extension's file (already there and not rebuilt if the same loop was built).
+
+    Raises
+    ------
+    TypeError, ValueError
+        For arguments of the wrong type or value, with the parameter named (the run's
+        arguments are checked as :func:`~hpdob.simulate` checks them).
+    LoopBuildError
+        If ``numba.pycc`` (it needs numba, ``setuptools``: the ``aot`` extra, and a C compiler)
+        or the compiler fails, or the build times out; no extension is written.
+
+    Examples
+    --------
+    Build the canonical loop once (a few seconds), then a later process's first
+    ``simulate(**kw)`` of that structure runs it without importing numba:
+
+    >>> from hpdob import paper
+    >>> from hpdob.simulation import build_loop_extension
+    >>> kw = paper.scenario()
+    >>> kw["observer"] = paper.observer("HPDOb-100").design
+    >>> path = build_loop_extension(**kw, compiler="zig")  # doctest: +SKIP
+    """
+    if not isinstance(loop, ServoLoop):
+        raise ParameterTypeError(f"loop must be a ServoLoop, got {type(loop).__name__}")
+    if folder is not None and not isinstance(folder, (str, os.PathLike)):
+        raise ParameterTypeError(f"folder must be a path (str or os.PathLike), got {folder!r}")
+    command = _compiler_commands(compiler, cxx_compiler)
+    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not timeout > 0:
+        raise ParameterValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
+    if duration is None:
+        duration = 10 * loop.Ts
+    seen: dict = {}
+    _aot.CAPTURE.target = seen
+    try:
+        simulate(loop, reference=reference, disturbance=disturbance, duration=duration,
+                 substeps=substeps, x0=x0)  # fmt: skip
+    except _aot.Captured:
+        pass
+    finally:
+        _aot.CAPTURE.target = None
+    if not seen:
+        raise ParameterValueError(
+            f"loop's plant ({type(loop.plant).__name__}) is advanced from Python, not by the "
+            "compiled sample loop: there is no loop to build"
+        )
+    if seen["types"] is None:  # the records hold only typed arrays and scalars
+        raise LoopBuildError("the run's arguments have types the built loop cannot take")
+    target = _aot.extension_folder(folder)
+    name = _aot.extension_name(seen["source"], seen["types"])
+    path = target / (name + _aot.SUFFIX)
+    if path.is_file() and _aot.intact(path):
+        return path
+    target.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=".build-", dir=target))  # same file system: rename
+    try:
+        source_module = f"hpdob_aot_source_{name[len(_aot.PREFIX) :]}"
+        (work / f"{source_module}.py").write_text(seen["source"], encoding="utf-8")
+        spec = {"name": name, "file": name + _aot.SUFFIX, "source_module": source_module,
+                "types": seen["types"]}  # fmt: skip
+        (work / "spec.json").write_text(json.dumps(spec), encoding="utf-8")
+        _compile(work, command, timeout)
+        built = work / spec["file"]
+        if not built.is_file():
+            raise LoopBuildError(f"numba.pycc wrote no {spec['file']} in {work}")
+        record = work / "record.sha256"  # in place before the extension: never one without
+        record.write_text(_aot.file_record(built), encoding="ascii")
+        os.replace(record, _aot.record_path(path))
+        os.replace(built, path)
+        _aot.forget(path)  # a file this process could not load before: try the new one
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return path
+
+
+def _compile(work: Path, command: tuple | None, timeout: float) -> None:
+    """Run ``_aot_compile`` on ``work`` in a process of its own (numba, its pending-deprecation
+    warning and the compiler's environment stay there)."""
+    import hpdob
+
+    env = dict(os.environ)
+    root = str(Path(hpdob.__file__).resolve().parent.parent)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
+    if command is not None:  # setuptools links with CC too (LDSHARED follows it)
+        script = Path(__file__).with_name("_aot_compile.py")
+        env["CC"] = shlex.join([sys.executable, str(script), "--driver"])
+        env["HPDOB_AOT_CC"], env["HPDOB_AOT_CXX"] = command
+        env["HPDOB_AOT_OBJECTS"] = str(work.parent / ".objects")  # numba's C, compiled once
+        env["HPDOB_AOT_ENVIRONMENT"] = _aot.environment()
+        env.pop("LDSHARED", None)
+    try:
+        done = subprocess.run(
+            [sys.executable, "-m", "hpdob.simulation._aot_compile", str(work)],
+            capture_output=True, text=True, env=env, timeout=timeout, check=False,
+        )  # fmt: skip
+    except subprocess.TimeoutExpired as error:
+        raise LoopBuildError(f"the build took longer than timeout={timeout:g} s") from error
+    if done.returncode != 0:
+        lines = (done.stderr or done.stdout).strip().splitlines()
+        errors = [line for line in lines if re.match(r"[\w.]+(Error|Exception): ", line)]
+        reason = errors[-1] if errors else lines[-1] if lines else "no output"
+        tail = "\n".join(lines[-60:])
+        raise LoopBuildError(
+            f"numba.pycc failed to build the loop (exit {done.returncode}): {reason}\n{tail}"
+        )

@@ -1,0 +1,65 @@
+"""``hpdob build-loop scenario.toml``: a scenario's sample loop built ahead of time (the build
+itself is tested in ``tests/simulation/test_aot_build.py``; here what the command passes on
+and how it reports)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+import hpdob.simulation
+from hpdob.cli import main
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+def test_help_describes_the_command_and_its_page(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(["build-loop", "--help"])
+    assert exit_.value.code == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "numba.pycc" in out and "HPDOB_AOT=0" in out and "docs/simulation.md" in out
+    assert (EXAMPLES.parent / "docs" / "simulation.md").is_file()
+
+
+def test_the_scenario_s_run_settings_are_built(capsys, monkeypatch, tmp_path):
+    seen = {}
+
+    def build(**kwargs):
+        seen.update(kwargs)
+        return tmp_path / "built.so"
+
+    monkeypatch.setattr(hpdob.simulation, "build_loop_extension", build)
+    code = main(["build-loop", str(EXAMPLES / "encoder_noise_order2.toml"),
+                 "--folder", str(tmp_path), "--compiler", "zig"])  # fmt: skip
+    assert code == 0
+    assert capsys.readouterr().out.strip() == str(tmp_path / "built.so")
+    assert seen["folder"] == tmp_path and seen["compiler"] == "zig"
+    expected = hpdob.simulation.scenario_from_dict(
+        hpdob.simulation.read_toml(EXAMPLES / "encoder_noise_order2.toml")
+    )
+    assert "label" in expected and "label" not in seen  # the label does not decide the loop
+    assert {k: v for k, v in seen.items() if k not in ("folder", "compiler")}.keys() == {
+        k for k in expected if k != "label"
+    }
+    assert seen["substeps"] == expected["substeps"] and seen["sensor"] == expected["sensor"]
+
+
+def test_a_failed_build_is_one_line_and_writes_no_extension(capsys, tmp_path):
+    failing = f"{sys.executable} -c 'raise SystemExit(1)'"
+    code = main(["build-loop", str(EXAMPLES / "canonical_pid.toml"), "--folder", str(tmp_path),
+                 "--compiler", failing])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert err.startswith("hpdob build-loop: error: numba.pycc failed to build the loop")
+    assert not list(tmp_path.glob("hpdob_aot_*"))
+
+
+def test_an_arm_scenario_has_no_loop_to_build(capsys, tmp_path):
+    code = main(["build-loop", str(EXAMPLES / "two_link_observers.toml"),
+                 "--folder", str(tmp_path)])  # fmt: skip
+    assert code == 2
+    assert "a [plant] type with a loop of its own" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

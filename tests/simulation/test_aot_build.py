@@ -1,0 +1,218 @@
+"""The ahead-of-time built sample loop (issue 25): built with numba.pycc through the test
+extra's ``zig cc``, run by a later process's ``simulate`` without numba, bit for bit the JIT's.
+
+The module's fixture builds two loops once (~5-12 s each on the shared 2-core machine: numba
+compiles the loop, zig compiles and links numba's C runtime; the second build reuses the
+first's object files); every other test is a subprocess or an in-process run.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from hpdob import Actuator, Encoder, ServoLoop, paper, simulate
+from hpdob.simulation import AheadOfTimeWarning, LoopBuildError, build_loop_extension
+from hpdob.simulation._aot import argument_types
+
+FIELDS = ("theta", "omega", "theta_measured", "omega_measured", "u", "tau_hat", "tau_dn")
+
+#: The canonical run (10 s, HPDOb-100) and one with an encoder (noise), a delay and a limit.
+RUNS = {
+    "canonical": "{}",
+    "encoder": (
+        "dict(duration=0.6, sensor=Encoder(4096, noise_std=2e-4, seed=1), substeps=4, "
+        "actuator=Actuator(torque_limit=0.06, delay_samples=1))"
+    ),
+    "pd": "dict(observer=None, duration=1.0)",
+}
+
+RUN = """
+import sys, numpy as np
+from hpdob import Actuator, Encoder, paper, simulate
+kw = paper.scenario()
+kw["observer"] = paper.observer("HPDOb-100").design
+kw.update({changes})
+r = simulate(**kw)
+np.savez(sys.argv[1], **{{k: getattr(r, k) for k in {fields}}})
+print("numba" in sys.modules)
+"""
+
+
+def _settings(name: str) -> dict:
+    kw = paper.scenario()
+    kw["observer"] = paper.observer("HPDOb-100").design
+    kw.update(eval(RUNS[name], {"Encoder": Encoder, "Actuator": Actuator}))
+    return kw
+
+
+def _in_subprocess(name: str, folder, path, **env) -> bool:
+    """Run ``name`` in a fresh process looking in ``folder``; whether it imported numba."""
+    code = RUN.format(changes=RUNS[name], fields=FIELDS)
+    environment = {k: v for k, v in os.environ.items() if k != "HPDOB_AOT"}
+    environment.update(HPDOB_AOT_DIR=str(folder), **env)
+    done = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True,
+                          text=True, check=True, env=environment)  # fmt: skip
+    return done.stdout.split()[-1] == "True"
+
+
+def _jit(name: str, monkeypatch):
+    monkeypatch.setenv("HPDOB_AOT", "0")
+    return simulate(**_settings(name))
+
+
+def _same(saved, result) -> bool:
+    return all(
+        saved[k].dtype == getattr(result, k).dtype
+        and saved[k].tobytes() == getattr(result, k).tobytes()
+        for k in FIELDS
+    )
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """A folder with the canonical and the encoder run's loops, built once."""
+    folder = tmp_path_factory.mktemp("aot")
+    paths = {name: build_loop_extension(**_settings(name), folder=folder, compiler="zig")
+             for name in ("canonical", "encoder")}  # fmt: skip
+    return folder, paths
+
+
+@pytest.mark.parametrize("name", ["canonical", "encoder"])
+def test_a_later_process_runs_the_built_loop_without_numba_bit_for_bit(
+    name, built, tmp_path, monkeypatch
+):
+    folder, paths = built
+    assert paths[name].parent == folder and paths[name].is_file()
+    imported = _in_subprocess(name, folder, tmp_path / "r.npz")
+    assert not imported  # the built loop ran: numba was never imported
+    saved = np.load(tmp_path / "r.npz")
+    assert saved["theta"].size == round(_settings(name)["duration"] / 1e-3)
+    assert _same(saved, _jit(name, monkeypatch))
+
+
+def test_a_run_of_another_structure_or_disabled_runs_the_jit_loop(built, tmp_path, monkeypatch):
+    folder, _ = built
+    assert _in_subprocess("pd", folder, tmp_path / "pd.npz")  # no PD loop built: the JIT's
+    assert _same(np.load(tmp_path / "pd.npz"), _jit("pd", monkeypatch))
+    assert _in_subprocess("canonical", folder, tmp_path / "off.npz", HPDOB_AOT="0")
+    assert _same(np.load(tmp_path / "off.npz"), _jit("canonical", monkeypatch))
+
+
+def test_building_again_keeps_the_built_file(built):
+    folder, paths = built
+    before = paths["canonical"].stat()
+    again = build_loop_extension(**_settings("canonical"), folder=folder, compiler="zig")
+    after = again.stat()
+    assert again == paths["canonical"]  # the same file, not replaced by a new build
+    assert (after.st_ino, after.st_mtime_ns) == (before.st_ino, before.st_mtime_ns)
+
+
+@pytest.mark.parametrize("damage", ["garbage", "truncated", "no record", "another module"])
+def test_a_corrupt_extension_is_reported_and_the_jit_loop_runs(
+    damage, built, tmp_path, monkeypatch
+):
+    """A file under a run's extension name that is not what its build wrote (its size and
+    SHA-256 are recorded beside it: loading a truncated shared object can crash the process)
+    or that is a valid extension of another loop: a warning, and the JIT loop's result."""
+    _, paths = built
+    target = tmp_path / "aot"
+    target.mkdir()
+    canonical, other = paths["canonical"], paths["encoder"]
+    copy = target / canonical.name
+    record = canonical.with_suffix("").with_suffix(".sha256")
+    shutil.copyfile(record, target / record.name)
+    if damage == "garbage":
+        copy.write_bytes(b"not an extension" * 100)
+    elif damage == "truncated":
+        copy.write_bytes(canonical.read_bytes()[:20000])
+    elif damage == "no record":
+        shutil.copyfile(canonical, copy)
+        (target / record.name).unlink()
+    else:  # recorded as it is, but its init function has the other loop's name
+        shutil.copyfile(other, copy)
+        shutil.copyfile(other.with_suffix("").with_suffix(".sha256"), target / record.name)
+    expected = _jit("canonical", monkeypatch)
+    monkeypatch.delenv("HPDOB_AOT")
+    monkeypatch.setenv("HPDOB_AOT_DIR", str(target))
+    with pytest.warns(AheadOfTimeWarning, match="could not be loaded"):
+        result = simulate(**_settings("canonical"))
+    assert all(getattr(result, k).tobytes() == getattr(expected, k).tobytes() for k in FIELDS)
+
+
+def test_a_failed_or_interrupted_build_leaves_no_extension(tmp_path):
+    failing = [sys.executable, "-c", "raise SystemExit(1)"]
+    with pytest.raises(LoopBuildError, match=r"numba\.pycc failed"):
+        build_loop_extension(**_settings("pd"), folder=tmp_path / "a", compiler=failing)
+    left = [p.name for p in (tmp_path / "a").iterdir()]
+    assert not [n for n in left if n.startswith(("hpdob_aot_", ".build-"))], left
+    # killed while numba compiles: the temporary folder may stay, no extension appears
+    folder = tmp_path / "b"
+    code = ("import sys; from hpdob import paper; from hpdob.simulation import "
+            "build_loop_extension; kw = paper.scenario(); kw['observer'] = None; "
+            "build_loop_extension(**kw, folder=sys.argv[1], compiler='zig')")  # fmt: skip
+    process = subprocess.Popen([sys.executable, "-c", code, str(folder)],
+                               start_new_session=True)  # fmt: skip
+    try:
+        deadline = time.monotonic() + 120
+        while not (folder.is_dir() and any(folder.glob(".build-*"))):
+            assert process.poll() is None and time.monotonic() < deadline
+            time.sleep(0.05)
+    finally:  # the build and its compiler process
+        os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    assert not any(p.name.startswith("hpdob_aot_") for p in folder.iterdir())
+
+
+def test_bad_input_is_rejected_and_writes_nothing(tmp_path):
+    kw = _settings("pd")
+    folder = tmp_path / "none"
+    loop = ServoLoop(**{k: kw.pop(k) for k in ("plant", "nominal", "Ts", "controller",
+                                               "observer")})  # fmt: skip
+    cases = [
+        (TypeError, "takes a ServoLoop as its first argument", 3, {}),
+        (TypeError, "folder must be a path", loop, {"folder": 3}),
+        (TypeError, "compiler must be a command line", loop, {"compiler": 5}),
+        (ValueError, "compiler must name a compiler", loop, {"compiler": ""}),
+        (ValueError, "cxx_compiler needs a compiler", loop, {"cxx_compiler": "clang++"}),
+        (ValueError, "timeout must be a positive", loop, {"timeout": 0}),
+        (ValueError, "duration", loop, {"duration": -1.0}),
+    ]
+    for error, message, first, change in cases:
+        arguments = {**kw, "folder": folder, **change}
+        with pytest.raises(error, match=message):
+            build_loop_extension(first, **arguments)
+        assert not folder.exists()
+
+
+class Subclass(np.ndarray):
+    """An array subclass (numba's typeof would not type it as an array of its own)."""
+
+
+def test_argument_types_are_numba_s():
+    """Each argument's type as numba's dispatcher types it (``numba.typeof``); arguments it
+    cannot check (the JIT loop runs them) have none."""
+    import numba
+
+    from hpdob.simulation._aot_compile import numba_type
+
+    a = np.zeros((4, 3))
+    read_only = np.zeros(5)
+    read_only.flags.writeable = False
+    values = [3, -(2**62), 0.5, True, np.float64(2.0), np.int64(7), np.bool_(False), a, a.T,
+              a[:, 1], a[::2], read_only, np.zeros(0), np.zeros((0, 2)),
+              np.zeros(3, dtype=np.int64), np.zeros(2, dtype=bool)]  # fmt: skip
+    types = argument_types(values)
+    assert [numba_type(t) for t in types] == [numba.typeof(v) for v in values]
+    assert types[8][3] == "F" and types[9][3] == "A" and types[11][4] is True
+    unaligned = np.frombuffer(bytes(33), dtype=np.uint8)[1:].view(np.float64)
+    for value in (np.zeros(3, dtype=np.float32), np.zeros(3, dtype=">f8"), unaligned,
+                  np.ma.zeros(3), np.zeros(3).view(Subclass), 2**63, "x", None, [1.0]):  # fmt: skip
+        assert argument_types([1.0, value]) is None, value
