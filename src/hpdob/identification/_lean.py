@@ -87,10 +87,12 @@ def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
             yield lo, hi, b[::-1]
 
 
-def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None) -> np.ndarray:
+def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=None):
     """``scipy.signal.sosfiltfilt(sos, x)`` of a 1-D float64 array, bit for bit, holding one
-    new array of ``x``'s size (``sosfiltfilt`` holds three, of the padded size)."""
-    out = np.empty(x.size)
+    new array of ``x``'s size (``sosfiltfilt`` holds three, of the padded size), or none with
+    ``out=x`` (written over ``x``: :func:`filtfilt_blocks` builds the padding first, and
+    yields a block only after its last read of it and of every block after it)."""
+    out = np.empty(x.size) if out is None else out
     for lo, hi, y in filtfilt_blocks(sos, x.size, lambda a, b: x[a:b], block):
         out[lo:hi] = y
     return out

@@ -221,13 +221,14 @@ def kinematics(theta: np.ndarray, settings: Settings):
     return position, velocity, acceleration
 
 
-def filtered_velocity(theta: np.ndarray, settings: Settings) -> np.ndarray:
+def filtered_velocity(theta: np.ndarray, settings: Settings, *, overwrite: bool = False):
     """``kinematics(theta, settings)[1]`` bit for bit, holding one new array of ``theta``'s
-    size (the filtered position is differenced in place, :mod:`._lean`)."""
+    size (the filtered position is differenced in place, :mod:`._lean`), or none with
+    ``overwrite`` (the velocity written over ``theta``)."""
     from scipy import signal
 
     sos = signal.butter(settings.order, settings.cutoff, fs=1.0 / settings.Ts, output="sos")
-    return gradient_inplace(filtfilt(sos, theta), settings.Ts)
+    return gradient_inplace(filtfilt(sos, theta, out=theta if overwrite else None), settings.Ts)
 
 
 def observation(velocity: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
@@ -255,12 +256,14 @@ def decimate(x: np.ndarray, factor: int) -> np.ndarray:
     return signal.sosfiltfilt(_decimate_sos(factor), x, axis=0)[::factor]
 
 
-def decimated_rows(velocity: np.ndarray, Ts: float, factor: int) -> np.ndarray:
+def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, rows=None) -> np.ndarray:
     """``decimate(observation(velocity, np.gradient(velocity, Ts)), factor)`` bit for bit,
     column by column from ``velocity`` in blocks: the full-rate observation matrix (four
-    columns) and the filter's padded copies of it are never held."""
+    columns) and the filter's padded copies of it are never held. ``rows`` (indices into the
+    decimated samples): only those rows, without the whole decimated matrix."""
     if factor == 1:
-        return observation(velocity, np.gradient(velocity, Ts))
+        full = observation(velocity, np.gradient(velocity, Ts))
+        return full if rows is None else full[rows]
     sos, n = _decimate_sos(factor), velocity.size
     columns = (
         lambda lo, hi: gradient_block(velocity, lo, hi, Ts),
@@ -268,9 +271,11 @@ def decimated_rows(velocity: np.ndarray, Ts: float, factor: int) -> np.ndarray:
         lambda lo, hi: np.sign(velocity[lo:hi]),
         lambda lo, hi: np.ones(hi - lo),
     )
-    X = np.empty((-(-n // factor), len(columns)))
+    X = np.empty((-(-n // factor) if rows is None else rows.size, len(columns)))
     for j, column in enumerate(columns):
-        X[:, j] = decimated(sos, n, column, factor)
+        values = decimated(sos, n, column, factor)
+        X[:, j] = values if rows is None else values[rows]
+        del values
     return X
 
 
@@ -323,9 +328,10 @@ def minimum_samples(settings: Settings) -> int:
 
 def instrument_rows(theta: np.ndarray, regression: Regression, settings: Settings) -> np.ndarray:
     """The observation matrix of another position trace, on the same rows as ``regression``."""
-    full = decimated_rows(filtered_velocity(theta, settings), settings.Ts, settings.decimation)
     inside = rows_inside_border(theta.size, settings) // settings.decimation
-    return full[inside][regression.kept]
+    # decimate(...)[inside][kept] of the whole decimated matrix, without it
+    return decimated_rows(filtered_velocity(theta, settings), settings.Ts, settings.decimation,
+                          inside[regression.kept])  # fmt: skip
 
 
 def _largest_speed(velocity: np.ndarray) -> float:
@@ -357,11 +363,6 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
     filtered velocity.
     """
     velocity = filtered_velocity(theta, settings)
-    X = decimated_rows(velocity, settings.Ts, settings.decimation)
-    # with zoh, the input held over each sample: the second central difference of the
-    # position at k sees (u_(k-1) + u_k) / 2, exactly for an inertia (ZOH of 1/s^2 is
-    # Ts^2 (z + 1) / (2 (z - 1)^2)): the input is aligned with it, half a sample later
-    y = decimated_input(u, settings)
     index = rows_inside_border(theta.size, settings)
     inside = index // settings.decimation
     kept = np.ones(index.size, dtype=bool)
@@ -377,9 +378,15 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
         )
         rest_rows = int(np.count_nonzero(resting & kept))
         kept &= ~resting
+    rows = inside[kept]  # X[inside][kept] of the whole decimated X, without it
+    X = decimated_rows(velocity, settings.Ts, settings.decimation, rows)
+    # with zoh, the input held over each sample: the second central difference of the
+    # position at k sees (u_(k-1) + u_k) / 2, exactly for an inertia (ZOH of 1/s^2 is
+    # Ts^2 (z + 1) / (2 (z - 1)^2)): the input is aligned with it, half a sample later
+    y = decimated_input(u, settings)[rows]
     return Regression(
-        X=X[inside][kept],
-        y=y[inside][kept],
+        X=X,
+        y=y,
         index=index[kept],
         velocity=velocity[index[kept]],
         kept=kept,
