@@ -326,12 +326,14 @@ def minimum_samples(settings: Settings) -> int:
     return (MIN_ROWS + 2 * skip - 1) * settings.decimation + 1
 
 
-def instrument_rows(theta: np.ndarray, regression: Regression, settings: Settings) -> np.ndarray:
-    """The observation matrix of another position trace, on the same rows as ``regression``."""
+def instrument_rows(theta: np.ndarray, regression: Regression, settings: Settings, *,
+                    overwrite: bool = False) -> np.ndarray:  # fmt: skip
+    """The observation matrix of another position trace, on the same rows as ``regression``
+    (with ``overwrite``, its filtered velocity written over ``theta``)."""
     inside = rows_inside_border(theta.size, settings) // settings.decimation
+    velocity = filtered_velocity(theta, settings, overwrite=overwrite)
     # decimate(...)[inside][kept] of the whole decimated matrix, without it
-    return decimated_rows(filtered_velocity(theta, settings), settings.Ts, settings.decimation,
-                          inside[regression.kept])  # fmt: skip
+    return decimated_rows(velocity, settings.Ts, settings.decimation, inside[regression.kept])
 
 
 def _largest_speed(velocity: np.ndarray) -> float:
