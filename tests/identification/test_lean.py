@@ -12,6 +12,7 @@ from scipy import signal
 
 from hpdob.identification._lean import (
     decimated,
+    decimated_at,
     filtfilt,
     gradient_block,
     gradient_inplace,
@@ -58,6 +59,14 @@ def test_filtfilt_in_blocks_is_sosfiltfilt_bit_for_bit(name, n, block):
     for factor in (1, 3, 31):
         assert same_bits(decimated(sos, n, lambda lo, hi: x[lo:hi], factor, block),
                          reference[::factor])  # fmt: skip
+    rng = np.random.default_rng(block)
+    for samples in (
+        np.arange(n),
+        np.array([0, n - 1]),
+        np.sort(rng.choice(n, n // 3, replace=False)),
+    ):
+        assert same_bits(decimated_at(sos, n, lambda lo, hi: x[lo:hi], samples, block),
+                         reference[samples])  # fmt: skip
 
 
 @pytest.mark.parametrize("n", [2, 3, 5, 100, 4097])

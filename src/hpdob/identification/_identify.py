@@ -27,6 +27,7 @@ import functools
 import math
 import warnings
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -405,6 +406,12 @@ def identify(
             )
         )
     per_run = [layout.parameters(solution.estimate, i) for i in range(len(runs))]
+    # what the result needs of the regressions, which then go: not beside the diagnostics'
+    u_model = np.concatenate([run.regression.X @ per_run[i] for i, run in enumerate(runs)])
+    singular = np.linalg.svd(solution.X, compute_uv=False)
+    solution.X = None
+    for run in runs:
+        run.regression = replace(run.regression, X=None)
     fits, simulation, traces = [], None, None
     simulated = [
         per_run[i][0] > 0.0 and (diagnostics or (i == 0 and run.loop is not None))
@@ -495,11 +502,9 @@ def identify(
         offset_std.append(
             0.0 if column is None else float(math.sqrt(solution.covariance[column, column]))
         )
-    u_model = np.concatenate([run.regression.X @ per_run[i] for i, run in enumerate(runs)])
     u_rows = np.concatenate([run.regression.y for run in runs])
     t_rows = np.concatenate([run.t[run.regression.index] for run in runs])
     run_rows = np.concatenate([np.full(run.regression.index.size, i) for i, run in enumerate(runs)])
-    singular = np.linalg.svd(solution.X, compute_uv=False)
     record = runs[0].settings.to_dict()
     record.update(
         method=method, adaptive=adaptive, n_rows=int(u_rows.size),

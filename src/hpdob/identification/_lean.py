@@ -19,6 +19,7 @@ __all__ = [
     "BLOCK",
     "SEGMENTS",
     "decimated",
+    "decimated_at",
     "filtfilt",
     "filtfilt_blocks",
     "gradient_block",
@@ -141,6 +142,17 @@ def decimated(sos: np.ndarray, n: int, read, factor: int, block: int | None = No
     for lo, hi, y in filtfilt_blocks(sos, n, read, block):
         first = -(-lo // factor) * factor  # the first multiple of factor at or after lo
         out[first // factor : -(-hi // factor)] = y[first - lo :: factor]
+    return out
+
+
+def decimated_at(sos: np.ndarray, n: int, read, samples: np.ndarray, block: int | None = None):
+    """``scipy.signal.sosfiltfilt(sos, x)[samples]`` of the signal ``read`` gives (see
+    :func:`filtfilt_blocks`) at increasing sample indices ``samples``, holding blocks and the
+    result only."""
+    out = np.empty(samples.size)
+    for lo, hi, y in filtfilt_blocks(sos, n, read, block):
+        a, b = np.searchsorted(samples, (lo, hi))
+        out[a:b] = y[samples[a:b] - lo]
     return out
 
 

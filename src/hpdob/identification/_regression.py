@@ -29,7 +29,7 @@ import numpy as np
 
 from .._validation import ParameterValueError, as_int, nonnegative, positive
 from . import _lean
-from ._lean import decimated, filtfilt, gradient_block, gradient_inplace, welch
+from ._lean import decimated, decimated_at, filtfilt, gradient_block, gradient_inplace, welch
 
 __all__ = [
     "MIN_ROWS",
@@ -256,14 +256,21 @@ def decimate(x: np.ndarray, factor: int) -> np.ndarray:
     return signal.sosfiltfilt(_decimate_sos(factor), x, axis=0)[::factor]
 
 
-def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, rows=None) -> np.ndarray:
+def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, samples=None) -> np.ndarray:
     """``decimate(observation(velocity, np.gradient(velocity, Ts)), factor)`` bit for bit,
     column by column from ``velocity`` in blocks: the full-rate observation matrix (four
-    columns) and the filter's padded copies of it are never held. ``rows`` (indices into the
-    decimated samples): only those rows, without the whole decimated matrix."""
+    columns) and the filter's padded copies of it are never held. ``samples`` (increasing
+    multiples of ``factor``): only the rows of those raw samples, ``[samples // factor]`` of
+    it, without the whole decimated matrix."""
     if factor == 1:
-        full = observation(velocity, np.gradient(velocity, Ts))
-        return full if rows is None else full[rows]
+        if samples is None:
+            return observation(velocity, np.gradient(velocity, Ts))
+        X = np.empty((samples.size, 4))  # observation(...)[samples], column by column
+        X[:, 0] = np.gradient(velocity, Ts)[samples]
+        X[:, 1] = velocity[samples]
+        X[:, 2] = np.sign(X[:, 1])
+        X[:, 3] = 1.0
+        return X
     sos, n = _decimate_sos(factor), velocity.size
     columns = (
         lambda lo, hi: gradient_block(velocity, lo, hi, Ts),
@@ -271,17 +278,19 @@ def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, rows=None) -> n
         lambda lo, hi: np.sign(velocity[lo:hi]),
         lambda lo, hi: np.ones(hi - lo),
     )
-    X = np.empty((-(-n // factor) if rows is None else rows.size, len(columns)))
+    X = np.empty((-(-n // factor) if samples is None else samples.size, len(columns)))
     for j, column in enumerate(columns):
-        values = decimated(sos, n, column, factor)
-        X[:, j] = values if rows is None else values[rows]
-        del values
+        if samples is None:
+            X[:, j] = decimated(sos, n, column, factor)
+        else:
+            X[:, j] = decimated_at(sos, n, column, samples)
     return X
 
 
-def decimated_input(u: np.ndarray, settings: Settings) -> np.ndarray:
+def decimated_input(u: np.ndarray, settings: Settings, samples=None) -> np.ndarray:
     """``decimate(u, decimation)`` of the input, aligned first with ``zoh`` (see
-    :func:`build_regression`), bit for bit, in blocks."""
+    :func:`build_regression`), bit for bit, in blocks; ``samples`` as in
+    :func:`decimated_rows`."""
 
     def aligned(lo: int, hi: int) -> np.ndarray:
         if not settings.zoh:
@@ -294,8 +303,12 @@ def decimated_input(u: np.ndarray, settings: Settings) -> np.ndarray:
         return out
 
     if settings.decimation == 1:
-        return np.array(aligned(0, u.size), dtype=float)
-    return decimated(_decimate_sos(settings.decimation), u.size, aligned, settings.decimation)
+        full = np.array(aligned(0, u.size), dtype=float)
+        return full if samples is None else full[samples]
+    sos = _decimate_sos(settings.decimation)
+    if samples is None:
+        return decimated(sos, u.size, aligned, settings.decimation)
+    return decimated_at(sos, u.size, aligned, samples)
 
 
 @dataclass(frozen=True)
@@ -330,10 +343,9 @@ def instrument_rows(theta: np.ndarray, regression: Regression, settings: Setting
                     overwrite: bool = False) -> np.ndarray:  # fmt: skip
     """The observation matrix of another position trace, on the same rows as ``regression``
     (with ``overwrite``, its filtered velocity written over ``theta``)."""
-    inside = rows_inside_border(theta.size, settings) // settings.decimation
     velocity = filtered_velocity(theta, settings, overwrite=overwrite)
     # decimate(...)[inside][kept] of the whole decimated matrix, without it
-    return decimated_rows(velocity, settings.Ts, settings.decimation, inside[regression.kept])
+    return decimated_rows(velocity, settings.Ts, settings.decimation, regression.index)
 
 
 def _largest_speed(velocity: np.ndarray) -> float:
@@ -366,7 +378,6 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
     """
     velocity = filtered_velocity(theta, settings)
     index = rows_inside_border(theta.size, settings)
-    inside = index // settings.decimation
     kept = np.ones(index.size, dtype=bool)
     width = 4 * settings.decimation + 1  # the decimation filter's main lobe (+-2 rows)
     if settings.min_speed > 0.0:
@@ -380,17 +391,20 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
         )
         rest_rows = int(np.count_nonzero(resting & kept))
         kept &= ~resting
-    rows = inside[kept]  # X[inside][kept] of the whole decimated X, without it
-    X = decimated_rows(velocity, settings.Ts, settings.decimation, rows)
-    # with zoh, the input held over each sample: the second central difference of the
+        del resting
+    # the raw samples of the rows kept: decimate(...)[inside][kept] of the whole decimated
+    # X and y (inside = index // decimation), without them
+    index = index[kept]
+    # y: with zoh, the input held over each sample: the second central difference of the
     # position at k sees (u_(k-1) + u_k) / 2, exactly for an inertia (ZOH of 1/s^2 is
     # Ts^2 (z + 1) / (2 (z - 1)^2)): the input is aligned with it, half a sample later
-    y = decimated_input(u, settings)[rows]
+    y = decimated_input(u, settings, index)
+    X = decimated_rows(velocity, settings.Ts, settings.decimation, index)
     return Regression(
         X=X,
         y=y,
-        index=index[kept],
-        velocity=velocity[index[kept]],
+        index=index,
+        velocity=velocity[index],
         kept=kept,
         rest_speed=rest_speed,
         rest_rows=rest_rows,
