@@ -395,21 +395,23 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
     # the raw samples of the rows kept: decimate(...)[inside][kept] of the whole decimated
     # X and y (inside = index // decimation), without them
     index = index[kept]
+    X = decimated_rows(velocity, settings.Ts, settings.decimation, index)
+    at_rows, velocity0, max_speed = velocity[index], float(velocity[0]), _largest_speed(velocity)
+    del velocity  # not beside the input's rows
     # y: with zoh, the input held over each sample: the second central difference of the
     # position at k sees (u_(k-1) + u_k) / 2, exactly for an inertia (ZOH of 1/s^2 is
     # Ts^2 (z + 1) / (2 (z - 1)^2)): the input is aligned with it, half a sample later
     y = decimated_input(u, settings, index)
-    X = decimated_rows(velocity, settings.Ts, settings.decimation, index)
     return Regression(
         X=X,
         y=y,
         index=index,
-        velocity=velocity[index],
+        velocity=at_rows,
         kept=kept,
         rest_speed=rest_speed,
         rest_rows=rest_rows,
-        velocity0=float(velocity[0]),
-        max_speed=_largest_speed(velocity),
+        velocity0=velocity0,
+        max_speed=max_speed,
     )
 
 
