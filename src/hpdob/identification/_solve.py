@@ -224,12 +224,14 @@ def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tol
                 # the simulated one jumps with every stick event (IV then does not converge)
                 Z[:, 2] = run.regression.X[:, 2]
             blocks.append(layout.columns(Z, i))
+            del Z
         Z = _stacked(blocks)
         del blocks
         try:
             if scaled_condition(Z) > MAX_CONDITION:
                 raise np.linalg.LinAlgError
             new, covariance, iid = estimate_iv(X, y, Z, logs)
+            del Z  # not beside the next iteration's
         except np.linalg.LinAlgError:
             J, b, c, _ = layout.parameters(estimate, 0)
             raise ParameterValueError(
