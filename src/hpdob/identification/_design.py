@@ -150,7 +150,12 @@ def variance_inflation(columns: np.ndarray) -> np.ndarray:
     scale = np.linalg.norm(centred, axis=0)
     if np.any(scale == 0.0):
         return np.where(scale == 0.0, math.inf, 1.0)
-    correlation = (centred / scale).T @ (centred / scale)
+    # (centred / scale).T @ (centred / scale) with the second quotient written over centred:
+    # two operands in two arrays, as before (one array transposed onto itself would take
+    # BLAS's symmetric product, whose sums may round differently)
+    normalised = centred / scale
+    correlation = normalised.T @ np.divide(centred, scale, out=centred)
+    del normalised, centred
     try:
         return np.diag(np.linalg.inv(correlation))
     except np.linalg.LinAlgError:
