@@ -16,6 +16,7 @@ from hpdob.identification._lean import (
     filtfilt,
     gradient_block,
     gradient_inplace,
+    welch,
 )
 from hpdob.identification._regression import (
     REST_LENGTH,
@@ -77,6 +78,21 @@ def test_gradient_in_place_and_in_blocks_is_numpy_gradient(n, block):
     assert same_bits(gradient_inplace(x.copy(), 1e-3, block), reference)
     for lo, hi in ((0, n), (0, 1), (n - 1, n), (1, n - 1), (min(2, n - 1), n)):
         assert same_bits(gradient_block(x, lo, hi, 1e-3), reference[lo:hi])
+
+
+@pytest.mark.parametrize("n", [64, 5000, 20001])
+@pytest.mark.parametrize("segments", [1, 3, 64])
+def test_welch_in_segments_is_scipy_welch_bit_for_bit(n, segments):
+    x = np.cumsum(np.random.default_rng(n).standard_normal(n))
+    for window, nperseg in ((None, min(n, 256)), ("blackmanharris", min(n, 4096))):
+        want = signal.welch(
+            x, fs=1e3, nperseg=nperseg, **({} if window is None else {"window": window})
+        )
+        got = welch(x, fs=1e3, nperseg=nperseg, window=window, segments=segments)
+        read = welch((n, lambda lo, hi: x[lo:hi]), fs=1e3, nperseg=nperseg, window=window,
+                     segments=segments)  # fmt: skip
+        for f, p in (got, read):
+            assert same_bits(f, want[0]) and same_bits(p, want[1])
 
 
 # --- the regression as it was built before (issue 25), whole arrays at a time -------------

@@ -163,7 +163,10 @@ def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int 
     the segments' periodograms (about ``x.size`` values) instead of their detrended, windowed
     and transformed copies as well (four times as much).
 
-    ``window`` None is ``welch``'s default window. ``nperseg`` must not exceed ``x.size``.
+    ``x`` may also be ``(n, read)``: the signal's length and ``read(lo, hi)`` returning
+    ``x[lo:hi]`` as float64, called for the samples of a few segments at a time (the signal
+    itself is then never held). ``window`` None is ``welch``'s default window. ``nperseg``
+    must not exceed the signal's length.
     """
     import inspect
 
@@ -172,7 +175,10 @@ def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int 
     segments = SEGMENTS if segments is None else segments
     if window is None:
         window = inspect.signature(signal.welch).parameters["window"].default
-    n = x.size
+    if isinstance(x, tuple):
+        n, read = x
+    else:
+        n, read = x.size, lambda lo, hi: x[lo:hi]
     if not 0 < nperseg <= n:
         raise ValueError(f"nperseg must be from 1 to {n}, got {nperseg}")
     noverlap = nperseg // 2
@@ -183,7 +189,13 @@ def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int 
     power = None
     for a in range(0, count, segments):
         b = min(a + segments, count)
-        block = sft.spectrogram(x, x, detr="constant", p0=a, p1=b, k_offset=nperseg // 2)
+        # segment p covers x[p hop : p hop + nperseg] (k_offset: none hangs over an end);
+        # those of a to b from their samples alone, the same numbers
+        lo = a * sft.hop
+        part = read(lo, (b - 1) * sft.hop + nperseg)
+        block = sft.spectrogram(part, part, detr="constant", p0=0, p1=b - a,
+                                k_offset=nperseg // 2)  # fmt: skip
+        del part
         if power is None:
             power = np.empty((block.shape[0], count))
         power[:, a:b] = block

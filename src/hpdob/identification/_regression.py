@@ -93,10 +93,13 @@ def _whitened_psd(theta: np.ndarray, Ts: float):
     """Frequencies [Hz] and PSD of the position [unit^2/Hz] estimated from its second
     difference (Welch) divided by the difference's gain ``(2 sin(pi f Ts))^4``: the window's
     leakage from the large slow motion would otherwise mask the noise floor."""
-    second = second_difference(theta)
-    # scipy.signal.welch bit for bit, in a quarter of its memory
-    f, psd = welch(second, fs=1.0 / Ts, window="blackmanharris", nperseg=min(second.size, 4096))
-    del second
+    n = max(theta.size - 2, 0)  # second_difference(theta), a few segments at a time
+
+    def second(lo: int, hi: int) -> np.ndarray:
+        return np.diff(theta[lo : hi + 2], 2)
+
+    # scipy.signal.welch bit for bit, in a fraction of its memory
+    f, psd = welch((n, second), fs=1.0 / Ts, window="blackmanharris", nperseg=min(n, 4096))
     gain = (2.0 * np.sin(np.pi * f * Ts)) ** 4
     with np.errstate(divide="ignore", invalid="ignore"):
         return f[1:], psd[1:] / gain[1:]
