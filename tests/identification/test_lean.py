@@ -12,9 +12,11 @@ from scipy import signal
 
 from hpdob.identification._lean import (
     decimated,
+    decimated_at,
     filtfilt,
     gradient_block,
     gradient_inplace,
+    welch,
 )
 from hpdob.identification._regression import (
     REST_LENGTH,
@@ -58,6 +60,14 @@ def test_filtfilt_in_blocks_is_sosfiltfilt_bit_for_bit(name, n, block):
     for factor in (1, 3, 31):
         assert same_bits(decimated(sos, n, lambda lo, hi: x[lo:hi], factor, block),
                          reference[::factor])  # fmt: skip
+    rng = np.random.default_rng(block)
+    for samples in (
+        np.arange(n),
+        np.array([0, n - 1]),
+        np.sort(rng.choice(n, n // 3, replace=False)),
+    ):
+        assert same_bits(decimated_at(sos, n, lambda lo, hi: x[lo:hi], samples, block),
+                         reference[samples])  # fmt: skip
 
 
 @pytest.mark.parametrize("n", [2, 3, 5, 100, 4097])
@@ -68,6 +78,21 @@ def test_gradient_in_place_and_in_blocks_is_numpy_gradient(n, block):
     assert same_bits(gradient_inplace(x.copy(), 1e-3, block), reference)
     for lo, hi in ((0, n), (0, 1), (n - 1, n), (1, n - 1), (min(2, n - 1), n)):
         assert same_bits(gradient_block(x, lo, hi, 1e-3), reference[lo:hi])
+
+
+@pytest.mark.parametrize("n", [64, 5000, 20001])
+@pytest.mark.parametrize("segments", [1, 3, 64])
+def test_welch_in_segments_is_scipy_welch_bit_for_bit(n, segments):
+    x = np.cumsum(np.random.default_rng(n).standard_normal(n))
+    for window, nperseg in ((None, min(n, 256)), ("blackmanharris", min(n, 4096))):
+        want = signal.welch(
+            x, fs=1e3, nperseg=nperseg, **({} if window is None else {"window": window})
+        )
+        got = welch(x, fs=1e3, nperseg=nperseg, window=window, segments=segments)
+        read = welch((n, lambda lo, hi: x[lo:hi]), fs=1e3, nperseg=nperseg, window=window,
+                     segments=segments)  # fmt: skip
+        for f, p in (got, read):
+            assert same_bits(f, want[0]) and same_bits(p, want[1])
 
 
 # --- the regression as it was built before (issue 25), whole arrays at a time -------------

@@ -85,16 +85,17 @@ def in_band(signals, settings) -> list:
     return [signal.sosfiltfilt(sos, x) for x in signals]
 
 
-def band_error(u: np.ndarray, u_simulated: np.ndarray, settings) -> float:
+def band_error(u: np.ndarray, u_simulated: np.ndarray, settings, *, overwrite=False) -> float:
     """``relative_error(*in_band((u, u_simulated), settings))`` bit for bit, holding two
-    filtered arrays instead of four (the filters in blocks, the difference in place)."""
+    filtered arrays instead of four (the filters in blocks, the difference in place), or one
+    with ``overwrite`` (the filtered ``u_simulated`` and the difference written over it)."""
     from scipy import signal
 
     from ._lean import filtfilt
 
     sos = signal.butter(settings.order, settings.decimation_cutoff, fs=1.0 / settings.Ts,
                         output="sos")  # fmt: skip
-    simulated = filtfilt(sos, u_simulated)
+    simulated = filtfilt(sos, u_simulated, out=u_simulated if overwrite else None)
     measured = filtfilt(sos, u)
     scale = float(np.linalg.norm(measured))
     error = float(np.linalg.norm(np.subtract(measured, simulated, out=simulated)))
@@ -405,6 +406,12 @@ def identify(
             )
         )
     per_run = [layout.parameters(solution.estimate, i) for i in range(len(runs))]
+    # what the result needs of the regressions, which then go: not beside the diagnostics'
+    u_model = np.concatenate([run.regression.X @ per_run[i] for i, run in enumerate(runs)])
+    singular = np.linalg.svd(solution.X, compute_uv=False)
+    solution.X = None
+    for run in runs:
+        run.regression = replace(run.regression, X=None)
     fits, simulation, traces = [], None, None
     simulated = [
         per_run[i][0] > 0.0 and (diagnostics or (i == 0 and run.loop is not None))
@@ -415,32 +422,38 @@ def identify(
             fits.append(None)
             continue
         progress("simulating", sum(simulated[:i]), sum(simulated))
+        traced = i == 0 and run.loop is not None
+
+        def through_loop(position, command, run=run):
+            # the loop's errors from the simulated command, which the band error overwrites,
+            # before the fit's velocities; the position kept for the result's traces
+            nonlocal simulation, traces
+            simulation = {
+                "position_error_percent": relative_error(run.theta, position),
+                "input_error_percent": relative_error(run.u, command),
+                "input_error_band_percent": band_error(run.u, command, run.settings,
+                                                       overwrite=True),
+                "band_hz": run.settings.decimation_cutoff,
+            }  # fmt: skip
+            traces = (run.t, run.theta, position)
+            return True
+
         fit = simulate_fit(
             simulated_parameters(per_run[i], run, layout), run.t, run.theta, run.u, run.loop,
-            run.settings, keep=False,
+            run.settings, keep=False, simulated=through_loop if traced else None,
         )  # fmt: skip
-        # the fit's numbers, not its traces
-        fits.append(replace(fit, t=None, theta=None, theta_simulated=None, u_simulated=None))
-        if i == 0 and run.loop is not None:
-            simulation = {
-                "position_error_percent": relative_error(run.theta, fit.theta_simulated),
-                "input_error_percent": relative_error(run.u, fit.u_simulated),
-                "input_error_band_percent": band_error(run.u, fit.u_simulated, run.settings),
-                "band_hz": run.settings.decimation_cutoff,
-            }
-            traces = (run.t, run.theta, fit.theta_simulated)
-            if (
-                method == "idim-iv"
-                and simulation["position_error_percent"] > MAX_LOOP_POSITION_ERROR
-            ):
-                caught.append(
-                    "the loop simulated with the IDIM-IV estimate differs from the logged "
-                    f"position by {simulation['position_error_percent']:.3g} % (eq. 11): the "
-                    "instruments are poor; check the loop's gains, velocity filter and "
-                    "reference, and the reference's velocity and acceleration the loop used "
-                    "(FeedbackLoop(reference_velocity=..., feedforward=...); zero for a step "
-                    "reference)"
-                )
+        fits.append(fit)  # its numbers, not its traces
+        if traced and (
+            method == "idim-iv" and simulation["position_error_percent"] > MAX_LOOP_POSITION_ERROR
+        ):
+            caught.append(
+                "the loop simulated with the IDIM-IV estimate differs from the logged "
+                f"position by {simulation['position_error_percent']:.3g} % (eq. 11): the "
+                "instruments are poor; check the loop's gains, velocity filter and "
+                "reference, and the reference's velocity and acceleration the loop used "
+                "(FeedbackLoop(reference_velocity=..., feedforward=...); zero for a step "
+                "reference)"
+            )
         del fit  # its simulated command: not beside the next run's simulation
     if any(simulated):
         progress("simulating", sum(simulated), sum(simulated))
@@ -489,11 +502,9 @@ def identify(
         offset_std.append(
             0.0 if column is None else float(math.sqrt(solution.covariance[column, column]))
         )
-    u_model = np.concatenate([run.regression.X @ per_run[i] for i, run in enumerate(runs)])
     u_rows = np.concatenate([run.regression.y for run in runs])
     t_rows = np.concatenate([run.t[run.regression.index] for run in runs])
     run_rows = np.concatenate([np.full(run.regression.index.size, i) for i, run in enumerate(runs)])
-    singular = np.linalg.svd(solution.X, compute_uv=False)
     record = runs[0].settings.to_dict()
     record.update(
         method=method, adaptive=adaptive, n_rows=int(u_rows.size),

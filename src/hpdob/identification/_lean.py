@@ -19,6 +19,7 @@ __all__ = [
     "BLOCK",
     "SEGMENTS",
     "decimated",
+    "decimated_at",
     "filtfilt",
     "filtfilt_blocks",
     "gradient_block",
@@ -87,10 +88,12 @@ def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
             yield lo, hi, b[::-1]
 
 
-def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None) -> np.ndarray:
+def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=None):
     """``scipy.signal.sosfiltfilt(sos, x)`` of a 1-D float64 array, bit for bit, holding one
-    new array of ``x``'s size (``sosfiltfilt`` holds three, of the padded size)."""
-    out = np.empty(x.size)
+    new array of ``x``'s size (``sosfiltfilt`` holds three, of the padded size), or none with
+    ``out=x`` (written over ``x``: :func:`filtfilt_blocks` builds the padding first, and
+    yields a block only after its last read of it and of every block after it)."""
+    out = np.empty(x.size) if out is None else out
     for lo, hi, y in filtfilt_blocks(sos, x.size, lambda a, b: x[a:b], block):
         out[lo:hi] = y
     return out
@@ -142,6 +145,17 @@ def decimated(sos: np.ndarray, n: int, read, factor: int, block: int | None = No
     return out
 
 
+def decimated_at(sos: np.ndarray, n: int, read, samples: np.ndarray, block: int | None = None):
+    """``scipy.signal.sosfiltfilt(sos, x)[samples]`` of the signal ``read`` gives (see
+    :func:`filtfilt_blocks`) at increasing sample indices ``samples``, holding blocks and the
+    result only."""
+    out = np.empty(samples.size)
+    for lo, hi, y in filtfilt_blocks(sos, n, read, block):
+        a, b = np.searchsorted(samples, (lo, hi))
+        out[a:b] = y[samples[a:b] - lo]
+    return out
+
+
 def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int | None = None):
     """``scipy.signal.welch(x, fs=fs, window=window, nperseg=nperseg)`` of a 1-D float64
     array (its other defaults: half-overlapping segments, constant detrend, one-sided density,
@@ -149,7 +163,10 @@ def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int 
     the segments' periodograms (about ``x.size`` values) instead of their detrended, windowed
     and transformed copies as well (four times as much).
 
-    ``window`` None is ``welch``'s default window. ``nperseg`` must not exceed ``x.size``.
+    ``x`` may also be ``(n, read)``: the signal's length and ``read(lo, hi)`` returning
+    ``x[lo:hi]`` as float64, called for the samples of a few segments at a time (the signal
+    itself is then never held). ``window`` None is ``welch``'s default window. ``nperseg``
+    must not exceed the signal's length.
     """
     import inspect
 
@@ -158,7 +175,10 @@ def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int 
     segments = SEGMENTS if segments is None else segments
     if window is None:
         window = inspect.signature(signal.welch).parameters["window"].default
-    n = x.size
+    if isinstance(x, tuple):
+        n, read = x
+    else:
+        n, read = x.size, lambda lo, hi: x[lo:hi]
     if not 0 < nperseg <= n:
         raise ValueError(f"nperseg must be from 1 to {n}, got {nperseg}")
     noverlap = nperseg // 2
@@ -169,7 +189,13 @@ def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int 
     power = None
     for a in range(0, count, segments):
         b = min(a + segments, count)
-        block = sft.spectrogram(x, x, detr="constant", p0=a, p1=b, k_offset=nperseg // 2)
+        # segment p covers x[p hop : p hop + nperseg] (k_offset: none hangs over an end);
+        # those of a to b from their samples alone, the same numbers
+        lo = a * sft.hop
+        part = read(lo, (b - 1) * sft.hop + nperseg)
+        block = sft.spectrogram(part, part, detr="constant", p0=0, p1=b - a,
+                                k_offset=nperseg // 2)  # fmt: skip
+        del part
         if power is None:
             power = np.empty((block.shape[0], count))
         power[:, a:b] = block

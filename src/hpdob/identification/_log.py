@@ -439,12 +439,38 @@ def _read(path, *, time, position, input, input_gain, reference, Ts, axis, time_
         for role, name in wanted.items()
     }
     check_lengths({f"{role} {wanted[role]!r}": values for role, values in signals.items()})
+    del data
     runs = signals.pop("run", None)
     if runs is None:
         return [_build(signals, None, path, wanted, time, Ts, gain, axis, time_tolerance)]
-    values = list(dict.fromkeys(runs.tolist()))
-    return [_build({role: v[runs == value] for role, v in signals.items()}, value, path,
-                   wanted, time, Ts, gain, axis, time_tolerance) for value in values]  # fmt: skip
+    values = run_values(runs)
+    # split column by column, each column of the file let go once split: the file's columns
+    # and their runs' copies are not all held at once
+    parts = [{} for _ in values]
+    for role in list(signals):
+        column = signals.pop(role)
+        for part, value in zip(parts, values, strict=True):
+            part[role] = column[runs == value]
+        del column
+    return [_build(part, value, path, wanted, time, Ts, gain, axis, time_tolerance)
+            for part, value in zip(parts, values, strict=True)]  # fmt: skip
+
+
+def run_values(runs: np.ndarray) -> list:
+    """The values of a run column in the order they first appear: ``list(dict.fromkeys(
+    runs.tolist()))`` (``-0.0`` and ``0.0`` one run, named by the first), block by block
+    instead of a Python float per row."""
+    first: dict = {}
+    for lo in range(0, runs.size, _RUN_BLOCK):
+        block = runs[lo : lo + _RUN_BLOCK]
+        _, index = np.unique(block, return_index=True)  # first occurrences, stably sorted
+        for i in index.tolist():
+            first.setdefault(float(block[i]), lo + i)
+    return sorted(first, key=first.__getitem__)
+
+
+#: Rows of a run column looked at a time by :func:`run_values`.
+_RUN_BLOCK = 1 << 16
 
 
 def signal_kinds(axis) -> dict:

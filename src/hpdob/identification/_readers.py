@@ -219,7 +219,9 @@ def _read_mat(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
     import scipy.io
 
     try:
-        data = scipy.io.loadmat(path)
+        # the variables asked for only (a log's other signals are not held); the names of
+        # all of them only to say which are there when one is missing
+        data = scipy.io.loadmat(path, variable_names=sorted(set(wanted.values())))
     except NotImplementedError as err:  # MATLAB v7.3 files are HDF5
         raise ParameterValueError(
             f"{path.name} is a MATLAB v7.3 (HDF5) file, which scipy cannot read; save it "
@@ -230,7 +232,8 @@ def _read_mat(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
             f"cannot read {path.name} as a MATLAB file: {_one_line(err)}"
         ) from err
     variables = {key: value for key, value in data.items() if not key.startswith("__")}
-    _missing(path, wanted, variables)
+    if any(name not in variables for name in wanted.values()):
+        _missing(path, wanted, [name for name, _, _ in scipy.io.whosmat(path)])
     out = {}
     for role, name in wanted.items():
         value = variables[name]

@@ -29,7 +29,7 @@ import numpy as np
 
 from .._validation import ParameterValueError, as_int, nonnegative, positive
 from . import _lean
-from ._lean import decimated, filtfilt, gradient_block, gradient_inplace, welch
+from ._lean import decimated, decimated_at, filtfilt, gradient_block, gradient_inplace, welch
 
 __all__ = [
     "MIN_ROWS",
@@ -93,10 +93,13 @@ def _whitened_psd(theta: np.ndarray, Ts: float):
     """Frequencies [Hz] and PSD of the position [unit^2/Hz] estimated from its second
     difference (Welch) divided by the difference's gain ``(2 sin(pi f Ts))^4``: the window's
     leakage from the large slow motion would otherwise mask the noise floor."""
-    second = second_difference(theta)
-    # scipy.signal.welch bit for bit, in a quarter of its memory
-    f, psd = welch(second, fs=1.0 / Ts, window="blackmanharris", nperseg=min(second.size, 4096))
-    del second
+    n = max(theta.size - 2, 0)  # second_difference(theta), a few segments at a time
+
+    def second(lo: int, hi: int) -> np.ndarray:
+        return np.diff(theta[lo : hi + 2], 2)
+
+    # scipy.signal.welch bit for bit, in a fraction of its memory
+    f, psd = welch((n, second), fs=1.0 / Ts, window="blackmanharris", nperseg=min(n, 4096))
     gain = (2.0 * np.sin(np.pi * f * Ts)) ** 4
     with np.errstate(divide="ignore", invalid="ignore"):
         return f[1:], psd[1:] / gain[1:]
@@ -221,13 +224,14 @@ def kinematics(theta: np.ndarray, settings: Settings):
     return position, velocity, acceleration
 
 
-def filtered_velocity(theta: np.ndarray, settings: Settings) -> np.ndarray:
+def filtered_velocity(theta: np.ndarray, settings: Settings, *, overwrite: bool = False):
     """``kinematics(theta, settings)[1]`` bit for bit, holding one new array of ``theta``'s
-    size (the filtered position is differenced in place, :mod:`._lean`)."""
+    size (the filtered position is differenced in place, :mod:`._lean`), or none with
+    ``overwrite`` (the velocity written over ``theta``)."""
     from scipy import signal
 
     sos = signal.butter(settings.order, settings.cutoff, fs=1.0 / settings.Ts, output="sos")
-    return gradient_inplace(filtfilt(sos, theta), settings.Ts)
+    return gradient_inplace(filtfilt(sos, theta, out=theta if overwrite else None), settings.Ts)
 
 
 def observation(velocity: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
@@ -255,12 +259,21 @@ def decimate(x: np.ndarray, factor: int) -> np.ndarray:
     return signal.sosfiltfilt(_decimate_sos(factor), x, axis=0)[::factor]
 
 
-def decimated_rows(velocity: np.ndarray, Ts: float, factor: int) -> np.ndarray:
+def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, samples=None) -> np.ndarray:
     """``decimate(observation(velocity, np.gradient(velocity, Ts)), factor)`` bit for bit,
     column by column from ``velocity`` in blocks: the full-rate observation matrix (four
-    columns) and the filter's padded copies of it are never held."""
+    columns) and the filter's padded copies of it are never held. ``samples`` (increasing
+    multiples of ``factor``): only the rows of those raw samples, ``[samples // factor]`` of
+    it, without the whole decimated matrix."""
     if factor == 1:
-        return observation(velocity, np.gradient(velocity, Ts))
+        if samples is None:
+            return observation(velocity, np.gradient(velocity, Ts))
+        X = np.empty((samples.size, 4))  # observation(...)[samples], column by column
+        X[:, 0] = np.gradient(velocity, Ts)[samples]
+        X[:, 1] = velocity[samples]
+        X[:, 2] = np.sign(X[:, 1])
+        X[:, 3] = 1.0
+        return X
     sos, n = _decimate_sos(factor), velocity.size
     columns = (
         lambda lo, hi: gradient_block(velocity, lo, hi, Ts),
@@ -268,15 +281,19 @@ def decimated_rows(velocity: np.ndarray, Ts: float, factor: int) -> np.ndarray:
         lambda lo, hi: np.sign(velocity[lo:hi]),
         lambda lo, hi: np.ones(hi - lo),
     )
-    X = np.empty((-(-n // factor), len(columns)))
+    X = np.empty((-(-n // factor) if samples is None else samples.size, len(columns)))
     for j, column in enumerate(columns):
-        X[:, j] = decimated(sos, n, column, factor)
+        if samples is None:
+            X[:, j] = decimated(sos, n, column, factor)
+        else:
+            X[:, j] = decimated_at(sos, n, column, samples)
     return X
 
 
-def decimated_input(u: np.ndarray, settings: Settings) -> np.ndarray:
+def decimated_input(u: np.ndarray, settings: Settings, samples=None) -> np.ndarray:
     """``decimate(u, decimation)`` of the input, aligned first with ``zoh`` (see
-    :func:`build_regression`), bit for bit, in blocks."""
+    :func:`build_regression`), bit for bit, in blocks; ``samples`` as in
+    :func:`decimated_rows`."""
 
     def aligned(lo: int, hi: int) -> np.ndarray:
         if not settings.zoh:
@@ -289,8 +306,12 @@ def decimated_input(u: np.ndarray, settings: Settings) -> np.ndarray:
         return out
 
     if settings.decimation == 1:
-        return np.array(aligned(0, u.size), dtype=float)
-    return decimated(_decimate_sos(settings.decimation), u.size, aligned, settings.decimation)
+        full = np.array(aligned(0, u.size), dtype=float)
+        return full if samples is None else full[samples]
+    sos = _decimate_sos(settings.decimation)
+    if samples is None:
+        return decimated(sos, u.size, aligned, settings.decimation)
+    return decimated_at(sos, u.size, aligned, samples)
 
 
 @dataclass(frozen=True)
@@ -321,11 +342,13 @@ def minimum_samples(settings: Settings) -> int:
     return (MIN_ROWS + 2 * skip - 1) * settings.decimation + 1
 
 
-def instrument_rows(theta: np.ndarray, regression: Regression, settings: Settings) -> np.ndarray:
-    """The observation matrix of another position trace, on the same rows as ``regression``."""
-    full = decimated_rows(filtered_velocity(theta, settings), settings.Ts, settings.decimation)
-    inside = rows_inside_border(theta.size, settings) // settings.decimation
-    return full[inside][regression.kept]
+def instrument_rows(theta: np.ndarray, regression: Regression, settings: Settings, *,
+                    overwrite: bool = False) -> np.ndarray:  # fmt: skip
+    """The observation matrix of another position trace, on the same rows as ``regression``
+    (with ``overwrite``, its filtered velocity written over ``theta``)."""
+    velocity = filtered_velocity(theta, settings, overwrite=overwrite)
+    # decimate(...)[inside][kept] of the whole decimated matrix, without it
+    return decimated_rows(velocity, settings.Ts, settings.decimation, regression.index)
 
 
 def _largest_speed(velocity: np.ndarray) -> float:
@@ -357,13 +380,7 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
     filtered velocity.
     """
     velocity = filtered_velocity(theta, settings)
-    X = decimated_rows(velocity, settings.Ts, settings.decimation)
-    # with zoh, the input held over each sample: the second central difference of the
-    # position at k sees (u_(k-1) + u_k) / 2, exactly for an inertia (ZOH of 1/s^2 is
-    # Ts^2 (z + 1) / (2 (z - 1)^2)): the input is aligned with it, half a sample later
-    y = decimated_input(u, settings)
     index = rows_inside_border(theta.size, settings)
-    inside = index // settings.decimation
     kept = np.ones(index.size, dtype=bool)
     width = 4 * settings.decimation + 1  # the decimation filter's main lobe (+-2 rows)
     if settings.min_speed > 0.0:
@@ -377,16 +394,27 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
         )
         rest_rows = int(np.count_nonzero(resting & kept))
         kept &= ~resting
+        del resting
+    # the raw samples of the rows kept: decimate(...)[inside][kept] of the whole decimated
+    # X and y (inside = index // decimation), without them
+    index = index[kept]
+    X = decimated_rows(velocity, settings.Ts, settings.decimation, index)
+    at_rows, velocity0, max_speed = velocity[index], float(velocity[0]), _largest_speed(velocity)
+    del velocity  # not beside the input's rows
+    # y: with zoh, the input held over each sample: the second central difference of the
+    # position at k sees (u_(k-1) + u_k) / 2, exactly for an inertia (ZOH of 1/s^2 is
+    # Ts^2 (z + 1) / (2 (z - 1)^2)): the input is aligned with it, half a sample later
+    y = decimated_input(u, settings, index)
     return Regression(
-        X=X[inside][kept],
-        y=y[inside][kept],
-        index=index[kept],
-        velocity=velocity[index[kept]],
+        X=X,
+        y=y,
+        index=index,
+        velocity=at_rows,
         kept=kept,
         rest_speed=rest_speed,
         rest_rows=rest_rows,
-        velocity0=float(velocity[0]),
-        max_speed=_largest_speed(velocity),
+        velocity0=velocity0,
+        max_speed=max_speed,
     )
 
 

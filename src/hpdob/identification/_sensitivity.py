@@ -65,9 +65,10 @@ def excitation_bandwidth(run) -> float:
     :data:`EXCITATION_POWER` of the input's power lies (Welch), capped at the position's
     signal bandwidth (above it the input is the loop's response to the encoder's noise, not
     excitation: a PD's input on a coarse encoder)."""
-    u = run.u - np.mean(run.u)
-    f, p = welch(u, fs=1.0 / run.Ts, nperseg=min(u.size, 8192))  # scipy's, bit for bit
-    del u
+    u, mean = run.u, np.mean(run.u)
+    # scipy's welch of u - mean(u), bit for bit, without that array: a few segments at a time
+    f, p = welch((u.size, lambda lo, hi: u[lo:hi] - mean), fs=1.0 / run.Ts,
+                 nperseg=min(u.size, 8192))  # fmt: skip
     power = np.cumsum(p)
     band = float(f[min(np.searchsorted(power, EXCITATION_POWER * power[-1]), f.size - 1)])
     return min(band, signal_bandwidth(run.theta, run.Ts))

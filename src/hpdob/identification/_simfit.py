@@ -81,40 +81,39 @@ def simulate_fit(
     settings: Settings,
     *,
     keep: bool = True,
+    simulated=None,
 ) -> SimulationFit:
     """Simulate ``parameters = (J, b, coulomb, offset)`` on a log (through ``loop``, or open
     loop from ``u`` if it is None) from the log's initial position and filtered velocity.
-    Negative friction is simulated as 0. With ``keep=False`` the velocities are not kept
-    (None; the fits are the same numbers) and the run holds at most four arrays of the log's
-    length at a time, the simulated position and command among them."""
+    Negative friction is simulated as 0.
+
+    With ``keep=False`` no trace is kept (None; the fits are the same numbers) and the run
+    holds at most two arrays of the log's length at a time beside its result (three through
+    a loop): the simulated position and command are handed to ``simulated(position,
+    command)`` if given (the command None in open loop), which may overwrite the command and
+    keep the position (then not overwritten), before the velocities are computed."""
     J, b, coulomb, offset = (float(p) for p in parameters)
-    velocity = filtered_velocity(theta, settings)  # kinematics(theta, settings)[1], bit for bit
     closed = loop is not None
+    if not keep:
+        return _fit_numbers((J, b, coulomb, offset), t, theta, u, loop, settings, simulated)
+    velocity = filtered_velocity(theta, settings)  # kinematics(theta, settings)[1], bit for bit
     velocity_spread = float(np.linalg.norm(velocity - velocity.mean()))
     # the open loop: the logged input applied as it is (no feedback), feed-forward only; as
     # open_loop(u) without its arrays of zeros
-    simulated, u_simulated = run_simulation(
+    theta_simulated, u_simulated = run_simulation(
         loop if closed else u.size,
         (J, max(b, 0.0), max(coulomb, 0.0), offset),
         Ts=settings.Ts,
         theta0=float(theta[0]),
         velocity0=float(velocity[0]),
         feedforward=None if closed else u,
-        command=keep or closed,
     )
-    position_fit = nrmse_fit(theta, simulated)  # before another array of the log's length
-    velocity_simulated = filtered_velocity(simulated, settings)
-    if not keep:
-        velocity_fit = nrmse_fit(velocity, velocity_simulated, spread=velocity_spread,
-                                 out=velocity_simulated)  # fmt: skip
-        return SimulationFit(t=t, theta=theta, theta_simulated=simulated, velocity=None,
-                             velocity_simulated=None, u_simulated=u_simulated,
-                             closed_loop=closed, position_fit=position_fit,
-                             velocity_fit=velocity_fit)  # fmt: skip
+    position_fit = nrmse_fit(theta, theta_simulated)
+    velocity_simulated = filtered_velocity(theta_simulated, settings)
     return SimulationFit(
         t=t,
         theta=theta,
-        theta_simulated=simulated,
+        theta_simulated=theta_simulated,
         velocity=velocity,
         velocity_simulated=velocity_simulated,
         u_simulated=u_simulated,
@@ -122,6 +121,43 @@ def simulate_fit(
         position_fit=position_fit,
         velocity_fit=nrmse_fit(velocity, velocity_simulated, spread=velocity_spread),
     )
+
+
+def _fit_numbers(parameters, t, theta, u, loop, settings, simulated) -> SimulationFit:
+    """:func:`simulate_fit` with ``keep=False``: the same numbers in the same operations,
+    ordered so that few arrays of the log's length live at once. The log's velocity is
+    computed twice (its spread and first sample before the simulation, itself after it)
+    rather than held beside the simulated position."""
+    J, b, coulomb, offset = parameters
+    closed = loop is not None
+    velocity = filtered_velocity(theta, settings)
+    velocity0 = float(velocity[0])
+    velocity_spread = float(np.linalg.norm(velocity - velocity.mean()))
+    del velocity
+    position_spread = float(np.linalg.norm(theta - theta.mean()))
+    position, command = run_simulation(
+        loop if closed else u.size,
+        (J, max(b, 0.0), max(coulomb, 0.0), offset),
+        Ts=settings.Ts,
+        theta0=float(theta[0]),
+        velocity0=velocity0,
+        feedforward=None if closed else u,
+        command=closed,
+    )
+    position_fit = nrmse_fit(theta, position, spread=position_spread)
+    kept = False
+    if simulated is not None:
+        kept = bool(simulated(position, command))
+    del command
+    # the velocity of the simulated position, over it unless the caller keeps it
+    velocity_simulated = filtered_velocity(position, settings, overwrite=not kept)
+    del position
+    velocity = filtered_velocity(theta, settings)
+    velocity_fit = nrmse_fit(velocity, velocity_simulated, spread=velocity_spread,
+                             out=velocity_simulated)  # fmt: skip
+    return SimulationFit(t=t, theta=theta, theta_simulated=None, velocity=None,
+                         velocity_simulated=None, u_simulated=None, closed_loop=closed,
+                         position_fit=position_fit, velocity_fit=velocity_fit)  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)

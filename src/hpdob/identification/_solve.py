@@ -27,6 +27,7 @@ __all__ = [
     "Solution",
     "estimate_iv",
     "input_loop",
+    "input_simulation",
     "long_run_covariance",
     "relative_error",
     "simulable",
@@ -124,11 +125,12 @@ def estimate_iv(X: np.ndarray, y: np.ndarray, Z: np.ndarray, logs=None):
     return theta, A @ S @ A.T, iid
 
 
-def input_loop(theta: np.ndarray, u: np.ndarray, J: float, settings) -> FeedbackLoop:
+def input_loop(theta: np.ndarray, u: np.ndarray, J: float, settings, *, velocity=True):
     """The loop of ``"idim-iv-input"``: the logged input drives the model, and a slow PD
     (bandwidth :data:`INPUT_LOOP_FRACTION` x the decimation cut-off, gains from ``J``) pulls it
     towards the low-passed measured position so that it cannot drift away (an open-loop
-    simulation integrates every error of the offset and friction)."""
+    simulation integrates every error of the offset and friction). ``velocity=False``: without
+    its reference velocity (the gradient of its reference; :func:`input_simulation`)."""
     from scipy import signal
 
     omega = 2.0 * math.pi * INPUT_LOOP_FRACTION * settings.decimation_cutoff
@@ -139,10 +141,26 @@ def input_loop(theta: np.ndarray, u: np.ndarray, J: float, settings) -> Feedback
         slow,
         kp=J * omega**2,
         kd=2.0 * J * omega,
-        reference_velocity=readonly(gradient_inplace(slow.copy(), settings.Ts)),
+        reference_velocity=readonly(gradient_inplace(slow.copy(), settings.Ts))
+        if velocity
+        else None,
         feedforward=u,
         velocity_filter=None,
     )
+
+
+def input_simulation(theta, u, parameters, settings, velocity0: float) -> np.ndarray:
+    """The position of :func:`input_loop` simulated with ``parameters`` from ``theta[0]`` and
+    ``velocity0`` (``run_simulation(input_loop(...), ...)`` bit for bit), holding two arrays
+    of the log's length: the reference velocity is given to the kernel beside the loop (not
+    copied into it), and the position is written over it."""
+    loop = input_loop(theta, u, parameters[0], settings, velocity=False)
+    velocity = gradient_inplace(loop.reference.copy(), settings.Ts)
+    simulated, _ = run_simulation(
+        loop, parameters, Ts=settings.Ts, theta0=theta[0], velocity0=velocity0, command=False,
+        reference_velocity=velocity, out=velocity,
+    )  # fmt: skip
+    return simulated
 
 
 @dataclass
@@ -182,16 +200,14 @@ def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tol
             name = f" of {run.name}" if len(runs) > 1 else ""
             parameters = simulable(layout.parameters(estimate, i), iteration, name)
             through_loop = run.loop is not None and method == "idim-iv"
-            loop = (
-                run.loop
-                if through_loop
-                else input_loop(run.theta, run.u, parameters[0], run.settings)
-            )
-            simulated, _ = run_simulation(
-                loop, parameters, Ts=run.Ts, theta0=run.theta[0],
-                velocity0=run.regression.velocity0, command=False,
-            )  # fmt: skip
-            del loop  # the input-driven loop's arrays: not beside the instruments
+            if through_loop:
+                simulated, _ = run_simulation(
+                    run.loop, parameters, Ts=run.Ts, theta0=run.theta[0],
+                    velocity0=run.regression.velocity0, command=False,
+                )  # fmt: skip
+            else:  # the input-driven loop's arrays: not beside the instruments
+                simulated = input_simulation(run.theta, run.u, parameters, run.settings,
+                                             run.regression.velocity0)  # fmt: skip
             if through_loop and iteration == 1:
                 mismatch = relative_error(run.theta, simulated)
                 if mismatch > MAX_LOOP_MISMATCH:
@@ -201,19 +217,21 @@ def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tol
                         f"by {mismatch:.3g} % (eq. 11; limit {MAX_LOOP_MISMATCH:g} %); check its "
                         "reference, gains, velocity filter and units"
                     )
-            Z = instrument_rows(simulated, run.regression, run.settings)
+            Z = instrument_rows(simulated, run.regression, run.settings, overwrite=True)
             del simulated
             if own_sign:
                 # sign(velocity) is its own instrument: noise changes it only near rest, and
                 # the simulated one jumps with every stick event (IV then does not converge)
                 Z[:, 2] = run.regression.X[:, 2]
             blocks.append(layout.columns(Z, i))
+            del Z
         Z = _stacked(blocks)
         del blocks
         try:
             if scaled_condition(Z) > MAX_CONDITION:
                 raise np.linalg.LinAlgError
             new, covariance, iid = estimate_iv(X, y, Z, logs)
+            del Z  # not beside the next iteration's
         except np.linalg.LinAlgError:
             J, b, c, _ = layout.parameters(estimate, 0)
             raise ParameterValueError(
