@@ -20,6 +20,7 @@ Every log here is SYNTHETIC (a PD loop around a rigid axis with Coulomb friction
 from __future__ import annotations
 
 import contextlib
+import functools
 import gc
 import io
 import tracemalloc
@@ -57,6 +58,7 @@ def small_blocks(monkeypatch):
     monkeypatch.setattr(_csv_floats, "CHUNK", 1024)
 
 
+@functools.cache  # the same logs in every test: made once (read-only arrays)
 def _columns(n: int, seed: int = 0, way: float = 1.0) -> dict:
     """A synthetic closed-loop log: a PD at 5 Hz tracking three sines, an encoder of 4096
     counts, 1 % noise on the logged input."""
@@ -68,8 +70,11 @@ def _columns(n: int, seed: int = 0, way: float = 1.0) -> dict:
     theta, u = simulate_loop(FeedbackLoop(r, kp=J * w * w, kd=J * 2 * w), (J, B, COULOMB, 0.0),
                              Ts=TS)  # fmt: skip
     q = 2 * np.pi / 4096
-    return {"t": t, "q": np.round(theta / q) * q,
-            "u": u + 0.01 * np.std(u) * rng.standard_normal(n), "r": r}  # fmt: skip
+    columns = {"t": t, "q": np.round(theta / q) * q,
+               "u": u + 0.01 * np.std(u) * rng.standard_normal(n), "r": r}  # fmt: skip
+    for column in columns.values():
+        column.flags.writeable = False
+    return columns
 
 
 def _write(path, columns: dict) -> None:
@@ -85,10 +90,12 @@ def _write(path, columns: dict) -> None:
                    delimiter=",", header=",".join(names), comments="")  # fmt: skip
 
 
-def _peak(args: list, out) -> int:
-    """tracemalloc's peak [bytes] while ``hpdob ARGS --out OUT --no-plot`` runs."""
+def _peak(args: list, out, *, traced: bool = True) -> int:
+    """tracemalloc's peak [bytes] while ``hpdob ARGS --out OUT --no-plot`` runs (0 if not
+    ``traced``: a warm-up, several times faster untraced)."""
     gc.collect()
-    tracemalloc.start()
+    if traced:
+        tracemalloc.start()
     try:
         base = tracemalloc.get_traced_memory()[0]
         errors = io.StringIO()
@@ -123,7 +130,7 @@ def copies(
                                   for k, v in columns.items()}}  # fmt: skip
                 _write(paths[name], columns)
         args = [word.format(**paths) for word in command]
-        peaks.append(_peak(args, tmp_path / f"out-{n}"))
+        peaks.append(_peak(args, tmp_path / f"out-{n}", traced=n != 10_000))
     copy0, copy1 = (n * read * 8 * len(files) for n in (n0, n1))
     slope = (peaks[2] - peaks[1]) / (copy1 - copy0)
     print(f"{' '.join(command[:1] + command[2:])}: {slope:.3f} copies")  # with pytest -s
