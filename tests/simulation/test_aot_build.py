@@ -184,12 +184,97 @@ def test_bad_input_is_rejected_and_writes_nothing(tmp_path):
         (ValueError, "cxx_compiler needs a compiler", loop, {"cxx_compiler": "clang++"}),
         (ValueError, "timeout must be a positive", loop, {"timeout": 0}),
         (ValueError, "duration", loop, {"duration": -1.0}),
+        (ValueError, r"folder must name a folder, got ''", loop, {"folder": ""}),
+        (
+            ValueError,
+            r"compiler must be a command line shlex can split, got 'gcc \"-O2'",
+            loop,
+            {"compiler": 'gcc "-O2'},
+        ),
+        (
+            ValueError,
+            "cxx_compiler must be None with compiler='zig'",
+            loop,
+            {"compiler": "zig", "cxx_compiler": "clang++"},
+        ),
+        (
+            ValueError,
+            "timeout must be a positive finite number of seconds, got inf",
+            loop,
+            {"timeout": float("inf")},
+        ),
+        (
+            ValueError,
+            "timeout must be a positive finite number of seconds, got nan",
+            loop,
+            {"timeout": float("nan")},
+        ),
+        (
+            TypeError,
+            "timeout must be a positive finite number of seconds, got '5' of type str",
+            loop,
+            {"timeout": "5"},
+        ),
+        (TypeError, "timeout .* got None of type NoneType", loop, {"timeout": None}),
+        (TypeError, "timeout .* got True of type bool", loop, {"timeout": True}),
     ]
     for error, message, first, change in cases:
         arguments = {**kw, "folder": folder, **change}
         with pytest.raises(error, match=message):
             build_loop_extension(first, **arguments)
         assert not folder.exists()
+
+
+@pytest.fixture
+def no_build(monkeypatch):
+    """The build step replaced by a failure: a refused call never reaches it."""
+    import hpdob.simulation._aot_build as aot_build
+
+    def compile_(work, command, timeout):
+        raise AssertionError(f"the build started in {work}")
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+
+
+def test_a_folder_that_cannot_be_written_is_refused_before_the_build(tmp_path, no_build):
+    kw = _settings("pd")
+    taken = tmp_path / "taken"
+    taken.write_text("a file")
+    for folder in (taken, taken / "below"):
+        with pytest.raises(OSError, match=f"folder '{folder}' cannot be written"):
+            build_loop_extension(**kw, folder=folder, compiler="zig")
+    assert [p.name for p in tmp_path.iterdir()] == ["taken"]
+    assert taken.read_text() == "a file"
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0,
+                    reason="permissions do not bind root")  # fmt: skip
+def test_a_read_only_folder_is_refused_before_the_build(tmp_path, no_build):
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    try:
+        for folder in (locked, locked / "below"):
+            with pytest.raises(OSError, match=f"folder '{folder}' cannot be written"):
+                build_loop_extension(**_settings("pd"), folder=folder, compiler="zig")
+        assert list(locked.iterdir()) == []
+    finally:
+        locked.chmod(0o700)
+
+
+def test_numpy_numbers_are_timeouts(tmp_path, monkeypatch):
+    import hpdob.simulation._aot_build as aot_build
+
+    seen = []
+
+    def compile_(work, command, timeout):
+        seen.append(timeout)
+        raise LoopBuildError("stopped here")
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+    for timeout in (np.int64(5), np.float64(2.5), 7):
+        with pytest.raises(LoopBuildError, match="stopped here"):
+            build_loop_extension(**_settings("pd"), folder=tmp_path, timeout=timeout)
+    assert seen == [5.0, 2.5, 7.0] and all(type(t) is float for t in seen)
 
 
 class Subclass(np.ndarray):

@@ -23,7 +23,7 @@ def register(subparsers) -> None:
     parser.add_argument("scenario", type=Path, help="scenario file (.toml)")
     parser.add_argument(
         "--folder",
-        type=Path,
+        type=_folder,
         default=None,
         metavar="DIR",
         help="where the extension is written (default: $HPDOB_AOT_DIR, else "
@@ -37,6 +37,12 @@ def register(subparsers) -> None:
         "(default: $CC, else the one setuptools finds)",
     )
     parser.set_defaults(handler=_run)
+
+
+def _folder(text: str) -> Path:
+    if not text:  # Path("") would be the working folder
+        raise argparse.ArgumentTypeError("it must name a folder, got ''")
+    return Path(text)
 
 
 #: The scenario's simulate() arguments that decide the loop (the label and the rest do not).

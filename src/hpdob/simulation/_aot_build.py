@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import math
+import numbers
 import os
 import re
 import shlex
@@ -12,6 +14,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from .._files import check_output
 from .._validation import ParameterTypeError, ParameterValueError
 from . import _aot
 from ._loop import ServoLoop, accepts_loop
@@ -26,7 +29,12 @@ class LoopBuildError(RuntimeError):
 
 def _command(compiler, name: str) -> str:
     if isinstance(compiler, (str, os.PathLike)):
-        parts = shlex.split(os.fspath(compiler))
+        try:
+            parts = shlex.split(os.fspath(compiler))
+        except ValueError as error:  # an unclosed quotation, a trailing escape
+            raise ParameterValueError(
+                f"{name} must be a command line shlex can split, got {compiler!r} ({error})"
+            ) from None
     elif isinstance(compiler, (list, tuple)) and all(isinstance(p, str) for p in compiler):
         parts = list(compiler)
     else:
@@ -49,6 +57,11 @@ def _compiler_commands(compiler, cxx_compiler) -> tuple | None:
             )
         return None
     if compiler == "zig":  # the ziglang package (the test extra's)
+        if cxx_compiler is not None:  # zig c++ compiles numba's runtime: no other is run
+            raise ParameterValueError(
+                f"cxx_compiler must be None with compiler='zig' (it runs zig c++), got "
+                f"cxx_compiler={cxx_compiler!r}"
+            )
         zig = [sys.executable, "-m", "ziglang"]
         # -nostdlib for the link: an extension's C library calls are bound by the Python
         # process that loads it, and without the flag zig first builds its own C runtime and
@@ -127,9 +140,10 @@ def build_loop_extension(
         package's ``zig cc`` and ``zig c++`` (no compiler installed on the machine needed).
         Default: ``$CC``, else the one ``setuptools`` finds.
     cxx_compiler : str or list of str, optional
-        The C++ compiler command, for numba's runtime and the link (with ``compiler``).
+        The C++ compiler command, for numba's runtime and the link (with ``compiler``, not
+        ``"zig"``).
     timeout : float, optional
-        Seconds the build may take before it is stopped (default 600).
+        Seconds the build may take before it is stopped (positive and finite; default 600).
 
     Returns
     -------
@@ -141,6 +155,9 @@ def build_loop_extension(
     TypeError, ValueError
         For arguments of the wrong type or value, with the parameter named (the run's
         arguments are checked as :func:`~hpdob.simulate` checks them).
+    OSError
+        If the folder cannot be written (a file where it should be, no permission): checked
+        before the build, nothing written.
     LoopBuildError
         If ``numba.pycc`` (it needs numba, ``setuptools``: the ``aot`` extra, and a C compiler)
         or the compiler fails, or the build times out; no extension is written.
@@ -160,9 +177,19 @@ def build_loop_extension(
         raise ParameterTypeError(f"loop must be a ServoLoop, got {type(loop).__name__}")
     if folder is not None and not isinstance(folder, (str, os.PathLike)):
         raise ParameterTypeError(f"folder must be a path (str or os.PathLike), got {folder!r}")
+    if folder is not None and not os.fspath(folder):  # Path("") is the working folder
+        raise ParameterValueError(f"folder must name a folder, got {folder!r}")
     command = _compiler_commands(compiler, cxx_compiler)
-    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not timeout > 0:
-        raise ParameterValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
+    if isinstance(timeout, bool) or not isinstance(timeout, numbers.Real):
+        raise ParameterTypeError(
+            f"timeout must be a positive finite number of seconds, got {timeout!r} of type "
+            f"{type(timeout).__name__}"
+        )
+    if not (math.isfinite(timeout) and timeout > 0):  # subprocess cannot wait for inf
+        raise ParameterValueError(
+            f"timeout must be a positive finite number of seconds, got {timeout!r}"
+        )
+    timeout = float(timeout)
     if duration is None:
         duration = 10 * loop.Ts
     seen: dict = {}
@@ -186,6 +213,9 @@ def build_loop_extension(
     path = target / (name + _aot.SUFFIX)
     if path.is_file() and _aot.intact(path):
         return path
+    # before the build, not after it: a file where the folder should be, a read-only folder
+    where = "folder" if folder is not None else f"folder (${_aot.FOLDER_VARIABLE} or the cache)"
+    check_output(target, name=where)
     target.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=".build-", dir=target))  # same file system: rename
     try:
