@@ -8,6 +8,8 @@ first's object files); every other test is a subprocess or an in-process run.
 
 from __future__ import annotations
 
+import contextlib
+import json
 import os
 import shutil
 import signal
@@ -275,6 +277,43 @@ def test_numpy_numbers_are_timeouts(tmp_path, monkeypatch):
         with pytest.raises(LoopBuildError, match="stopped here"):
             build_loop_extension(**_settings("pd"), folder=tmp_path, timeout=timeout)
     assert seen == [5.0, 2.5, 7.0] and all(type(t) is float for t in seen)
+
+
+def test_two_builds_of_one_loop_at_once_leave_one_intact_extension(tmp_path, monkeypatch):
+    """Two builds of the same loop at once (threads here; the lock is a file's, so processes
+    alike): the second waits for the first and finds its extension. Each fake build writes
+    bytes of its own, as builds whose files differ: without the lock both would build and
+    each rename its record and extension, one's record possibly beside the other's file."""
+    import threading
+
+    import hpdob.simulation._aot_build as aot_build
+    from hpdob.simulation import _aot
+
+    both = threading.Barrier(2, timeout=1.0)
+    builds = []
+
+    def compile_(work, command, timeout):
+        builds.append(work)
+        spec = json.loads((work / "spec.json").read_text())
+        (work / spec["file"]).write_bytes(f"build {len(builds)}".encode() * 1000)
+        # both builds here at once unless the second waits for the first
+        with contextlib.suppress(threading.BrokenBarrierError):
+            both.wait()
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+    paths = []
+    threads = [threading.Thread(target=lambda: paths.append(build_loop_extension(
+        **_settings("pd"), folder=tmp_path, compiler="zig"))) for _ in range(2)]  # fmt: skip
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(paths) == 2 and paths[0] == paths[1]
+    assert len(builds) == 1  # the second found the first's extension
+    assert _aot.intact(paths[0])
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith(".")) == sorted(
+        [paths[0].name, _aot.record_path(paths[0]).name]
+    )
 
 
 class Subclass(np.ndarray):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import numbers
@@ -217,6 +218,32 @@ def build_loop_extension(
     where = "folder" if folder is not None else f"folder (${_aot.FOLDER_VARIABLE} or the cache)"
     check_output(target, name=where)
     target.mkdir(parents=True, exist_ok=True)
+    with _exclusive(target / f".{name}.lock"):
+        if path.is_file() and _aot.intact(path):  # built meanwhile by another process
+            return path
+        _build(target, path, name, seen, command, timeout)
+    return path
+
+
+@contextlib.contextmanager
+def _exclusive(lock: Path):
+    """Hold an exclusive ``flock`` on ``lock`` (created, never removed): a second build of the
+    same loop, in any process, waits and then finds the first's, not building it again. Two
+    builds' files can differ (debug information naming the temporary folder, a compiler's
+    time stamps), and two builds renaming their record and extension at once could leave one's
+    record beside the other's extension, which no run would load."""
+    try:
+        import fcntl
+    except ImportError:  # Windows: no lock; each file is still renamed whole
+        yield
+        return
+    with open(lock, "ab") as handle:
+        fcntl.flock(handle.fileno(), fcntl.LOCK_EX)  # released when the file is closed
+        yield
+
+
+def _build(target: Path, path: Path, name: str, seen: dict, command, timeout: float) -> None:
+    """Build the extension ``path`` in a temporary folder in ``target`` and rename it there."""
     work = Path(tempfile.mkdtemp(prefix=".build-", dir=target))  # same file system: rename
     try:
         source_module = f"hpdob_aot_source_{name[len(_aot.PREFIX) :]}"
@@ -235,7 +262,6 @@ def build_loop_extension(
         _aot.forget(path)  # a file this process could not load before: try the new one
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return path
 
 
 def _compile(work: Path, command: tuple | None, timeout: float) -> None:
