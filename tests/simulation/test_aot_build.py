@@ -316,6 +316,111 @@ def test_two_builds_of_one_loop_at_once_leave_one_intact_extension(tmp_path, mon
     )
 
 
+@pytest.fixture
+def fake_build(tmp_path, monkeypatch):
+    """A folder holding a file under the PD run's extension name (a fake build: no compiler)
+    and the paths ``simulate`` tries to load, recorded (none is loaded: the JIT loop runs)."""
+    import hpdob.simulation._aot_build as aot_build
+    from hpdob.simulation import _aot
+
+    def compile_(work, command, timeout):
+        spec = json.loads((work / "spec.json").read_text())
+        (work / spec["file"]).write_bytes(b"not loaded")
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+    folder = tmp_path / "aot"
+    path = build_loop_extension(**_settings("pd"), folder=folder)
+    tried = []
+    monkeypatch.setattr(_aot, "load_extension", lambda p: tried.append(p))
+    monkeypatch.setenv("HPDOB_AOT_DIR", str(folder))
+    return path, tried
+
+
+@pytest.mark.parametrize(
+    ("value", "on"),
+    [
+        ("0", False),
+        ("false", False),
+        ("OFF", False),
+        (" no ", False),
+        ("", True),
+        ("1", True),
+        ("true", True),
+        ("garbage", True),
+    ],
+)
+def test_hpdob_aot_turns_the_route_off_with_0_false_no_off(value, on, fake_build, monkeypatch):
+    path, tried = fake_build
+    monkeypatch.setenv("HPDOB_AOT", value)
+    simulate(**_settings("pd"))
+    assert tried == ([path] if on else [])
+
+
+def test_a_folder_of_built_loops_that_is_not_one_runs_the_jit_loop(tmp_path, monkeypatch):
+    """``HPDOB_AOT_DIR`` naming a file, a missing or an unreadable folder: no warning (the
+    suite's warnings are errors), the JIT loop's result."""
+    expected = _jit("pd", monkeypatch)
+    monkeypatch.delenv("HPDOB_AOT")
+    (tmp_path / "file").write_text("a file")
+    unreadable = tmp_path / "unreadable"
+    unreadable.mkdir(mode=0o000)
+    try:
+        for named in (tmp_path / "file", tmp_path / "missing", unreadable):
+            monkeypatch.setenv("HPDOB_AOT_DIR", str(named))
+            assert _same({k: getattr(expected, k) for k in FIELDS}, simulate(**_settings("pd")))
+    finally:
+        unreadable.chmod(0o700)
+
+
+def test_the_name_follows_what_is_baked_into_the_source_not_the_numbers(tmp_path, monkeypatch):
+    """Numbers the loop takes as arguments (gains, bandwidths, duration, the initial state)
+    keep the extension's name: the loop built for one runs the other, its numbers passed in;
+    what the generated source is made of (the observer's order, a sensor, a delay line)
+    changes the name, so an extension is never called with another structure's arguments."""
+    import hpdob.simulation._aot_build as aot_build
+    from hpdob import PD
+    from hpdob.observers import DisturbanceObserver
+
+    def compile_(work, command, timeout):
+        spec = json.loads((work / "spec.json").read_text())
+        (work / spec["file"]).write_bytes(spec["name"].encode())
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+
+    def name(**changes) -> str:
+        kw = {**_settings("canonical"), **changes}
+        return build_loop_extension(**kw, folder=tmp_path).name
+
+    discrete = paper.NOMINAL.discretize(paper.TS)
+    base = name()
+    same = {
+        "gains": name(controller=PD(kp=80.0, kd=3.0)),
+        "bandwidth": name(observer=DisturbanceObserver(discrete, order=1, bandwidth=170.0).design),
+        "duration": name(duration=0.25),
+        "x0": name(x0=(0.1, -2.0)),
+    }
+    assert same == dict.fromkeys(same, base)
+    other = {
+        "order": name(observer=DisturbanceObserver(discrete, order=2, bandwidth=100.0).design),
+        "no observer": name(observer=None),
+        "encoder": name(sensor=Encoder(4096)),
+        "delay": name(actuator=Actuator(delay_samples=1)),
+    }
+    assert len({base, *other.values()}) == 1 + len(other), other
+
+
+def test_without_numba_pycc_the_build_fails_and_writes_no_extension(tmp_path, monkeypatch):
+    """What the docs promise for numba releases without ``numba.pycc`` (pending deprecation):
+    the build raises LoopBuildError naming it; nothing a run would load is written."""
+    shadow = tmp_path / "shadow"
+    shadow.mkdir()  # the build process's numba.pycc made unimportable
+    (shadow / "sitecustomize.py").write_text('import sys\nsys.modules["numba.pycc"] = None\n')
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(shadow), *sys.path]))
+    with pytest.raises(LoopBuildError, match=r"ModuleNotFoundError: import of numba\.pycc"):
+        build_loop_extension(**_settings("pd"), folder=tmp_path / "aot", compiler="zig")
+    assert not [p for p in (tmp_path / "aot").iterdir() if p.name.startswith("hpdob_aot_")]
+
+
 class Subclass(np.ndarray):
     """An array subclass (numba's typeof would not type it as an array of its own)."""
 

@@ -27,7 +27,8 @@ def register(subparsers) -> None:
         default=None,
         metavar="DIR",
         help="where the extension is written (default: $HPDOB_AOT_DIR, else "
-        "~/.cache/hpdob/aot; simulate looks only there)",
+        "$XDG_CACHE_HOME/hpdob/aot or ~/.cache/hpdob/aot: the folder simulate looks in; "
+        "a build elsewhere is used by processes that set HPDOB_AOT_DIR to it)",
     )
     parser.add_argument(
         "--compiler",

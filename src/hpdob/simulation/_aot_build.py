@@ -105,8 +105,10 @@ def build_loop_extension(
     numpy and Python versions and the platform: a change of any (a new hpdob or numba) builds
     and uses a new one. It is built in a temporary folder inside ``folder`` and renamed into
     place, its size and SHA-256 recorded beside it (a run checks both before loading it), so
-    an interrupted or failed build leaves no file a run would load. Set ``HPDOB_AOT=0`` to
-    have :func:`~hpdob.simulate` ignore built loops.
+    an interrupted or failed build leaves no file a run would load; a second build of the same
+    loop at once (another process) waits for the first and returns its file. Set
+    ``HPDOB_AOT=0`` (or ``false``, ``no``, ``off``) to have :func:`~hpdob.simulate` ignore
+    built loops.
 
     ``numba.pycc`` is *pending deprecation* in numba (since 0.57; numba's deprecation notices
     promise deprecation warnings and two releases before removal). Where it is gone the build
