@@ -96,3 +96,12 @@ def test_bad_options_are_one_line_before_the_build(options, message, capsys, mon
     assert err.startswith("hpdob build-loop: error: ")
     assert message.format(tmp=tmp_path) in err
     assert [p.name for p in tmp_path.iterdir()] == ["FILE"]
+
+
+def test_a_mujoco_scenario_has_no_compiled_loop_to_build(capsys, tmp_path):
+    pytest.importorskip("mujoco")
+    code = main(["build-loop", str(EXAMPLES / "mujoco_wall.toml"), "--folder", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "plant (MujocoServo) is advanced from Python" in err
+    assert list(tmp_path.iterdir()) == []

@@ -316,6 +316,33 @@ def test_two_builds_of_one_loop_at_once_leave_one_intact_extension(tmp_path, mon
     )
 
 
+@pytest.mark.skipif(sys.platform == "win32", reason="no lock on Windows")
+def test_a_build_waits_for_another_at_most_timeout(tmp_path, monkeypatch):
+    """Another build of the loop holding its lock (here the test): a LoopBuildError after
+    ``timeout`` seconds, not a wait without end; nothing built."""
+    import fcntl
+
+    import hpdob.simulation._aot_build as aot_build
+
+    names = []
+
+    def compile_(work, command, timeout):
+        names.append(json.loads((work / "spec.json").read_text())["name"])
+        raise LoopBuildError("the build started")
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+    folder = tmp_path / "aot"
+    with pytest.raises(LoopBuildError, match="the build started"):  # the lock's name
+        build_loop_extension(**_settings("pd"), folder=folder)
+    with open(folder / f".{names[0]}.lock", "ab") as held:
+        fcntl.flock(held.fileno(), fcntl.LOCK_EX)
+        with pytest.raises(LoopBuildError, match=r"another build of this loop held .* "
+                           r"for longer than timeout=0\.2 s"):  # fmt: skip
+            build_loop_extension(**_settings("pd"), folder=folder, timeout=0.2)
+    assert len(names) == 1
+    assert not [p for p in folder.iterdir() if p.name.startswith("hpdob_aot_")]
+
+
 @pytest.fixture
 def fake_build(tmp_path, monkeypatch):
     """A folder holding a file under the PD run's extension name (a fake build: no compiler)

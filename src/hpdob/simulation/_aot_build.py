@@ -13,6 +13,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from .._files import check_output
@@ -220,7 +221,7 @@ def build_loop_extension(
     where = "folder" if folder is not None else f"folder (${_aot.FOLDER_VARIABLE} or the cache)"
     check_output(target, name=where)
     target.mkdir(parents=True, exist_ok=True)
-    with _exclusive(target / f".{name}.lock"):
+    with _exclusive(target / f".{name}.lock", timeout):
         if path.is_file() and _aot.intact(path):  # built meanwhile by another process
             return path
         _build(target, path, name, seen, command, timeout)
@@ -228,19 +229,31 @@ def build_loop_extension(
 
 
 @contextlib.contextmanager
-def _exclusive(lock: Path):
+def _exclusive(lock: Path, timeout: float):
     """Hold an exclusive ``flock`` on ``lock`` (created, never removed): a second build of the
     same loop, in any process, waits and then finds the first's, not building it again. Two
     builds' files can differ (debug information naming the temporary folder, a compiler's
     time stamps), and two builds renaming their record and extension at once could leave one's
-    record beside the other's extension, which no run would load."""
+    record beside the other's extension, which no run would load. Waiting longer than
+    ``timeout`` seconds raises :class:`LoopBuildError`."""
     try:
         import fcntl
     except ImportError:  # Windows: no lock; each file is still renamed whole
         yield
         return
-    with open(lock, "ab") as handle:
-        fcntl.flock(handle.fileno(), fcntl.LOCK_EX)  # released when the file is closed
+    deadline = time.monotonic() + timeout
+    with open(lock, "ab") as handle:  # the lock is released when the file is closed
+        while True:
+            try:
+                fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    raise LoopBuildError(
+                        f"another build of this loop held {lock} for longer than "
+                        f"timeout={timeout:g} s"
+                    ) from None
+                time.sleep(0.05)
         yield
 
 
