@@ -8,7 +8,6 @@ first's object files); every other test is a subprocess or an in-process run.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import os
 import shutil
@@ -16,6 +15,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -279,41 +279,47 @@ def test_numpy_numbers_are_timeouts(tmp_path, monkeypatch):
     assert seen == [5.0, 2.5, 7.0] and all(type(t) is float for t in seen)
 
 
-def test_two_builds_of_one_loop_at_once_leave_one_intact_extension(tmp_path, monkeypatch):
-    """Two builds of the same loop at once (threads here; the lock is a file's, so processes
-    alike): the second waits for the first and finds its extension. Each fake build writes
-    bytes of its own, as builds whose files differ: without the lock both would build and
-    each rename its record and extension, one's record possibly beside the other's file."""
-    import threading
+#: A build whose compile step writes bytes of its own process, after waiting up to 1 s in
+#: ``sys.argv[2]`` for the other process's build to arrive there too.
+FAKE_BUILD = """
+import json, os, sys, time
+from pathlib import Path
+from hpdob import paper
+from hpdob.simulation import build_loop_extension
+import hpdob.simulation._aot_build as aot_build
 
-    import hpdob.simulation._aot_build as aot_build
+def compile_(work, command, timeout):
+    meeting = Path(sys.argv[2])
+    (meeting / str(os.getpid())).touch()
+    deadline = time.monotonic() + 1.0
+    while len(list(meeting.iterdir())) < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    spec = json.loads((work / "spec.json").read_text())
+    (work / spec["file"]).write_bytes(str(os.getpid()).encode() * 1000)
+
+aot_build._compile = compile_
+kw = paper.scenario()
+kw["observer"] = None
+print(build_loop_extension(**kw, folder=sys.argv[1]))
+"""
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no lock on Windows")
+def test_two_processes_building_one_loop_leave_one_intact_extension(tmp_path):
+    """Two processes building the same loop at once (fake builds whose files differ, as two
+    real builds' can): the second waits on the first's lock and finds its extension, instead
+    of building too and renaming its record and file over the first's (one's record beside
+    the other's file would be loaded by no run)."""
     from hpdob.simulation import _aot
 
-    both = threading.Barrier(2, timeout=1.0)
-    builds = []
-
-    def compile_(work, command, timeout):
-        builds.append(work)
-        spec = json.loads((work / "spec.json").read_text())
-        (work / spec["file"]).write_bytes(f"build {len(builds)}".encode() * 1000)
-        # both builds here at once unless the second waits for the first
-        with contextlib.suppress(threading.BrokenBarrierError):
-            both.wait()
-
-    monkeypatch.setattr(aot_build, "_compile", compile_)
-    paths = []
-    threads = [threading.Thread(target=lambda: paths.append(build_loop_extension(
-        **_settings("pd"), folder=tmp_path, compiler="zig"))) for _ in range(2)]  # fmt: skip
-    for thread in threads:
-        thread.start()
-    for thread in threads:
-        thread.join()
-    assert len(paths) == 2 and paths[0] == paths[1]
-    assert len(builds) == 1  # the second found the first's extension
-    assert _aot.intact(paths[0])
-    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith(".")) == sorted(
-        [paths[0].name, _aot.record_path(paths[0]).name]
-    )
+    folder, meeting = tmp_path / "aot", tmp_path / "meeting"
+    meeting.mkdir()
+    processes = [subprocess.Popen([sys.executable, "-c", FAKE_BUILD, str(folder), str(meeting)],
+                                  stdout=subprocess.PIPE, text=True) for _ in range(2)]  # fmt: skip
+    paths = {process.communicate(timeout=60)[0].strip() for process in processes}
+    assert [process.returncode for process in processes] == [0, 0]
+    assert len(paths) == 1 and _aot.intact(Path(paths.pop()))
+    assert len(list(meeting.iterdir())) == 1  # one build; the other found its extension
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="no lock on Windows")
