@@ -34,8 +34,8 @@ def register(subparsers) -> None:
         "--compiler",
         default=None,
         metavar="CMD",
-        help="the C compiler command, e.g. 'clang'; 'zig': the ziglang package's zig cc "
-        "(default: $CC, else the one setuptools finds)",
+        help="the C compiler command, split as a shell would, e.g. 'clang' or 'gcc -O2'; "
+        "'zig': the ziglang package's zig cc (default: $CC, else the one setuptools finds)",
     )
     parser.set_defaults(handler=_run)
 
