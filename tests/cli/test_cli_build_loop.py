@@ -63,3 +63,45 @@ def test_an_arm_scenario_has_no_loop_to_build(capsys, tmp_path):
     assert code == 2
     assert "a [plant] type with a loop of its own" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--folder", "FILE"], "--folder '{tmp}/FILE' cannot be written: it is an existing file"),
+        (["--folder", "FILE/below"], "--folder '{tmp}/FILE/below' cannot be written"),
+        (["--folder", ""], "argument --folder: it must name a folder, got ''"),
+        (["--compiler", 'gcc "-O2'], "compiler must be a command line shlex can split"),
+        (["--compiler", ""], "compiler must name a compiler command"),
+    ],
+)
+def test_bad_options_are_one_line_before_the_build(options, message, capsys, monkeypatch,
+                                                   tmp_path):  # fmt: skip
+    import hpdob.simulation._aot_build as aot_build
+
+    def compile_(work, command, timeout):
+        raise AssertionError(f"the build started in {work}")
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+    (tmp_path / "FILE").write_text("a file")
+    options = [o.replace("FILE", str(tmp_path / "FILE")) for o in options]
+    if "--folder" not in options:
+        options += ["--folder", str(tmp_path / "out")]
+    try:
+        code = main(["build-loop", str(EXAMPLES / "canonical_pid.toml"), *options])
+    except SystemExit as exit_:  # argparse's own refusal of an option's value
+        code = exit_.code
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith("hpdob build-loop: error: ")
+    assert message.format(tmp=tmp_path) in err
+    assert [p.name for p in tmp_path.iterdir()] == ["FILE"]
+
+
+def test_a_mujoco_scenario_has_no_compiled_loop_to_build(capsys, tmp_path):
+    pytest.importorskip("mujoco")
+    code = main(["build-loop", str(EXAMPLES / "mujoco_wall.toml"), "--folder", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "plant (MujocoServo) is advanced from Python" in err
+    assert list(tmp_path.iterdir()) == []

@@ -8,12 +8,14 @@ first's object files); every other test is a subprocess or an in-process run.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -184,12 +186,272 @@ def test_bad_input_is_rejected_and_writes_nothing(tmp_path):
         (ValueError, "cxx_compiler needs a compiler", loop, {"cxx_compiler": "clang++"}),
         (ValueError, "timeout must be a positive", loop, {"timeout": 0}),
         (ValueError, "duration", loop, {"duration": -1.0}),
+        (ValueError, r"folder must name a folder, got ''", loop, {"folder": ""}),
+        (
+            ValueError,
+            r"compiler must be a command line shlex can split, got 'gcc \"-O2'",
+            loop,
+            {"compiler": 'gcc "-O2'},
+        ),
+        (
+            ValueError,
+            "cxx_compiler must be None with compiler='zig'",
+            loop,
+            {"compiler": "zig", "cxx_compiler": "clang++"},
+        ),
+        (
+            ValueError,
+            "timeout must be a positive finite number of seconds, got inf",
+            loop,
+            {"timeout": float("inf")},
+        ),
+        (
+            ValueError,
+            "timeout must be a positive finite number of seconds, got nan",
+            loop,
+            {"timeout": float("nan")},
+        ),
+        (
+            TypeError,
+            "timeout must be a positive finite number of seconds, got '5' of type str",
+            loop,
+            {"timeout": "5"},
+        ),
+        (TypeError, "timeout .* got None of type NoneType", loop, {"timeout": None}),
+        (TypeError, "timeout .* got True of type bool", loop, {"timeout": True}),
     ]
     for error, message, first, change in cases:
         arguments = {**kw, "folder": folder, **change}
         with pytest.raises(error, match=message):
             build_loop_extension(first, **arguments)
         assert not folder.exists()
+
+
+@pytest.fixture
+def no_build(monkeypatch):
+    """The build step replaced by a failure: a refused call never reaches it."""
+    import hpdob.simulation._aot_build as aot_build
+
+    def compile_(work, command, timeout):
+        raise AssertionError(f"the build started in {work}")
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+
+
+def test_a_folder_that_cannot_be_written_is_refused_before_the_build(tmp_path, no_build):
+    kw = _settings("pd")
+    taken = tmp_path / "taken"
+    taken.write_text("a file")
+    for folder in (taken, taken / "below"):
+        with pytest.raises(OSError, match=f"folder '{folder}' cannot be written"):
+            build_loop_extension(**kw, folder=folder, compiler="zig")
+    assert [p.name for p in tmp_path.iterdir()] == ["taken"]
+    assert taken.read_text() == "a file"
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0,
+                    reason="permissions do not bind root")  # fmt: skip
+def test_a_read_only_folder_is_refused_before_the_build(tmp_path, no_build):
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o500)
+    try:
+        for folder in (locked, locked / "below"):
+            with pytest.raises(OSError, match=f"folder '{folder}' cannot be written"):
+                build_loop_extension(**_settings("pd"), folder=folder, compiler="zig")
+        assert list(locked.iterdir()) == []
+    finally:
+        locked.chmod(0o700)
+
+
+def test_numpy_numbers_are_timeouts(tmp_path, monkeypatch):
+    import hpdob.simulation._aot_build as aot_build
+
+    seen = []
+
+    def compile_(work, command, timeout):
+        seen.append(timeout)
+        raise LoopBuildError("stopped here")
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+    for timeout in (np.int64(5), np.float64(2.5), 7):
+        with pytest.raises(LoopBuildError, match="stopped here"):
+            build_loop_extension(**_settings("pd"), folder=tmp_path, timeout=timeout)
+    assert seen == [5.0, 2.5, 7.0] and all(type(t) is float for t in seen)
+
+
+#: A build whose compile step writes bytes of its own process, after waiting up to 1 s in
+#: ``sys.argv[2]`` for the other process's build to arrive there too.
+FAKE_BUILD = """
+import json, os, sys, time
+from pathlib import Path
+from hpdob import paper
+from hpdob.simulation import build_loop_extension
+import hpdob.simulation._aot_build as aot_build
+
+def compile_(work, command, timeout):
+    meeting = Path(sys.argv[2])
+    (meeting / str(os.getpid())).touch()
+    deadline = time.monotonic() + 1.0
+    while len(list(meeting.iterdir())) < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    spec = json.loads((work / "spec.json").read_text())
+    (work / spec["file"]).write_bytes(str(os.getpid()).encode() * 1000)
+
+aot_build._compile = compile_
+kw = paper.scenario()
+kw["observer"] = None
+print(build_loop_extension(**kw, folder=sys.argv[1]))
+"""
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no lock on Windows")
+def test_two_processes_building_one_loop_leave_one_intact_extension(tmp_path):
+    """Two processes building the same loop at once (fake builds whose files differ, as two
+    real builds' can): the second waits on the first's lock and finds its extension, instead
+    of building too and renaming its record and file over the first's (one's record beside
+    the other's file would be loaded by no run)."""
+    from hpdob.simulation import _aot
+
+    folder, meeting = tmp_path / "aot", tmp_path / "meeting"
+    meeting.mkdir()
+    processes = [subprocess.Popen([sys.executable, "-c", FAKE_BUILD, str(folder), str(meeting)],
+                                  stdout=subprocess.PIPE, text=True) for _ in range(2)]  # fmt: skip
+    paths = {process.communicate(timeout=60)[0].strip() for process in processes}
+    assert [process.returncode for process in processes] == [0, 0]
+    assert len(paths) == 1 and _aot.intact(Path(paths.pop()))
+    assert len(list(meeting.iterdir())) == 1  # one build; the other found its extension
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no lock on Windows")
+def test_a_build_waits_for_another_at_most_timeout(tmp_path, monkeypatch):
+    """Another build of the loop holding its lock (here the test): a LoopBuildError after
+    ``timeout`` seconds, not a wait without end; nothing built."""
+    import fcntl
+
+    import hpdob.simulation._aot_build as aot_build
+
+    names = []
+
+    def compile_(work, command, timeout):
+        names.append(json.loads((work / "spec.json").read_text())["name"])
+        raise LoopBuildError("the build started")
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+    folder = tmp_path / "aot"
+    with pytest.raises(LoopBuildError, match="the build started"):  # the lock's name
+        build_loop_extension(**_settings("pd"), folder=folder)
+    with open(folder / f".{names[0]}.lock", "ab") as held:
+        fcntl.flock(held.fileno(), fcntl.LOCK_EX)
+        with pytest.raises(LoopBuildError, match=r"another build of this loop held .* "
+                           r"for longer than timeout=0\.2 s"):  # fmt: skip
+            build_loop_extension(**_settings("pd"), folder=folder, timeout=0.2)
+    assert len(names) == 1
+    assert not [p for p in folder.iterdir() if p.name.startswith("hpdob_aot_")]
+
+
+@pytest.fixture
+def fake_build(tmp_path, monkeypatch):
+    """A folder holding a file under the PD run's extension name (a fake build: no compiler)
+    and the paths ``simulate`` tries to load, recorded (none is loaded: the JIT loop runs)."""
+    import hpdob.simulation._aot_build as aot_build
+    from hpdob.simulation import _aot
+
+    def compile_(work, command, timeout):
+        spec = json.loads((work / "spec.json").read_text())
+        (work / spec["file"]).write_bytes(b"not loaded")
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+    folder = tmp_path / "aot"
+    path = build_loop_extension(**_settings("pd"), folder=folder)
+    tried = []
+    monkeypatch.setattr(_aot, "load_extension", lambda p: tried.append(p))
+    monkeypatch.setenv("HPDOB_AOT_DIR", str(folder))
+    return path, tried
+
+
+@pytest.mark.parametrize(
+    ("value", "on"),
+    [
+        ("0", False),
+        ("false", False),
+        ("OFF", False),
+        (" no ", False),
+        ("", True),
+        ("1", True),
+        ("true", True),
+        ("garbage", True),
+    ],
+)
+def test_hpdob_aot_turns_the_route_off_with_0_false_no_off(value, on, fake_build, monkeypatch):
+    path, tried = fake_build
+    monkeypatch.setenv("HPDOB_AOT", value)
+    simulate(**_settings("pd"))
+    assert tried == ([path] if on else [])
+
+
+def test_a_folder_of_built_loops_that_is_not_one_runs_the_jit_loop(tmp_path, monkeypatch):
+    """``HPDOB_AOT_DIR`` naming a file, a missing or an unreadable folder: no warning (the
+    suite's warnings are errors), the JIT loop's result."""
+    expected = _jit("pd", monkeypatch)
+    monkeypatch.delenv("HPDOB_AOT")
+    (tmp_path / "file").write_text("a file")
+    unreadable = tmp_path / "unreadable"
+    unreadable.mkdir(mode=0o000)
+    try:
+        for named in (tmp_path / "file", tmp_path / "missing", unreadable):
+            monkeypatch.setenv("HPDOB_AOT_DIR", str(named))
+            assert _same({k: getattr(expected, k) for k in FIELDS}, simulate(**_settings("pd")))
+    finally:
+        unreadable.chmod(0o700)
+
+
+def test_the_name_follows_what_is_baked_into_the_source_not_the_numbers(tmp_path, monkeypatch):
+    """Numbers the loop takes as arguments (gains, bandwidths, duration, the initial state)
+    keep the extension's name: the loop built for one runs the other, its numbers passed in;
+    what the generated source is made of (the observer's order, a sensor, a delay line)
+    changes the name, so an extension is never called with another structure's arguments."""
+    import hpdob.simulation._aot_build as aot_build
+    from hpdob import PD
+    from hpdob.observers import DisturbanceObserver
+
+    def compile_(work, command, timeout):
+        spec = json.loads((work / "spec.json").read_text())
+        (work / spec["file"]).write_bytes(spec["name"].encode())
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+
+    def name(**changes) -> str:
+        kw = {**_settings("canonical"), **changes}
+        return build_loop_extension(**kw, folder=tmp_path).name
+
+    discrete = paper.NOMINAL.discretize(paper.TS)
+    base = name()
+    same = {
+        "gains": name(controller=PD(kp=80.0, kd=3.0)),
+        "bandwidth": name(observer=DisturbanceObserver(discrete, order=1, bandwidth=170.0).design),
+        "duration": name(duration=0.25),
+        "x0": name(x0=(0.1, -2.0)),
+    }
+    assert same == dict.fromkeys(same, base)
+    other = {
+        "order": name(observer=DisturbanceObserver(discrete, order=2, bandwidth=100.0).design),
+        "no observer": name(observer=None),
+        "encoder": name(sensor=Encoder(4096)),
+        "delay": name(actuator=Actuator(delay_samples=1)),
+    }
+    assert len({base, *other.values()}) == 1 + len(other), other
+
+
+def test_without_numba_pycc_the_build_fails_and_writes_no_extension(tmp_path, monkeypatch):
+    """What the docs promise for numba releases without ``numba.pycc`` (pending deprecation):
+    the build raises LoopBuildError naming it; nothing a run would load is written."""
+    shadow = tmp_path / "shadow"
+    shadow.mkdir()  # the build process's numba.pycc made unimportable
+    (shadow / "sitecustomize.py").write_text('import sys\nsys.modules["numba.pycc"] = None\n')
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(shadow), *sys.path]))
+    with pytest.raises(LoopBuildError, match=r"ModuleNotFoundError: import of numba\.pycc"):
+        build_loop_extension(**_settings("pd"), folder=tmp_path / "aot", compiler="zig")
+    assert not [p for p in (tmp_path / "aot").iterdir() if p.name.startswith("hpdob_aot_")]
 
 
 class Subclass(np.ndarray):

@@ -149,6 +149,8 @@ def _check_outputs(args: argparse.Namespace) -> None:
         check_output(args.out, kind=kind)
     if getattr(args, "export_c", None) is not None:
         check_output(args.export_c, name="--export-c")
+    if args.command == "build-loop" and args.folder is not None:
+        check_output(args.folder, name="--folder")
 
 
 def _interrupted(command: str, err: KeyboardInterrupt) -> int:

@@ -23,20 +23,27 @@ def register(subparsers) -> None:
     parser.add_argument("scenario", type=Path, help="scenario file (.toml)")
     parser.add_argument(
         "--folder",
-        type=Path,
+        type=_folder,
         default=None,
         metavar="DIR",
         help="where the extension is written (default: $HPDOB_AOT_DIR, else "
-        "~/.cache/hpdob/aot; simulate looks only there)",
+        "$XDG_CACHE_HOME/hpdob/aot or ~/.cache/hpdob/aot: the folder simulate looks in; "
+        "a build elsewhere is used by processes that set HPDOB_AOT_DIR to it)",
     )
     parser.add_argument(
         "--compiler",
         default=None,
         metavar="CMD",
-        help="the C compiler command, e.g. 'clang'; 'zig': the ziglang package's zig cc "
-        "(default: $CC, else the one setuptools finds)",
+        help="the C compiler command, split as a shell would, e.g. 'clang' or 'gcc -O2'; "
+        "'zig': the ziglang package's zig cc (default: $CC, else the one setuptools finds)",
     )
     parser.set_defaults(handler=_run)
+
+
+def _folder(text: str) -> Path:
+    if not text:  # Path("") would be the working folder
+        raise argparse.ArgumentTypeError("it must name a folder, got ''")
+    return Path(text)
 
 
 #: The scenario's simulate() arguments that decide the loop (the label and the rest do not).

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import math
+import numbers
 import os
 import re
 import shlex
@@ -10,8 +13,10 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
+from .._files import check_output
 from .._validation import ParameterTypeError, ParameterValueError
 from . import _aot
 from ._loop import ServoLoop, accepts_loop
@@ -26,7 +31,12 @@ class LoopBuildError(RuntimeError):
 
 def _command(compiler, name: str) -> str:
     if isinstance(compiler, (str, os.PathLike)):
-        parts = shlex.split(os.fspath(compiler))
+        try:
+            parts = shlex.split(os.fspath(compiler))
+        except ValueError as error:  # an unclosed quotation, a trailing escape
+            raise ParameterValueError(
+                f"{name} must be a command line shlex can split, got {compiler!r} ({error})"
+            ) from None
     elif isinstance(compiler, (list, tuple)) and all(isinstance(p, str) for p in compiler):
         parts = list(compiler)
     else:
@@ -49,6 +59,11 @@ def _compiler_commands(compiler, cxx_compiler) -> tuple | None:
             )
         return None
     if compiler == "zig":  # the ziglang package (the test extra's)
+        if cxx_compiler is not None:  # zig c++ compiles numba's runtime: no other is run
+            raise ParameterValueError(
+                f"cxx_compiler must be None with compiler='zig' (it runs zig c++), got "
+                f"cxx_compiler={cxx_compiler!r}"
+            )
         zig = [sys.executable, "-m", "ziglang"]
         # -nostdlib for the link: an extension's C library calls are bound by the Python
         # process that loads it, and without the flag zig first builds its own C runtime and
@@ -91,8 +106,10 @@ def build_loop_extension(
     numpy and Python versions and the platform: a change of any (a new hpdob or numba) builds
     and uses a new one. It is built in a temporary folder inside ``folder`` and renamed into
     place, its size and SHA-256 recorded beside it (a run checks both before loading it), so
-    an interrupted or failed build leaves no file a run would load. Set ``HPDOB_AOT=0`` to
-    have :func:`~hpdob.simulate` ignore built loops.
+    an interrupted or failed build leaves no file a run would load; a second build of the same
+    loop at once (another process) waits for the first and returns its file. Set
+    ``HPDOB_AOT=0`` (or ``false``, ``no``, ``off``) to have :func:`~hpdob.simulate` ignore
+    built loops.
 
     ``numba.pycc`` is *pending deprecation* in numba (since 0.57; numba's deprecation notices
     promise deprecation warnings and two releases before removal). Where it is gone the build
@@ -127,9 +144,10 @@ def build_loop_extension(
         package's ``zig cc`` and ``zig c++`` (no compiler installed on the machine needed).
         Default: ``$CC``, else the one ``setuptools`` finds.
     cxx_compiler : str or list of str, optional
-        The C++ compiler command, for numba's runtime and the link (with ``compiler``).
+        The C++ compiler command, for numba's runtime and the link (with ``compiler``, not
+        ``"zig"``).
     timeout : float, optional
-        Seconds the build may take before it is stopped (default 600).
+        Seconds the build may take before it is stopped (positive and finite; default 600).
 
     Returns
     -------
@@ -141,6 +159,9 @@ def build_loop_extension(
     TypeError, ValueError
         For arguments of the wrong type or value, with the parameter named (the run's
         arguments are checked as :func:`~hpdob.simulate` checks them).
+    OSError
+        If the folder cannot be written (a file where it should be, no permission): checked
+        before the build, nothing written.
     LoopBuildError
         If ``numba.pycc`` (it needs numba, ``setuptools``: the ``aot`` extra, and a C compiler)
         or the compiler fails, or the build times out; no extension is written.
@@ -160,9 +181,19 @@ def build_loop_extension(
         raise ParameterTypeError(f"loop must be a ServoLoop, got {type(loop).__name__}")
     if folder is not None and not isinstance(folder, (str, os.PathLike)):
         raise ParameterTypeError(f"folder must be a path (str or os.PathLike), got {folder!r}")
+    if folder is not None and not os.fspath(folder):  # Path("") is the working folder
+        raise ParameterValueError(f"folder must name a folder, got {folder!r}")
     command = _compiler_commands(compiler, cxx_compiler)
-    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not timeout > 0:
-        raise ParameterValueError(f"timeout must be a positive number of seconds, got {timeout!r}")
+    if isinstance(timeout, bool) or not isinstance(timeout, numbers.Real):
+        raise ParameterTypeError(
+            f"timeout must be a positive finite number of seconds, got {timeout!r} of type "
+            f"{type(timeout).__name__}"
+        )
+    if not (math.isfinite(timeout) and timeout > 0):  # subprocess cannot wait for inf
+        raise ParameterValueError(
+            f"timeout must be a positive finite number of seconds, got {timeout!r}"
+        )
+    timeout = float(timeout)
     if duration is None:
         duration = 10 * loop.Ts
     seen: dict = {}
@@ -186,7 +217,48 @@ def build_loop_extension(
     path = target / (name + _aot.SUFFIX)
     if path.is_file() and _aot.intact(path):
         return path
+    # before the build, not after it: a file where the folder should be, a read-only folder
+    where = "folder" if folder is not None else f"folder (${_aot.FOLDER_VARIABLE} or the cache)"
+    check_output(target, name=where)
     target.mkdir(parents=True, exist_ok=True)
+    with _exclusive(target / f".{name}.lock", timeout):
+        if path.is_file() and _aot.intact(path):  # built meanwhile by another process
+            return path
+        _build(target, path, name, seen, command, timeout)
+    return path
+
+
+@contextlib.contextmanager
+def _exclusive(lock: Path, timeout: float):
+    """Hold an exclusive ``flock`` on ``lock`` (created, never removed): a second build of the
+    same loop, in any process, waits and then finds the first's, not building it again. Two
+    builds' files can differ (debug information naming the temporary folder, a compiler's
+    time stamps), and two builds renaming their record and extension at once could leave one's
+    record beside the other's extension, which no run would load. Waiting longer than
+    ``timeout`` seconds raises :class:`LoopBuildError`."""
+    try:
+        import fcntl
+    except ImportError:  # Windows: no lock; each file is still renamed whole
+        yield
+        return
+    deadline = time.monotonic() + timeout
+    with open(lock, "ab") as handle:  # the lock is released when the file is closed
+        while True:
+            try:
+                fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() > deadline:
+                    raise LoopBuildError(
+                        f"another build of this loop held {lock} for longer than "
+                        f"timeout={timeout:g} s"
+                    ) from None
+                time.sleep(0.05)
+        yield
+
+
+def _build(target: Path, path: Path, name: str, seen: dict, command, timeout: float) -> None:
+    """Build the extension ``path`` in a temporary folder in ``target`` and rename it there."""
     work = Path(tempfile.mkdtemp(prefix=".build-", dir=target))  # same file system: rename
     try:
         source_module = f"hpdob_aot_source_{name[len(_aot.PREFIX) :]}"
@@ -205,7 +277,6 @@ def build_loop_extension(
         _aot.forget(path)  # a file this process could not load before: try the new one
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    return path
 
 
 def _compile(work: Path, command: tuple | None, timeout: float) -> None:
