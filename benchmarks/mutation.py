@@ -58,7 +58,8 @@ except ModuleNotFoundError:  # Python 3.10
 ROOT = Path(__file__).resolve().parent.parent
 CLASSIFIED = ROOT / "benchmarks" / "mutation_survivors.toml"
 ANNOTATION = "inside an annotation, never evaluated (from __future__ import annotations)"
-PYTEST = "-m pytest -x -q -p no:cacheprovider --hypothesis-seed=0 --timeout={timeout}"
+# -n 0: one process (the suite's addopts spread it over workers; a mutant's run stays short)
+PYTEST = "-m pytest -n 0 -x -q -p no:cacheprovider --hypothesis-seed=0 --timeout={timeout}"
 
 
 @dataclasses.dataclass(frozen=True)

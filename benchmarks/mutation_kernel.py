@@ -184,8 +184,8 @@ def materialise(workdir: Path) -> dict:
     tests = [t for t in TESTS if (ROOT / t).is_file()]
     env = _env(workdir, **{RECORD_VARIABLE: str(workdir)})
     env.pop(OVERRIDE_VARIABLE)
-    command = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p",
-               "mutation_kernel", *tests]  # fmt: skip
+    command = [sys.executable, "-m", "pytest", "-n", "0", "-q", "-p", "no:cacheprovider",
+               "-p", "mutation_kernel", *tests]  # fmt: skip
     run = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True)
     if run.returncode != 0:
         raise SystemExit(f"the unmutated tests fail:\n{run.stdout[-3000:]}")
@@ -237,8 +237,8 @@ def _structures(workdir: Path) -> dict:
 
 
 def test_command(tests, timeout: float) -> str:
-    return shlex.join([sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider",
-                       f"--timeout={int(timeout)}", *tests])  # fmt: skip
+    return shlex.join([sys.executable, "-m", "pytest", "-n", "0", "-x", "-q", "-p",
+                       "no:cacheprovider", f"--timeout={int(timeout)}", *tests])  # fmt: skip
 
 
 def _session(workdir: Path, kind: str, entry: dict) -> tuple[Path, Path]:
