@@ -50,18 +50,36 @@ import sys
 import tempfile
 from pathlib import Path
 
-CHILD = r"""
+#: The start of both children: the clock marks.
+_MARKS = r"""
 import json, sys, time
 marks = []
 def mark(name):
     marks.append((name, time.perf_counter(), time.process_time()))
 mark("start")
-import numba
-mark("import numba")
-import hpdob
+"""
+#: The canonical loop and its first simulate, timed (after the imports).
+_FIRST_SIMULATE = r"""from hpdob import ServoLoop, paper, simulate
+kw = paper.scenario()
+loop = ServoLoop(plant=kw["plant"], nominal=kw["nominal"], Ts=kw["Ts"],
+                 controller=kw["controller"], observer=paper.observer("HPDOb-100").design)
+mark("the loop")
+run = dict(reference=kw["reference"], disturbance=kw["disturbance"], duration=kw["duration"])
+simulate(loop, **run)
+mark("first simulate")
+"""
+_IMPORT_HPDOB = r"""import hpdob
 hpdob.simulate
 mark("import hpdob")
-if BREAKDOWN:
+"""
+
+CHILD = (
+    _MARKS
+    + r"""import numba
+mark("import numba")
+"""
+    + _IMPORT_HPDOB
+    + r"""if BREAKDOWN:
     import scipy.linalg
     mark("scipy.linalg (BLAS check)")
     from numba.core.registry import cpu_target
@@ -75,42 +93,25 @@ if WARM:
         return x + 1.0
     _trivial(1.0)
     mark("rest of numba's init" if BREAKDOWN else "numba's initialisation")
-from hpdob import ServoLoop, paper, simulate
-kw = paper.scenario()
-loop = ServoLoop(plant=kw["plant"], nominal=kw["nominal"], Ts=kw["Ts"],
-                 controller=kw["controller"], observer=paper.observer("HPDOb-100").design)
-mark("the loop")
-run = dict(reference=kw["reference"], disturbance=kw["disturbance"], duration=kw["duration"])
-simulate(loop, **run)
-mark("first simulate")
-simulate(loop, **run)
+"""
+    + _FIRST_SIMULATE
+    + r"""simulate(loop, **run)
 mark("second simulate")
 json.dump([(b[0], b[1] - a[1], b[2] - a[2]) for a, b in zip(marks, marks[1:])], sys.stdout)
 """
+)
 
-AOT_CHILD = r"""
-import json, sys, time
-marks = []
-def mark(name):
-    marks.append((name, time.perf_counter(), time.process_time()))
-mark("start")
-import hpdob
-hpdob.simulate
-mark("import hpdob")
-from hpdob import ServoLoop, paper, simulate
-kw = paper.scenario()
-loop = ServoLoop(plant=kw["plant"], nominal=kw["nominal"], Ts=kw["Ts"],
-                 controller=kw["controller"], observer=paper.observer("HPDOb-100").design)
-mark("the loop")
-run = dict(reference=kw["reference"], disturbance=kw["disturbance"], duration=kw["duration"])
-simulate(loop, **run)
-mark("first simulate")
-numba = "numba" in sys.modules
+AOT_CHILD = (
+    _MARKS
+    + _IMPORT_HPDOB
+    + _FIRST_SIMULATE
+    + r"""numba = "numba" in sys.modules
 simulate(loop, **run)
 mark("second simulate")
 steps = [(b[0], b[1] - a[1], b[2] - a[2]) for a, b in zip(marks, marks[1:])]
 json.dump([steps, numba], sys.stdout)
 """
+)
 
 
 def aot(args, env: dict, folder: str) -> None:
