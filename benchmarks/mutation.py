@@ -210,6 +210,8 @@ TARGETS = {
     "identification.regression": Target(
         "src/hpdob/identification/_regression.py",
         (
+            # the block-wise paths (several blocks only on logs longer than _lean.BLOCK)
+            "tests/identification/test_lean.py",
             "tests/identification/test_regression.py",
             "tests/identification/test_identify.py",
             "tests/identification/test_identify_defaults.py",
