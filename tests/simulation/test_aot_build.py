@@ -8,6 +8,7 @@ first's object files); every other test is a subprocess or an in-process run.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -167,10 +168,24 @@ def test_a_failed_or_interrupted_build_leaves_no_extension(tmp_path):
         while not (folder.is_dir() and any(folder.glob(".build-*"))):
             assert process.poll() is None and time.monotonic() < deadline
             time.sleep(0.05)
-    finally:  # the build and its compiler process
+    finally:  # the caller; its build process (a session of its own) runs on: killed too
         os.killpg(process.pid, signal.SIGKILL)
         process.wait()
+        _kill_builds_in(folder)
     assert not any(p.name.startswith("hpdob_aot_") for p in folder.iterdir())
+
+
+def _kill_builds_in(folder: Path) -> None:
+    """Kill the build processes (and their compilers: each build is a session of its own)
+    whose command line names a folder in ``folder``."""
+    for entry in Path("/proc").glob("[0-9]*"):
+        try:
+            command = (entry / "cmdline").read_bytes().split(b"\0")
+        except OSError:
+            continue
+        if any(part.startswith(os.fsencode(folder)) for part in command):
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(int(entry.name), signal.SIGKILL)
 
 
 def test_bad_input_is_rejected_and_writes_nothing(tmp_path):
@@ -478,3 +493,66 @@ def test_argument_types_are_numba_s():
     for value in (np.zeros(3, dtype=np.float32), np.zeros(3, dtype=">f8"), unaligned,
                   np.ma.zeros(3), np.zeros(3).view(Subclass), 2**63, "x", None, [1.0]):  # fmt: skip
         assert argument_types([1.0, value]) is None, value
+
+
+#: A build process that starts a "compiler" of its own (a child that would run on), notes its
+#: pid and waits: the stage at which a timeout or a Ctrl-C used to leave the compiler running.
+HANGING_BUILD = """
+import os, subprocess, sys, time
+child = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+with open(os.environ["HPDOB_TEST_PID_FILE"] + ".tmp", "w") as f:
+    f.write(str(child.pid))
+os.replace(os.environ["HPDOB_TEST_PID_FILE"] + ".tmp", os.environ["HPDOB_TEST_PID_FILE"])
+time.sleep(600)
+"""
+
+
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie no longer does: a container's init may not reap)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return False
+    return state not in ("Z", "X")
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists() or os.name != "posix",
+                    reason="reads process states from /proc")  # fmt: skip
+@pytest.mark.parametrize("stop", ["timeout", "interrupt"])
+def test_a_stopped_build_kills_its_compilers_and_leaves_no_extension(stop, tmp_path,
+                                                                     monkeypatch):  # fmt: skip
+    """A build stopped by its timeout or by Ctrl-C while its compiler runs: the compiler (a
+    child of the build process) is killed with it, and the folder holds no extension and no
+    temporary folder. The stop comes once the compiler runs (the wait for it is not timed)."""
+    import hpdob.simulation._aot_build as aot_build
+
+    (tmp_path / "hanging_build.py").write_text(HANGING_BUILD)
+    pid_file = tmp_path / "compiler.pid"
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), *sys.path]))
+    monkeypatch.setenv("HPDOB_TEST_PID_FILE", str(pid_file))
+    monkeypatch.setattr(aot_build, "_BUILDER", "hanging_build")
+
+    class Popen(subprocess.Popen):
+        def communicate(self, input=None, timeout=None):
+            while not pid_file.exists():
+                assert self.poll() is None, "the build process ended"
+                time.sleep(0.01)
+            if stop == "interrupt":
+                raise KeyboardInterrupt
+            return super().communicate(input, timeout=0.01)
+
+    monkeypatch.setattr(subprocess, "Popen", Popen)
+    folder = tmp_path / "aot"
+    expected = LoopBuildError if stop == "timeout" else KeyboardInterrupt
+    with pytest.raises(expected, match="longer than timeout=30 s" if stop == "timeout" else None):
+        build_loop_extension(**_settings("pd"), folder=folder, timeout=30)
+    compiler = int(pid_file.read_text())
+    deadline = time.monotonic() + 10  # a killed process is gone in ms; an unkilled one runs
+    while _running(compiler) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    try:
+        assert not _running(compiler), "the compiler still runs"
+    finally:
+        if _running(compiler):
+            os.kill(compiler, signal.SIGKILL)
+    assert not [p.name for p in folder.iterdir() if p.name.startswith(("hpdob_aot_", ".build-"))]

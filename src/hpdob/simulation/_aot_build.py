@@ -10,6 +10,7 @@ import os
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -279,6 +280,23 @@ def _build(target: Path, path: Path, name: str, seen: dict, command, timeout: fl
         shutil.rmtree(work, ignore_errors=True)
 
 
+#: The module the build process runs (``python -m``; a test runs another in its place).
+_BUILDER = "hpdob.simulation._aot_compile"
+
+
+def _stop(process: subprocess.Popen, *, group: bool) -> None:
+    """Kill ``process`` and, with ``group``, every process of its process group (the C
+    compilers it runs: they would go on writing into the folder being removed), and reap it.
+    A temporary folder a dying compiler still wrote into is removed by the loop's next build
+    (:func:`_remove_stale`)."""
+    if group:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(process.pid, signal.SIGKILL)  # its group id is its pid (a new session)
+    with contextlib.suppress(ProcessLookupError):
+        process.kill()
+    process.wait()
+
+
 def _compile(work: Path, command: tuple | None, timeout: float) -> None:
     """Run ``_aot_compile`` on ``work`` in a process of its own (numba, its pending-deprecation
     warning and the compiler's environment stay there)."""
@@ -294,13 +312,21 @@ def _compile(work: Path, command: tuple | None, timeout: float) -> None:
         env["HPDOB_AOT_OBJECTS"] = str(work.parent / ".objects")  # numba's C, compiled once
         env["HPDOB_AOT_ENVIRONMENT"] = _aot.environment()
         env.pop("LDSHARED", None)
-    try:
-        done = subprocess.run(
-            [sys.executable, "-m", "hpdob.simulation._aot_compile", str(work)],
-            capture_output=True, text=True, env=env, timeout=timeout, check=False,
-        )  # fmt: skip
-    except subprocess.TimeoutExpired as error:
-        raise LoopBuildError(f"the build took longer than timeout={timeout:g} s") from error
+    # its own session (POSIX): a timeout or an interrupt kills the compilers it started too,
+    # and a Ctrl-C at the terminal reaches this process only, which then stops the group
+    posix = os.name == "posix"
+    with subprocess.Popen(
+        [sys.executable, "-m", _BUILDER, str(work)], stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True, env=env, start_new_session=posix,
+    ) as process:  # fmt: skip
+        try:
+            stdout, stderr = process.communicate(timeout=timeout)
+        except BaseException as error:  # the timeout, KeyboardInterrupt, anything
+            _stop(process, group=posix)
+            if isinstance(error, subprocess.TimeoutExpired):
+                raise LoopBuildError(f"the build took longer than timeout={timeout:g} s") from error
+            raise
+    done = subprocess.CompletedProcess(process.args, process.returncode, stdout, stderr)
     if done.returncode != 0:
         lines = (done.stderr or done.stdout).strip().splitlines()
         errors = [line for line in lines if re.match(r"[\w.]+(Error|Exception): ", line)]
