@@ -556,3 +556,64 @@ def test_a_stopped_build_kills_its_compilers_and_leaves_no_extension(stop, tmp_p
         if _running(compiler):
             os.kill(compiler, signal.SIGKILL)
     assert not [p.name for p in folder.iterdir() if p.name.startswith(("hpdob_aot_", ".build-"))]
+
+
+@pytest.mark.parametrize(
+    ("variable", "value", "matches"),
+    [
+        ("NUMBA_OPT", "0", False),
+        ("NUMBA_LOOP_VECTORIZE", "0", False),
+        ("NUMBA_BOUNDSCHECK", "1", False),
+        # read by the JIT only: pycc compiles for the generic CPU (AOTCPUCodegen)
+        ("NUMBA_CPU_NAME", "generic", True),
+        ("NUMBA_CACHE_DIR", "elsewhere", True),
+    ],
+)
+def test_numba_s_code_settings_are_in_the_name(variable, value, matches, fake_build,
+                                               monkeypatch):  # fmt: skip
+    """A run with a numba setting that changes the generated machine code (set in its
+    environment) does not take a loop built without it, and a build with it gets another
+    name; the settings that do not change pycc's code keep the name."""
+    path, tried = fake_build
+    monkeypatch.setenv(variable, value)
+    if variable != "NUMBA_OPT":  # the JIT loop at another level is compiled anew (seconds)
+        simulate(**_settings("pd"))
+        assert tried == ([path] if matches else [])
+    again = build_loop_extension(**_settings("pd"), folder=path.parent)
+    assert (again == path) is matches
+
+
+def test_a_build_with_other_compiler_settings_replaces_the_extension(tmp_path, monkeypatch):
+    """The compiler commands and setuptools' flags from the environment (``CFLAGS``, ...) are
+    recorded beside the extension: building again with the same reuses it, with others
+    builds it again in its place (a run finds the loop by its source and types, whatever
+    compiled numba's runtime)."""
+    import hpdob.simulation._aot_build as aot_build
+    from hpdob.simulation import _aot
+
+    builds = []
+
+    def compile_(work, command, timeout):
+        builds.append(command)
+        spec = json.loads((work / "spec.json").read_text())
+        (work / spec["file"]).write_bytes(b"built %d" % len(builds))
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+    monkeypatch.delenv("CFLAGS", raising=False)
+    folder = tmp_path / "aot"
+
+    def build(**options):
+        return build_loop_extension(**_settings("pd"), folder=folder, **options)
+
+    first = build(compiler="gcc")
+    assert build(compiler="gcc") == first and len(builds) == 1
+    assert build(compiler=["gcc", "-O1"]) == first and len(builds) == 2
+    assert first.read_bytes() == b"built 2" and _aot.intact(first)
+    assert json.loads(_aot.recorded_build(first))["commands"] == ["gcc -O1", "gcc -O1"]
+    monkeypatch.setenv("CFLAGS", "-ffast-math")
+    assert build(compiler=["gcc", "-O1"]) == first and len(builds) == 3
+    assert build(compiler=["gcc", "-O1"]) == first and len(builds) == 3
+    assert sorted(p.name for p in folder.iterdir() if not p.name.startswith(".")) == [
+        first.name,
+        _aot.record_path(first).name,
+    ]

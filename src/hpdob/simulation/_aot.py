@@ -34,10 +34,12 @@ import numpy as np
 from ._loop_source import loop_source, run_structure, signature_fields
 
 __all__ = [
+    "CODE_VARIABLES",
     "DISABLE_VARIABLE",
     "FOLDER_VARIABLE",
     "AheadOfTimeWarning",
     "argument_types",
+    "code_settings",
     "extension_folder",
     "extension_name",
     "simulate_loop",
@@ -165,10 +167,39 @@ def environment() -> str:
     return repr((_installed_version("numba"), np.__version__, sys.version, sys.platform, SUFFIX))
 
 
-def extension_name(source: str, types) -> str:
+#: numba's settings (environment variables, numba.core.config) that change the machine code
+#: numba.pycc generates for a loop, or whether numba compiles at all: the optimisation level
+#: and vectorisers, bounds checks, debug information (and profiling, which turns it on),
+#: variable lifetimes, the reference-count pruning pass, Intel SVML, ``NUMBA_DISABLE_JIT``.
+#: Not among them: ``NUMBA_CPU_NAME`` and ``NUMBA_CPU_FEATURES``, which only the JIT reads
+#: (pycc compiles for the architecture's generic CPU, numba.core.codegen.AOTCPUCodegen),
+#: and settings of caching, threads, diagnostics and other targets.
+CODE_VARIABLES = ("NUMBA_OPT", "NUMBA_LOOP_VECTORIZE", "NUMBA_SLP_VECTORIZE",
+                  "NUMBA_BOUNDSCHECK", "NUMBA_DEBUGINFO", "NUMBA_ENABLE_PROFILING",
+                  "NUMBA_EXTEND_VARIABLE_LIFETIMES", "NUMBA_LLVM_REFPRUNE_PASS",
+                  "NUMBA_LLVM_REFPRUNE_FLAGS", "NUMBA_DISABLE_INTEL_SVML",
+                  "NUMBA_DISABLE_JIT")  # fmt: skip
+
+
+def code_settings() -> tuple:
+    """The values of :data:`CODE_VARIABLES` in the environment now (None where unset), read
+    on every lookup as numba reads them on every compile."""
+    return tuple(map(os.environ.get, CODE_VARIABLES))
+
+
+def extension_name(source: str, types, settings: tuple | None = None) -> str:
     """The module (and file) name of the extension built from ``source`` for ``types``
-    (:func:`argument_types`) in this environment (:func:`environment`)."""
-    text = "\n".join((source, repr(tuple(types)), environment()))
+    (:func:`argument_types`) in this environment (:func:`environment`) with numba's code
+    ``settings`` (:func:`code_settings`, the current ones by default): a build and a run in
+    which any of them differs have different names, so the run never takes that build."""
+    if settings is None:
+        settings = code_settings()
+    return _name(source, tuple(types), settings)
+
+
+@functools.lru_cache(maxsize=256)
+def _name(source: str, types: tuple, settings: tuple) -> str:  # the hash: ~35 us a call
+    text = "\n".join((source, repr(types), environment(), repr(settings)))
     return PREFIX + hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
@@ -203,7 +234,8 @@ def _listing(folder: Path) -> frozenset:
 
 
 def record_path(path: Path) -> Path:
-    """The file beside extension ``path`` holding its size and SHA-256 (:func:`file_record`)."""
+    """The file beside extension ``path`` holding its size and SHA-256 (:func:`file_record`)
+    and, on a second line, the build's compiler settings (:func:`recorded_build`)."""
     return path.with_name(path.name[: -len(SUFFIX)] + ".sha256")
 
 
@@ -213,12 +245,27 @@ def file_record(path: Path) -> str:
     return f"{len(data)} {hashlib.sha256(data).hexdigest()}"
 
 
+def _record_lines(path: Path) -> list:
+    try:
+        return record_path(path).read_text(encoding="ascii").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return []
+
+
 def intact(path: Path) -> bool:
     """Whether the extension at ``path`` has the size and SHA-256 its build recorded."""
+    lines = _record_lines(path)
     try:
-        return file_record(path) == record_path(path).read_text(encoding="ascii").strip()
-    except (OSError, UnicodeDecodeError):
+        return bool(lines) and file_record(path) == lines[0].strip()
+    except OSError:
         return False
+
+
+def recorded_build(path: Path) -> str | None:
+    """The compiler settings the build of the extension at ``path`` recorded (the record's
+    second line; None if it has none: a build by an hpdob that did not record them)."""
+    lines = _record_lines(path)
+    return lines[1] if len(lines) > 1 else None
 
 
 def forget(path: Path) -> None:

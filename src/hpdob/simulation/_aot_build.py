@@ -103,9 +103,14 @@ def build_loop_extension(
     importing numba; its results are bit for bit the JIT loop's. Any other run, sweeps and
     ``tune()`` (whose threads need the JIT loop's ``nogil``) run the JIT loop.
 
-    The extension's name is a hash of the generated source, the argument types and the numba,
-    numpy and Python versions and the platform: a change of any (a new hpdob or numba) builds
-    and uses a new one. It is built in a temporary folder inside ``folder`` and renamed into
+    The extension's name is a hash of the generated source, the argument types, the numba,
+    numpy and Python versions and the platform, and numba's settings that change the code it
+    generates (``NUMBA_OPT``, ``NUMBA_LOOP_VECTORIZE``, ``NUMBA_BOUNDSCHECK``, ... from the
+    environment, read by the build and by every run): a change of any (a new hpdob or numba,
+    another ``NUMBA_OPT``) builds and uses a new one. The compiler commands and the flags
+    setuptools takes from the environment (``CFLAGS``, ``LDFLAGS``, ...) are recorded beside
+    it: a build with other ones replaces it, one with the same returns it. It is built in a
+    temporary folder inside ``folder`` and renamed into
     place, its size and SHA-256 recorded beside it (a run checks both before loading it), so
     an interrupted or failed build leaves no file a run would load; a second build of the same
     loop at once (another process) waits for the first and returns its file. Set
@@ -216,16 +221,17 @@ def build_loop_extension(
     target = _aot.extension_folder(folder)
     name = _aot.extension_name(seen["source"], seen["types"])
     path = target / (name + _aot.SUFFIX)
-    if path.is_file() and _aot.intact(path):
+    settings = _compiler_settings(command)
+    if _built(path, settings):
         return path
     # before the build, not after it: a file where the folder should be, a read-only folder
     where = "folder" if folder is not None else f"folder (${_aot.FOLDER_VARIABLE} or the cache)"
     check_output(target, name=where)
     target.mkdir(parents=True, exist_ok=True)
     with _exclusive(target / f".{name}.lock", timeout):
-        if path.is_file() and _aot.intact(path):  # built meanwhile by another process
+        if _built(path, settings):  # built meanwhile by another process
             return path
-        _build(target, path, name, seen, command, timeout)
+        _build(target, path, name, seen, command, timeout, settings)
     return path
 
 
@@ -258,7 +264,32 @@ def _exclusive(lock: Path, timeout: float):
         yield
 
 
-def _build(target: Path, path: Path, name: str, seen: dict, command, timeout: float) -> None:
+#: The environment variables with which setuptools changes the compiler commands and flags
+#: (``customize_compiler``); ``CC`` and ``LDSHARED`` only without ``compiler=``, which
+#: replaces them.
+COMPILER_VARIABLES = ("CC", "CXX", "LDSHARED", "CPP", "CFLAGS", "CPPFLAGS", "LDFLAGS", "AR",
+                      "ARFLAGS")  # fmt: skip
+
+
+def _compiler_settings(command: tuple | None) -> str:
+    """The compiler commands and the flags from the environment a build would use, as one
+    line of JSON recorded beside the extension (:func:`_aot.recorded_build`)."""
+    replaced = () if command is None else ("CC", "LDSHARED")
+    variables = {k: os.environ.get(k) for k in COMPILER_VARIABLES if k not in replaced}
+    return json.dumps({"commands": command, "environment": variables}, sort_keys=True)
+
+
+def _built(path: Path, settings: str) -> bool:
+    """Whether ``path`` holds the extension as a build with these compiler ``settings``
+    writes it (intact, built with the same compiler and flags): a build with other settings
+    is replaced, since its machine code (numba's C runtime, the module's wrapper) can differ.
+    The settings are not in the name: a run cannot know the compiler, and any build of the
+    name runs the loop's numba-generated code."""
+    return path.is_file() and _aot.intact(path) and _aot.recorded_build(path) == settings
+
+
+def _build(target: Path, path: Path, name: str, seen: dict, command, timeout: float,
+           settings: str) -> None:  # fmt: skip
     """Build the extension ``path`` in a temporary folder in ``target`` and rename it there."""
     work = Path(tempfile.mkdtemp(prefix=".build-", dir=target))  # same file system: rename
     try:
@@ -272,7 +303,15 @@ def _build(target: Path, path: Path, name: str, seen: dict, command, timeout: fl
         if not built.is_file():
             raise LoopBuildError(f"numba.pycc wrote no {spec['file']} in {work}")
         record = work / "record.sha256"  # in place before the extension: never one without
-        record.write_text(_aot.file_record(built), encoding="ascii")
+        record.write_text(f"{_aot.file_record(built)}\n{settings}\n", encoding="ascii")
+        if path.exists():  # another build's (other compiler settings): gone before its record
+            try:  # is replaced, so a run finds no extension rather than a mismatched one
+                path.unlink()
+            except OSError as error:  # Windows: a process has it loaded
+                raise LoopBuildError(
+                    f"the extension {path}, built with other compiler settings, could not be "
+                    f"replaced ({error})"
+                ) from error
         os.replace(record, _aot.record_path(path))
         os.replace(built, path)
         _aot.forget(path)  # a file this process could not load before: try the new one
