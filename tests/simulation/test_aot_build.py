@@ -617,3 +617,162 @@ def test_a_build_with_other_compiler_settings_replaces_the_extension(tmp_path, m
         first.name,
         _aot.record_path(first).name,
     ]
+
+
+def test_a_build_cleans_up_after_itself_and_after_killed_builds(tmp_path, monkeypatch):
+    """What a build leaves in the folder: the extension and its record. Its lock file is
+    removed (after a failed build too); a killed build's lock file and temporary folder are
+    removed by the loop's next build; the kept object files of other environments (numba,
+    numpy, Python versions) are removed, this environment's kept."""
+    import hpdob.simulation._aot_build as aot_build
+    from hpdob.simulation import _aot
+
+    outcome = {"fail": True}
+
+    def compile_(work, command, timeout):
+        if outcome["fail"]:
+            raise LoopBuildError("failed")
+        spec = json.loads((work / "spec.json").read_text())
+        (work / spec["file"]).write_bytes(b"built")
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+    folder = tmp_path / "aot"
+    with pytest.raises(LoopBuildError, match="failed"):
+        build_loop_extension(**_settings("pd"), folder=folder)
+    assert list(folder.iterdir()) == []  # no lock file, no temporary folder
+    objects = aot_build._objects_folder(folder)
+    (objects / "kept.o").parent.mkdir(parents=True)
+    (objects / "kept.o").write_bytes(b"this environment's")
+    (objects.parent / "0123456789abcdef").mkdir()
+    (objects.parent / "0123456789abcdef" / "old.o").write_bytes(b"another environment's")
+    (objects.parent / "loose.o").write_bytes(b"the flat layout's")
+    name = _aot.extension_name(*_captured("pd"))
+    killed = folder / f".build-{name}-killed"
+    killed.mkdir()
+    (killed / "spec.json").write_text("{}")
+    (folder / f".{name}.lock").write_text("")
+    other_loop = folder / ".build-hpdob_aot_000000000000000000000000-x"  # not this loop's
+    other_loop.mkdir()
+    outcome["fail"] = False
+    path = build_loop_extension(**_settings("pd"), folder=folder)
+    assert path.name == name + _aot.SUFFIX
+    assert sorted(p.name for p in folder.iterdir()) == sorted(
+        [path.name, _aot.record_path(path).name, ".objects", other_loop.name]
+    )
+    assert [p.name for p in objects.parent.iterdir()] == [objects.name]
+    assert [p.name for p in objects.iterdir()] == ["kept.o"]
+
+
+def _captured(name: str) -> tuple:
+    """The source and argument types of run ``name``'s loop (as the build sees them)."""
+    from hpdob.simulation import _aot
+
+    seen: dict = {}
+    _aot.CAPTURE.target = seen
+    try:
+        simulate(**_settings(name))
+    except _aot.Captured:
+        pass
+    finally:
+        _aot.CAPTURE.target = None
+    return seen["source"], seen["types"]
+
+
+def test_a_lock_file_its_holder_removed_is_not_taken(tmp_path, monkeypatch):
+    """A build waiting on a lock file that its holder removes on the way out (and a third
+    build then creates and holds anew) must not take the removed file's lock: it locks the
+    file now under the name, so the third build still excludes it."""
+    import fcntl
+    import threading
+
+    import hpdob.simulation._aot_build as aot_build
+
+    lock = tmp_path / ".loop.lock"
+    first = open(lock, "ab")  # noqa: SIM115  # closed below
+    fcntl.flock(first.fileno(), fcntl.LOCK_EX)
+    waiting = threading.Event()
+
+    class Clock:  # the module's time, its first sleep telling that the waiter waits
+        monotonic = staticmethod(time.monotonic)
+
+        @staticmethod
+        def sleep(seconds):
+            waiting.set()
+            time.sleep(seconds)
+
+    monkeypatch.setattr(aot_build, "time", Clock)
+    outcome = []
+
+    def wait_for_the_lock():
+        try:
+            with aot_build._exclusive(lock, timeout=1.0):
+                outcome.append("held")
+        except LoopBuildError as error:
+            outcome.append(str(error))
+
+    waiter = threading.Thread(target=wait_for_the_lock)
+    waiter.start()
+    try:
+        assert waiting.wait(60)
+        lock.unlink()  # the first build ends: removes its lock file while holding it ...
+        third = open(lock, "ab")  # noqa: SIM115  # ... a third creates a new one and holds it
+        fcntl.flock(third.fileno(), fcntl.LOCK_EX)
+        first.close()  # ... and the first's lock is released
+        waiter.join(60)
+    finally:
+        first.close()
+    assert len(outcome) == 1 and "for longer than timeout=1 s" in outcome[0], outcome
+    third.close()
+
+
+def test_without_fcntl_builds_take_turns_on_msvcrt_locking(tmp_path, monkeypatch):
+    """Where there is no ``fcntl`` (Windows), a build locks its lock file's first byte with
+    ``msvcrt.locking`` (here a stand-in doing the same with ``flock``): it waits for another
+    holder at most ``timeout``, and unlocks and removes the file after its build."""
+    import fcntl
+    import types
+
+    import hpdob.simulation._aot_build as aot_build
+
+    calls = []
+
+    def locking(fd, mode, nbytes):
+        calls.append((mode, nbytes, os.lseek(fd, 0, os.SEEK_CUR)))
+        if mode == 2:  # LK_NBLCK: OSError(EACCES) if held elsewhere, as msvcrt's
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise PermissionError(13, "Permission denied") from None
+        else:
+            fcntl.flock(fd, fcntl.LOCK_UN)
+
+    msvcrt = types.SimpleNamespace(locking=locking, LK_NBLCK=2, LK_UNLCK=0)
+    monkeypatch.setitem(sys.modules, "fcntl", None)  # import fcntl: ImportError
+    monkeypatch.setitem(sys.modules, "msvcrt", msvcrt)
+    names = []
+
+    def compile_(work, command, timeout):
+        spec = json.loads((work / "spec.json").read_text())
+        names.append(spec["name"])
+        (work / spec["file"]).write_bytes(b"built")
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+    folder = tmp_path / "aot"
+    name = _aot_name("pd")
+    folder.mkdir()
+    with open(folder / f".{name}.lock", "ab") as held:  # another build holds the lock
+        fcntl.flock(held.fileno(), fcntl.LOCK_EX)
+        with pytest.raises(LoopBuildError, match=r"held .* for longer than timeout=0\.2 s"):
+            build_loop_extension(**_settings("pd"), folder=folder, timeout=0.2)
+    assert names == [] and {mode for mode, _, _ in calls} == {2}
+    calls.clear()
+    path = build_loop_extension(**_settings("pd"), folder=folder)
+    assert names == [name] and path.is_file()
+    assert calls == [(2, 1, 0), (0, 1, 0)]  # the first byte locked, then unlocked
+    assert not (folder / f".{name}.lock").exists()
+
+
+def _aot_name(name: str) -> str:
+    from hpdob.simulation import _aot
+
+    return _aot.extension_name(*_captured(name))

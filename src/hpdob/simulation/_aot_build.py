@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import contextlib
+import errno
+import hashlib
 import json
 import math
 import numbers
@@ -235,33 +237,105 @@ def build_loop_extension(
     return path
 
 
-@contextlib.contextmanager
-def _exclusive(lock: Path, timeout: float):
-    """Hold an exclusive ``flock`` on ``lock`` (created, never removed): a second build of the
-    same loop, in any process, waits and then finds the first's, not building it again. Two
-    builds' files can differ (debug information naming the temporary folder, a compiler's
-    time stamps), and two builds renaming their record and extension at once could leave one's
-    record beside the other's extension, which no run would load. Waiting longer than
-    ``timeout`` seconds raises :class:`LoopBuildError`."""
+def _file_locks():
+    """``(acquire, release, kind)`` for an exclusive lock on an open file: ``fcntl.flock``
+    (POSIX) or ``msvcrt.locking`` of its first byte (Windows); None where neither exists.
+    ``acquire(handle)`` is False while another process holds the lock."""
     try:
         import fcntl
-    except ImportError:  # Windows: no lock; each file is still renamed whole
-        yield
-        return
-    deadline = time.monotonic() + timeout
-    with open(lock, "ab") as handle:  # the lock is released when the file is closed
-        while True:
+    except ImportError:
+        fcntl = None
+    if fcntl is not None:
+
+        def acquire(handle) -> bool:
             try:
                 fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-                break
             except BlockingIOError:
+                return False
+            return True
+
+        return acquire, lambda handle: fcntl.flock(handle.fileno(), fcntl.LOCK_UN), "flock"
+    try:
+        import msvcrt
+    except ImportError:
+        return None
+
+    def acquire(handle) -> bool:  # the other platform's
+        handle.seek(0)  # a region of the file: its first byte (beyond its end is allowed)
+        try:
+            msvcrt.locking(handle.fileno(), msvcrt.LK_NBLCK, 1)
+        except OSError as error:  # EACCES, or EDEADLOCK: held by another process
+            if error.errno in (errno.EACCES, errno.EDEADLOCK):
+                return False
+            raise
+        return True
+
+    def release(handle) -> None:
+        handle.seek(0)
+        msvcrt.locking(handle.fileno(), msvcrt.LK_UNLCK, 1)
+
+    return acquire, release, "msvcrt"
+
+
+def _same_file(handle, path: Path) -> bool:
+    """Whether ``path`` still names the file open as ``handle`` (not removed or replaced)."""
+    try:
+        here, there = os.fstat(handle.fileno()), os.stat(path)
+    except OSError:
+        return False
+    return (here.st_dev, here.st_ino) == (there.st_dev, there.st_ino)
+
+
+@contextlib.contextmanager
+def _exclusive(lock: Path, timeout: float):
+    """Hold an exclusive lock on the file ``lock`` (:func:`_file_locks`): a second build of
+    the same loop, in any process, waits and then finds the first's, not building it again.
+    Two builds' files can differ (debug information naming the temporary folder, a compiler's
+    time stamps), and two builds renaming their record and extension at once could leave one's
+    record beside the other's extension, which no run would load. Waiting longer than
+    ``timeout`` seconds raises :class:`LoopBuildError`.
+
+    The lock file is created for the build and removed at its end (POSIX: while still held,
+    so that a process waiting on it finds, once it holds it, that it is no longer the file
+    of that name and locks the new one instead; Windows: after the release, and only if no
+    other process has it open). A killed build leaves it; the next build takes and removes it.
+    Without either lock (no ``fcntl``, no ``msvcrt``) builds do not wait for one another;
+    each file is still renamed whole."""
+    locks = _file_locks()
+    if locks is None:
+        yield
+        return
+    acquire, release, kind = locks
+    deadline = time.monotonic() + timeout
+    while True:
+        handle = open(lock, "ab")  # noqa: SIM115  # closed below, on every path
+        try:
+            while not acquire(handle):
                 if time.monotonic() > deadline:
                     raise LoopBuildError(
                         f"another build of this loop held {lock} for longer than "
                         f"timeout={timeout:g} s"
-                    ) from None
+                    )
                 time.sleep(0.05)
+        except BaseException:
+            handle.close()
+            raise
+        if _same_file(handle, lock):
+            break
+        handle.close()  # its holder removed it on its way out: lock the file now there
+    try:
         yield
+    finally:
+        if kind == "msvcrt":  # an open file cannot be removed there
+            with contextlib.suppress(OSError):
+                release(handle)
+            handle.close()
+            with contextlib.suppress(OSError):
+                lock.unlink()
+        else:
+            with contextlib.suppress(OSError):
+                lock.unlink()
+            handle.close()  # the lock is released when the file is closed
 
 
 #: The environment variables with which setuptools changes the compiler commands and flags
@@ -290,8 +364,12 @@ def _built(path: Path, settings: str) -> bool:
 
 def _build(target: Path, path: Path, name: str, seen: dict, command, timeout: float,
            settings: str) -> None:  # fmt: skip
-    """Build the extension ``path`` in a temporary folder in ``target`` and rename it there."""
-    work = Path(tempfile.mkdtemp(prefix=".build-", dir=target))  # same file system: rename
+    """Build the extension ``path`` in a temporary folder in ``target`` and rename it there
+    (with the loop's lock held: the temporary folders of its earlier builds are stale, left by
+    a killed build, and removed first; after the build, :func:`_prune_objects`)."""
+    for stale in target.glob(f".build-{name}-*"):
+        shutil.rmtree(stale, ignore_errors=True)
+    work = Path(tempfile.mkdtemp(prefix=f".build-{name}-", dir=target))  # same file system
     try:
         source_module = f"hpdob_aot_source_{name[len(_aot.PREFIX) :]}"
         (work / f"{source_module}.py").write_text(seen["source"], encoding="utf-8")
@@ -317,6 +395,34 @@ def _build(target: Path, path: Path, name: str, seen: dict, command, timeout: fl
         _aot.forget(path)  # a file this process could not load before: try the new one
     finally:
         shutil.rmtree(work, ignore_errors=True)
+    _prune_objects(target)
+
+
+def _objects_folder(target: Path) -> Path:
+    """The folder of the object files kept for builds in ``target`` in this environment
+    (numba's, numpy's, Python's versions: the headers numba's C sources include)."""
+    tag = hashlib.sha256(_aot.environment().encode()).hexdigest()[:16]
+    return target / ".objects" / tag
+
+
+def _prune_objects(target: Path) -> None:
+    """Remove the kept object files of other environments from ``target/.objects``: no build
+    here can use them again (their key holds the environment). This environment's stay, one
+    per source, compiler command and flags (~2 MB for numba's runtime with ``zig cc``), since
+    reusing them saves about a third of every later build."""
+    keep = _objects_folder(target)
+    try:
+        entries = list(keep.parent.iterdir())
+    except OSError:
+        return
+    for entry in entries:
+        if entry == keep:
+            continue
+        if entry.is_dir() and not entry.is_symlink():
+            shutil.rmtree(entry, ignore_errors=True)
+        else:
+            with contextlib.suppress(OSError):
+                entry.unlink()
 
 
 #: The module the build process runs (``python -m``; a test runs another in its place).
@@ -348,7 +454,7 @@ def _compile(work: Path, command: tuple | None, timeout: float) -> None:
         script = Path(__file__).with_name("_aot_compile.py")
         env["CC"] = shlex.join([sys.executable, str(script), "--driver"])
         env["HPDOB_AOT_CC"], env["HPDOB_AOT_CXX"] = command
-        env["HPDOB_AOT_OBJECTS"] = str(work.parent / ".objects")  # numba's C, compiled once
+        env["HPDOB_AOT_OBJECTS"] = str(_objects_folder(work.parent))  # numba's C, once
         env["HPDOB_AOT_ENVIRONMENT"] = _aot.environment()
         env.pop("LDSHARED", None)
     # its own session (POSIX): a timeout or an interrupt kills the compilers it started too,

@@ -14,6 +14,7 @@ here and silenced, the build itself is unchanged.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
 import json
@@ -63,15 +64,21 @@ def driver(arguments) -> int:
     text = json.dumps([command, flags, source.name, os.environ.get(ENVIRONMENT_VARIABLE, "")])
     key = hashlib.sha256(text.encode() + b"\0" + body).hexdigest()[:32]
     kept = Path(objects, f"{key}.o")
-    if kept.is_file():
+    try:
         shutil.copyfile(kept, output)
         return 0
+    except OSError:  # not kept (or removed meanwhile: another environment's build pruned it)
+        pass
     code = subprocess.run([*command, *arguments], check=False).returncode
     if code == 0:  # kept atomically: a reader sees a whole object file or none
-        kept.parent.mkdir(parents=True, exist_ok=True)
         temporary = kept.with_name(f"{key}.{os.getpid()}.tmp")
-        shutil.copyfile(output, temporary)
-        os.replace(temporary, kept)
+        try:  # a cache: a failure to keep it fails no build
+            kept.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(output, temporary)
+            os.replace(temporary, kept)
+        except OSError:
+            with contextlib.suppress(OSError):
+                temporary.unlink()
     return code
 
 
