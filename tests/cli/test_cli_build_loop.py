@@ -105,3 +105,67 @@ def test_a_mujoco_scenario_has_no_compiled_loop_to_build(capsys, tmp_path):
     assert code == 2 and err.count("\n") == 1
     assert "plant (MujocoServo) is advanced from Python" in err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "options",
+    [["--measurement", "position", "--pd-velocity", "observer"], ["--measurement", "position"]],
+)
+def test_simulate_s_loop_options_build_the_loop_simulate_takes(options, capsys, monkeypatch,
+                                                               tmp_path):  # fmt: skip
+    """``--measurement`` and ``--pd-velocity`` change the run's loop (the observer family, the
+    PD's velocity): build-loop takes them as simulate does, and ``hpdob simulate`` with them
+    then takes the built loop (the path it tries to load is recorded; a fake build, not
+    loaded: the JIT loop runs), while the loop built without them is not the run's."""
+    import json
+
+    import hpdob.simulation._aot_build as aot_build
+    from hpdob.simulation import _aot
+
+    def compile_(work, command, timeout):
+        spec = json.loads((work / "spec.json").read_text())
+        (work / spec["file"]).write_bytes(b"not loaded")
+
+    monkeypatch.setattr(aot_build, "_compile", compile_)
+    tried = []
+    monkeypatch.setattr(_aot, "load_extension", lambda p: tried.append(p))
+    scenario = str(EXAMPLES / "canonical_hpdob.toml")
+    plain, folder = tmp_path / "plain", tmp_path / "aot"
+    assert main(["build-loop", scenario, "--folder", str(plain)]) == 0
+    assert main(["build-loop", scenario, "--folder", str(folder), *options]) == 0
+    built = Path(capsys.readouterr().out.split()[-1])
+    assert built.parent == folder and built.name not in {p.name for p in plain.iterdir()}
+    monkeypatch.setenv("HPDOB_AOT_DIR", str(folder))
+    out = ["--out", str(tmp_path / "results"), "--no-plot"]
+    assert main(["simulate", scenario, *options, *out]) == 0
+    assert tried == [built]
+    monkeypatch.setenv("HPDOB_AOT_DIR", str(plain))  # built without them: not this run's
+    tried.clear()
+    assert main(["simulate", scenario, *options, *out]) == 0
+    assert tried == []
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--measurement", "angle"], "argument --measurement: invalid choice: 'angle' (choose "
+                                     "from 'state', 'position')"),
+        (["--pd-velocity", "x"], "argument --pd-velocity: invalid choice: 'x'"),
+    ],
+)  # fmt: skip
+def test_bad_loop_options_are_refused_and_build_nothing(options, message, capsys, tmp_path):
+    with pytest.raises(SystemExit) as exit_:
+        main(["build-loop", str(EXAMPLES / "canonical_hpdob.toml"), "--folder",
+              str(tmp_path / "aot"), *options])  # fmt: skip
+    assert exit_.value.code == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "aot").exists()
+
+
+def test_measurement_needs_an_observer_table(capsys, tmp_path):
+    code = main(["build-loop", str(EXAMPLES / "canonical_pid.toml"), "--folder",
+                 str(tmp_path / "aot"), "--measurement", "position"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "--measurement needs an [observer] table in" in err
+    assert not (tmp_path / "aot").exists()

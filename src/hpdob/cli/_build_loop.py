@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ._options import add_scenario_overrides, apply_scenario_overrides
+
 __all__ = ["register"]
 
 
@@ -16,7 +18,9 @@ def register(subparsers) -> None:
         description="Build the compiled sample loop of the scenario in a TOML file (as "
         "hpdob simulate reads it) into a C extension with numba.pycc, so that a later "
         "process's first simulate of a run of that structure runs it without importing numba "
-        "(opt-in; bit for bit the JIT loop's result; HPDOB_AOT=0 turns it off). Needs "
+        "(opt-in; bit for bit the JIT loop's result; HPDOB_AOT=0 turns it off). Give it "
+        "the options of hpdob simulate that change the loop (--measurement, --pd-velocity) "
+        "as the runs will have them. Needs "
         "setuptools and a C compiler (pip install hpdob[aot]); see docs/simulation.md. "
         "Prints the extension's path.",
     )
@@ -30,6 +34,7 @@ def register(subparsers) -> None:
         "$XDG_CACHE_HOME/hpdob/aot or ~/.cache/hpdob/aot: the folder simulate looks in; "
         "a build elsewhere is used by processes that set HPDOB_AOT_DIR to it)",
     )
+    add_scenario_overrides(parser)  # they change the loop: the same as simulate's
     parser.add_argument(
         "--compiler",
         default=None,
@@ -68,7 +73,7 @@ def _run(args: argparse.Namespace) -> int:
             f"{args.scenario}: a [plant] type with a loop of its own (an N-joint arm) has no "
             "sample loop to build"
         )
-    kwargs = scenario_from_dict(data)
+    kwargs = scenario_from_dict(apply_scenario_overrides(args, data))
     run = {k: v for k, v in kwargs.items() if k in _RUN_KEYS}
     try:
         path = build_loop_extension(**run, folder=args.folder, compiler=args.compiler)

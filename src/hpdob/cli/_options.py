@@ -17,6 +17,8 @@ __all__ = [
     "add_controller_arguments",
     "add_loop_arguments",
     "add_nominal_arguments",
+    "add_scenario_overrides",
+    "apply_scenario_overrides",
     "controller_from_args",
     "controller_type",
     "finite",
@@ -197,3 +199,46 @@ def controller_from_args(args, *, velocity: str = "measured", feedforward: bool 
 def name_of(option: str) -> str:
     """The argparse destination of ``option`` (``--tracking-time`` -> ``tracking_time``)."""
     return option.lstrip("-").replace("-", "_")
+
+
+def add_scenario_overrides(parser) -> None:
+    """``--measurement`` and ``--pd-velocity``: a scenario file's observer measurement and PD
+    velocity, overridden (:func:`apply_scenario_overrides`). Both change the run's loop, so
+    ``hpdob simulate`` and ``hpdob build-loop`` take them alike."""
+    parser.add_argument(
+        "--measurement",
+        choices=("state", "position"),
+        default=None,
+        help="override the [observer] table's measurement: angle and velocity (state) or the "
+        "angle only (position); the other family's gain_direction/velocity_bandwidth is dropped",
+    )
+    parser.add_argument(
+        "--pd-velocity",
+        choices=("measured", "observer"),
+        default=None,
+        help="override the [controller] table's velocity: the sensor's, or the position-only "
+        "observer's estimate",
+    )
+
+
+def apply_scenario_overrides(args, data: dict) -> dict:
+    """``data`` (a scenario file's tables, as ``read_toml`` gives them) with the overrides of
+    :func:`add_scenario_overrides` applied; a CLIError for ``--measurement`` without an
+    ``[observer]`` table. ``data`` itself is not changed."""
+    from ._errors import CLIError
+
+    data = dict(data)
+    if args.measurement is not None:
+        table = data.get("observer")
+        if not isinstance(table, dict):
+            raise CLIError(
+                f"--measurement needs an [observer] table in {args.scenario}, which has none"
+            )
+        other = "gain_direction" if args.measurement == "position" else "velocity_bandwidth"
+        data["observer"] = {
+            **{k: v for k, v in table.items() if k != other},
+            "measurement": args.measurement,
+        }
+    if args.pd_velocity is not None and isinstance(data.get("controller"), dict):
+        data["controller"] = {**data["controller"], "velocity": args.pd_velocity}
+    return data

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from ._options import output_path
+from ._options import add_scenario_overrides, apply_scenario_overrides, output_path
 from ._progress import ProgressLine, show_progress
 
 __all__ = ["register"]
@@ -32,20 +32,7 @@ def register(subparsers) -> None:
         help="output directory (default: hpdob-results/<scenario name>)",
     )
     parser.add_argument("--no-plot", action="store_true", help="skip the figure")
-    parser.add_argument(
-        "--measurement",
-        choices=("state", "position"),
-        default=None,
-        help="override the [observer] table's measurement: angle and velocity (state) or the "
-        "angle only (position); the other family's gain_direction/velocity_bandwidth is dropped",
-    )
-    parser.add_argument(
-        "--pd-velocity",
-        choices=("measured", "observer"),
-        default=None,
-        help="override the [controller] table's velocity: the sensor's, or the position-only "
-        "observer's estimate",
-    )
+    add_scenario_overrides(parser)
     parser.add_argument(
         "--force-window",
         type=float,
@@ -71,22 +58,8 @@ def _scenario(args):
     """The scenario's simulate() arguments and metric windows, with the command's overrides."""
     from .. import robots  # noqa: F401  # registers the arm plant types (registration from above)
     from ..simulation import metric_windows, read_toml, scenario_from_dict
-    from ._errors import CLIError
 
-    data = read_toml(args.scenario)
-    if args.measurement is not None:
-        table = data.get("observer")
-        if not isinstance(table, dict):
-            raise CLIError(
-                f"--measurement needs an [observer] table in {args.scenario}, which has none"
-            )
-        other = "gain_direction" if args.measurement == "position" else "velocity_bandwidth"
-        data["observer"] = {
-            **{k: v for k, v in table.items() if k != other},
-            "measurement": args.measurement,
-        }
-    if args.pd_velocity is not None and isinstance(data.get("controller"), dict):
-        data["controller"] = {**data["controller"], "velocity": args.pd_velocity}
+    data = apply_scenario_overrides(args, read_toml(args.scenario))
     kwargs = scenario_from_dict(data)
     kwargs.setdefault("label", args.scenario.stem)
     return kwargs, metric_windows(data)
