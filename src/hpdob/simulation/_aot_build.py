@@ -112,10 +112,15 @@ def build_loop_extension(
     another ``NUMBA_OPT``) builds and uses a new one. The compiler commands and the flags
     setuptools takes from the environment (``CFLAGS``, ``LDFLAGS``, ...) are recorded beside
     it: a build with other ones replaces it, one with the same returns it. It is built in a
-    temporary folder inside ``folder`` and renamed into
-    place, its size and SHA-256 recorded beside it (a run checks both before loading it), so
-    an interrupted or failed build leaves no file a run would load; a second build of the same
-    loop at once (another process) waits for the first and returns its file. Set
+    temporary folder inside ``folder``, by a process of its own (on POSIX in a session of its
+    own: a timeout or a ``KeyboardInterrupt`` kills it and the compilers it started), and
+    renamed into place, its size and SHA-256 recorded beside it (a run checks both before
+    loading it), so an interrupted or failed build leaves no file a run would load; a second
+    build of the same loop at once (another process) waits for the first on a lock file
+    (``fcntl.flock``, on Windows ``msvcrt.locking``; removed when the build ends) and returns
+    its file. A build removes what killed builds of its loop left (their lock file and
+    temporary folder) and the object files ``folder/.objects`` keeps for other numba, numpy
+    or Python versions; those of this environment stay for later builds. Set
     ``HPDOB_AOT=0`` (or ``false``, ``no``, ``off``) to have :func:`~hpdob.simulate` ignore
     built loops.
 
@@ -155,7 +160,9 @@ def build_loop_extension(
         The C++ compiler command, for numba's runtime and the link (with ``compiler``, not
         ``"zig"``).
     timeout : float, optional
-        Seconds the build may take before it is stopped (positive and finite; default 600).
+        Seconds the build may take before it is stopped, its process and compilers killed
+        (positive and finite; default 600); also the longest wait for another build of the
+        same loop.
 
     Returns
     -------
@@ -172,7 +179,9 @@ def build_loop_extension(
         before the build, nothing written.
     LoopBuildError
         If ``numba.pycc`` (it needs numba, ``setuptools``: the ``aot`` extra, and a C compiler)
-        or the compiler fails, or the build times out; no extension is written.
+        or the compiler fails, the build times out or waits longer than ``timeout`` for
+        another build of the loop, or an extension built with other compiler settings
+        cannot be replaced (Windows: a process has it loaded); no extension is written.
 
     Examples
     --------
