@@ -279,6 +279,8 @@ def read_only_folder(tmp_path):
             locked.chmod(0o700)
         return
     sysfs = Path("/sys")
+    if not sysfs.is_dir():
+        pytest.skip("no folder refuses root here: no /sys")
     try:
         handle, probe = tempfile.mkstemp(dir=sysfs)
     except OSError:
