@@ -162,3 +162,15 @@ def _steps_rms(controller, r: np.ndarray, J: float, b: float, counts: int, Ts: f
         sensor=Encoder(counts), reference=reference, duration=r.size * Ts,
     )  # fmt: skip
     return math.sqrt(np.mean(result.u**2))
+
+
+def within_targets(fit, s) -> dict:
+    """Issue 23's targets, per parameter, for ``fit`` of the synthetic log ``s``: J within
+    3 %, b within 10 % or 0.02 J 2 pi B, Coulomb within 5 % or 2 % of the input's RMS."""
+    b_allow = max(0.1 * s.b, 0.02 * s.J * 2 * math.pi * s.bandwidth)
+    c_allow = max(0.05 * s.coulomb, 0.02 * s.input_rms)
+    return {
+        "J": abs(fit.J / s.J - 1.0) <= 0.03,
+        "b": abs(fit.b - s.b) <= b_allow,
+        "coulomb": abs(fit.coulomb - s.coulomb) <= c_allow,
+    }

@@ -182,7 +182,7 @@ def test_idim_iv_on_step_logs_uses_a_zero_reference_velocity(tmp_path, capsys, c
     loop) is then within the targets and converged; --method idim-iv gives exactly what the
     true loop gives in Python (its b and Coulomb miss because the benchmark's rules keep the
     rests, not because of the loop: docs/real-data.md)."""
-    from test_identify_defaults import within_targets
+    from synthetic_logs import within_targets
 
     s = synthetic_log(kind="steps-both", counts=counts, Ts=5e-4, coulomb_fraction=0.1, seed=1)
     csv = _csv(tmp_path / "steps.csv", s)

@@ -6,24 +6,12 @@ benchmarks/bench_identify_grid.py (192 logs, all within, worst J 1.1 %, b 39 % a
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
 from hpdob import identify
 from hpdob.identification._regression import noise_floor, signal_bandwidth
-from synthetic_logs import synthetic_log
-
-
-def within_targets(fit, s) -> dict:
-    b_allow = max(0.1 * s.b, 0.02 * s.J * 2 * math.pi * s.bandwidth)
-    c_allow = max(0.05 * s.coulomb, 0.02 * s.input_rms)
-    return {
-        "J": abs(fit.J / s.J - 1.0) <= 0.03,
-        "b": abs(fit.b - s.b) <= b_allow,
-        "coulomb": abs(fit.coulomb - s.coulomb) <= c_allow,
-    }
+from synthetic_logs import synthetic_log, within_targets
 
 
 @pytest.fixture(scope="module")

@@ -12,11 +12,10 @@ from __future__ import annotations
 import re
 
 import pytest
-from test_identify_defaults import within_targets
 
 from hpdob import ParameterValueError, identify
 from hpdob.identification import IdentificationWarning
-from synthetic_logs import synthetic_log
+from synthetic_logs import synthetic_log, within_targets
 
 
 @pytest.fixture(scope="module")
