@@ -24,7 +24,6 @@ from hpdob.identification._regression import (
     build_regression,
     differentiate,
     instrument_rows,
-    kinematics,
     resolve_settings,
     rows_inside_border,
 )
@@ -120,6 +119,15 @@ def _rest_rows_mask(velocity, index, length, margin):
     np.add.at(resting, np.maximum(starts[long] - margin, 0), 1)
     np.add.at(resting, np.minimum(stops[long] + margin, speed.size), -1)
     return np.cumsum(resting)[:-1][index] > 0, rest_speed
+
+
+def kinematics(theta, settings):
+    """Filtered position, velocity and acceleration (steps 1-2 of IDIM-LS: the position
+    filtered forward and backward, central differences), straightforwardly at full rate."""
+    sos = signal.butter(settings.order, settings.cutoff, fs=1.0 / settings.Ts, output="sos")
+    position = signal.sosfiltfilt(sos, theta)
+    velocity = np.gradient(position, settings.Ts)
+    return position, velocity, np.gradient(velocity, settings.Ts)
 
 
 def reference_regression(theta, u, settings):

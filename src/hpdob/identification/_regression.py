@@ -38,7 +38,6 @@ __all__ = [
     "Settings",
     "build_regression",
     "decimate",
-    "kinematics",
     "resolve_settings",
 ]
 
@@ -103,14 +102,6 @@ def _whitened_psd(theta: np.ndarray, Ts: float):
     gain = (2.0 * np.sin(np.pi * f * Ts)) ** 4
     with np.errstate(divide="ignore", invalid="ignore"):
         return f[1:], psd[1:] / gain[1:]
-
-
-def second_difference(x: np.ndarray) -> np.ndarray:
-    """``np.diff(x, 2)`` bit for bit, block by block (one new array of its size)."""
-    out = np.empty(max(x.size - 2, 0))
-    for lo in range(0, out.size, _lean.BLOCK):
-        out[lo : lo + _lean.BLOCK] = np.diff(x[lo : lo + _lean.BLOCK + 2], 2)
-    return out
 
 
 def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
@@ -213,21 +204,12 @@ def resolve_settings(
     )
 
 
-def kinematics(theta: np.ndarray, settings: Settings):
-    """Filtered position, velocity and acceleration (steps 1-2 of the module docstring)."""
-    from scipy import signal
-
-    sos = signal.butter(settings.order, settings.cutoff, fs=1.0 / settings.Ts, output="sos")
-    position = signal.sosfiltfilt(sos, theta)
-    velocity = np.gradient(position, settings.Ts)
-    acceleration = np.gradient(velocity, settings.Ts)
-    return position, velocity, acceleration
-
-
 def filtered_velocity(theta: np.ndarray, settings: Settings, *, overwrite: bool = False):
-    """``kinematics(theta, settings)[1]`` bit for bit, holding one new array of ``theta``'s
-    size (the filtered position is differenced in place, :mod:`._lean`), or none with
-    ``overwrite`` (the velocity written over ``theta``)."""
+    """The velocity of steps 1-2 of the module docstring, ``np.gradient`` of the
+    ``scipy.signal.sosfiltfilt``-filtered position, bit for bit
+    (``tests/identification/test_lean.py`` keeps that construction), holding one new array of
+    ``theta``'s size (the filtered position is differenced in place, :mod:`._lean`), or none
+    with ``overwrite`` (the velocity written over ``theta``)."""
     from scipy import signal
 
     sos = signal.butter(settings.order, settings.cutoff, fs=1.0 / settings.Ts, output="sos")
@@ -323,10 +305,10 @@ class Regression:
     index: np.ndarray  # raw sample index of each row
     velocity: np.ndarray  # filtered velocity at the rows [rad/s or m/s]
     kept: np.ndarray  # mask over the decimated samples inside the border: row kept?
-    rest_speed: float = 0.0  # speed below which the log rests [rad/s or m/s] (rests only)
-    rest_rows: int = 0  # rows dropped as rests
-    velocity0: float = 0.0  # filtered velocity at the first sample
-    max_speed: float = 0.0  # largest |filtered velocity| over every sample
+    rest_speed: float  # speed below which the log rests [rad/s or m/s] (rests only, else 0)
+    rest_rows: int  # rows dropped as rests
+    velocity0: float  # filtered velocity at the first sample
+    max_speed: float  # largest |filtered velocity| over every sample
 
 
 def rows_inside_border(n: int, settings: Settings) -> np.ndarray:
@@ -484,7 +466,9 @@ def differentiate(x, Ts: float, *, cutoff: float | None = None, order: int = 4, 
     Raises
     ------
     ParameterValueError
-        If ``cutoff`` is not below the Nyquist frequency, or ``x`` is not finite.
+        If ``cutoff`` is not below the Nyquist frequency, ``x`` is not finite or has no more
+        samples than the filter's padding (three times its taps, 15 at order 4), or the
+        position whose spectrum sets the default ``cutoff`` has fewer than 3 samples.
 
     Examples
     --------
@@ -501,7 +485,22 @@ def differentiate(x, Ts: float, *, cutoff: float | None = None, order: int = 4, 
     Ts = positive(Ts, "Ts", "a positive sampling period [s]")
     if cutoff is None:
         reference = x if like is None else sample_vector(like, "like", "positions [rad or m]")
+        if reference.size < 3:  # its second difference's spectrum sets the cut-off
+            raise ParameterValueError(
+                f"{'x' if like is None else 'like'} must be positions [rad or m] of at least 3 "
+                f"samples to set the default cutoff from, got {reference.size}"
+            )
         cutoff = 5.0 * adaptive_bandwidth(reference, Ts)
     settings = resolve_settings(Ts, cutoff=cutoff, order=order, decimation=1, border=0)
-    velocity = filtered_velocity(x, settings)  # as kinematics(x, settings), in less memory
+    from scipy import signal
+
+    sos = signal.butter(settings.order, settings.cutoff, fs=1.0 / Ts, output="sos")
+    if x.size <= _lean.pad_length(sos):
+        raise ParameterValueError(
+            f"x must be positions [rad or m] of more than {_lean.pad_length(sos)} samples (the "
+            f"padding of the order-{settings.order} filter run forward and backward), got "
+            f"{x.size}"
+        )
+    # the np.gradient of the sosfiltfilt-filtered position, in less memory
+    velocity = filtered_velocity(x, settings)
     return velocity, np.gradient(velocity, settings.Ts)
