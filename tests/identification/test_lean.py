@@ -11,7 +11,6 @@ import pytest
 from scipy import signal
 
 from hpdob.identification._lean import (
-    decimated,
     decimated_at,
     filtfilt,
     gradient_block,
@@ -56,9 +55,6 @@ def test_filtfilt_in_blocks_is_sosfiltfilt_bit_for_bit(name, n, block):
         return
     reference = signal.sosfiltfilt(sos, x)
     assert same_bits(filtfilt(sos, x, block), reference)
-    for factor in (1, 3, 31):
-        assert same_bits(decimated(sos, n, lambda lo, hi: x[lo:hi], factor, block),
-                         reference[::factor])  # fmt: skip
     rng = np.random.default_rng(block)
     for samples in (
         np.arange(n),

@@ -29,7 +29,7 @@ import numpy as np
 
 from .._validation import ParameterValueError, as_int, nonnegative, positive
 from . import _lean
-from ._lean import decimated, decimated_at, filtfilt, gradient_block, gradient_inplace, welch
+from ._lean import decimated_at, filtfilt, gradient_block, gradient_inplace, welch
 
 __all__ = [
     "MIN_ROWS",
@@ -37,7 +37,6 @@ __all__ = [
     "Regression",
     "Settings",
     "build_regression",
-    "decimate",
     "resolve_settings",
 ]
 
@@ -216,41 +215,22 @@ def filtered_velocity(theta: np.ndarray, settings: Settings, *, overwrite: bool 
     return gradient_inplace(filtfilt(sos, theta, out=theta if overwrite else None), settings.Ts)
 
 
-def observation(velocity: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
-    """Rows ``[qdd, qd, sign(qd), 1]`` of the inverse dynamic model (EMPS eq. 2)."""
-    return np.column_stack([acceleration, velocity, np.sign(velocity), np.ones_like(velocity)])
-
-
 def _decimate_sos(factor: int) -> np.ndarray:
+    """The parallel filter: MATLAB's and scipy's ``decimate`` default (Chebyshev type I,
+    order 8, 0.05 dB ripple, cut-off 0.8/factor of Nyquist), in second-order sections."""
     from scipy import signal
 
     return signal.cheby1(_DECIMATE_ORDER, _DECIMATE_RIPPLE, 0.8 / factor, output="sos")
 
 
-def decimate(x: np.ndarray, factor: int) -> np.ndarray:
-    """Parallel low-pass filtering and down-sampling by ``factor`` along the first axis.
-
-    The filter is MATLAB's and scipy's ``decimate`` default (Chebyshev type I, order 8,
-    0.05 dB ripple, cut-off 0.8/factor of Nyquist) run forward and backward, in second-order
-    sections; samples ``0, factor, 2 factor, ...`` are kept. ``factor = 1`` returns a copy.
-    """
+def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, samples: np.ndarray):
+    """Rows ``samples`` (increasing raw sample indices, multiples of ``factor``) of the
+    observation matrix ``[qdd, qd, sign(qd), 1]`` (EMPS eq. 2; ``qdd = np.gradient(velocity,
+    Ts)``) filtered forward and backward by the parallel filter (none at ``factor = 1``),
+    ``scipy.signal.sosfiltfilt`` bit for bit, column by column: the full-rate observation
+    matrix, the filter's padded copies of it and the whole decimated matrix are never held."""
     if factor == 1:
-        return np.array(x, dtype=float)
-    from scipy import signal
-
-    return signal.sosfiltfilt(_decimate_sos(factor), x, axis=0)[::factor]
-
-
-def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, samples=None) -> np.ndarray:
-    """``decimate(observation(velocity, np.gradient(velocity, Ts)), factor)`` bit for bit,
-    column by column from ``velocity`` in blocks: the full-rate observation matrix (four
-    columns) and the filter's padded copies of it are never held. ``samples`` (increasing
-    multiples of ``factor``): only the rows of those raw samples, ``[samples // factor]`` of
-    it, without the whole decimated matrix."""
-    if factor == 1:
-        if samples is None:
-            return observation(velocity, np.gradient(velocity, Ts))
-        X = np.empty((samples.size, 4))  # observation(...)[samples], column by column
+        X = np.empty((samples.size, 4))  # the observation matrix's rows, column by column
         X[:, 0] = np.gradient(velocity, Ts)[samples]
         X[:, 1] = velocity[samples]
         X[:, 2] = np.sign(X[:, 1])
@@ -263,19 +243,15 @@ def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, samples=None) -
         lambda lo, hi: np.sign(velocity[lo:hi]),
         lambda lo, hi: np.ones(hi - lo),
     )
-    X = np.empty((-(-n // factor) if samples is None else samples.size, len(columns)))
+    X = np.empty((samples.size, len(columns)))
     for j, column in enumerate(columns):
-        if samples is None:
-            X[:, j] = decimated(sos, n, column, factor)
-        else:
-            X[:, j] = decimated_at(sos, n, column, samples)
+        X[:, j] = decimated_at(sos, n, column, samples)
     return X
 
 
-def decimated_input(u: np.ndarray, settings: Settings, samples=None) -> np.ndarray:
-    """``decimate(u, decimation)`` of the input, aligned first with ``zoh`` (see
-    :func:`build_regression`), bit for bit, in blocks; ``samples`` as in
-    :func:`decimated_rows`."""
+def decimated_input(u: np.ndarray, settings: Settings, samples: np.ndarray) -> np.ndarray:
+    """The input, aligned first with ``zoh`` (see :func:`build_regression`), filtered as
+    :func:`decimated_rows`'s columns, at raw samples ``samples``, in blocks."""
 
     def aligned(lo: int, hi: int) -> np.ndarray:
         if not settings.zoh:
@@ -288,12 +264,8 @@ def decimated_input(u: np.ndarray, settings: Settings, samples=None) -> np.ndarr
         return out
 
     if settings.decimation == 1:
-        full = np.array(aligned(0, u.size), dtype=float)
-        return full if samples is None else full[samples]
-    sos = _decimate_sos(settings.decimation)
-    if samples is None:
-        return decimated(sos, u.size, aligned, settings.decimation)
-    return decimated_at(sos, u.size, aligned, samples)
+        return np.array(aligned(0, u.size), dtype=float)[samples]
+    return decimated_at(_decimate_sos(settings.decimation), u.size, aligned, samples)
 
 
 @dataclass(frozen=True)
