@@ -1,14 +1,15 @@
 """The regression's rows (identification/_regression.py): which rows the adaptive defaults drop
-as the log's rests."""
+as the log's rests; and positions too short to filter or to read a spectrum from."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
+from hpdob import identify
 from hpdob._validation import ParameterValueError
 from hpdob.identification import differentiate
-from hpdob.identification._regression import REST_SPEED_FRACTION, rest_rows_mask
+from hpdob.identification._regression import REST_SPEED_FRACTION, rest_rows_mask, signal_bandwidth
 
 
 def test_a_rest_and_its_margin_are_dropped_and_a_brief_reversal_is_kept():
@@ -54,3 +55,13 @@ def test_differentiate_refuses_a_position_too_short_naming_it(n, kwargs, message
         differentiate(np.linspace(0.0, 1.0, n), 1e-3, **kwargs)
     velocity, _ = differentiate(np.linspace(0.0, 1.0, 16), 1e-3, cutoff=50.0)  # 16 will do
     assert velocity.shape == (16,)
+
+
+def test_a_log_too_short_for_a_spectrum_is_refused_as_too_short():
+    """Two samples have no second difference, so no spectrum: no signal bandwidth (0), and
+    identify's adaptive defaults refuse the log as too short to identify (they raised
+    scipy-welch's bare 'nperseg' ValueError before)."""
+    assert signal_bandwidth(np.array([0.0, 1.0]), 1e-3) == 0.0
+    t = np.arange(2) * 1e-3
+    with pytest.raises(ParameterValueError, match="the log is too short to identify: 2 samples"):
+        identify(t, np.array([0.0, 1e-3]), np.zeros(2), method="auto")

@@ -124,7 +124,10 @@ def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
 
 def signal_bandwidth(theta: np.ndarray, Ts: float) -> float:
     """Highest frequency [Hz] where the position's PSD is :data:`SIGNAL_TO_NOISE` times its
-    noise floor (:func:`noise_floor`); 0 if none is."""
+    noise floor (:func:`noise_floor`); 0 if none is (also with fewer than 3 samples: no
+    second difference, no spectrum)."""
+    if theta.size < 3:
+        return 0.0
     floor, _ = noise_floor(theta, Ts)
     f, psd = _whitened_psd(theta, Ts)
     above = np.flatnonzero(psd > SIGNAL_TO_NOISE * floor)
