@@ -15,6 +15,7 @@ from .._validation import (
     ParameterValueError,
     as_real,
     check_choice,
+    readonly,
 )
 from ._regression import (
     PARAMETERS,
@@ -68,10 +69,11 @@ class Layout:
 
     def columns(self, M: np.ndarray, run: int) -> np.ndarray:
         """The estimated columns of run ``run`` from its rows ``[qdd, qd, sign(qd), 1]``:
-        ``M`` itself (the same numbers, not a copy) when those are the four estimated, in
-        order."""
+        a read-only view of ``M`` (the same numbers, not a copy) when those are the four
+        estimated, in order, else a new array."""
         if self.size == 4 and self.free == (0, 1, 2) and self.offset_column(run) == 3:
-            return M
+            # zero-copy, but a caller's in-place edit must not reach the regression's M
+            return readonly(M.view())
         out = np.zeros((M.shape[0], self.size))
         out[:, : len(self.free)] = M[:, list(self.free)]
         column = self.offset_column(run)

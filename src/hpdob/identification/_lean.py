@@ -18,7 +18,6 @@ import numpy as np
 __all__ = [
     "BLOCK",
     "SEGMENTS",
-    "decimated",
     "decimated_at",
     "filtfilt",
     "filtfilt_blocks",
@@ -132,16 +131,6 @@ def gradient_block(f: np.ndarray, lo: int, hi: int, dx: float) -> np.ndarray:
         out[0] = (f[1] - f[0]) / dx
     if hi == n:
         out[-1] = (f[-1] - f[-2]) / dx
-    return out
-
-
-def decimated(sos: np.ndarray, n: int, read, factor: int, block: int | None = None) -> np.ndarray:
-    """``scipy.signal.sosfiltfilt(sos, x)[::factor]`` of the signal ``read`` gives (see
-    :func:`filtfilt_blocks`), holding blocks only."""
-    out = np.empty(-(-n // factor))
-    for lo, hi, y in filtfilt_blocks(sos, n, read, block):
-        first = -(-lo // factor) * factor  # the first multiple of factor at or after lo
-        out[first // factor : -(-hi // factor)] = y[first - lo :: factor]
     return out
 
 

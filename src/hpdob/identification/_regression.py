@@ -29,7 +29,7 @@ import numpy as np
 
 from .._validation import ParameterValueError, as_int, nonnegative, positive
 from . import _lean
-from ._lean import decimated, decimated_at, filtfilt, gradient_block, gradient_inplace, welch
+from ._lean import decimated_at, filtfilt, gradient_block, gradient_inplace, welch
 
 __all__ = [
     "MIN_ROWS",
@@ -37,8 +37,6 @@ __all__ = [
     "Regression",
     "Settings",
     "build_regression",
-    "decimate",
-    "kinematics",
     "resolve_settings",
 ]
 
@@ -93,7 +91,7 @@ def _whitened_psd(theta: np.ndarray, Ts: float):
     """Frequencies [Hz] and PSD of the position [unit^2/Hz] estimated from its second
     difference (Welch) divided by the difference's gain ``(2 sin(pi f Ts))^4``: the window's
     leakage from the large slow motion would otherwise mask the noise floor."""
-    n = max(theta.size - 2, 0)  # second_difference(theta), a few segments at a time
+    n = max(theta.size - 2, 0)  # np.diff(theta, 2), read a few segments at a time
 
     def second(lo: int, hi: int) -> np.ndarray:
         return np.diff(theta[lo : hi + 2], 2)
@@ -103,14 +101,6 @@ def _whitened_psd(theta: np.ndarray, Ts: float):
     gain = (2.0 * np.sin(np.pi * f * Ts)) ** 4
     with np.errstate(divide="ignore", invalid="ignore"):
         return f[1:], psd[1:] / gain[1:]
-
-
-def second_difference(x: np.ndarray) -> np.ndarray:
-    """``np.diff(x, 2)`` bit for bit, block by block (one new array of its size)."""
-    out = np.empty(max(x.size - 2, 0))
-    for lo in range(0, out.size, _lean.BLOCK):
-        out[lo : lo + _lean.BLOCK] = np.diff(x[lo : lo + _lean.BLOCK + 2], 2)
-    return out
 
 
 def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
@@ -134,7 +124,10 @@ def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
 
 def signal_bandwidth(theta: np.ndarray, Ts: float) -> float:
     """Highest frequency [Hz] where the position's PSD is :data:`SIGNAL_TO_NOISE` times its
-    noise floor (:func:`noise_floor`); 0 if none is."""
+    noise floor (:func:`noise_floor`); 0 if none is (also with fewer than 3 samples: no
+    second difference, no spectrum)."""
+    if theta.size < 3:
+        return 0.0
     floor, _ = noise_floor(theta, Ts)
     f, psd = _whitened_psd(theta, Ts)
     above = np.flatnonzero(psd > SIGNAL_TO_NOISE * floor)
@@ -213,62 +206,34 @@ def resolve_settings(
     )
 
 
-def kinematics(theta: np.ndarray, settings: Settings):
-    """Filtered position, velocity and acceleration (steps 1-2 of the module docstring)."""
-    from scipy import signal
-
-    sos = signal.butter(settings.order, settings.cutoff, fs=1.0 / settings.Ts, output="sos")
-    position = signal.sosfiltfilt(sos, theta)
-    velocity = np.gradient(position, settings.Ts)
-    acceleration = np.gradient(velocity, settings.Ts)
-    return position, velocity, acceleration
-
-
 def filtered_velocity(theta: np.ndarray, settings: Settings, *, overwrite: bool = False):
-    """``kinematics(theta, settings)[1]`` bit for bit, holding one new array of ``theta``'s
-    size (the filtered position is differenced in place, :mod:`._lean`), or none with
-    ``overwrite`` (the velocity written over ``theta``)."""
+    """The velocity of steps 1-2 of the module docstring, ``np.gradient`` of the
+    ``scipy.signal.sosfiltfilt``-filtered position, bit for bit
+    (``tests/identification/test_lean.py`` keeps that construction), holding one new array of
+    ``theta``'s size (the filtered position is differenced in place, :mod:`._lean`), or none
+    with ``overwrite`` (the velocity written over ``theta``)."""
     from scipy import signal
 
     sos = signal.butter(settings.order, settings.cutoff, fs=1.0 / settings.Ts, output="sos")
     return gradient_inplace(filtfilt(sos, theta, out=theta if overwrite else None), settings.Ts)
 
 
-def observation(velocity: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
-    """Rows ``[qdd, qd, sign(qd), 1]`` of the inverse dynamic model (EMPS eq. 2)."""
-    return np.column_stack([acceleration, velocity, np.sign(velocity), np.ones_like(velocity)])
-
-
 def _decimate_sos(factor: int) -> np.ndarray:
+    """The parallel filter: MATLAB's and scipy's ``decimate`` default (Chebyshev type I,
+    order 8, 0.05 dB ripple, cut-off 0.8/factor of Nyquist), in second-order sections."""
     from scipy import signal
 
     return signal.cheby1(_DECIMATE_ORDER, _DECIMATE_RIPPLE, 0.8 / factor, output="sos")
 
 
-def decimate(x: np.ndarray, factor: int) -> np.ndarray:
-    """Parallel low-pass filtering and down-sampling by ``factor`` along the first axis.
-
-    The filter is MATLAB's and scipy's ``decimate`` default (Chebyshev type I, order 8,
-    0.05 dB ripple, cut-off 0.8/factor of Nyquist) run forward and backward, in second-order
-    sections; samples ``0, factor, 2 factor, ...`` are kept. ``factor = 1`` returns a copy.
-    """
+def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, samples: np.ndarray):
+    """Rows ``samples`` (increasing raw sample indices, multiples of ``factor``) of the
+    observation matrix ``[qdd, qd, sign(qd), 1]`` (EMPS eq. 2; ``qdd = np.gradient(velocity,
+    Ts)``) filtered forward and backward by the parallel filter (none at ``factor = 1``),
+    ``scipy.signal.sosfiltfilt`` bit for bit, column by column: the full-rate observation
+    matrix, the filter's padded copies of it and the whole decimated matrix are never held."""
     if factor == 1:
-        return np.array(x, dtype=float)
-    from scipy import signal
-
-    return signal.sosfiltfilt(_decimate_sos(factor), x, axis=0)[::factor]
-
-
-def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, samples=None) -> np.ndarray:
-    """``decimate(observation(velocity, np.gradient(velocity, Ts)), factor)`` bit for bit,
-    column by column from ``velocity`` in blocks: the full-rate observation matrix (four
-    columns) and the filter's padded copies of it are never held. ``samples`` (increasing
-    multiples of ``factor``): only the rows of those raw samples, ``[samples // factor]`` of
-    it, without the whole decimated matrix."""
-    if factor == 1:
-        if samples is None:
-            return observation(velocity, np.gradient(velocity, Ts))
-        X = np.empty((samples.size, 4))  # observation(...)[samples], column by column
+        X = np.empty((samples.size, 4))  # the observation matrix's rows, column by column
         X[:, 0] = np.gradient(velocity, Ts)[samples]
         X[:, 1] = velocity[samples]
         X[:, 2] = np.sign(X[:, 1])
@@ -281,19 +246,15 @@ def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, samples=None) -
         lambda lo, hi: np.sign(velocity[lo:hi]),
         lambda lo, hi: np.ones(hi - lo),
     )
-    X = np.empty((-(-n // factor) if samples is None else samples.size, len(columns)))
+    X = np.empty((samples.size, len(columns)))
     for j, column in enumerate(columns):
-        if samples is None:
-            X[:, j] = decimated(sos, n, column, factor)
-        else:
-            X[:, j] = decimated_at(sos, n, column, samples)
+        X[:, j] = decimated_at(sos, n, column, samples)
     return X
 
 
-def decimated_input(u: np.ndarray, settings: Settings, samples=None) -> np.ndarray:
-    """``decimate(u, decimation)`` of the input, aligned first with ``zoh`` (see
-    :func:`build_regression`), bit for bit, in blocks; ``samples`` as in
-    :func:`decimated_rows`."""
+def decimated_input(u: np.ndarray, settings: Settings, samples: np.ndarray) -> np.ndarray:
+    """The input, aligned first with ``zoh`` (see :func:`build_regression`), filtered as
+    :func:`decimated_rows`'s columns, at raw samples ``samples``, in blocks."""
 
     def aligned(lo: int, hi: int) -> np.ndarray:
         if not settings.zoh:
@@ -306,12 +267,8 @@ def decimated_input(u: np.ndarray, settings: Settings, samples=None) -> np.ndarr
         return out
 
     if settings.decimation == 1:
-        full = np.array(aligned(0, u.size), dtype=float)
-        return full if samples is None else full[samples]
-    sos = _decimate_sos(settings.decimation)
-    if samples is None:
-        return decimated(sos, u.size, aligned, settings.decimation)
-    return decimated_at(sos, u.size, aligned, samples)
+        return np.array(aligned(0, u.size), dtype=float)[samples]
+    return decimated_at(_decimate_sos(settings.decimation), u.size, aligned, samples)
 
 
 @dataclass(frozen=True)
@@ -323,10 +280,10 @@ class Regression:
     index: np.ndarray  # raw sample index of each row
     velocity: np.ndarray  # filtered velocity at the rows [rad/s or m/s]
     kept: np.ndarray  # mask over the decimated samples inside the border: row kept?
-    rest_speed: float = 0.0  # speed below which the log rests [rad/s or m/s] (rests only)
-    rest_rows: int = 0  # rows dropped as rests
-    velocity0: float = 0.0  # filtered velocity at the first sample
-    max_speed: float = 0.0  # largest |filtered velocity| over every sample
+    rest_speed: float  # speed below which the log rests [rad/s or m/s] (rests only, else 0)
+    rest_rows: int  # rows dropped as rests
+    velocity0: float  # filtered velocity at the first sample
+    max_speed: float  # largest |filtered velocity| over every sample
 
 
 def rows_inside_border(n: int, settings: Settings) -> np.ndarray:
@@ -484,7 +441,9 @@ def differentiate(x, Ts: float, *, cutoff: float | None = None, order: int = 4, 
     Raises
     ------
     ParameterValueError
-        If ``cutoff`` is not below the Nyquist frequency, or ``x`` is not finite.
+        If ``cutoff`` is not below the Nyquist frequency, ``x`` is not finite or has no more
+        samples than the filter's padding (three times its taps, 15 at order 4), or the
+        position whose spectrum sets the default ``cutoff`` has fewer than 3 samples.
 
     Examples
     --------
@@ -501,7 +460,22 @@ def differentiate(x, Ts: float, *, cutoff: float | None = None, order: int = 4, 
     Ts = positive(Ts, "Ts", "a positive sampling period [s]")
     if cutoff is None:
         reference = x if like is None else sample_vector(like, "like", "positions [rad or m]")
+        if reference.size < 3:  # its second difference's spectrum sets the cut-off
+            raise ParameterValueError(
+                f"{'x' if like is None else 'like'} must be positions [rad or m] of at least 3 "
+                f"samples to set the default cutoff from, got {reference.size}"
+            )
         cutoff = 5.0 * adaptive_bandwidth(reference, Ts)
     settings = resolve_settings(Ts, cutoff=cutoff, order=order, decimation=1, border=0)
-    velocity = filtered_velocity(x, settings)  # as kinematics(x, settings), in less memory
+    from scipy import signal
+
+    sos = signal.butter(settings.order, settings.cutoff, fs=1.0 / Ts, output="sos")
+    if x.size <= _lean.pad_length(sos):
+        raise ParameterValueError(
+            f"x must be positions [rad or m] of more than {_lean.pad_length(sos)} samples (the "
+            f"padding of the order-{settings.order} filter run forward and backward), got "
+            f"{x.size}"
+        )
+    # the np.gradient of the sosfiltfilt-filtered position, in less memory
+    velocity = filtered_velocity(x, settings)
     return velocity, np.gradient(velocity, settings.Ts)

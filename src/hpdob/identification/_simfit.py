@@ -96,7 +96,7 @@ def simulate_fit(
     closed = loop is not None
     if not keep:
         return _fit_numbers((J, b, coulomb, offset), t, theta, u, loop, settings, simulated)
-    velocity = filtered_velocity(theta, settings)  # kinematics(theta, settings)[1], bit for bit
+    velocity = filtered_velocity(theta, settings)  # np.gradient of sosfiltfilt, bit for bit
     velocity_spread = float(np.linalg.norm(velocity - velocity.mean()))
     # the open loop: the logged input applied as it is (no feedback), feed-forward only; as
     # open_loop(u) without its arrays of zeros
