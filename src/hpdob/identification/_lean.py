@@ -17,7 +17,10 @@ import numpy as np
 
 __all__ = [
     "BLOCK",
+    "MIN_BLOCK",
+    "PARTS",
     "SEGMENTS",
+    "block_size",
     "decimated",
     "decimated_at",
     "filtfilt",
@@ -32,6 +35,23 @@ __all__ = [
 BLOCK = 1 << 16
 #: Segments of :func:`welch`'s spectrogram computed at a time (None: this).
 SEGMENTS = 64
+#: A shorter signal is cut into this many blocks (and its spectrogram into as many groups of
+#: segments), down to :data:`MIN_BLOCK` samples: a block of a signal shorter than ``BLOCK``
+#: would otherwise be the whole signal, and the few blocks a function holds at a time
+#: several copies of it (a log of 24 841 samples, 4 columns: each block a quarter of the
+#: log, issue 25). Longer signals keep ``BLOCK`` (the speed of the long logs).
+PARTS = 8
+#: The smallest block :data:`PARTS` makes [samples] (32 kB of float64).
+MIN_BLOCK = 4096
+
+
+def block_size(n: int, block: int | None = None) -> int:
+    """The block [samples] in which to work through a signal of ``n`` samples: ``block`` if
+    given, else :data:`BLOCK`, or ``ceil(n / PARTS)`` (at least :data:`MIN_BLOCK`) if that
+    is smaller. The arithmetic does not depend on it (bit for bit at any size)."""
+    if block is not None:
+        return block
+    return min(BLOCK, max(MIN_BLOCK, -(-n // PARTS)))
 
 
 def pad_length(sos: np.ndarray) -> int:
@@ -55,7 +75,7 @@ def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
     """
     from scipy import signal
 
-    block = BLOCK if block is None else block
+    block = block_size(n, block)
     edge = pad_length(sos)
     if n <= edge:
         raise ValueError(
@@ -102,8 +122,8 @@ def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=No
 def gradient_inplace(f: np.ndarray, dx: float, block: int | None = None) -> np.ndarray:
     """Overwrite ``f`` (1-D float64, at least 2 samples) with ``np.gradient(f, dx)``, bit for
     bit (central differences inside, one-sided at the ends), holding a block beside it."""
-    block = BLOCK if block is None else block
     n = f.size
+    block = block_size(n, block)
     first = (f[1] - f[0]) / dx
     last = (f[-1] - f[-2]) / dx
     twice = 2.0 * dx
@@ -172,7 +192,6 @@ def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int 
 
     from scipy import signal
 
-    segments = SEGMENTS if segments is None else segments
     if window is None:
         window = inspect.signature(signal.welch).parameters["window"].default
     if isinstance(x, tuple):
@@ -186,6 +205,8 @@ def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int 
                               fft_mode="onesided", mfft=nperseg, scale_to="psd",
                               phase_shift=None)  # fmt: skip
     count = (n - noverlap) // sft.hop  # as scipy.signal.csd
+    if segments is None:  # a few groups of a short signal's segments, not all of them at once
+        segments = min(SEGMENTS, max(1, -(-count // PARTS)))
     power = None
     for a in range(0, count, segments):
         b = min(a + segments, count)
