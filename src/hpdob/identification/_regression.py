@@ -93,7 +93,7 @@ def _whitened_psd(theta: np.ndarray, Ts: float):
     """Frequencies [Hz] and PSD of the position [unit^2/Hz] estimated from its second
     difference (Welch) divided by the difference's gain ``(2 sin(pi f Ts))^4``: the window's
     leakage from the large slow motion would otherwise mask the noise floor."""
-    n = max(theta.size - 2, 0)  # second_difference(theta), a few segments at a time
+    n = max(theta.size - 2, 0)  # second_difference(theta), a segment at a time
 
     def second(lo: int, hi: int) -> np.ndarray:
         return np.diff(theta[lo : hi + 2], 2)
@@ -289,7 +289,7 @@ def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, samples=None) -
         if samples is None:
             X[:, j] = decimated(sos, n, column, factor)
         else:
-            X[:, j] = decimated_at(sos, n, column, samples)
+            decimated_at(sos, n, column, samples, out=X[:, j])  # no column beside X
     return X
 
 
