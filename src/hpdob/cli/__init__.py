@@ -78,25 +78,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _parse(argv: list[str] | None) -> argparse.Namespace:
-    """``build_parser().parse_args(argv)``, the parser's memory released before the command
-    runs (issue 25: 0.2 MB, a quarter of the EMPS log's copy). argparse's objects refer to
-    each other in cycles (each action to its container), which only the cyclic collector
-    frees: a collection of the objects made since ``gc.freeze()`` finds them in a few ms (a
-    full one takes ~0.15 s with numba and scipy loaded)."""
-    import gc
-
-    gc.freeze()
-    try:
-        parser = build_parser()
-        args = parser.parse_args(argv)
-        del parser
-        gc.collect()
-    finally:
-        gc.unfreeze()
-    return args
-
-
 def _one_line(err: BaseException) -> str:
     """The message of ``err`` on one line (wrapped array reprs and the like are joined)."""
     return re.sub(r"\s*\n\s*", " ", str(err)).strip()
@@ -136,7 +117,8 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 checkpoint("startup")  # a test hook (hpdob._interrupts); no-op otherwise
                 load_plugins()  # HPDOB_PLUGINS and hpdob.families: their families' options
-                args = _parse(argv)
+                parser = build_parser()
+                args = parser.parse_args(argv)
                 command = f"hpdob {args.command}"
                 _check_outputs(args)
                 code = int(args.handler(args) or 0)

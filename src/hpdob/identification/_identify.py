@@ -37,7 +37,6 @@ from .._validation import (
     as_int,
     check_choice,
     positive,
-    readonly,
 )
 from ._checks import DEFAULT_TIME_TOLERANCE, check_axis
 from ._design import FRICTION_MODELS, OFFSETS, directions, make_layout
@@ -408,9 +407,7 @@ def identify(
         )
     per_run = [layout.parameters(solution.estimate, i) for i in range(len(runs))]
     # what the result needs of the regressions, which then go: not beside the diagnostics'
-    u_model = readonly(
-        np.concatenate([run.regression.X @ per_run[i] for i, run in enumerate(runs)])
-    )
+    u_model = np.concatenate([run.regression.X @ per_run[i] for i, run in enumerate(runs)])
     singular = np.linalg.svd(solution.X, compute_uv=False)
     solution.X = None
     for run in runs:
@@ -438,7 +435,7 @@ def identify(
                                                        overwrite=True),
                 "band_hz": run.settings.decimation_cutoff,
             }  # fmt: skip
-            traces = (run.t, run.theta, readonly(position))  # held by the result, not copied
+            traces = (run.t, run.theta, position)
             return True
 
         fit = simulate_fit(
@@ -505,12 +502,9 @@ def identify(
         offset_std.append(
             0.0 if column is None else float(math.sqrt(solution.covariance[column, column]))
         )
-    # read-only: the result holds these arrays instead of copies
-    u_rows = readonly(np.concatenate([run.regression.y for run in runs]))
-    t_rows = readonly(np.concatenate([run.t[run.regression.index] for run in runs]))
-    run_rows = readonly(
-        np.concatenate([np.full(run.regression.index.size, i) for i, run in enumerate(runs)])
-    )
+    u_rows = np.concatenate([run.regression.y for run in runs])
+    t_rows = np.concatenate([run.t[run.regression.index] for run in runs])
+    run_rows = np.concatenate([np.full(run.regression.index.size, i) for i, run in enumerate(runs)])
     record = runs[0].settings.to_dict()
     record.update(
         method=method, adaptive=adaptive, n_rows=int(u_rows.size),

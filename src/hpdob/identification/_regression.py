@@ -91,7 +91,7 @@ def _whitened_psd(theta: np.ndarray, Ts: float):
     """Frequencies [Hz] and PSD of the position [unit^2/Hz] estimated from its second
     difference (Welch) divided by the difference's gain ``(2 sin(pi f Ts))^4``: the window's
     leakage from the large slow motion would otherwise mask the noise floor."""
-    n = max(theta.size - 2, 0)  # np.diff(theta, 2), a segment at a time
+    n = max(theta.size - 2, 0)  # np.diff(theta, 2), read a few segments at a time
 
     def second(lo: int, hi: int) -> np.ndarray:
         return np.diff(theta[lo : hi + 2], 2)
@@ -111,13 +111,11 @@ def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
     median PSD of the top quarter of the band, where a motion system's position is noise.
     """
     q = math.inf  # the smallest positive |step|, block by block (a minimum is exact)
-    block = _lean.block_size(theta.size)
-    for lo in range(0, theta.size - 1, block):
-        steps = np.abs(np.diff(theta[lo : lo + block + 1]))
+    for lo in range(0, theta.size - 1, _lean.BLOCK):
+        steps = np.abs(np.diff(theta[lo : lo + _lean.BLOCK + 1]))
         steps = steps[steps > 0]
         if steps.size:
             q = min(q, float(steps.min()))
-        del steps  # not beside the spectrum below
     q = 0.0 if q == math.inf else q
     f, psd = _whitened_psd(theta, Ts)
     top = psd[f >= 0.375 / Ts]
@@ -250,7 +248,7 @@ def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, samples: np.nda
     )
     X = np.empty((samples.size, len(columns)))
     for j, column in enumerate(columns):
-        decimated_at(sos, n, column, samples, out=X[:, j])  # no column beside X
+        X[:, j] = decimated_at(sos, n, column, samples)
     return X
 
 
@@ -312,20 +310,16 @@ def instrument_rows(theta: np.ndarray, regression: Regression, settings: Setting
 
 def _largest_speed(velocity: np.ndarray) -> float:
     """``max(|velocity|)``, block by block (a maximum is exact in any order)."""
-    block = _lean.block_size(velocity.size)
-    return max(float(np.max(np.abs(velocity[lo : lo + block])))
-               for lo in range(0, velocity.size, block))  # fmt: skip
+    return max(float(np.max(np.abs(velocity[lo : lo + _lean.BLOCK])))
+               for lo in range(0, velocity.size, _lean.BLOCK))  # fmt: skip
 
 
 def near_slow(velocity: np.ndarray, index: np.ndarray, speed: float, half: int) -> np.ndarray:
     """Whether ``|velocity| < speed`` somewhere within ``half`` samples of each of ``index``
     (the decimation filter's main lobe around a row), counted block by block of rows."""
     n, out = velocity.size, np.zeros(index.size, dtype=bool)
-    # rows at a time: those of about a block of samples (a row's window adds 2 half)
-    step = (int(index[-1]) - int(index[0])) // (index.size - 1) if index.size > 1 else 1
-    block = max(1, _lean.block_size(n) // max(step, 1))
-    for a in range(0, index.size, block):
-        rows = index[a : a + block]
+    for a in range(0, index.size, _lean.BLOCK):
+        rows = index[a : a + _lean.BLOCK]
         lo, hi = max(int(rows[0]) - half, 0), min(int(rows[-1]) + half + 1, n)
         slow = np.abs(velocity[lo:hi]) < speed
         count = np.concatenate([[0], np.cumsum(slow)])
@@ -396,9 +390,10 @@ def rest_rows_mask(velocity: np.ndarray, index: np.ndarray, length: int, margin:
     n = velocity.size
     rest_speed = REST_SPEED_FRACTION * float(np.abs(velocity[index]).max()) if index.size else 0.0
     slow = np.empty(n, dtype=bool)
-    block = _lean.block_size(n)
-    for lo in range(0, n, block):
-        np.less(np.abs(velocity[lo : lo + block]), rest_speed, out=slow[lo : lo + block])
+    for lo in range(0, n, _lean.BLOCK):
+        np.less(
+            np.abs(velocity[lo : lo + _lean.BLOCK]), rest_speed, out=slow[lo : lo + _lean.BLOCK]
+        )
     # the edges of the stretches of consecutive slow samples: where [0, slow, 0] changes
     edges = np.flatnonzero(slow[1:] != slow[:-1]) + 1
     edges = np.concatenate([[0] if n and slow[0] else [], edges, [n] if n and slow[-1] else []])

@@ -12,7 +12,7 @@ import numpy as np
 from .._files import write_json_atomic
 from .._table import columns_to_csv, columns_to_pandas
 from .._validation import ParameterValueError, positive, readonly
-from ._checks import immutable, units
+from ._checks import units
 from ._regression import PARAMETERS
 
 __all__ = ["Identification"]
@@ -71,15 +71,6 @@ def _json_ready(value):
     if isinstance(value, (float, np.floating)):
         return float(value) if math.isfinite(value) else None
     return value
-
-
-def _held(value, dtype) -> np.ndarray:
-    """``value`` as a read-only array of ``dtype``: itself if it is one whose values cannot
-    change (:func:`._checks.immutable`: a log's column, an array identify made), else a copy
-    (a result does not hold the log's time and position twice)."""
-    if type(value) is np.ndarray and value.dtype == np.dtype(dtype) and immutable(value):
-        return value
-    return readonly(np.array(value, dtype=dtype))
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,14 +198,14 @@ class Identification:
             object.__setattr__(self, "offsets_std", (float(np.sqrt(self.covariance[3, 3])),))
         if self.run is None:
             object.__setattr__(self, "run", np.zeros(np.shape(self.t), dtype=int))
-        object.__setattr__(self, "run", _held(self.run, int))
+        object.__setattr__(self, "run", readonly(np.array(self.run, dtype=int)))
         if self.covariance_iid is None:
             object.__setattr__(self, "covariance_iid", self.covariance)
         for name in ("covariance", "covariance_iid", "t", "u", "u_model", "t_log", "theta_log",
                      "theta_simulated"):  # fmt: skip
             value = getattr(self, name)
             if value is not None:
-                object.__setattr__(self, name, _held(value, float))
+                object.__setattr__(self, name, readonly(np.array(value, dtype=float)))
         object.__setattr__(self, "settings", types.MappingProxyType(dict(self.settings)))
         if self.simulation is not None:
             object.__setattr__(self, "simulation", types.MappingProxyType(dict(self.simulation)))
