@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from hpdob import Actuator, Encoder, paper, simulate
 from hpdob.signals import trajectory
@@ -23,6 +24,13 @@ r = simulate(**kw)
 np.savez(sys.argv[1], **{k: getattr(r, k) for k in
          ("theta", "omega", "u", "tau_hat", "tau_dn", "theta_measured")})
 """
+
+
+@pytest.fixture(autouse=True)
+def jit_loop(monkeypatch):
+    """These tests are about the JIT-compiled loop: never a loop built ahead of time that an
+    earlier test in this worker left in the suite's folder (its processes inherit this)."""
+    monkeypatch.setenv("HPDOB_AOT", "0")
 
 
 def test_import_hpdob_loads_no_heavy_modules():
