@@ -206,15 +206,21 @@ def resolve_settings(
     )
 
 
+def velocity_filter(settings: Settings) -> np.ndarray:
+    """The position's low-pass of step 1 (Butterworth, ``settings.order`` and ``cutoff``),
+    in second-order sections."""
+    from scipy import signal
+
+    return signal.butter(settings.order, settings.cutoff, fs=1.0 / settings.Ts, output="sos")
+
+
 def filtered_velocity(theta: np.ndarray, settings: Settings, *, overwrite: bool = False):
     """The velocity of steps 1-2 of the module docstring, ``np.gradient`` of the
-    ``scipy.signal.sosfiltfilt``-filtered position, bit for bit
+    ``scipy.signal.sosfiltfilt``-filtered position (:func:`velocity_filter`), bit for bit
     (``tests/identification/test_lean.py`` keeps that construction), holding one new array of
     ``theta``'s size (the filtered position is differenced in place, :mod:`._lean`), or none
     with ``overwrite`` (the velocity written over ``theta``)."""
-    from scipy import signal
-
-    sos = signal.butter(settings.order, settings.cutoff, fs=1.0 / settings.Ts, output="sos")
+    sos = velocity_filter(settings)
     return gradient_inplace(filtfilt(sos, theta, out=theta if overwrite else None), settings.Ts)
 
 
@@ -267,7 +273,7 @@ def decimated_input(u: np.ndarray, settings: Settings, samples: np.ndarray) -> n
         return out
 
     if settings.decimation == 1:
-        return np.array(aligned(0, u.size), dtype=float)[samples]
+        return np.asarray(aligned(0, u.size), dtype=float)[samples]  # one new array
     return decimated_at(_decimate_sos(settings.decimation), u.size, aligned, samples)
 
 
@@ -467,14 +473,11 @@ def differentiate(x, Ts: float, *, cutoff: float | None = None, order: int = 4, 
             )
         cutoff = 5.0 * adaptive_bandwidth(reference, Ts)
     settings = resolve_settings(Ts, cutoff=cutoff, order=order, decimation=1, border=0)
-    from scipy import signal
-
-    sos = signal.butter(settings.order, settings.cutoff, fs=1.0 / Ts, output="sos")
-    if x.size <= _lean.pad_length(sos):
+    padding = _lean.pad_length(velocity_filter(settings))
+    if x.size <= padding:  # sosfiltfilt's own error would not name x
         raise ParameterValueError(
-            f"x must be positions [rad or m] of more than {_lean.pad_length(sos)} samples (the "
-            f"padding of the order-{settings.order} filter run forward and backward), got "
-            f"{x.size}"
+            f"x must be positions [rad or m] of more than {padding} samples (the padding of "
+            f"the order-{settings.order} filter run forward and backward), got {x.size}"
         )
     # the np.gradient of the sosfiltfilt-filtered position, in less memory
     velocity = filtered_velocity(x, settings)
