@@ -442,7 +442,7 @@ def _stop(process: subprocess.Popen, *, group: bool) -> None:
     """Kill ``process`` and, with ``group``, every process of its process group (the C
     compilers it runs: they would go on writing into the folder being removed), and reap it.
     A temporary folder a dying compiler still wrote into is removed by the loop's next build
-    (:func:`_remove_stale`)."""
+    (:func:`_build` removes its stale ``.build-<name>-*`` folders first)."""
     if group:
         with contextlib.suppress(ProcessLookupError, PermissionError):
             os.killpg(process.pid, signal.SIGKILL)  # its group id is its pid (a new session)
