@@ -56,3 +56,46 @@ def test_the_four_columns_in_order_are_a_read_only_view_of_the_rows():
     other = make_layout("viscous", None, "per-log", 1).columns(M, 0)
     assert not np.shares_memory(other, M)
     np.testing.assert_array_equal(other, M[:, [0, 1, 3]])
+
+
+def _inflation_by_regression(columns: np.ndarray) -> np.ndarray:
+    """1 / (1 - R^2) of each column regressed on the others and a constant (the definition,
+    by least squares: independent of the correlation matrix the check inverts)."""
+    out = []
+    for j in range(columns.shape[1]):
+        others = np.column_stack([np.delete(columns, j, axis=1), np.ones(columns.shape[0])])
+        fit = others @ np.linalg.lstsq(others, columns[:, j], rcond=None)[0]
+        centred = columns[:, j] - columns[:, j].mean()
+        r2 = 1.0 - np.sum((columns[:, j] - fit) ** 2) / np.sum(centred**2)
+        out.append(1.0 / (1.0 - r2))
+    return np.array(out)
+
+
+@pytest.mark.parametrize("mix", [0.0, 0.9, 0.999])
+@pytest.mark.parametrize("rows", [50, 4096, 4097, 10_000])
+def test_variance_inflation_is_its_definition_over_blocks(mix, rows):
+    """Summed over blocks of ``ROWS`` rows (one, one and a row, several): the definition."""
+    from hpdob.identification._design import variance_inflation
+
+    rng = np.random.default_rng(7)
+    a, b, c = rng.standard_normal((3, rows))
+    columns = np.column_stack([a, mix * a + (1 - mix) * b, 3.0 + c])
+    np.testing.assert_allclose(variance_inflation(columns), _inflation_by_regression(columns),
+                               rtol=1e-9)  # fmt: skip
+    constant = columns.copy()
+    constant[:, 1] = 0.5  # its mean exactly 0.5: centred exactly 0
+    assert np.isinf(variance_inflation(constant)[1])
+
+
+@pytest.mark.parametrize("rows", [40, 4096, 9000])
+def test_scaled_condition_is_that_of_the_singular_values(rows):
+    """The triangular factor's condition, block by block: the scaled matrix's, to 1e-9."""
+    from hpdob.identification._design import scaled_condition
+
+    rng = np.random.default_rng(5)
+    for spread in (1.0, 1e-3, 1e-5):
+        X = np.column_stack([rng.standard_normal(rows), 1.0 + spread * rng.standard_normal(rows),
+                             np.ones(rows)])  # fmt: skip
+        singular = np.linalg.svd(X / np.linalg.norm(X, axis=0), compute_uv=False)
+        assert scaled_condition(X) == pytest.approx(singular[0] / singular[-1], rel=1e-9)
+    assert scaled_condition(np.column_stack([np.ones(rows), np.zeros(rows)])) == np.inf

@@ -5,6 +5,8 @@ errors) and against the spread of the estimates over seeds on SYNTHETIC logs
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -82,3 +84,22 @@ def test_the_std_matches_the_spread_over_seeds_on_synthetic_logs():
     ratio = spread / np.mean(std, axis=0)
     assert np.all((ratio > 1 / 1.5) & (ratio < 1.5)), ratio
     assert spread[1] / np.mean(iid, axis=0)[1] < 0.6
+
+
+def test_long_run_covariance_is_the_batch_means_of_the_scores():
+    """Formed batch by batch: bit for bit the batch sums of the whole score matrix."""
+    from hpdob.identification._solve import COVARIANCE_BATCHES, long_run_covariance
+
+    rng = np.random.default_rng(2)
+    Z, error = rng.standard_normal((3000, 4)), rng.standard_normal(3000)
+    scores = Z * error[:, None]
+    logs = [(0, 1000), (1000, 3000)]
+    S, count = np.zeros((4, 4)), 0
+    for start, stop in logs:
+        G = max(2, min(COVARIANCE_BATCHES, (stop - start) // 10))
+        edges = np.linspace(start, stop, G + 1).astype(int)
+        for lo, hi in itertools.pairwise(edges):
+            s = scores[lo:hi].sum(axis=0)
+            S += np.outer(s, s)
+        count += G
+    assert np.array_equal(long_run_covariance(Z, error, logs), S * count / (count - 1))

@@ -142,34 +142,57 @@ def make_layout(friction, fixed, offsets, n_runs) -> Layout:
     return Layout(free, types.MappingProxyType(values), n_offsets, n_runs)
 
 
+#: Rows per block of the design check's passes over a regression (128 kB at four columns):
+#: its centred, scaled or triangularised copies are never held whole.
+ROWS = 4096
+
+
+def _blocks(n: int):
+    return ((lo, min(lo + ROWS, n)) for lo in range(0, n, ROWS))
+
+
 def variance_inflation(columns: np.ndarray) -> np.ndarray:
     """Variance inflation factor of each column given the others and a constant.
 
     ``1 / (1 - R^2)`` of the column's regression on the other columns and a constant: the
-    diagonal of the inverse correlation matrix (inf for a constant or collinear column).
+    diagonal of the inverse correlation matrix (inf for a constant or collinear column),
+    the correlation summed over blocks of :data:`ROWS` rows of the centred columns.
     """
-    centred = columns - columns.mean(axis=0)
-    scale = np.linalg.norm(centred, axis=0)
+    mean = columns.mean(axis=0)
+    squares = np.zeros(columns.shape[1])
+    for lo, hi in _blocks(columns.shape[0]):
+        centred = columns[lo:hi] - mean
+        squares += np.einsum("ij,ij->j", centred, centred)
+    # zero exactly where every centred value is (a constant column whose mean rounds to it)
+    scale = np.sqrt(squares)
     if np.any(scale == 0.0):
         return np.where(scale == 0.0, math.inf, 1.0)
-    # (centred / scale).T @ (centred / scale) with the second quotient written over centred:
-    # two operands in two arrays, as before (one array transposed onto itself would take
-    # BLAS's symmetric product, whose sums may round differently)
-    normalised = centred / scale
-    correlation = normalised.T @ np.divide(centred, scale, out=centred)
-    del normalised, centred
+    correlation = np.zeros((columns.shape[1], columns.shape[1]))
+    for lo, hi in _blocks(columns.shape[0]):
+        normalised = (columns[lo:hi] - mean) / scale
+        correlation += normalised.T @ normalised
     try:
         return np.diag(np.linalg.inv(correlation))
     except np.linalg.LinAlgError:
         return np.full(columns.shape[1], math.inf)
 
 
+def _triangular(X: np.ndarray, norms: np.ndarray) -> np.ndarray:
+    """``R`` of the QR decomposition of ``X / norms``, block by block of :data:`ROWS` rows:
+    ``X / norms`` has ``R``'s singular values (to some eps x its condition number)."""
+    R = np.empty((0, X.shape[1]))
+    for lo, hi in _blocks(X.shape[0]):
+        R = np.linalg.qr(np.vstack([R, X[lo:hi] / norms]), mode="r")
+    return R
+
+
 def scaled_condition(X: np.ndarray) -> float:
-    """Condition number of ``X`` with its columns scaled to unit norm (inf if singular)."""
+    """Condition number of ``X`` with its columns scaled to unit norm (inf if singular), from
+    the triangular factor of the scaled ``X`` (to some eps x itself; no copy of ``X``)."""
     norms = np.linalg.norm(X, axis=0)
-    if np.any(norms == 0.0):
+    if np.any(norms == 0.0) or X.shape[0] < X.shape[1]:
         return math.inf
-    singular = np.linalg.svd(X / norms, compute_uv=False)
+    singular = np.linalg.svd(_triangular(X, norms), compute_uv=False)
     return singular[0] / singular[-1] if singular[-1] > 0 else math.inf
 
 
@@ -265,13 +288,16 @@ def check_design(runs, layout: Layout, X: np.ndarray) -> None:
                 f"{hint}"
             )
     norms = np.linalg.norm(X, axis=0)
-    scaled = X / np.where(norms > 0, norms, 1.0)
-    # the singular values alone (no left vectors, as many as X has rows) pass a regression
-    # far from the limit; within a factor 2 of it (their error is some eps x condition) the
-    # full decomposition decides, and names the weakest parameter, as it always did
-    quick = np.linalg.svd(scaled, compute_uv=False)
-    if quick[-1] > 0 and quick[0] / quick[-1] <= 0.5 * MAX_CONDITION:
-        return
+    norms = np.where(norms > 0, norms, 1.0)
+    # the singular values of the scaled regression's triangular factor (no copy of it, no
+    # left vectors) pass a regression far from the limit; within a factor 2 of it (their
+    # error is some eps x condition) the full decomposition decides, and names the weakest
+    # parameter, as it always did
+    if X.shape[0] >= X.shape[1]:
+        quick = np.linalg.svd(_triangular(X, norms), compute_uv=False)
+        if quick[-1] > 0 and quick[0] / quick[-1] <= 0.5 * MAX_CONDITION:
+            return
+    scaled = X / norms
     _, singular, vt = np.linalg.svd(scaled, full_matrices=False)
     del scaled
     condition = singular[0] / singular[-1] if singular[-1] > 0 else math.inf

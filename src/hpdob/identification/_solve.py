@@ -74,9 +74,10 @@ def simulable(parameters: np.ndarray, iteration: int, name: str = "") -> np.ndar
 COVARIANCE_BATCHES = 20
 
 
-def long_run_covariance(scores: np.ndarray, logs) -> np.ndarray:
+def long_run_covariance(Z: np.ndarray, error: np.ndarray, logs) -> np.ndarray:
     r"""Batch-means estimate of :math:`\operatorname{cov}(\sum_k z_k e_k)`, the covariance of
-    the sum of the scores :math:`z_k e_k`, for scores correlated over neighbouring rows.
+    the sum of the scores :math:`z_k e_k` (rows of ``Z`` times ``error``), for scores
+    correlated over neighbouring rows; the scores are formed batch by batch, never whole.
 
     Each log's rows (``logs``: their ranges) are split into ``G`` contiguous batches
     (:data:`COVARIANCE_BATCHES`, fewer for short logs); with :math:`s_g` the sum of the scores
@@ -86,13 +87,13 @@ def long_run_covariance(scores: np.ndarray, logs) -> np.ndarray:
     spectrum rises steeply from zero frequency (differentiated noise), it still
     overestimates the spread of b and Coulomb over seeds by 1.5-1.8 times.
     """
-    S = np.zeros((scores.shape[1], scores.shape[1]))
+    S = np.zeros((Z.shape[1], Z.shape[1]))
     count = 0
     for start, stop in logs:
         G = max(2, min(COVARIANCE_BATCHES, (stop - start) // 10))
         edges = np.linspace(start, stop, G + 1).astype(int)
         for lo, hi in itertools.pairwise(edges):
-            s = scores[lo:hi].sum(axis=0)
+            s = (Z[lo:hi] * error[lo:hi, None]).sum(axis=0)
             S += np.outer(s, s)
         count += G
     return S * count / (count - 1)
@@ -121,7 +122,7 @@ def estimate_iv(X: np.ndarray, y: np.ndarray, Z: np.ndarray, logs=None):
     sigma2 = float(error @ error) / (rows - size)
     A = np.linalg.inv(Z.T @ X)
     iid = sigma2 * A @ (Z.T @ Z) @ A.T
-    S = long_run_covariance(Z * error[:, None], logs or [(0, rows)])
+    S = long_run_covariance(Z, error, logs or [(0, rows)])
     return theta, A @ S @ A.T, iid
 
 
