@@ -156,21 +156,18 @@ def variance_inflation(columns: np.ndarray) -> np.ndarray:
 
     ``1 / (1 - R^2)`` of the column's regression on the other columns and a constant: the
     diagonal of the inverse correlation matrix (inf for a constant or collinear column),
-    the correlation summed over blocks of :data:`ROWS` rows of the centred columns.
+    the centred columns' products summed over blocks of :data:`ROWS` rows.
     """
     mean = columns.mean(axis=0)
-    squares = np.zeros(columns.shape[1])
+    products = np.zeros((columns.shape[1], columns.shape[1]))
     for lo, hi in _blocks(columns.shape[0]):
         centred = columns[lo:hi] - mean
-        squares += np.einsum("ij,ij->j", centred, centred)
+        products += centred.T @ centred
     # zero exactly where every centred value is (a constant column whose mean rounds to it)
-    scale = np.sqrt(squares)
+    scale = np.sqrt(np.diag(products))
     if np.any(scale == 0.0):
         return np.where(scale == 0.0, math.inf, 1.0)
-    correlation = np.zeros((columns.shape[1], columns.shape[1]))
-    for lo, hi in _blocks(columns.shape[0]):
-        normalised = (columns[lo:hi] - mean) / scale
-        correlation += normalised.T @ normalised
+    correlation = products / np.outer(scale, scale)
     try:
         return np.diag(np.linalg.inv(correlation))
     except np.linalg.LinAlgError:
@@ -287,17 +284,13 @@ def check_design(runs, layout: Layout, X: np.ndarray) -> None:
                 f"{', '.join(f'{v:.3g}' for v in values)}, limit {MAX_VARIANCE_INFLATION:g}): "
                 f"{hint}"
             )
+    # scaled_condition (no copy of X, no left vectors) passes a regression far from the
+    # limit; within a factor 2 of it (its error is some eps x condition) the full
+    # decomposition decides, and names the weakest parameter, as it always did
+    if scaled_condition(X) <= 0.5 * MAX_CONDITION:
+        return
     norms = np.linalg.norm(X, axis=0)
-    norms = np.where(norms > 0, norms, 1.0)
-    # the singular values of the scaled regression's triangular factor (no copy of it, no
-    # left vectors) pass a regression far from the limit; within a factor 2 of it (their
-    # error is some eps x condition) the full decomposition decides, and names the weakest
-    # parameter, as it always did
-    if X.shape[0] >= X.shape[1]:
-        quick = np.linalg.svd(_triangular(X, norms), compute_uv=False)
-        if quick[-1] > 0 and quick[0] / quick[-1] <= 0.5 * MAX_CONDITION:
-            return
-    scaled = X / norms
+    scaled = X / np.where(norms > 0, norms, 1.0)
     _, singular, vt = np.linalg.svd(scaled, full_matrices=False)
     del scaled
     condition = singular[0] / singular[-1] if singular[-1] > 0 else math.inf
