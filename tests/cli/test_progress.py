@@ -391,8 +391,8 @@ def test_cli_identify_progress_on_stderr_only(capsys, tmp_path):
     assert [f for f in frames if f.endswith("\n")][1:] == [
         "hpdob identify: filtering the logs 1/1 (100%)\n",
         *[f for f in frames if f.startswith("hpdob identify: IDIM-IV") and f.endswith("\n")],
-        "hpdob identify: simulating the fit 1/1 (100%)\n",
         "hpdob identify: re-estimating with the filters x2, /2 2/2 (100%)\n",
+        "hpdob identify: simulating the fit 1/1 (100%)\n",
     ]
     assert "\r" not in out
     assert main([*common, "--out", str(tmp_path / "b"), "--no-progress"]) == 0

@@ -444,7 +444,8 @@ def test_progress_reports_each_stage_from_zero_to_its_total_and_changes_nothing(
     assert (shown.J, shown.b, shown.coulomb, shown.offset) == (
         quiet.J, quiet.b, quiet.coulomb, quiet.offset)  # fmt: skip
     stages = list(dict.fromkeys(stage for stage, _, _ in calls))
-    assert stages == ["filtering", "iterating", "simulating", "sensitivity"]
+    # the sensitivity before the simulation fits: its regressions not beside the kept traces
+    assert stages == ["filtering", "iterating", "sensitivity", "simulating"]
     for stage in stages:
         counts = [(done, total) for s, done, total in calls if s == stage]
         assert counts[0][0] == 0 and counts[-1][0] == counts[-1][1] > 0, (stage, counts)
@@ -454,3 +455,28 @@ def test_progress_reports_each_stage_from_zero_to_its_total_and_changes_nothing(
     assert iterations[0] == (0, 20) and iterations[-1] == (quiet.iterations, quiet.iterations)
     with pytest.raises(TypeError, match=r"^progress must be a callable .* got 'yes'"):
         identify(log.t, log.theta, log.u, progress="yes")
+
+
+def test_idim_iv_result_shares_the_logs_traces_and_keeps_them_read_only(quiet_log):
+    """Issue 25 ("no command holds more than two copies of a log"): the traces of the loop
+    simulated with the estimate are the log's own read-only arrays, not copies; a caller's
+    writable array is still copied (the result cannot change under it)."""
+    result, loop = quiet_log
+    t, theta = (readonly_copy(a) for a in (result.t, result.theta_measured))
+    fit = identify(t, theta, result.u, method="idim-iv", loop=loop, min_speed=0.05,
+                   diagnostics=False)  # fmt: skip
+    assert fit.t_log is t and fit.theta_log is theta
+    assert not fit.theta_simulated.flags.writeable
+    writable = np.array(result.theta_measured)
+    other = identify(result.t, writable, result.u, method="idim-iv", loop=loop, min_speed=0.05,
+                     diagnostics=False)  # fmt: skip
+    assert not np.shares_memory(other.theta_log, writable)
+    assert not other.theta_log.flags.writeable
+    assert (other.J, other.b, other.coulomb, other.offset) == (fit.J, fit.b, fit.coulomb,
+                                                               fit.offset)  # fmt: skip
+
+
+def readonly_copy(array):
+    out = np.array(array, dtype=float)
+    out.flags.writeable = False
+    return out

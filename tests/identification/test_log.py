@@ -230,3 +230,25 @@ def test_log_validates_like_read_log():
         Log(t=t, theta=["a"] * N, u=v)
     with pytest.raises(ParameterValueError, match="axis must be 'rotary', 'linear' or None"):
         Log(t=t, theta=q, u=v, axis="angular")
+
+
+@pytest.mark.parametrize("kind", ["parquet", "mat"])
+def test_a_log_file_is_held_once(tmp_path, kind):
+    """Issue 25: the columns read are the Log's arrays (a float64 MATLAB variable views the
+    file's bytes), not copied again by the Log's checks: read_log's tracemalloc peak is one
+    copy of the three columns plus the time steps' check (one column), with 5 % to spare."""
+    import tracemalloc
+
+    n = 200_000
+    t = np.arange(n) * TS
+    columns = {"t": t, "q": np.sin(t), "u": np.cos(t)}
+    path = WRITERS[kind](tmp_path / f"log.{kind}", columns)
+    read_log(path, time="t", position="q", input="u")  # imports and caches: not counted
+    tracemalloc.start()
+    try:
+        log = read_log(path, time="t", position="q", input="u")
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    np.testing.assert_array_equal(log.theta, columns["q"])
+    assert peak <= 1.05 * (3 + 1) * n * 8, peak / (n * 8)

@@ -157,8 +157,8 @@ def register(subparsers) -> None:
 STAGES = {
     "filtering": "filtering the logs",
     "iterating": "IDIM-IV iterations (at most)",
-    "simulating": "simulating the fit",
     "sensitivity": "re-estimating with the filters x2, /2",
+    "simulating": "simulating the fit",
 }
 
 

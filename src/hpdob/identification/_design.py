@@ -82,12 +82,13 @@ class Layout:
             out[:, column] = M[:, 3]
         return out
 
-    def known(self, M: np.ndarray) -> np.ndarray:
-        """The input explained by the fixed parameters on rows ``M``."""
+    def unexplained(self, y: np.ndarray, M: np.ndarray) -> np.ndarray:
+        """The input ``y`` minus what the fixed parameters explain on rows ``M``: ``y`` itself
+        (not a copy) when they explain nothing, which ``y - M @ 0`` is bit for bit."""
         values = np.array([self.fixed.get(name, 0.0) for name in PARAMETERS])
         if self.n_offsets:
             values[3] = 0.0
-        return M @ values
+        return y if not values.any() else y - M @ values
 
     def parameters(self, estimate: np.ndarray, run: int) -> np.ndarray:
         """``(J, b, coulomb, offset)`` of run ``run``."""

@@ -37,6 +37,7 @@ from .._validation import (
     as_int,
     check_choice,
     positive,
+    readonly,
 )
 from ._checks import DEFAULT_TIME_TOLERANCE, check_axis
 from ._design import FRICTION_MODELS, OFFSETS, directions, make_layout
@@ -267,9 +268,9 @@ def identify(
         (the caller may time them): ``"filtering"`` (logs filtered and regressed, of
         ``total``), ``"iterating"`` (IDIM-IV iterations done, of at most ``max_iterations``;
         when it converges sooner a last call has ``done == total`` = the iterations used),
-        ``"simulating"`` (the simulation fits, one per log) and, with ``diagnostics``,
-        ``"sensitivity"`` (the two re-estimates with the filters' bandwidth doubled and
-        halved). Each stage starts with ``done = 0`` and ends with ``done == total``. Its
+        with ``diagnostics`` ``"sensitivity"`` (the two re-estimates with the filters'
+        bandwidth doubled and halved), and ``"simulating"`` (the simulation fits, one per
+        log). Each stage starts with ``done = 0`` and ends with ``done == total``. Its
         return value is ignored. Default: silent.
 
     Returns
@@ -412,6 +413,11 @@ def identify(
     solution.X = None
     for run in runs:
         run.regression = replace(run.regression, X=None)
+    moves = {}
+    if diagnostics:  # before the simulations: its regressions not beside the kept traces
+        moves = sensitivity(runs, layout, method, own_sign, solution, border is not None,
+                            max_iterations, tolerance,
+                            lambda k, n: progress("sensitivity", k, n))  # fmt: skip
     fits, simulation, traces = [], None, None
     simulated = [
         per_run[i][0] > 0.0 and (diagnostics or (i == 0 and run.loop is not None))
@@ -435,7 +441,7 @@ def identify(
                                                        overwrite=True),
                 "band_hz": run.settings.decimation_cutoff,
             }  # fmt: skip
-            traces = (run.t, run.theta, position)
+            traces = (run.t, run.theta, readonly(position))  # the result shares them
             return True
 
         fit = simulate_fit(
@@ -457,7 +463,7 @@ def identify(
         del fit  # its simulated command: not beside the next run's simulation
     if any(simulated):
         progress("simulating", sum(simulated), sum(simulated))
-    moves, notes = {}, []
+    notes = []
     if diagnostics:
         for run, fit in zip(runs, fits, strict=True):
             if fit is None:
@@ -476,9 +482,6 @@ def identify(
                     "closed-loop log (the controller and reference), and check input_gain "
                     "and the units"
                 )
-        moves = sensitivity(runs, layout, method, own_sign, solution, border is not None,
-                             max_iterations, tolerance,
-                             lambda k, n: progress("sensitivity", k, n))  # fmt: skip
         names = [PARAMETERS[j] for j in layout.free] + (
             ["offset"] if layout.n_offsets == 1 else [f"offset of {r.name}" for r in runs]
         )[: layout.n_offsets]

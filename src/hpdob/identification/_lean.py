@@ -134,11 +134,12 @@ def gradient_block(f: np.ndarray, lo: int, hi: int, dx: float) -> np.ndarray:
     return out
 
 
-def decimated_at(sos: np.ndarray, n: int, read, samples: np.ndarray, block: int | None = None):
+def decimated_at(sos: np.ndarray, n: int, read, samples: np.ndarray, block: int | None = None,
+                 *, out: np.ndarray | None = None):  # fmt: skip
     """``scipy.signal.sosfiltfilt(sos, x)[samples]`` of the signal ``read`` gives (see
     :func:`filtfilt_blocks`) at increasing sample indices ``samples``, holding blocks and the
-    result only."""
-    out = np.empty(samples.size)
+    result only (written into ``out``, of ``samples``' size, if given)."""
+    out = np.empty(samples.size) if out is None else out
     for lo, hi, y in filtfilt_blocks(sos, n, read, block):
         a, b = np.searchsorted(samples, (lo, hi))
         out[a:b] = y[samples[a:b] - lo]

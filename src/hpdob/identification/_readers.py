@@ -246,8 +246,18 @@ def _read_mat(path: Path, wanted: dict[str, str]) -> dict[str, np.ndarray]:
             raise ParameterValueError(
                 f"{role} variable {name!r} of {path.name} must be a vector, got shape {value.shape}"
             )
-        out[role] = np.asarray(value, dtype=float).ravel()
+        out[role] = _frozen(np.asarray(value, dtype=float).ravel())
     return out
+
+
+def _frozen(array: np.ndarray) -> np.ndarray:
+    """``array`` read-only down to the memory it views, which only the reader holds (scipy's
+    arrays view the file's bytes): a Log then takes it without a copy."""
+    view = array
+    while isinstance(view, np.ndarray):
+        view.setflags(write=False)
+        view = view.base
+    return array
 
 
 def scalar(values: np.ndarray, role: str, name: str, path: Path) -> float:

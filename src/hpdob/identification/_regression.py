@@ -254,7 +254,7 @@ def decimated_rows(velocity: np.ndarray, Ts: float, factor: int, samples: np.nda
     )
     X = np.empty((samples.size, len(columns)))
     for j, column in enumerate(columns):
-        X[:, j] = decimated_at(sos, n, column, samples)
+        decimated_at(sos, n, column, samples, out=X[:, j])
     return X
 
 

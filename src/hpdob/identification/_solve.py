@@ -187,7 +187,7 @@ def solve(runs, layout: Layout, method: str, own_sign: bool, max_iterations, tol
     """The estimate of one set of regressions: least squares, then the IV iteration
     (``report(k)`` after iteration ``k``, if given)."""
     X = _stacked([layout.columns(run.regression.X, i) for i, run in enumerate(runs)])
-    y = _stacked([run.regression.y - layout.known(run.regression.X) for run in runs])
+    y = _stacked([layout.unexplained(run.regression.y, run.regression.X) for run in runs])
     check_design(runs, layout, X)
     sizes = np.cumsum([0] + [run.regression.X.shape[0] for run in runs])
     logs = list(itertools.pairwise(sizes.tolist()))  # the row range of each log
