@@ -604,6 +604,47 @@ def test_numba_s_code_settings_are_in_the_name(variable, value, matches, fake_bu
     assert (again == path) is matches
 
 
+@pytest.mark.parametrize(
+    ("text", "matches"),
+    [
+        ("opt: 0\n", False),
+        ("boundscheck: 1\n", False),
+        ("cache_dir: elsewhere\n", True),  # not a code setting
+        ("", True),
+        ("opt: [0\n", False),  # numba cannot read it: no build made without it is taken
+    ],
+)
+def test_numba_s_settings_file_is_in_the_name(text, matches, tmp_path, monkeypatch):
+    """numba also reads its settings from ``.numba_config.yaml`` in the working folder (under
+    the environment's, which win): a loop built without the file's code settings has another
+    name, and the file's ``opt: 0`` names it as ``NUMBA_OPT=0`` does."""
+    pytest.importorskip("yaml")  # numba reads the file only with PyYAML
+    from hpdob.simulation import _aot
+
+    for name in _aot.CODE_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    source, types = "def loop(): pass", ("float64",)
+    plain = _aot.extension_name(source, types)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / _aot.CONFIG_FILE).write_text(text)
+    assert (_aot.extension_name(source, types) == plain) is matches
+
+
+def test_the_environment_wins_over_numba_s_settings_file(tmp_path, monkeypatch):
+    pytest.importorskip("yaml")
+    from hpdob.simulation import _aot
+
+    for name in _aot.CODE_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / _aot.CONFIG_FILE).write_text("opt: 0\nloop_vectorize: 0\n")
+    settings = dict(zip(_aot.CODE_VARIABLES, _aot.code_settings(), strict=True))
+    assert (settings["NUMBA_OPT"], settings["NUMBA_LOOP_VECTORIZE"]) == ("0", "0")
+    monkeypatch.setenv("NUMBA_LOOP_VECTORIZE", "1")
+    settings = dict(zip(_aot.CODE_VARIABLES, _aot.code_settings(), strict=True))
+    assert (settings["NUMBA_OPT"], settings["NUMBA_LOOP_VECTORIZE"]) == ("0", "1")
+
+
 def test_a_build_with_other_compiler_settings_replaces_the_extension(tmp_path, monkeypatch):
     """The compiler commands and setuptools' flags from the environment (``CFLAGS``, ...) are
     recorded beside the extension: building again with the same reuses it, with others

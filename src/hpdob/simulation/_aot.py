@@ -35,6 +35,7 @@ from ._loop_source import loop_source, run_structure, signature_fields
 
 __all__ = [
     "CODE_VARIABLES",
+    "CONFIG_FILE",
     "DISABLE_VARIABLE",
     "FOLDER_VARIABLE",
     "AheadOfTimeWarning",
@@ -181,10 +182,36 @@ CODE_VARIABLES = ("NUMBA_OPT", "NUMBA_LOOP_VECTORIZE", "NUMBA_SLP_VECTORIZE",
                   "NUMBA_DISABLE_JIT")  # fmt: skip
 
 
+#: numba's file of settings, which numba.core.config reads from the working folder (with
+#: PyYAML installed) under the environment's ``NUMBA_*`` variables; a build runs there too.
+CONFIG_FILE = ".numba_config.yaml"
+
+
 def code_settings() -> tuple:
-    """The values of :data:`CODE_VARIABLES` in the environment now (None where unset), read
-    on every lookup as numba reads them on every compile."""
-    return tuple(map(os.environ.get, CODE_VARIABLES))
+    """The values of :data:`CODE_VARIABLES` now as numba takes them (None where unset): from
+    the environment, else from a :data:`CONFIG_FILE` in the working folder; read on every
+    lookup as numba reads them on every compile."""
+    settings = dict.fromkeys(CODE_VARIABLES)
+    if os.path.isfile(CONFIG_FILE):
+        settings.update(_config_file())
+    settings.update((name, os.environ[name]) for name in CODE_VARIABLES if name in os.environ)
+    return tuple(settings.values())
+
+
+def _config_file() -> dict:
+    """The code settings of :data:`CONFIG_FILE`, as numba reads its keys (``opt: 0`` is
+    ``NUMBA_OPT``); a file numba cannot read gives a setting no build has."""
+    try:
+        import yaml
+    except ImportError:  # numba ignores the file then (with a warning)
+        return {}
+    try:
+        with open(CONFIG_FILE, encoding="utf-8") as handle:
+            values = yaml.safe_load(handle)
+        names = {f"NUMBA_{str(key).upper()}": str(value) for key, value in (values or {}).items()}
+    except (OSError, UnicodeError, yaml.YAMLError, AttributeError):
+        return {CODE_VARIABLES[0]: f"unreadable {CONFIG_FILE}"}
+    return {name: value for name, value in names.items() if name in CODE_VARIABLES}
 
 
 def extension_name(source: str, types, settings: tuple | None = None) -> str:

@@ -108,7 +108,8 @@ def build_loop_extension(
     The extension's name is a hash of the generated source, the argument types, the numba,
     numpy and Python versions and the platform, and numba's settings that change the code it
     generates (``NUMBA_OPT``, ``NUMBA_LOOP_VECTORIZE``, ``NUMBA_BOUNDSCHECK``, ... from the
-    environment, read by the build and by every run): a change of any (a new hpdob or numba,
+    environment or a ``.numba_config.yaml`` in the working folder, read by the build and by
+    every run): a change of any (a new hpdob or numba,
     another ``NUMBA_OPT``) builds and uses a new one. The compiler commands and the flags
     setuptools takes from the environment (``CFLAGS``, ``LDFLAGS``, ...) are recorded beside
     it: a build with other ones replaces it, one with the same returns it. It is built in a
