@@ -252,3 +252,36 @@ def test_a_log_file_is_held_once(tmp_path, kind):
         tracemalloc.stop()
     np.testing.assert_array_equal(log.theta, columns["q"])
     assert peak <= 1.05 * (3 + 1) * n * 8, peak / (n * 8)
+
+
+@pytest.mark.parametrize(
+    ("where", "deviation", "accepted"),
+    [
+        (65_535, 0.3, True),  # within half the tolerance: no median needed
+        (65_536, 0.7, True),  # beyond half of it: the median decides, still within
+        (65_536, 0.999, True),
+        (65_536, 1.001, False),
+        (65_535, 1.5, False),  # the step across the first block's end
+        (65_537, -1.5, False),
+        (131_072, 3.0, False),  # the last block's first step
+        (131_080, 3.0, False),  # the very last step
+    ],
+)
+def test_uniform_time_rule_is_the_median_rule_at_every_step(where, deviation, accepted):
+    """One step of 1e-3 s off by ``deviation`` times the tolerance (1e-3 relative), anywhere
+    in a log of two blocks of steps and more: accepted exactly when every step is within the
+    tolerance of the median step (docs/real-data.md), whether or not the check needs the
+    median."""
+    n = 131_082
+    steps = np.full(n - 1, TS)
+    steps[where] *= 1.0 + deviation * 1e-3
+    t = np.concatenate([[0.0], np.cumsum(steps)])
+    median = np.median(np.diff(t))
+    expected = bool(np.all(np.abs(np.diff(t) - median) <= 1e-3 * median))
+    assert expected is accepted  # the case is on the side it names
+    zeros = np.zeros(n)
+    if accepted:
+        assert Log(t, zeros, zeros).Ts == pytest.approx(TS, rel=1e-5)
+    else:
+        with pytest.raises(ParameterValueError, match=rf"uniformly sampled.*t\[{where + 1}\]"):
+            Log(t, zeros, zeros)

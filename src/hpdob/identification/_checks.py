@@ -161,9 +161,24 @@ def check_time(t: np.ndarray, name: str = "t", tolerance: float = DEFAULT_TIME_T
     tolerance = positive(tolerance, "time_tolerance", "a positive relative tolerance")
     if t.size < 2:
         raise ParameterValueError(f"{name} must hold at least 2 samples, got {t.size}")
-    if not uniform_steps(np.diff(t), tolerance):
+    low, high = np.inf, -np.inf  # the smallest and largest step, a block at a time
+    for lo in range(0, t.size - 1, STEP_BLOCK):
+        steps = np.diff(t[lo : lo + STEP_BLOCK + 1])
+        low, high = min(low, float(steps.min())), max(high, float(steps.max()))
+    if not (_within_half(low, high, tolerance) or uniform_steps(np.diff(t), tolerance)):
         _time_error(t, name, tolerance)
     return float((t[-1] - t[0]) / (t.size - 1))
+
+
+#: Steps of the times taken at a time by :func:`check_time` (0.5 MB of float64).
+STEP_BLOCK = 1 << 16
+
+
+def _within_half(low: float, high: float, tolerance: float) -> bool:
+    """Whether steps from ``low`` to ``high`` pass :func:`uniform_steps`'s rule for certain,
+    without their median: the median lies between them, so every step is within
+    ``(high - low) / low`` of it; half the tolerance leaves the rule's rounding far away."""
+    return low > 0.0 and high - low <= 0.5 * tolerance * low
 
 
 def uniform_steps(steps: np.ndarray, tolerance: float) -> bool:
@@ -172,11 +187,14 @@ def uniform_steps(steps: np.ndarray, tolerance: float) -> bool:
 
     One array of steps and no other temporaries (logs reach 1e7 samples): the largest deviation
     from the median is at the smallest or the largest step; the index of a bad step is looked
-    up again from the times when the error is raised.
+    up again from the times when the error is raised. Steps that spread by less than half the
+    tolerance pass without the median (the same answer, for a uniform log a tenth the time).
     """
     low, high = float(steps.min()), float(steps.max())
     if low <= 0.0:
         return False
+    if _within_half(low, high, tolerance):
+        return True
     median = float(np.median(steps, overwrite_input=True))
     return max(high - median, median - low) / median <= tolerance
 
