@@ -11,6 +11,14 @@ estimate bit for bit, then timed in the same run. Target (issue 25): (a) >= 100 
 for every family at orders 0-2; the ratio (a)/(b) is printed for the canonical observer.
 
     python benchmarks/bench_estimate.py            # about 20 s; --samples N to change 1e7
+    python benchmarks/bench_estimate.py --first-call 5   # a process's first call, 5 each
+
+``--first-call K`` times instead the *first* call of K fresh processes each (after a call on
+100 samples that compiles): the minimal kernel, ``estimate_disturbance`` of the canonical
+observer without and with ``t=``, and with ``t=`` and read-only inputs (shared by the result,
+as a Log's columns are, instead of copied). A first call writes fresh memory (its result
+arrays), which the repeats above reuse; the ratio against the minimal kernel's first call
+(which writes only its estimate) is printed, medians of the processes.
 
 Interleaved repeats, best of each (the machine may be shared: ratios measured in the same run
 are robust to load, absolute figures less so).
@@ -72,23 +80,77 @@ def best(function, repeat):
     return min(times)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--samples", type=float, default=1e7)
-    parser.add_argument("--repeat", type=int, default=5)
-    args = parser.parse_args()
-    n = int(args.samples)
+def first_call(which: str, n: int) -> float:
+    """The first call on ``n`` samples of ``which`` in this process [s], after one on 100."""
+    theta, u, t, Ts, canonical, s_init, c = setup(n)
+    if which == "minimal":
+        minimal(theta[:100], u[:100], Ts, s_init, c)
+        start = time.perf_counter()
+        minimal(theta, u, Ts, s_init, c)
+    else:
+        times = None if which == "hpdob" else t
+        if which == "read-only":  # as a Log's or a Parquet file's columns: shared, not copied
+            for x in (theta, u, t):
+                x.flags.writeable = False
+        estimate_disturbance(canonical, theta=theta[:100], u=u[:100],
+                             t=None if times is None else times[:100])  # fmt: skip
+        start = time.perf_counter()
+        estimate_disturbance(canonical, theta=theta, u=u, t=times)
+    return time.perf_counter() - start
+
+
+def setup(n: int):
     Ts = 1e-3
     model = ServoModel(2.8e-4).discretize(Ts)
     rng = np.random.default_rng(25)  # synthetic log
     theta = np.cumsum(rng.standard_normal(n)) * 1e-4
     u = rng.standard_normal(n) * 0.01
-
+    t = np.arange(n) * Ts
     canonical = design_observer(model, order=1, bandwidth=100.0)
     program = canonical.system.program
     c = tuple(t.coefficient for rows in (program.update, program.output) for r in rows
               for t in r if abs(t.coefficient) != 1.0)  # fmt: skip
     s_init = np.array(initial_state(canonical, (float(theta[0]), 0.0)))  # at rest, tau0 = 0
+    return theta, u, t, Ts, canonical, s_init, c
+
+
+def first_calls(k: int, n: int) -> None:
+    import statistics
+    import subprocess
+    import sys
+
+    which = ("minimal", "hpdob", "hpdob, t=", "read-only")
+    runs = {w: [] for w in which}
+    for _ in range(k):  # interleaved fresh processes
+        for w in which:
+            out = subprocess.run([sys.executable, __file__, "--samples", str(n), "--child", w],
+                                 capture_output=True, text=True, check=True).stdout  # fmt: skip
+            runs[w].append(float(out))
+    base = statistics.median(runs["minimal"])
+    print(f"{n:.3g} samples (synthetic log), the first call of {k} fresh processes each, medians")
+    for w in which:
+        m = statistics.median(runs[w])
+        print(f"    {w:12s} {m * 1e3:7.1f} ms {n / m / 1e6:7.1f} M samples/s  vs minimal "
+              f"{m / base:5.2f}")  # fmt: skip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--samples", type=float, default=1e7)
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--first-call", type=int, default=0, metavar="K",
+                        help="time the first call of K fresh processes each instead")  # fmt: skip
+    parser.add_argument("--child", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    n = int(args.samples)
+    if args.child:
+        print(first_call(args.child, n))
+        return
+    if args.first_call:
+        first_calls(args.first_call, n)
+        return
+    theta, u, _, Ts, canonical, s_init, c = setup(n)
+    model = ServoModel(2.8e-4).discretize(Ts)
     reference = minimal(theta, u, Ts, s_init, c)
     result = estimate_disturbance(canonical, theta=theta, u=u)
     assert np.array_equal(reference, result.tau_hat), "the minimal kernel must agree bit for bit"
