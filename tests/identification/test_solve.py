@@ -1,7 +1,9 @@
 """The estimate's covariance (identification/_solve.py): batch means over contiguous rows, for a
 residual correlated over neighbouring rows. Checked against closed forms (white and AR(1)
 errors) and against the spread of the estimates over seeds on SYNTHETIC logs
-(tests/synthetic_logs.py; benchmarks/bench_identify_std.py is the larger study)."""
+(tests/synthetic_logs.py; benchmarks/bench_identify_std.py is the larger study). Then the IV
+iteration's parts: the loop's relative error, the input-driven loop's definition, the
+iteration's bound and the one check of a given loop."""
 
 from __future__ import annotations
 
@@ -10,6 +12,7 @@ import itertools
 import numpy as np
 import pytest
 
+from hpdob import ParameterValueError
 from hpdob.identification._solve import estimate_iv
 from synthetic_logs import synthetic_log
 
@@ -103,3 +106,73 @@ def test_long_run_covariance_is_the_batch_means_of_the_scores():
             S += np.outer(s, s)
         count += G
     assert np.array_equal(long_run_covariance(Z, error, logs), S * count / (count - 1))
+
+
+def test_relative_error_is_the_norm_of_the_difference_in_percent():
+    """Eq. 11's percentage, not rounded: 0.125 of a unit vector is 12.5 %."""
+    from hpdob.identification._solve import relative_error
+
+    assert relative_error(np.array([1.0, 0.0]), np.array([0.875, 0.0])) == 12.5
+    assert relative_error(np.array([0.0, 0.0]), np.zeros(2)) == 0.0
+    assert relative_error(np.array([0.0, 0.0]), np.ones(2)) == np.inf
+
+
+def test_the_input_loop_is_a_slow_pd_on_the_low_passed_position():
+    """Bandwidth INPUT_LOOP_FRACTION x the decimation cut-off: its PD gains J w^2 and 2 J w,
+    its reference the position through a 2nd-order Butterworth filter at that bandwidth,
+    forward and back (sosfiltfilt), the logged input as its feed-forward."""
+    from types import SimpleNamespace
+
+    from scipy import signal
+
+    from hpdob.identification._solve import INPUT_LOOP_FRACTION, input_loop
+
+    Ts, cutoff, J = 1e-3, 40.0, 0.02
+    t = np.arange(4000) * Ts
+    theta = np.sin(2 * np.pi * t) + 0.1 * np.sin(2 * np.pi * 30 * t)
+    u = np.cos(2 * np.pi * t)
+    loop = input_loop(theta, u, J, SimpleNamespace(decimation_cutoff=cutoff, Ts=Ts))
+    omega = 2 * np.pi * INPUT_LOOP_FRACTION * cutoff
+    assert loop.kp == J * omega**2 and loop.kd == 2 * J * omega
+    sos = signal.butter(2, INPUT_LOOP_FRACTION * cutoff, fs=1 / Ts, output="sos")
+    np.testing.assert_array_equal(loop.reference, signal.sosfiltfilt(sos, theta))
+    np.testing.assert_array_equal(loop.reference_velocity, np.gradient(loop.reference, Ts))
+    np.testing.assert_array_equal(loop.feedforward, u)
+
+
+def test_the_iteration_stops_at_max_iterations():
+    """A tolerance no change meets: exactly max_iterations iterations, not converged."""
+    from hpdob.identification import IdentificationWarning
+
+    s = synthetic_log(kind="prbs", counts=1024, Ts=2e-3, coulomb_fraction=0.1, seed=0)
+    for most in (2, 3):
+        with pytest.warns(IdentificationWarning, match=f"did not converge in {most} iterations"):
+            fit = s.log.identify(method="idim-iv-input", max_iterations=most, tolerance=1e-300,
+                                 diagnostics=False)  # fmt: skip
+        assert fit.iterations == most and not fit.converged
+
+
+def _motion(n=5000, Ts=1e-3, phase=0.0):
+    t = np.arange(n) * Ts
+    q = 0.3 * np.sin(2 * np.pi * t + phase) + 0.05 * np.sin(2 * np.pi * 3 * t)
+    u = np.gradient(np.gradient(q, Ts), Ts) + 2 * np.sign(np.gradient(q, Ts)) + 0.5
+    return t, q, u
+
+
+def test_a_loop_that_is_not_the_logs_is_refused_before_the_first_iteration():
+    """The loop is checked once, simulated with the IDIM-LS estimate: refused before any IV
+    iteration is reported; with several logs, the message names the log whose loop it is."""
+    from hpdob import identify
+    from hpdob.identification import FeedbackLoop, Log
+
+    t, q, u = _motion()
+    resting = FeedbackLoop(np.zeros(t.size), kp=0.0, kd=0.0)  # not the loop that moved the axis
+    reports = []
+    with pytest.raises(ParameterValueError, match=r"^loop does not describe .* IDIM-LS estimate"):
+        identify(t, q, u, method="idim-iv", loop=resting,
+                 progress=lambda *report: reports.append(report))  # fmt: skip
+    assert ("iterating", 0, 20) in reports
+    assert not [r for r in reports if r[0] == "iterating" and r[1] > 0]
+    logs = [Log(t, q, u, source="a"), Log(*_motion(phase=1.0), source="b")]
+    with pytest.raises(ParameterValueError, match=r"^loop of a does not describe"):
+        identify(logs, method="idim-iv", loop=[resting, resting])
