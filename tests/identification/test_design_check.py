@@ -190,3 +190,12 @@ def test_one_way_logs_are_refused_with_the_way_out_their_directions_leave():
         assert str(err.value).startswith(start.format("a positive, b positive", noun))
         assert str(err.value).endswith("or add a log that moves the other way, with "
                                        "offsets='shared'")  # fmt: skip
+
+
+def test_fewer_rows_than_columns_have_infinite_condition():
+    """Rank at most the rows: a wide regression cannot separate its columns, whatever its
+    triangular factor's few singular values say."""
+    from hpdob.identification._design import scaled_condition
+
+    assert scaled_condition(np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 7.0]])) == np.inf
+    assert np.isfinite(scaled_condition(np.array([[1.0, 2.0], [4.0, 5.0], [0.0, 1.0]])))
