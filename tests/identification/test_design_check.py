@@ -199,3 +199,44 @@ def test_fewer_rows_than_columns_have_infinite_condition():
 
     assert scaled_condition(np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 7.0]])) == np.inf
     assert np.isfinite(scaled_condition(np.array([[1.0, 2.0], [4.0, 5.0], [0.0, 1.0]])))
+
+
+@pytest.mark.parametrize(("inflation", "refused"), [(1000.5, True), (999.5, False)])
+def test_the_variance_inflation_limit_is_a_thousand(inflation, refused):
+    """Two columns with correlation r, 1 / (1 - r^2) = ``inflation`` (exactly centred,
+    orthogonal patterns a and c; b = a + k c): refused just above 1000, passed just below."""
+    a, c = np.tile([1.0, -1.0, 1.0, -1.0], 4), np.tile([1.0, 1.0, -1.0, -1.0], 4)
+    X = np.column_stack([a, a + c / np.sqrt(inflation - 1.0), np.ones(16)])
+    layout = make_layout("viscous", None, "per-log", 1)
+    if not refused:
+        check_design([], layout, X)
+        return
+    with pytest.raises(ParameterValueError, match=r"J and b cannot .* limit 1000\)"):
+        check_design([], layout, X)
+
+
+def test_an_exactly_zero_column_is_refused_as_unexcited_without_a_warning():
+    """The full decomposition's last singular value exactly 0: condition inf, no division
+    warning, and the zero column named the least identifiable."""
+    import warnings
+
+    a, c = np.tile([1.0, -1.0, 1.0, -1.0], 4), np.tile([1.0, 1.0, -1.0, -1.0], 4)
+    layout = make_layout("viscous", None, "per-log", 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ParameterValueError, match=r"number inf .*; offset is the least"):
+            check_design([], layout, np.column_stack([a, c, np.zeros(16)]))
+
+
+def test_a_layout_needs_something_to_estimate_and_viscous_friction_no_coulomb():
+    """The offset fixed alone leaves J, b and coulomb to estimate; everything fixed is
+    refused; friction='viscous' refuses a fixed Coulomb friction of either sign."""
+    layout = make_layout("viscous+coulomb", {"offset": 0.0}, "per-log", 1)
+    assert layout.free == (0, 1, 2) and layout.n_offsets == 0
+    every = {"J": 1.0, "b": 0.0, "coulomb": 0.0, "offset": 0.0}
+    with pytest.raises(ParameterValueError, match="every parameter is fixed"):
+        make_layout("viscous+coulomb", every, "per-log", 1)
+    for coulomb in (0.1, -0.1):
+        with pytest.raises(ParameterValueError, match="friction='viscous' has no Coulomb"):
+            make_layout("viscous", {"coulomb": coulomb}, "per-log", 1)
+    assert make_layout("viscous", {"coulomb": 0.0}, "per-log", 1).free == (0, 1)

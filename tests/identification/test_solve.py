@@ -140,16 +140,35 @@ def test_the_input_loop_is_a_slow_pd_on_the_low_passed_position():
     np.testing.assert_array_equal(loop.feedforward, u)
 
 
-def test_the_iteration_stops_at_max_iterations():
+@pytest.fixture(scope="module")
+def prbs():
+    return synthetic_log(kind="prbs", counts=1024, Ts=2e-3, coulomb_fraction=0.1, seed=0).log
+
+
+def test_the_iteration_stops_at_max_iterations(prbs):
     """A tolerance no change meets: exactly max_iterations iterations, not converged."""
     from hpdob.identification import IdentificationWarning
 
-    s = synthetic_log(kind="prbs", counts=1024, Ts=2e-3, coulomb_fraction=0.1, seed=0)
     for most in (2, 3):
         with pytest.warns(IdentificationWarning, match=f"did not converge in {most} iterations"):
-            fit = s.log.identify(method="idim-iv-input", max_iterations=most, tolerance=1e-300,
-                                 diagnostics=False)  # fmt: skip
+            fit = prbs.identify(method="idim-iv-input", max_iterations=most, tolerance=1e-300,
+                                diagnostics=False)  # fmt: skip
         assert fit.iterations == most and not fit.converged
+
+
+def test_the_iteration_stops_when_no_parameter_moves_by_a_hundredth_of_its_std(prbs):
+    """Iteration n, the first to converge, moved every parameter by at most 0.01 of its std
+    from iteration n - 1, which did not converge (so n > 1 here: the IDIM-LS start is off)."""
+    from hpdob.identification import IdentificationWarning
+
+    names = ("J", "b", "coulomb", "offset")
+    fit = prbs.identify(method="idim-iv-input", diagnostics=False)
+    assert fit.converged and fit.iterations >= 2
+    with pytest.warns(IdentificationWarning, match="did not converge"):
+        before = prbs.identify(method="idim-iv-input", max_iterations=fit.iterations - 1,
+                               diagnostics=False)  # fmt: skip
+    change = np.abs([getattr(fit, n) - getattr(before, n) for n in names])
+    assert np.all(change <= 0.01 * np.array([getattr(fit, f"{n}_std") for n in names]))
 
 
 def _motion(n=5000, Ts=1e-3, phase=0.0):
