@@ -218,6 +218,28 @@ TARGETS = {
         ),
         "not example_prints and not plot_labels and not result_exports",
     ),
+    "identification.design": Target(
+        # the check's own tests (block-wise condition and VIF), then the refusals it makes
+        # through identify (one-way logs, one speed, several logs)
+        "src/hpdob/identification/_design.py",
+        (
+            "tests/identification/test_design_check.py",
+            "tests/identification/test_identify_logs.py",
+            "tests/identification/test_identify.py",
+        ),
+        "not example_prints and not plot_labels and not result_exports",
+    ),
+    "identification.solve": Target(
+        # the covariance's closed forms, then least squares and the IV iteration (through
+        # the logged loop and input-driven) via identify
+        "src/hpdob/identification/_solve.py",
+        (
+            "tests/identification/test_solve.py",
+            "tests/identification/test_identify.py",
+            "tests/identification/test_identify_logs.py",
+        ),
+        "not example_prints and not plot_labels and not result_exports",
+    ),
 }
 
 

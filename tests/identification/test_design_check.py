@@ -1,9 +1,13 @@
 """The design check's refusal of an ill-conditioned regression (``_design.check_design``):
 decided as by the full singular value decomposition of the column-scaled regression, which
 it computes only near the limit (issue 25: no left vectors as long as the log otherwise); and
-the layout's columns, a read-only view of the rows when all four are estimated in order."""
+the layout's columns, a read-only view of the rows when all four are estimated in order; the
+singular cases of the condition and the variance inflation; and the refusals of logs that move
+one way, in the words of one log or several."""
 
 from __future__ import annotations
+
+import re
 
 import numpy as np
 import pytest
@@ -99,3 +103,140 @@ def test_scaled_condition_is_that_of_the_singular_values(rows):
         singular = np.linalg.svd(X / np.linalg.norm(X, axis=0), compute_uv=False)
         assert scaled_condition(X) == pytest.approx(singular[0] / singular[-1], rel=1e-9)
     assert scaled_condition(np.column_stack([np.ones(rows), np.zeros(rows)])) == np.inf
+
+
+def test_exactly_collinear_columns_have_infinite_inflation():
+    """Two equal columns (alternating +-1: centred exactly, their correlation exactly 1): the
+    correlation matrix is singular and every column's factor is inf."""
+    from hpdob.identification._design import variance_inflation
+
+    a = np.tile([1.0, -1.0], 8)
+    inflation = variance_inflation(np.column_stack([a, a, np.arange(16.0)]))
+    assert inflation.shape == (3,) and np.all(np.isinf(inflation))
+
+
+def test_a_singular_regression_has_infinite_condition_without_a_warning():
+    """A triangular factor with an exactly zero singular value: inf, not a division by 0."""
+    import warnings
+
+    from hpdob.identification._design import scaled_condition
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert scaled_condition(np.array([[1.0, 1.0], [0.0, 0.0], [0.0, 0.0]])) == np.inf
+        assert scaled_condition(np.array([[3.0, -2.0, 0.0], [0.0, 0.0, 1.0], [0.0] * 3])) == np.inf
+
+
+def test_a_well_conditioned_regression_is_passed_without_a_copy_of_it():
+    """Far from the limit the block-wise gate decides: no scaled copy of the regression and
+    no left singular vectors (each as large as it) at once; its peak is the column norms'
+    squares (``np.linalg.norm(X, axis=0)`` squares every entry), one regression's size."""
+    import tracemalloc
+
+    rng = np.random.default_rng(4)
+    n = 200_000
+    X = np.column_stack([rng.standard_normal(n), 1.0 + rng.standard_normal(n), np.ones(n)])
+    layout = make_layout("viscous", None, "per-log", 1)
+    tracemalloc.start()
+    try:
+        check_design([], layout, X)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 1.5 * X.nbytes, (peak, X.nbytes)
+
+
+T = np.arange(5000) * 1e-3
+U = np.sin(2 * np.pi * T) + 0.5 * np.sin(2 * np.pi * 3.3 * T)
+RAMP = 0.1 * T + 0.01 * np.sin(T)  # always forward
+STOPS = 0.1 * (T - np.sin(2 * np.pi * T) / (2 * np.pi))  # forward, at rest once a second
+START = "theta moves in one direction only ({}: 100 % of its travel in the regression rows{}): "
+
+
+@pytest.mark.parametrize(("sign", "word"), [(1.0, "positive"), (-1.0, "negative")])
+def test_a_one_way_log_is_refused_saying_which_way_and_the_rests_dropped(sign, word):
+    """One log: its own message (not the several logs'), with the rows dropped at rest only
+    where there were some."""
+    from hpdob import identify
+
+    with pytest.raises(ParameterValueError) as err:
+        identify(T, sign * RAMP, U, diagnostics=False)
+    assert str(err.value).startswith(START.format(word, ""))
+    assert "identify([log, other], offsets='shared')" in str(err.value)
+    with pytest.raises(ParameterValueError) as err:
+        identify(T, sign * STOPS, U, diagnostics=False)
+    rests = r", after dropping \d+ rows at rest \(filtered speed below 0.004, 2 % of its largest\)"
+    assert re.match(re.escape(START.format(word, "@")).replace("@", rests), str(err.value))
+
+
+def test_one_way_logs_are_refused_with_the_way_out_their_directions_leave():
+    """Per-log offsets: logs in opposite directions are separated by a shared offset, logs
+    the same way need another log; a shared offset does not separate logs the same way."""
+    from hpdob import identify
+    from hpdob.identification import Log
+
+    forward, again = Log(T, RAMP, U, source="a"), Log(T, 2 * RAMP, U, source="b")
+    backward = Log(T, -RAMP, U, source="b")
+    start = "every log moves in one direction only ({}): coulomb and the {} cannot be told apart"
+    with pytest.raises(ParameterValueError) as err:
+        identify([forward, backward], diagnostics=False)
+    assert str(err.value).startswith(start.format("a positive, b negative", "offsets"))
+    assert "To identify them: offsets='shared' (one offset for all) separates them" in str(
+        err.value
+    )
+    for offsets, noun in (("per-log", "offsets"), ("shared", "offset")):
+        with pytest.raises(ParameterValueError) as err:
+            identify([forward, again], offsets=offsets, diagnostics=False)
+        assert str(err.value).startswith(start.format("a positive, b positive", noun))
+        assert str(err.value).endswith("or add a log that moves the other way, with "
+                                       "offsets='shared'")  # fmt: skip
+
+
+def test_fewer_rows_than_columns_have_infinite_condition():
+    """Rank at most the rows: a wide regression cannot separate its columns, whatever its
+    triangular factor's few singular values say."""
+    from hpdob.identification._design import scaled_condition
+
+    assert scaled_condition(np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 7.0]])) == np.inf
+    assert np.isfinite(scaled_condition(np.array([[1.0, 2.0], [4.0, 5.0], [0.0, 1.0]])))
+
+
+@pytest.mark.parametrize(("inflation", "refused"), [(1000.5, True), (999.5, False)])
+def test_the_variance_inflation_limit_is_a_thousand(inflation, refused):
+    """Two columns with correlation r, 1 / (1 - r^2) = ``inflation`` (exactly centred,
+    orthogonal patterns a and c; b = a + k c): refused just above 1000, passed just below."""
+    a, c = np.tile([1.0, -1.0, 1.0, -1.0], 4), np.tile([1.0, 1.0, -1.0, -1.0], 4)
+    X = np.column_stack([a, a + c / np.sqrt(inflation - 1.0), np.ones(16)])
+    layout = make_layout("viscous", None, "per-log", 1)
+    if not refused:
+        check_design([], layout, X)
+        return
+    with pytest.raises(ParameterValueError, match=r"J and b cannot .* limit 1000\)"):
+        check_design([], layout, X)
+
+
+def test_an_exactly_zero_column_is_refused_as_unexcited_without_a_warning():
+    """The full decomposition's last singular value exactly 0: condition inf, no division
+    warning, and the zero column named the least identifiable."""
+    import warnings
+
+    a, c = np.tile([1.0, -1.0, 1.0, -1.0], 4), np.tile([1.0, 1.0, -1.0, -1.0], 4)
+    layout = make_layout("viscous", None, "per-log", 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ParameterValueError, match=r"number inf .*; offset is the least"):
+            check_design([], layout, np.column_stack([a, c, np.zeros(16)]))
+
+
+def test_a_layout_needs_something_to_estimate_and_viscous_friction_no_coulomb():
+    """The offset fixed alone leaves J, b and coulomb to estimate; everything fixed is
+    refused; friction='viscous' refuses a fixed Coulomb friction of either sign."""
+    layout = make_layout("viscous+coulomb", {"offset": 0.0}, "per-log", 1)
+    assert layout.free == (0, 1, 2) and layout.n_offsets == 0
+    every = {"J": 1.0, "b": 0.0, "coulomb": 0.0, "offset": 0.0}
+    with pytest.raises(ParameterValueError, match="every parameter is fixed"):
+        make_layout("viscous+coulomb", every, "per-log", 1)
+    for coulomb in (0.1, -0.1):
+        with pytest.raises(ParameterValueError, match="friction='viscous' has no Coulomb"):
+            make_layout("viscous", {"coulomb": coulomb}, "per-log", 1)
+    assert make_layout("viscous", {"coulomb": 0.0}, "per-log", 1).free == (0, 1)
