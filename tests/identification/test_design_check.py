@@ -240,3 +240,24 @@ def test_a_layout_needs_something_to_estimate_and_viscous_friction_no_coulomb():
         with pytest.raises(ParameterValueError, match="friction='viscous' has no Coulomb"):
             make_layout("viscous", {"coulomb": coulomb}, "per-log", 1)
     assert make_layout("viscous", {"coulomb": 0.0}, "per-log", 1).free == (0, 1)
+
+
+@pytest.mark.parametrize("condition", [7e5, 3e6])
+def test_near_the_limit_the_decomposition_holds_thin_factors_only(condition):
+    """Within a factor 2 of the limit the full decomposition decides: a scaled copy and the
+    thin left vectors (rows x columns), under three regressions at its tracemalloc peak
+    (measured 2.12 and 2.08); the square left factor alone would be rows x rows (668)."""
+    import tracemalloc
+
+    X = _regression(condition)
+    layout = make_layout("viscous", None, "per-log", 1)
+    tracemalloc.start()
+    try:
+        try:
+            check_design([], layout, X)
+        except ParameterValueError:
+            assert condition > MAX_CONDITION
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 3 * X.nbytes, peak / X.nbytes

@@ -89,14 +89,17 @@ def test_the_std_matches_the_spread_over_seeds_on_synthetic_logs():
     assert spread[1] / np.mean(iid, axis=0)[1] < 0.6
 
 
-def test_long_run_covariance_is_the_batch_means_of_the_scores():
-    """Formed batch by batch: bit for bit the batch sums of the whole score matrix."""
+@pytest.mark.parametrize(
+    "logs", [[(0, 1000), (1000, 3000)], [(0, 1000), (1000, 1100), (1100, 3000)]]
+)
+def test_long_run_covariance_is_the_batch_means_of_the_scores(logs):
+    """Formed batch by batch: bit for bit the batch sums of the whole score matrix (a log of
+    100 rows after the first: 10 batches of its own length)."""
     from hpdob.identification._solve import COVARIANCE_BATCHES, long_run_covariance
 
     rng = np.random.default_rng(2)
     Z, error = rng.standard_normal((3000, 4)), rng.standard_normal(3000)
     scores = Z * error[:, None]
-    logs = [(0, 1000), (1000, 3000)]
     S, count = np.zeros((4, 4)), 0
     for start, stop in logs:
         G = max(2, min(COVARIANCE_BATCHES, (stop - start) // 10))
