@@ -184,10 +184,20 @@ def _triangular(X: np.ndarray, norms: np.ndarray) -> np.ndarray:
     return R
 
 
+def _column_norms(X: np.ndarray) -> np.ndarray:
+    """The Euclidean norms of ``X``'s columns, their squares summed :data:`ROWS` rows at a
+    time (``np.linalg.norm(X, axis=0)`` squares the whole of ``X`` first)."""
+    squares = np.zeros(X.shape[1])
+    for lo in range(0, X.shape[0], ROWS):
+        block = X[lo : lo + ROWS]
+        squares += np.einsum("ij,ij->j", block, block)
+    return np.sqrt(squares)
+
+
 def scaled_condition(X: np.ndarray) -> float:
     """Condition number of ``X`` with its columns scaled to unit norm (inf if singular), from
     the triangular factor of the scaled ``X`` (to some eps x itself; no copy of ``X``)."""
-    norms = np.linalg.norm(X, axis=0)
+    norms = _column_norms(X)
     if np.any(norms == 0.0) or X.shape[0] < X.shape[1]:
         return math.inf
     singular = np.linalg.svd(_triangular(X, norms), compute_uv=False)
