@@ -11,6 +11,9 @@ import pytest
 from scipy import signal
 
 from hpdob.identification._lean import (
+    BLOCK,
+    MIN_BLOCK,
+    block_size,
     decimated_at,
     filtfilt,
     gradient_block,
@@ -73,6 +76,16 @@ def test_gradient_in_place_and_in_blocks_is_numpy_gradient(n, block):
     assert same_bits(gradient_inplace(x.copy(), 1e-3, block), reference)
     for lo, hi in ((0, n), (0, 1), (n - 1, n), (1, n - 1), (min(2, n - 1), n)):
         assert same_bits(gradient_block(x, lo, hi, 1e-3), reference[lo:hi])
+
+
+@pytest.mark.parametrize(
+    ("n", "block"),
+    [(24_841, MIN_BLOCK), (100, MIN_BLOCK), (100_000, 12_500), (10 * BLOCK, BLOCK), (5, 7)],
+)
+def test_block_size_cuts_a_short_signal_into_parts(n, block):
+    """A signal shorter than the library's block is worked through in eighths (at least
+    MIN_BLOCK samples), not as one block of its whole length (issue 25: the EMPS log)."""
+    assert block_size(n, 7 if n == 5 else None) == block
 
 
 @pytest.mark.parametrize("n", [64, 3001, 5000, 20001])

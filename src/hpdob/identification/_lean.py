@@ -17,6 +17,9 @@ import numpy as np
 
 __all__ = [
     "BLOCK",
+    "MIN_BLOCK",
+    "PARTS",
+    "block_size",
     "decimated_at",
     "filtfilt",
     "filtfilt_blocks",
@@ -28,6 +31,22 @@ __all__ = [
 
 #: Samples per block (0.5 MB of float64); read when a function runs (None: this).
 BLOCK = 1 << 16
+#: A signal shorter than ``PARTS`` blocks is cut into this many, down to :data:`MIN_BLOCK`
+#: samples: a block of a signal shorter than ``BLOCK`` would otherwise be the whole signal,
+#: and the few blocks a function holds at a time several copies of it (the EMPS log, 24 841
+#: samples, issue 25). Longer signals keep ``BLOCK``, the speed of the long logs.
+PARTS = 8
+#: The smallest block :data:`PARTS` makes [samples] (32 kB of float64).
+MIN_BLOCK = 4096
+
+
+def block_size(n: int, block: int | None = None) -> int:
+    """The block [samples] in which to work through a signal of ``n`` samples: ``block`` if
+    given, else :data:`BLOCK` or ``ceil(n / PARTS)``, at least :data:`MIN_BLOCK`, if that is
+    smaller. The arithmetic does not depend on it (bit for bit at any size)."""
+    if block is not None:
+        return block
+    return min(BLOCK, max(MIN_BLOCK, -(-n // PARTS)))
 
 
 def pad_length(sos: np.ndarray) -> int:
@@ -51,7 +70,7 @@ def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
     """
     from scipy import signal
 
-    block = BLOCK if block is None else block
+    block = block_size(n, block)
     edge = pad_length(sos)
     if n <= edge:
         raise ValueError(
@@ -98,8 +117,8 @@ def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=No
 def gradient_inplace(f: np.ndarray, dx: float, block: int | None = None) -> np.ndarray:
     """Overwrite ``f`` (1-D float64, at least 2 samples) with ``np.gradient(f, dx)``, bit for
     bit (central differences inside, one-sided at the ends), holding a block beside it."""
-    block = BLOCK if block is None else block
     n = f.size
+    block = block_size(n, block)
     first = (f[1] - f[0]) / dx
     last = (f[-1] - f[-2]) / dx
     twice = 2.0 * dx

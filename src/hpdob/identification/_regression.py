@@ -111,8 +111,9 @@ def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
     median PSD of the top quarter of the band, where a motion system's position is noise.
     """
     q = math.inf  # the smallest positive |step|, block by block (a minimum is exact)
-    for lo in range(0, theta.size - 1, _lean.BLOCK):
-        steps = np.abs(np.diff(theta[lo : lo + _lean.BLOCK + 1]))
+    block = _lean.block_size(theta.size)
+    for lo in range(0, theta.size - 1, block):
+        steps = np.abs(np.diff(theta[lo : lo + block + 1]))
         steps = steps[steps > 0]
         if steps.size:
             q = min(q, float(steps.min()))
@@ -316,16 +317,20 @@ def instrument_rows(theta: np.ndarray, regression: Regression, settings: Setting
 
 def _largest_speed(velocity: np.ndarray) -> float:
     """``max(|velocity|)``, block by block (a maximum is exact in any order)."""
-    return max(float(np.max(np.abs(velocity[lo : lo + _lean.BLOCK])))
-               for lo in range(0, velocity.size, _lean.BLOCK))  # fmt: skip
+    block = _lean.block_size(velocity.size)
+    return max(float(np.max(np.abs(velocity[lo : lo + block])))
+               for lo in range(0, velocity.size, block))  # fmt: skip
 
 
 def near_slow(velocity: np.ndarray, index: np.ndarray, speed: float, half: int) -> np.ndarray:
     """Whether ``|velocity| < speed`` somewhere within ``half`` samples of each of ``index``
     (the decimation filter's main lobe around a row), counted block by block of rows."""
     n, out = velocity.size, np.zeros(index.size, dtype=bool)
-    for a in range(0, index.size, _lean.BLOCK):
-        rows = index[a : a + _lean.BLOCK]
+    # the rows of about a block of samples at a time (a row's window adds 2 half)
+    step = (int(index[-1]) - int(index[0])) // (index.size - 1) if index.size > 1 else 1
+    block = max(1, _lean.block_size(n) // max(step, 1))
+    for a in range(0, index.size, block):
+        rows = index[a : a + block]
         lo, hi = max(int(rows[0]) - half, 0), min(int(rows[-1]) + half + 1, n)
         slow = np.abs(velocity[lo:hi]) < speed
         count = np.concatenate([[0], np.cumsum(slow)])
@@ -396,10 +401,9 @@ def rest_rows_mask(velocity: np.ndarray, index: np.ndarray, length: int, margin:
     n = velocity.size
     rest_speed = REST_SPEED_FRACTION * float(np.abs(velocity[index]).max()) if index.size else 0.0
     slow = np.empty(n, dtype=bool)
-    for lo in range(0, n, _lean.BLOCK):
-        np.less(
-            np.abs(velocity[lo : lo + _lean.BLOCK]), rest_speed, out=slow[lo : lo + _lean.BLOCK]
-        )
+    block = _lean.block_size(n)
+    for lo in range(0, n, block):
+        np.less(np.abs(velocity[lo : lo + block]), rest_speed, out=slow[lo : lo + block])
     # the edges of the stretches of consecutive slow samples: where [0, slow, 0] changes
     edges = np.flatnonzero(slow[1:] != slow[:-1]) + 1
     edges = np.concatenate([[0] if n and slow[0] else [], edges, [n] if n and slow[-1] else []])
