@@ -4,6 +4,7 @@ the regression had before (written out below as the reference)."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -25,6 +26,8 @@ from hpdob.identification._regression import (
     REST_SPEED_FRACTION,
     build_regression,
     differentiate,
+    filtered_velocity,
+    filtered_velocity_blocks,
     instrument_rows,
     resolve_settings,
     rows_inside_border,
@@ -215,3 +218,26 @@ def test_differentiate_is_the_filtered_kinematics_bit_for_bit():
     got = differentiate(theta, 1e-3, cutoff=25.0)
     assert same_bits(got[0], velocity) and same_bits(got[1], acceleration)
     assert math.isfinite(float(got[1].sum()))
+
+
+@pytest.mark.parametrize(("n", "block"), [(24_841, None), (3000, 256), (3073, 256), (3074, 256)])
+def test_filtered_velocity_in_blocks_is_the_whole_one_bit_for_bit(monkeypatch, n, block):
+    """Blocks tiling the log from its end, a last block of one or two samples among them
+    (3073 = 12 x 256 + 1), each equal to the whole filtered velocity's."""
+    from hpdob.identification import _lean
+
+    if block is not None:
+        monkeypatch.setattr(_lean, "BLOCK", block)
+        monkeypatch.setattr(_lean, "MIN_BLOCK", block)
+    theta, _ = _log(n)
+    theta.flags.writeable = False  # read, never written
+    settings = resolve_settings(1e-3, cutoff=25.0, decimation=1, border=0)
+    whole = filtered_velocity(theta, settings)
+    got = np.full(n, np.nan)
+    ends = []
+    for lo, hi, v in filtered_velocity_blocks(theta, settings):
+        got[lo:hi] = v
+        ends.append((lo, hi))
+    assert same_bits(got, whole)
+    assert ends[0][1] == n and ends[-1][0] == 0 and len(ends) > 2
+    assert all(later[0] == earlier[1] for later, earlier in itertools.pairwise(ends))

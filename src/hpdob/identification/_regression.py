@@ -29,7 +29,14 @@ import numpy as np
 
 from .._validation import ParameterValueError, as_int, nonnegative, positive
 from . import _lean
-from ._lean import decimated_at, filtfilt, gradient_block, gradient_inplace, welch
+from ._lean import (
+    decimated_at,
+    filtfilt,
+    filtfilt_blocks,
+    gradient_block,
+    gradient_inplace,
+    welch,
+)
 
 __all__ = [
     "MIN_ROWS",
@@ -223,6 +230,34 @@ def filtered_velocity(theta: np.ndarray, settings: Settings, *, overwrite: bool 
     with ``overwrite`` (the velocity written over ``theta``)."""
     sos = velocity_filter(settings)
     return gradient_inplace(filtfilt(sos, theta, out=theta if overwrite else None), settings.Ts)
+
+
+def filtered_velocity_blocks(theta: np.ndarray, settings: Settings):
+    """:func:`filtered_velocity` of ``theta`` in blocks, bit for bit, holding blocks only.
+
+    Yields ``(lo, hi, v)`` with ``v`` equal to ``filtered_velocity(theta, settings)[lo:hi]``,
+    the blocks tiling ``[0, theta.size)`` from the last to the first. Each block of the
+    filtered position (:func:`._lean.filtfilt_blocks`, from the end) is differenced with the
+    two samples after it, kept from the block before: ``np.gradient``'s central differences
+    inside and one-sided ones at the ends, in the same operations as
+    :func:`._lean.gradient_inplace`."""
+    n, dx = theta.size, settings.Ts
+    twice = 2.0 * dx
+    after = theta[:0]  # the filtered position's first samples of the block yielded before
+    for lo, hi, y in filtfilt_blocks(velocity_filter(settings), n, lambda a, b: theta[a:b]):
+        f = np.concatenate([y, after[: min(hi + 2, n) - hi]])  # f[lo : hi + 2] or to the end
+        after = f[:2].copy()
+        start, stop = (0 if lo == 0 else lo + 1), min(hi + 1, n)  # velocity at these
+        v = np.empty(stop - start)
+        a, b = max(start, 1), min(stop, n - 1)  # central differences
+        v[a - start : b - start] = (f[a + 1 - lo : b + 1 - lo] - f[a - 1 - lo : b - 1 - lo]) / twice
+        if start == 0:
+            v[0] = (f[1] - f[0]) / dx
+        if stop == n and stop > start:  # (a last block of one sample has none)
+            v[-1] = (f[n - 1 - lo] - f[n - 2 - lo]) / dx
+        del f
+        yield start, stop, v
+        del v
 
 
 def _decimate_sos(factor: int) -> np.ndarray:
