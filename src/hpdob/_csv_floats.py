@@ -328,13 +328,27 @@ def _rows(bits, out):
     return pos
 
 
-def format_rows(columns: list, start: int, stop: int) -> np.ndarray:
-    """CSV text (bytes as uint8) of rows ``start:stop`` of equal-length float64 ``columns``."""
-    block = np.empty((len(columns), stop - start), dtype=np.float64)
-    for c, column in enumerate(columns):
-        block[c] = column[start:stop]
-    out = np.empty((stop - start) * len(columns) * (_WIDTH + 1) + 1, dtype=np.uint8)
-    return out[: _rows(block.view(np.uint64), out)]
+#: Rows formatted at a time within a chunk: the text buffer, sized for the longest values
+#: (25 bytes each), is this many rows', and a chunk's text is held at its own size.
+PIECE = 1024
+
+
+def format_rows(columns: list, start: int, stop: int) -> list:
+    """CSV text (a list of ``bytes``, in order) of rows ``start:stop`` of equal-length float64
+    ``columns``, :data:`PIECE` rows at a time: the chunk's text at its length, not at the
+    longest text its values could have, nor beside a float copy of the chunk (issue 25)."""
+    pieces = []
+    block = out = None
+    for lo in range(start, stop, PIECE):
+        hi = min(lo + PIECE, stop)
+        if block is None or block.shape[1] != hi - lo:
+            block = out = None  # not beside the next ones
+            block = np.empty((len(columns), hi - lo), dtype=np.float64)
+            out = np.empty((hi - lo) * len(columns) * (_WIDTH + 1) + 1, dtype=np.uint8)
+        for c, column in enumerate(columns):
+            block[c] = column[lo:hi]
+        pieces.append(out[: _rows(block.view(np.uint64), out)].tobytes())
+    return pieces
 
 
 class RowWriter:
@@ -353,7 +367,7 @@ class RowWriter:
 
     def _write_next(self) -> None:
         future, rows = self._pending.pop(0)
-        self.handle.write(future.result())
+        self.handle.writelines(future.result())
         self._written += rows
         if self._progress is not None:  # rows written of ``rows`` (a chunk at a time)
             self._progress(self._written, self._rows)
