@@ -328,32 +328,13 @@ def _rows(bits, out):
     return pos
 
 
-#: Rows formatted at a time within a chunk shorter than :data:`CHUNK` (a short table's, or a
-#: table's last): the text buffer, sized for the longest values (25 bytes each), is this many
-#: rows', and the chunk's text is held at its own size. A whole chunk is formatted at once
-#: (its text is not copied again: the writer's speed; its buffers are of a fixed size).
-PIECE = 1024
-
-
-def format_rows(columns: list, start: int, stop: int) -> list:
-    """CSV text (a list of bytes-like pieces, in order) of rows ``start:stop`` of equal-length
-    float64 ``columns``: at once if they are :data:`CHUNK` rows or more, else :data:`PIECE`
-    rows at a time, the text kept at its length, not at the longest text its values could
-    have, nor beside a float copy of the rows (issue 25: a short table is one chunk)."""
-    pieces = []
-    block = out = None
-    piece = stop - start if stop - start >= CHUNK else PIECE
-    for lo in range(start, stop, piece):
-        hi = min(lo + piece, stop)
-        if block is None or block.shape[1] != hi - lo:
-            block = out = None  # not beside the next ones
-            block = np.empty((len(columns), hi - lo), dtype=np.float64)
-            out = np.empty((hi - lo) * len(columns) * (_WIDTH + 1) + 1, dtype=np.uint8)
-        for c, column in enumerate(columns):
-            block[c] = column[lo:hi]
-        text = out[: _rows(block.view(np.uint64), out)]
-        pieces.append(text if piece == stop - start else text.tobytes())
-    return pieces
+def format_rows(columns: list, start: int, stop: int) -> np.ndarray:
+    """CSV text (bytes as uint8) of rows ``start:stop`` of equal-length float64 ``columns``."""
+    block = np.empty((len(columns), stop - start), dtype=np.float64)
+    for c, column in enumerate(columns):
+        block[c] = column[start:stop]
+    out = np.empty((stop - start) * len(columns) * (_WIDTH + 1) + 1, dtype=np.uint8)
+    return out[: _rows(block.view(np.uint64), out)]
 
 
 class RowWriter:
@@ -372,7 +353,7 @@ class RowWriter:
 
     def _write_next(self) -> None:
         future, rows = self._pending.pop(0)
-        self.handle.writelines(future.result())
+        self.handle.write(future.result())
         self._written += rows
         if self._progress is not None:  # rows written of ``rows`` (a chunk at a time)
             self._progress(self._written, self._rows)

@@ -4,7 +4,6 @@ the regression had before (written out below as the reference)."""
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
@@ -12,9 +11,6 @@ import pytest
 from scipy import signal
 
 from hpdob.identification._lean import (
-    BLOCK,
-    MIN_BLOCK,
-    block_size,
     decimated_at,
     filtfilt,
     gradient_block,
@@ -26,8 +22,6 @@ from hpdob.identification._regression import (
     REST_SPEED_FRACTION,
     build_regression,
     differentiate,
-    filtered_velocity,
-    filtered_velocity_blocks,
     instrument_rows,
     resolve_settings,
     rows_inside_border,
@@ -81,30 +75,18 @@ def test_gradient_in_place_and_in_blocks_is_numpy_gradient(n, block):
         assert same_bits(gradient_block(x, lo, hi, 1e-3), reference[lo:hi])
 
 
-@pytest.mark.parametrize(
-    ("n", "block"),
-    [(24_841, MIN_BLOCK), (100, MIN_BLOCK), (100_000, 12_500), (10 * BLOCK, BLOCK), (5, 7)],
-)
-def test_block_size_cuts_a_short_signal_into_parts(n, block):
-    """A signal shorter than the library's block is worked through in eighths (at least
-    MIN_BLOCK samples), not as one block of its whole length (issue 25: the EMPS log)."""
-    assert block_size(n, 7 if n == 5 else None) == block
-
-
-@pytest.mark.parametrize("n", [64, 3001, 5000, 20001])
-def test_welch_by_segment_is_scipy_welch_bit_for_bit(n):
-    """Whole, read as views, and read as new arrays (which it detrends in place); odd and
-    even segment lengths."""
+@pytest.mark.parametrize("n", [64, 5000, 20001])
+@pytest.mark.parametrize("segments", [1, 3, 64])
+def test_welch_in_segments_is_scipy_welch_bit_for_bit(n, segments):
     x = np.cumsum(np.random.default_rng(n).standard_normal(n))
-    x.flags.writeable = False  # a view read is never written
     for window, nperseg in ((None, min(n, 256)), ("blackmanharris", min(n, 4096))):
         want = signal.welch(
             x, fs=1e3, nperseg=nperseg, **({} if window is None else {"window": window})
         )
-        got = welch(x, fs=1e3, nperseg=nperseg, window=window)
-        views = welch((n, lambda lo, hi: x[lo:hi]), fs=1e3, nperseg=nperseg, window=window)
-        new = welch((n, lambda lo, hi: x[lo:hi] - 0.0), fs=1e3, nperseg=nperseg, window=window)
-        for f, p in (got, views, new):
+        got = welch(x, fs=1e3, nperseg=nperseg, window=window, segments=segments)
+        read = welch((n, lambda lo, hi: x[lo:hi]), fs=1e3, nperseg=nperseg, window=window,
+                     segments=segments)  # fmt: skip
+        for f, p in (got, read):
             assert same_bits(f, want[0]) and same_bits(p, want[1])
 
 
@@ -218,26 +200,3 @@ def test_differentiate_is_the_filtered_kinematics_bit_for_bit():
     got = differentiate(theta, 1e-3, cutoff=25.0)
     assert same_bits(got[0], velocity) and same_bits(got[1], acceleration)
     assert math.isfinite(float(got[1].sum()))
-
-
-@pytest.mark.parametrize(("n", "block"), [(24_841, None), (3000, 256), (3073, 256), (3074, 256)])
-def test_filtered_velocity_in_blocks_is_the_whole_one_bit_for_bit(monkeypatch, n, block):
-    """Blocks tiling the log from its end, a last block of one or two samples among them
-    (3073 = 12 x 256 + 1), each equal to the whole filtered velocity's."""
-    from hpdob.identification import _lean
-
-    if block is not None:
-        monkeypatch.setattr(_lean, "BLOCK", block)
-        monkeypatch.setattr(_lean, "MIN_BLOCK", block)
-    theta, _ = _log(n)
-    theta.flags.writeable = False  # read, never written
-    settings = resolve_settings(1e-3, cutoff=25.0, decimation=1, border=0)
-    whole = filtered_velocity(theta, settings)
-    got = np.full(n, np.nan)
-    ends = []
-    for lo, hi, v in filtered_velocity_blocks(theta, settings):
-        got[lo:hi] = v
-        ends.append((lo, hi))
-    assert same_bits(got, whole)
-    assert ends[0][1] == n and ends[-1][0] == 0 and len(ends) > 2
-    assert all(later[0] == earlier[1] for later, earlier in itertools.pairwise(ends))

@@ -17,9 +17,7 @@ import numpy as np
 
 __all__ = [
     "BLOCK",
-    "MIN_BLOCK",
-    "PARTS",
-    "block_size",
+    "SEGMENTS",
     "decimated_at",
     "filtfilt",
     "filtfilt_blocks",
@@ -31,22 +29,8 @@ __all__ = [
 
 #: Samples per block (0.5 MB of float64); read when a function runs (None: this).
 BLOCK = 1 << 16
-#: A signal shorter than ``PARTS`` blocks is cut into this many, down to :data:`MIN_BLOCK`
-#: samples: a block of a signal shorter than ``BLOCK`` would otherwise be the whole signal,
-#: and the few blocks a function holds at a time several copies of it (the EMPS log, 24 841
-#: samples, issue 25). Longer signals keep ``BLOCK``, the speed of the long logs.
-PARTS = 8
-#: The smallest block :data:`PARTS` makes [samples] (32 kB of float64).
-MIN_BLOCK = 4096
-
-
-def block_size(n: int, block: int | None = None) -> int:
-    """The block [samples] in which to work through a signal of ``n`` samples: ``block`` if
-    given, else :data:`BLOCK` or ``ceil(n / PARTS)``, at least :data:`MIN_BLOCK`, if that is
-    smaller. The arithmetic does not depend on it (bit for bit at any size)."""
-    if block is not None:
-        return block
-    return min(BLOCK, max(MIN_BLOCK, -(-n // PARTS)))
+#: Segments of :func:`welch`'s spectrogram computed at a time (None: this).
+SEGMENTS = 64
 
 
 def pad_length(sos: np.ndarray) -> int:
@@ -70,7 +54,7 @@ def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
     """
     from scipy import signal
 
-    block = block_size(n, block)
+    block = BLOCK if block is None else block
     edge = pad_length(sos)
     if n <= edge:
         raise ValueError(
@@ -92,21 +76,15 @@ def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
     zi = signal.sosfilt_zi(sos)
     state = zi * left[:1]
     starts = []
-    # each block let go before the next is filtered (the few blocks held at once would
-    # otherwise be two of each kind); the callers let go of the yielded one
     for lo, hi in pieces:
         starts.append(state)
         y, state = signal.sosfilt(sos, get(lo, hi), zi=state)
-        last = y[-1:].copy()
-        del y
-    back = zi * last
+    back = zi * y[-1:]
     for (lo, hi), start in zip(reversed(pieces), reversed(starts), strict=True):
         y, _ = signal.sosfilt(sos, get(lo, hi), zi=start)  # the forward pass again
         b, back = signal.sosfilt(sos, y[::-1], zi=back)
-        del y
         if 0 <= lo < n:
             yield lo, hi, b[::-1]
-        del b
 
 
 def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=None):
@@ -117,15 +95,14 @@ def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=No
     out = np.empty(x.size) if out is None else out
     for lo, hi, y in filtfilt_blocks(sos, x.size, lambda a, b: x[a:b], block):
         out[lo:hi] = y
-        del y  # not beside the next block
     return out
 
 
 def gradient_inplace(f: np.ndarray, dx: float, block: int | None = None) -> np.ndarray:
     """Overwrite ``f`` (1-D float64, at least 2 samples) with ``np.gradient(f, dx)``, bit for
     bit (central differences inside, one-sided at the ends), holding a block beside it."""
+    block = BLOCK if block is None else block
     n = f.size
-    block = block_size(n, block)
     first = (f[1] - f[0]) / dx
     last = (f[-1] - f[-2]) / dx
     twice = 2.0 * dx
@@ -166,28 +143,26 @@ def decimated_at(sos: np.ndarray, n: int, read, samples: np.ndarray, block: int 
     for lo, hi, y in filtfilt_blocks(sos, n, read, block):
         a, b = np.searchsorted(samples, (lo, hi))
         out[a:b] = y[samples[a:b] - lo]
-        del y  # not beside the next block
     return out
 
 
-def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None):
+def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int | None = None):
     """``scipy.signal.welch(x, fs=fs, window=window, nperseg=nperseg)`` of a 1-D float64
     array (its other defaults: half-overlapping segments, constant detrend, one-sided density,
-    mean), bit for bit, one segment at a time: it holds the segments' periodograms (about
-    ``x.size`` values) and one segment's detrended, windowed and transformed copies, not those
-    of every segment, nor ``ShortTimeFFT.spectrogram``'s further copies of a segment (padded,
-    its complex spectrum stored, squared parts; issue 25).
+    mean), bit for bit, with the spectrogram computed ``segments`` segments at a time: it holds
+    the segments' periodograms (about ``x.size`` values) instead of their detrended, windowed
+    and transformed copies as well (four times as much).
 
     ``x`` may also be ``(n, read)``: the signal's length and ``read(lo, hi)`` returning
-    ``x[lo:hi]`` as float64, called for the samples of one segment at a time (the signal
-    itself is then never held); a new array it returns that owns its data (not a view) is
-    detrended in place. ``window`` None is ``welch``'s default window. ``nperseg`` must not
-    exceed the signal's length.
+    ``x[lo:hi]`` as float64, called for the samples of a few segments at a time (the signal
+    itself is then never held). ``window`` None is ``welch``'s default window. ``nperseg``
+    must not exceed the signal's length.
     """
     import inspect
 
-    from scipy import fft, signal
+    from scipy import signal
 
+    segments = SEGMENTS if segments is None else segments
     if window is None:
         window = inspect.signature(signal.welch).parameters["window"].default
     if isinstance(x, tuple):
@@ -201,21 +176,19 @@ def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None):
                               fft_mode="onesided", mfft=nperseg, scale_to="psd",
                               phase_shift=None)  # fmt: skip
     count = (n - noverlap) // sft.hop  # as scipy.signal.csd
-    window = sft.win  # scaled to a density, as the spectrogram applies it
-    power = np.empty((sft.f_pts, count))
-    for p in range(count):
-        # what ShortTimeFFT.spectrogram(x, x, detr="constant", k_offset=nperseg // 2)
-        # computes for segment p, x[p hop : p hop + nperseg] (no padding: none hangs over an
-        # end), in the same operations: x - mean(x), times the window, rfft, |.|^2
-        segment = read(p * sft.hop, p * sft.hop + nperseg)
-        mine = segment.flags.owndata and segment.flags.writeable
-        segment = np.subtract(segment, np.mean(segment), out=segment if mine else None)
-        segment *= window
-        spectrum = fft.rfft(segment, n=nperseg)
-        del segment
-        np.square(spectrum.real, out=power[:, p])
-        power[:, p] += np.square(spectrum.imag)
-        del spectrum
+    power = None
+    for a in range(0, count, segments):
+        b = min(a + segments, count)
+        # segment p covers x[p hop : p hop + nperseg] (k_offset: none hangs over an end);
+        # those of a to b from their samples alone, the same numbers
+        lo = a * sft.hop
+        part = read(lo, (b - 1) * sft.hop + nperseg)
+        block = sft.spectrogram(part, part, detr="constant", p0=0, p1=b - a,
+                                k_offset=nperseg // 2)  # fmt: skip
+        del part
+        if power is None:
+            power = np.empty((block.shape[0], count))
+        power[:, a:b] = block
     # csd's one-sided doubling and its mean over the segments, on the same layout
     power = np.moveaxis(power, 0, -1)
     power[..., 1 : -1 if sft.mfft % 2 == 0 else None] *= 2

@@ -29,14 +29,7 @@ import numpy as np
 
 from .._validation import ParameterValueError, as_int, nonnegative, positive
 from . import _lean
-from ._lean import (
-    decimated_at,
-    filtfilt,
-    filtfilt_blocks,
-    gradient_block,
-    gradient_inplace,
-    welch,
-)
+from ._lean import decimated_at, filtfilt, gradient_block, gradient_inplace, welch
 
 __all__ = [
     "MIN_ROWS",
@@ -98,7 +91,7 @@ def _whitened_psd(theta: np.ndarray, Ts: float):
     """Frequencies [Hz] and PSD of the position [unit^2/Hz] estimated from its second
     difference (Welch) divided by the difference's gain ``(2 sin(pi f Ts))^4``: the window's
     leakage from the large slow motion would otherwise mask the noise floor."""
-    n = max(theta.size - 2, 0)  # np.diff(theta, 2), read a segment at a time
+    n = max(theta.size - 2, 0)  # np.diff(theta, 2), read a few segments at a time
 
     def second(lo: int, hi: int) -> np.ndarray:
         return np.diff(theta[lo : hi + 2], 2)
@@ -118,9 +111,8 @@ def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
     median PSD of the top quarter of the band, where a motion system's position is noise.
     """
     q = math.inf  # the smallest positive |step|, block by block (a minimum is exact)
-    block = _lean.block_size(theta.size)
-    for lo in range(0, theta.size - 1, block):
-        steps = np.abs(np.diff(theta[lo : lo + block + 1]))
+    for lo in range(0, theta.size - 1, _lean.BLOCK):
+        steps = np.abs(np.diff(theta[lo : lo + _lean.BLOCK + 1]))
         steps = steps[steps > 0]
         if steps.size:
             q = min(q, float(steps.min()))
@@ -232,34 +224,6 @@ def filtered_velocity(theta: np.ndarray, settings: Settings, *, overwrite: bool 
     return gradient_inplace(filtfilt(sos, theta, out=theta if overwrite else None), settings.Ts)
 
 
-def filtered_velocity_blocks(theta: np.ndarray, settings: Settings):
-    """:func:`filtered_velocity` of ``theta`` in blocks, bit for bit, holding blocks only.
-
-    Yields ``(lo, hi, v)`` with ``v`` equal to ``filtered_velocity(theta, settings)[lo:hi]``,
-    the blocks tiling ``[0, theta.size)`` from the last to the first. Each block of the
-    filtered position (:func:`._lean.filtfilt_blocks`, from the end) is differenced with the
-    two samples after it, kept from the block before: ``np.gradient``'s central differences
-    inside and one-sided ones at the ends, in the same operations as
-    :func:`._lean.gradient_inplace`."""
-    n, dx = theta.size, settings.Ts
-    twice = 2.0 * dx
-    after = theta[:0]  # the filtered position's first samples of the block yielded before
-    for lo, hi, y in filtfilt_blocks(velocity_filter(settings), n, lambda a, b: theta[a:b]):
-        f = np.concatenate([y, after[: min(hi + 2, n) - hi]])  # f[lo : hi + 2] or to the end
-        after = f[:2].copy()
-        start, stop = (0 if lo == 0 else lo + 1), min(hi + 1, n)  # velocity at these
-        v = np.empty(stop - start)
-        a, b = max(start, 1), min(stop, n - 1)  # central differences
-        v[a - start : b - start] = (f[a + 1 - lo : b + 1 - lo] - f[a - 1 - lo : b - 1 - lo]) / twice
-        if start == 0:
-            v[0] = (f[1] - f[0]) / dx
-        if stop == n and stop > start:  # (a last block of one sample has none)
-            v[-1] = (f[n - 1 - lo] - f[n - 2 - lo]) / dx
-        del f
-        yield start, stop, v
-        del v
-
-
 def _decimate_sos(factor: int) -> np.ndarray:
     """The parallel filter: MATLAB's and scipy's ``decimate`` default (Chebyshev type I,
     order 8, 0.05 dB ripple, cut-off 0.8/factor of Nyquist), in second-order sections."""
@@ -352,20 +316,16 @@ def instrument_rows(theta: np.ndarray, regression: Regression, settings: Setting
 
 def _largest_speed(velocity: np.ndarray) -> float:
     """``max(|velocity|)``, block by block (a maximum is exact in any order)."""
-    block = _lean.block_size(velocity.size)
-    return max(float(np.max(np.abs(velocity[lo : lo + block])))
-               for lo in range(0, velocity.size, block))  # fmt: skip
+    return max(float(np.max(np.abs(velocity[lo : lo + _lean.BLOCK])))
+               for lo in range(0, velocity.size, _lean.BLOCK))  # fmt: skip
 
 
 def near_slow(velocity: np.ndarray, index: np.ndarray, speed: float, half: int) -> np.ndarray:
     """Whether ``|velocity| < speed`` somewhere within ``half`` samples of each of ``index``
     (the decimation filter's main lobe around a row), counted block by block of rows."""
     n, out = velocity.size, np.zeros(index.size, dtype=bool)
-    # the rows of about a block of samples at a time (a row's window adds 2 half)
-    step = (int(index[-1]) - int(index[0])) // (index.size - 1) if index.size > 1 else 1
-    block = max(1, _lean.block_size(n) // max(step, 1))
-    for a in range(0, index.size, block):
-        rows = index[a : a + block]
+    for a in range(0, index.size, _lean.BLOCK):
+        rows = index[a : a + _lean.BLOCK]
         lo, hi = max(int(rows[0]) - half, 0), min(int(rows[-1]) + half + 1, n)
         slow = np.abs(velocity[lo:hi]) < speed
         count = np.concatenate([[0], np.cumsum(slow)])
@@ -436,9 +396,10 @@ def rest_rows_mask(velocity: np.ndarray, index: np.ndarray, length: int, margin:
     n = velocity.size
     rest_speed = REST_SPEED_FRACTION * float(np.abs(velocity[index]).max()) if index.size else 0.0
     slow = np.empty(n, dtype=bool)
-    block = _lean.block_size(n)
-    for lo in range(0, n, block):
-        np.less(np.abs(velocity[lo : lo + block]), rest_speed, out=slow[lo : lo + block])
+    for lo in range(0, n, _lean.BLOCK):
+        np.less(
+            np.abs(velocity[lo : lo + _lean.BLOCK]), rest_speed, out=slow[lo : lo + _lean.BLOCK]
+        )
     # the edges of the stretches of consecutive slow samples: where [0, slow, 0] changes
     edges = np.flatnonzero(slow[1:] != slow[:-1]) + 1
     edges = np.concatenate([[0] if n and slow[0] else [], edges, [n] if n and slow[-1] else []])

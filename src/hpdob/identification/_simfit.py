@@ -21,13 +21,7 @@ import numpy as np
 from .._validation import ParameterValueError, as_real, require_instance
 from ._log import Log
 from ._loop import FeedbackLoop, run_simulation
-from ._regression import (
-    PARAMETERS,
-    Settings,
-    filtered_velocity,
-    filtered_velocity_blocks,
-    resolve_settings,
-)
+from ._regression import PARAMETERS, Settings, filtered_velocity, resolve_settings
 
 __all__ = ["MIN_FIT", "SimulationFit", "Validation", "nrmse_fit", "simulate_fit", "validate"]
 
@@ -45,11 +39,7 @@ def nrmse_fit(measured: np.ndarray, simulated: np.ndarray, *, spread=None, out=N
     numbers as numpy's temporary)."""
     if spread is None:
         spread = float(np.linalg.norm(measured - measured.mean()))
-    return _percent(float(np.linalg.norm(np.subtract(measured, simulated, out=out))), spread)
-
-
-def _percent(error: float, spread: float) -> float:
-    """:func:`nrmse_fit` from ``||y - y_hat||`` and ``||y - mean(y)||``."""
+    error = float(np.linalg.norm(np.subtract(measured, simulated, out=out)))
     if spread == 0.0:
         return 100.0 if error == 0.0 else -math.inf
     return 100.0 * (1.0 - error / spread)
@@ -162,13 +152,9 @@ def _fit_numbers(parameters, t, theta, u, loop, settings, simulated) -> Simulati
     # the velocity of the simulated position, over it unless the caller keeps it
     velocity_simulated = filtered_velocity(position, settings, overwrite=not kept)
     del position
-    # nrmse_fit(the log's velocity, velocity_simulated, out=velocity_simulated), the log's
-    # velocity a block at a time (not a third array of the log's length): the same
-    # differences, the same norm of the same array
-    for lo, hi, velocity in filtered_velocity_blocks(theta, settings):
-        np.subtract(velocity, velocity_simulated[lo:hi], out=velocity_simulated[lo:hi])
-        del velocity
-    velocity_fit = _percent(float(np.linalg.norm(velocity_simulated)), velocity_spread)
+    velocity = filtered_velocity(theta, settings)
+    velocity_fit = nrmse_fit(velocity, velocity_simulated, spread=velocity_spread,
+                             out=velocity_simulated)  # fmt: skip
     return SimulationFit(t=t, theta=theta, theta_simulated=None, velocity=None,
                          velocity_simulated=None, u_simulated=None, closed_loop=closed,
                          position_fit=position_fit, velocity_fit=velocity_fit)  # fmt: skip
