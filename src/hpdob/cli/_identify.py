@@ -385,14 +385,17 @@ def _run(args: argparse.Namespace) -> int:
             raise CLIError(cli_words(str(err))) from None
         finally:
             stages.end()
-    first = logs[0]
-    out = args.out or Path("hpdob-results") / f"identify-{_stem(first)}"
-    report = result.to_dict()
-    report["logs"] = [
+    out = args.out or Path("hpdob-results") / f"identify-{_stem(logs[0])}"
+    described = [
         {"source": log.source, "names": dict(log.names), "input_gain": log.input_gain,
          "samples": len(log), "Ts": log.Ts}
         for log in logs
     ]  # fmt: skip
+    # the result holds what it needs of the logs (their time and position, shared): the
+    # rest not beside the outputs (issue 25)
+    del logs, loops
+    report = result.to_dict()
+    report["logs"] = described
     report["log"] = report["logs"][0]
     if loop_source is not None:
         report["loop"] = {"reference_velocity": loop_source}
@@ -410,15 +413,15 @@ def _run(args: argparse.Namespace) -> int:
         if not args.no_plot:
             files.plot(
                 "identification.png",
-                lambda: result.plot(title=f"{result.method.upper()} on {first.source}"),
+                lambda: result.plot(title=f"{result.method.upper()} on {described[0]['source']}"),
             )
             written.append("identification.png")
         if args.validate is not None:
             check = _validate(args, result, files)
             written += ["validation.json"] + ([] if args.no_plot else ["validation.png"])
         files.write_json("identification.json", report)
-    for log in logs:
-        print(f"{log.source}: {len(log)} samples, Ts = {log.Ts:g} s")
+    for log in described:
+        print(f"{log['source']}: {log['samples']} samples, Ts = {log['Ts']:g} s")
     if loop_source is not None:
         print(f"loop reference velocity: {loop_source}")
     print(cli_words(result.summary()))
