@@ -151,6 +151,7 @@ def sensitivity(runs, layout, method, own_sign, solution, border_given, max_iter
         except (ParameterValueError, np.linalg.LinAlgError):
             continue
         moves[factor] = (other.estimate - solution.estimate) / np.where(std > 0, std, np.inf)
+        del copies, other  # their regressions: not beside the next factor's
     if report is not None:
         report(len(factors), len(factors))
     return moves
