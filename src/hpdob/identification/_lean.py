@@ -76,15 +76,21 @@ def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
     zi = signal.sosfilt_zi(sos)
     state = zi * left[:1]
     starts = []
+    # each block let go before the next is filtered (the few blocks held at once would
+    # otherwise be two of each kind); the callers let go of the yielded one
     for lo, hi in pieces:
         starts.append(state)
         y, state = signal.sosfilt(sos, get(lo, hi), zi=state)
-    back = zi * y[-1:]
+        last = y[-1:].copy()
+        del y
+    back = zi * last
     for (lo, hi), start in zip(reversed(pieces), reversed(starts), strict=True):
         y, _ = signal.sosfilt(sos, get(lo, hi), zi=start)  # the forward pass again
         b, back = signal.sosfilt(sos, y[::-1], zi=back)
+        del y
         if 0 <= lo < n:
             yield lo, hi, b[::-1]
+        del b
 
 
 def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=None):
@@ -95,6 +101,7 @@ def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=No
     out = np.empty(x.size) if out is None else out
     for lo, hi, y in filtfilt_blocks(sos, x.size, lambda a, b: x[a:b], block):
         out[lo:hi] = y
+        del y  # not beside the next block
     return out
 
 
@@ -143,6 +150,7 @@ def decimated_at(sos: np.ndarray, n: int, read, samples: np.ndarray, block: int 
     for lo, hi, y in filtfilt_blocks(sos, n, read, block):
         a, b = np.searchsorted(samples, (lo, hi))
         out[a:b] = y[samples[a:b] - lo]
+        del y  # not beside the next block
     return out
 
 
