@@ -54,7 +54,6 @@ def small_blocks(monkeypatch):
     from hpdob.identification import _lean, _log_file, _readers
 
     monkeypatch.setattr(_lean, "BLOCK", 1024)
-    monkeypatch.setattr(_lean, "SEGMENTS", 1)
     monkeypatch.setattr(_log_file, "BLOCK", 2048)
     monkeypatch.setattr(_readers, "PARQUET_BLOCK", 2048)
     monkeypatch.setattr(_csv_floats, "CHUNK", 1024)

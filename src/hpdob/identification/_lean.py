@@ -17,7 +17,6 @@ import numpy as np
 
 __all__ = [
     "BLOCK",
-    "SEGMENTS",
     "decimated_at",
     "filtfilt",
     "filtfilt_blocks",
@@ -29,8 +28,6 @@ __all__ = [
 
 #: Samples per block (0.5 MB of float64); read when a function runs (None: this).
 BLOCK = 1 << 16
-#: Segments of :func:`welch`'s spectrogram computed at a time (None: this).
-SEGMENTS = 64
 
 
 def pad_length(sos: np.ndarray) -> int:
@@ -154,23 +151,24 @@ def decimated_at(sos: np.ndarray, n: int, read, samples: np.ndarray, block: int 
     return out
 
 
-def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int | None = None):
+def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None):
     """``scipy.signal.welch(x, fs=fs, window=window, nperseg=nperseg)`` of a 1-D float64
     array (its other defaults: half-overlapping segments, constant detrend, one-sided density,
-    mean), bit for bit, with the spectrogram computed ``segments`` segments at a time: it holds
-    the segments' periodograms (about ``x.size`` values) instead of their detrended, windowed
-    and transformed copies as well (four times as much).
+    mean), bit for bit, one segment at a time: it holds the segments' periodograms (about
+    ``x.size`` values) and one segment's detrended, windowed and transformed copies, not those
+    of every segment, nor ``ShortTimeFFT.spectrogram``'s further copies of a segment (padded,
+    its complex spectrum stored, squared parts; issue 25).
 
     ``x`` may also be ``(n, read)``: the signal's length and ``read(lo, hi)`` returning
-    ``x[lo:hi]`` as float64, called for the samples of a few segments at a time (the signal
-    itself is then never held). ``window`` None is ``welch``'s default window. ``nperseg``
-    must not exceed the signal's length.
+    ``x[lo:hi]`` as float64, called for the samples of one segment at a time (the signal
+    itself is then never held); a new array it returns that owns its data (not a view) is
+    detrended in place. ``window`` None is ``welch``'s default window. ``nperseg`` must not
+    exceed the signal's length.
     """
     import inspect
 
-    from scipy import signal
+    from scipy import fft, signal
 
-    segments = SEGMENTS if segments is None else segments
     if window is None:
         window = inspect.signature(signal.welch).parameters["window"].default
     if isinstance(x, tuple):
@@ -184,19 +182,21 @@ def welch(x: np.ndarray, *, fs: float, nperseg: int, window=None, segments: int 
                               fft_mode="onesided", mfft=nperseg, scale_to="psd",
                               phase_shift=None)  # fmt: skip
     count = (n - noverlap) // sft.hop  # as scipy.signal.csd
-    power = None
-    for a in range(0, count, segments):
-        b = min(a + segments, count)
-        # segment p covers x[p hop : p hop + nperseg] (k_offset: none hangs over an end);
-        # those of a to b from their samples alone, the same numbers
-        lo = a * sft.hop
-        part = read(lo, (b - 1) * sft.hop + nperseg)
-        block = sft.spectrogram(part, part, detr="constant", p0=0, p1=b - a,
-                                k_offset=nperseg // 2)  # fmt: skip
-        del part
-        if power is None:
-            power = np.empty((block.shape[0], count))
-        power[:, a:b] = block
+    window = sft.win  # scaled to a density, as the spectrogram applies it
+    power = np.empty((sft.f_pts, count))
+    for p in range(count):
+        # what ShortTimeFFT.spectrogram(x, x, detr="constant", k_offset=nperseg // 2)
+        # computes for segment p, x[p hop : p hop + nperseg] (no padding: none hangs over an
+        # end), in the same operations: x - mean(x), times the window, rfft, |.|^2
+        segment = read(p * sft.hop, p * sft.hop + nperseg)
+        mine = segment.flags.owndata and segment.flags.writeable
+        segment = np.subtract(segment, np.mean(segment), out=segment if mine else None)
+        segment *= window
+        spectrum = fft.rfft(segment, n=nperseg)
+        del segment
+        np.square(spectrum.real, out=power[:, p])
+        power[:, p] += np.square(spectrum.imag)
+        del spectrum
     # csd's one-sided doubling and its mean over the segments, on the same layout
     power = np.moveaxis(power, 0, -1)
     power[..., 1 : -1 if sft.mfft % 2 == 0 else None] *= 2

@@ -91,7 +91,7 @@ def _whitened_psd(theta: np.ndarray, Ts: float):
     """Frequencies [Hz] and PSD of the position [unit^2/Hz] estimated from its second
     difference (Welch) divided by the difference's gain ``(2 sin(pi f Ts))^4``: the window's
     leakage from the large slow motion would otherwise mask the noise floor."""
-    n = max(theta.size - 2, 0)  # np.diff(theta, 2), read a few segments at a time
+    n = max(theta.size - 2, 0)  # np.diff(theta, 2), read a segment at a time
 
     def second(lo: int, hi: int) -> np.ndarray:
         return np.diff(theta[lo : hi + 2], 2)

@@ -66,7 +66,7 @@ def excitation_bandwidth(run) -> float:
     signal bandwidth (above it the input is the loop's response to the encoder's noise, not
     excitation: a PD's input on a coarse encoder)."""
     u, mean = run.u, np.mean(run.u)
-    # scipy's welch of u - mean(u), bit for bit, without that array: a few segments at a time
+    # scipy's welch of u - mean(u), bit for bit, without that array: a segment at a time
     f, p = welch((u.size, lambda lo, hi: u[lo:hi] - mean), fs=1.0 / run.Ts,
                  nperseg=min(u.size, 8192))  # fmt: skip
     power = np.cumsum(p)
