@@ -169,34 +169,3 @@ def test_identify_of_a_log_read_whole_holds_at_most_two_copies(tmp_path, suffix)
     copied again; of a MATLAB file only the variables asked for are loaded (the file holds
     the reference as well; three columns read)."""
     assert copies(tmp_path, IDENTIFY, {"log": (suffix, 0, 1.0)}, 3) <= TWO_COPIES
-
-
-def test_identify_through_the_loop_holds_at_most_two_copies(tmp_path):
-    """--method idim-iv through the logged loop, a PD in torque units with velocity feedback
-    only (as the EMPS controller of --emps): four columns read."""
-    w = 2 * np.pi * 5.0
-    command = [*IDENTIFY, "--reference", "r", "--method", "idim-iv",
-               "--loop-kp", f"{J * w * w!r}", "--loop-kd", f"{J * 2 * w!r}"]  # fmt: skip
-    assert copies(tmp_path, command, {"log": (".parquet", 0, 1.0)}, 4) <= TWO_COPIES
-
-
-def test_identify_several_logs_holds_at_most_two_copies(tmp_path):
-    """Two logs, one moving each way, with a shared offset: copies of both logs."""
-    command = ["identify", "{log}", "{other}", "--time", "t", "--position", "q", "--input", "u",
-               "--offsets", "shared"]  # fmt: skip
-    files = {"log": (".parquet", 0, 1.0), "other": (".parquet", 1, -1.0)}
-    assert copies(tmp_path, command, files, 3) <= TWO_COPIES
-
-
-def test_identify_runs_of_one_file_holds_at_most_two_copies(tmp_path):
-    """--run: one file holding two runs, split by its run column (four columns read)."""
-    command = [*IDENTIFY, "--run", "run"]
-    command[1] = "{runs}"
-    assert copies(tmp_path, command, {"runs": (".parquet", 0, 1.0)}, 4) <= TWO_COPIES
-
-
-def test_identify_with_validation_holds_at_most_two_copies(tmp_path):
-    """--validate OTHER: the identified model simulated on a second log (both logs count)."""
-    command = [*IDENTIFY, "--method", "idim-ls", "--validate", "{other}"]
-    files = {"log": (".parquet", 0, 1.0), "other": (".parquet", 1, 1.0)}
-    assert copies(tmp_path, command, files, 3) <= TWO_COPIES
