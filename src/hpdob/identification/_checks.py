@@ -19,6 +19,7 @@ __all__ = [
     "non_finite",
     "sample_vector",
     "sample_view",
+    "shareable",
     "uniform_steps",
     "units",
 ]
@@ -90,6 +91,12 @@ def immutable(array) -> bool:
     return isinstance(array, bytes) or type(array).__module__.split(".")[0] == "pyarrow"
 
 
+def shareable(values) -> bool:
+    """Whether ``values`` is an :func:`immutable` float64 ndarray, which a result or a log may
+    hold as it is instead of a copy."""
+    return type(values) is np.ndarray and values.dtype == np.float64 and immutable(values)
+
+
 def sample_vector(values, name: str, what: str) -> np.ndarray:
     """``values`` as a new 1-D float array of finite samples (an :func:`immutable` float64
     vector is returned as it is: nobody can change it).
@@ -101,10 +108,7 @@ def sample_vector(values, name: str, what: str) -> np.ndarray:
     ParameterValueError
         If it is not 1-D or holds a NaN or infinite sample (the first one is named).
     """
-    if type(values) is np.ndarray and values.dtype == np.float64 and immutable(values):
-        array = values
-    else:
-        array = numeric_array(values, name, what)
+    array = values if shareable(values) else numeric_array(values, name, what)
     if array.ndim == 2 and 1 in array.shape:  # a MATLAB column or row vector
         array = array.ravel()
     if array.ndim != 1:

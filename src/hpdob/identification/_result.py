@@ -12,7 +12,7 @@ import numpy as np
 from .._files import write_json_atomic
 from .._table import columns_to_csv, columns_to_pandas
 from .._validation import ParameterValueError, positive, readonly
-from ._checks import immutable, units
+from ._checks import shareable, units
 from ._regression import PARAMETERS
 
 __all__ = ["Identification"]
@@ -206,9 +206,7 @@ class Identification:
             value = getattr(self, name)
             # an immutable float64 array (the log's columns, a simulated trace) is shared:
             # nobody can change it, and a log's traces are not held twice
-            if value is not None and not (
-                type(value) is np.ndarray and value.dtype == np.float64 and immutable(value)
-            ):
+            if value is not None and not shareable(value):
                 object.__setattr__(self, name, readonly(np.array(value, dtype=float)))
         object.__setattr__(self, "settings", types.MappingProxyType(dict(self.settings)))
         if self.simulation is not None:
