@@ -48,15 +48,18 @@ TS, J, B, COULOMB = 1e-3, 1.2e-3, 2e-3, 0.03
 
 @pytest.fixture(autouse=True)
 def small_blocks(monkeypatch):
-    """Blocks far below N0: identify's filters, the estimate's blocks of a log, a Parquet
-    file's batches and the CSV writer's chunks (the same numbers at any size)."""
+    """Blocks well below N0: identify's filters, the estimate's blocks of a log, a Parquet
+    file's batches and the CSV writer's chunks (the same numbers at any size). 4096 samples
+    (8192 for the readers): 1024 measured a slope up to 0.5 higher (more blocks: more small
+    per-block arrays alive) at four times the traced time (tracemalloc hooks every
+    allocation): docs/performance.md, "The memory tests' blocks"."""
     from hpdob import _csv_floats
     from hpdob.identification import _lean, _log_file, _readers
 
-    monkeypatch.setattr(_lean, "BLOCK", 1024)
-    monkeypatch.setattr(_log_file, "BLOCK", 2048)
-    monkeypatch.setattr(_readers, "PARQUET_BLOCK", 2048)
-    monkeypatch.setattr(_csv_floats, "CHUNK", 1024)
+    monkeypatch.setattr(_lean, "BLOCK", 4096)
+    monkeypatch.setattr(_log_file, "BLOCK", 8192)
+    monkeypatch.setattr(_readers, "PARQUET_BLOCK", 8192)
+    monkeypatch.setattr(_csv_floats, "CHUNK", 4096)
 
 
 @functools.cache  # the same logs in every test: made once (read-only arrays)
