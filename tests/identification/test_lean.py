@@ -75,6 +75,27 @@ def test_gradient_in_place_and_in_blocks_is_numpy_gradient(n, block):
         assert same_bits(gradient_block(x, lo, hi, 1e-3), reference[lo:hi])
 
 
+@pytest.mark.parametrize("n", [5000, 100_000])
+def test_gradient_in_place_holds_one_block_of_its_own(n):
+    """Beside ``f``, one block of ``GRADIENT_BLOCK`` samples at most (a short log's gradient
+    held three arrays of its length: the block and the difference's and quotient's
+    temporaries), and the same bits with it as without."""
+    import tracemalloc
+
+    from hpdob.identification import _lean
+
+    x = np.random.default_rng(n).standard_normal(n)
+    reference = np.gradient(x, 1e-3)
+    tracemalloc.start()
+    try:
+        out = gradient_inplace(x, 1e-3)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert same_bits(out, reference)
+    assert peak <= 8 * min(n, _lean.GRADIENT_BLOCK) + 4096
+
+
 @pytest.mark.parametrize("n", [64, 3001, 5000, 20001])
 def test_welch_by_segment_is_scipy_welch_bit_for_bit(n):
     """Whole, read as views, and read as new arrays (which it detrends in place); odd and

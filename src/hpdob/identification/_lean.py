@@ -17,6 +17,7 @@ import numpy as np
 
 __all__ = [
     "BLOCK",
+    "GRADIENT_BLOCK",
     "decimated_at",
     "filtfilt",
     "filtfilt_blocks",
@@ -28,6 +29,9 @@ __all__ = [
 
 #: Samples per block (0.5 MB of float64); read when a function runs (None: this).
 BLOCK = 1 << 16
+#: The gradient's block [samples]: its few numpy calls a block cost nothing against the
+#: arithmetic at this size, and a short log's gradient holds no array of its length.
+GRADIENT_BLOCK = 1 << 13
 
 
 def pad_length(sos: np.ndarray) -> int:
@@ -104,8 +108,9 @@ def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=No
 
 def gradient_inplace(f: np.ndarray, dx: float, block: int | None = None) -> np.ndarray:
     """Overwrite ``f`` (1-D float64, at least 2 samples) with ``np.gradient(f, dx)``, bit for
-    bit (central differences inside, one-sided at the ends), holding a block beside it."""
-    block = BLOCK if block is None else block
+    bit (central differences inside, one-sided at the ends), holding one block beside it
+    (the difference and the quotient are written into it and into ``f``: no temporaries)."""
+    block = GRADIENT_BLOCK if block is None else block
     n = f.size
     first = (f[1] - f[0]) / dx
     last = (f[-1] - f[-2]) / dx
@@ -118,7 +123,8 @@ def gradient_inplace(f: np.ndarray, dx: float, block: int | None = None) -> np.n
         before[0] = previous
         before[1:m] = f[lo : hi - 1]
         previous = f[hi - 1]
-        f[lo:hi] = (f[lo + 1 : hi + 1] - before[:m]) / twice
+        np.subtract(f[lo + 1 : hi + 1], before[:m], out=before[:m])
+        np.divide(before[:m], twice, out=f[lo:hi])
     f[0] = first
     f[-1] = last
     return f
