@@ -7,6 +7,7 @@ import os
 import shutil
 import tempfile
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,6 +24,34 @@ os.environ.pop("HPDOB_AOT", None)
 
 def pytest_unconfigure(config):
     shutil.rmtree(_AOT_FOLDER, ignore_errors=True)
+
+
+#: The suite's longest files (30-110 s of one worker each, ``--durations``, 2026-12-03), run
+#: first: xdist's ``--dist loadfile`` hands files out in the order collected, and one of these
+#: collected last (the site's build is in ``tests/test_docsite.py``) kept one worker busy
+#: while the other had nothing left.
+RUN_FIRST = (
+    "cli/test_cli_memory_logs.py",
+    "cli/test_cli_memory.py",
+    "test_docsite.py",
+    "analysis/test_contact_limit_cycle.py",
+    "analysis/test_contact_deadband.py",
+    "test_every_figure.py",
+)
+_TESTS = Path(__file__).resolve().parent
+
+
+def pytest_collection_modifyitems(session, config, items):
+    rank = {name: i for i, name in enumerate(RUN_FIRST)}
+
+    def first(item):
+        try:
+            name = item.path.resolve().relative_to(_TESTS).as_posix()
+        except ValueError:  # a test outside tests/ (a path given on the command line)
+            return len(RUN_FIRST)
+        return rank.get(name, len(RUN_FIRST))
+
+    items.sort(key=first)  # stable: every file's tests, and the other files, keep their order
 
 
 # The paper's set-up (section IV): Maxon EC 90 flat class motor, Ts = 1 ms.
