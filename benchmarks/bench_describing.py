@@ -21,6 +21,7 @@ results (verdict, amplitude, frequency, levels, radius, frequencies, converged,
 limit_cycles) is compared exactly (NaN equal to NaN).
 
     python benchmarks/bench_describing.py [--repeats 3] [--levels 16] [--reference REV]
+    python benchmarks/bench_describing.py --split   # the current code's time per step
 """
 
 from __future__ import annotations
@@ -114,12 +115,58 @@ def best(function, loop, levels: int, repeats: int):
     return min(times), result
 
 
+def split(loop, levels: int) -> dict:
+    """Seconds of one run of the current code spent in each step of the fixed-point
+    iterations (wall-clock wrappers around the private steps; the DFs are their cores, as
+    the harmonic balance calls them)."""
+    module = importlib.import_module("hpdob.analysis._describing")  # its internals: timed
+    spent = {}
+
+    def timed(name, function):
+        def wrapper(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return function(*args, **kwargs)
+            finally:
+                spent[name] = spent.get(name, 0.0) + time.perf_counter() - start
+
+        return wrapper
+
+    steps = {"tanh DF": "_tanh_df", "quantiser DF": "_quantiser_df",
+             "saturation DF": "_saturation_df", "loop matrices": "loop_matrices",
+             "viscous reaction": "_with_viscous_reaction"}  # fmt: skip
+    saved = {attr: getattr(module, attr) for attr in steps.values()}
+    eig = np.linalg.eig
+    try:
+        for name, attr in steps.items():
+            setattr(module, attr, timed(name, saved[attr]))
+        np.linalg.eig = timed("eig", eig)
+        start = time.perf_counter()
+        contact_limit_cycle(loop, tau_ref=TAU_REF, levels=levels)
+        spent["total"] = time.perf_counter() - start
+    finally:
+        for attr, function in saved.items():
+            setattr(module, attr, function)
+        np.linalg.eig = eig
+    return spent
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--levels", type=int, default=16)
     parser.add_argument("--reference", default="b3e2765")
+    parser.add_argument("--split", action="store_true",
+                        help="only the current code's time per step, one run per loop")  # fmt: skip
     args = parser.parse_args(argv)
+    if args.split:
+        for name, where in LOOPS.items():
+            spent = split(point(*where), args.levels)
+            total = spent.pop("total")
+            parts = ", ".join(f"{k} {v:.2f}" for k, v in spent.items())
+            print(f"{name:10s} total {total:.2f} s: {parts}, the rest "
+                  f"{total - sum(spent.values()):.2f}")  # fmt: skip
+        return 0
     old = reference(args.reference)
     print(f"levels {args.levels}, min of {args.repeats}; reference {args.reference}")
     print(f"{'loop':10s} {'new [s]':>9s} {'old [s]':>9s} {'old/new':>8s}  bit for bit")

@@ -291,14 +291,67 @@ def _plain_deadband_mean(x, d, s):
 def test_the_dead_band_mean_is_its_plain_expressions_bit_for_bit():
     """Where a half-line lies beyond the noise's truncation its integrand is skipped, the
     rest computed in buffers: the same value to the last bit as the plain expressions, for
-    sinusoids inside, across and far beyond the band (every row kept, some, none) and for
-    an array of amplitudes."""
+    sinusoids inside (down to amplitudes whose phases all give one integrand), across and far
+    beyond the band (every row kept, some, none) and for an array of amplitudes."""
     from hpdob.analysis._describing import _SIN, _deadband_mean
 
     for s in (0.05, 0.58, 1.5, 3.5):
         for d in (0.3, 2.0, 3.65):
-            for ratio in (1e-3, 0.5, 2.0, 4.0, 9.0, 30.0, 200.0, 1e6):
+            for ratio in (1e-200, 1e-15, 1e-3, 0.5, 2.0, 4.0, 9.0, 30.0, 200.0, 1e6):
                 x = ratio * _SIN
                 assert np.array_equal(_deadband_mean(x, d, s), _plain_deadband_mean(x, d, s))
             x = np.multiply.outer(np.geomspace(1e-2, 1e3, 7), _SIN)
             assert np.array_equal(_deadband_mean(x, d, s), _plain_deadband_mean(x, d, s))
+            # a phase whose half-line just reaches the truncation (half = 1e-4 there: kept)
+            for edge in (d - s * (8.0 - 2e-4), s * (8.0 - 2e-4) - d):
+                if edge > 0.0:
+                    x = edge / _SIN[200] * _SIN
+                    assert np.array_equal(_deadband_mean(x, d, s), _plain_deadband_mean(x, d, s))
+
+
+def _plain_noisy_tanh_df(a, c, v, sigma):
+    """The noisy tanh DF (no dead band) as plain expressions, as the code before its tiny
+    amplitudes' shortcuts: the reference the fast one must equal bit for bit."""
+    from scipy.special import erf
+
+    from hpdob.analysis._describing import (
+        _HERMITE_W,
+        _HERMITE_X,
+        _PHI,
+        _TAIL_U,
+        _TAIL_W,
+        _W,
+    )
+
+    a = np.asarray(a, dtype=float)
+    ratio = np.minimum(a / v, 1e150)
+    x = np.multiply.outer(ratio, np.sin(_PHI))
+    if sigma <= v:
+        shift = np.sqrt(2.0) * sigma / v * _HERMITE_X
+        f = np.tanh(x[..., None] + shift) @ _HERMITE_W
+        small = ratio < 1e-6
+        if np.any(small):
+            f[small] = x[small] * (np.cosh(shift) ** -2.0 @ _HERMITE_W)
+    else:
+        s = sigma / v
+        xu = x[..., None]
+        gap = (1.0 - np.tanh(_TAIL_U)) * _TAIL_W
+        pdf = np.exp(-0.5 * ((_TAIL_U - xu) / s) ** 2) - np.exp(-0.5 * ((_TAIL_U + xu) / s) ** 2)
+        f = erf(x / (np.sqrt(2.0) * s)) - (pdf @ gap) / (s * np.sqrt(2 * np.pi))
+    return 4.0 * c / (np.pi * a) * (f @ (np.sin(_PHI) * _W))
+
+
+def test_the_noisy_tanh_df_at_tiny_amplitudes_is_its_plain_expressions_bit_for_bit():
+    """Below 1e-6 v the Gauss-Hermite branch's tanh sum is replaced by its linear term (so
+    it is not computed), and the erf branch's two exps are computed only where u - x and
+    u + x differ (elsewhere their difference is 0): the same values to the last bit, for
+    single amplitudes and arrays mixing tiny and large ones."""
+    c, v = 0.01, 0.01
+    amplitudes = [1e-300, 1e-200, 1e-40, 1e-18, 1e-12, 1e-9, 2e-8, 1e-4, 0.05, 3.0]
+    for sigma in (0.002, 0.01, 0.0101, 0.035, 0.5):  # Gauss-Hermite up to v, then erf
+        for a in amplitudes:
+            got = tanh_friction_df(a, coulomb=c, velocity=v, sigma=sigma)
+            assert got == float(_plain_noisy_tanh_df(a, c, v, sigma))
+        mixed = np.array(amplitudes)
+        assert np.array_equal(tanh_friction_df(mixed, coulomb=c, velocity=v, sigma=sigma),
+                              _plain_noisy_tanh_df(mixed, c, v, sigma))  # fmt: skip
