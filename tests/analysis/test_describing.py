@@ -212,3 +212,146 @@ def test_relay_limit_cycle_agrees_with_a_simulation_of_the_sampled_relay_loop():
     w = 2 * np.pi / (np.mean(np.diff(crossings)) * Ts)
     assert amplitude == pytest.approx(2 * h / (3 * math.pi), rel=0.06)
     assert w == pytest.approx(math.sqrt(2), rel=0.06)
+
+
+def test_the_scans_private_dfs_are_the_public_ones_bit_for_bit():
+    """contact_limit_cycle calls the DFs' computations without their checks (_one); each
+    value is the public function's for the same arguments, to the last bit, across the
+    tanh DF's branches (plain, Gauss-Hermite, erf, dead band with and without noise), the
+    quantiser's (inside, on and beyond its exact sum) and the saturation's."""
+    from hpdob.analysis._describing import _one, _quantiser_df, _saturation_df, _tanh_df
+
+    amplitudes = [1e-300, 1e-7, 3e-3, 0.02, 0.37, 5.0, 1e3, 1e200]
+    for a in amplitudes:
+        for sigma in (0.0, 0.004, 0.01, 0.03, 0.5):
+            for d in (0.0, 0.02, 0.0365):
+                public = tanh_friction_df(a, coulomb=0.01, velocity=0.01, sigma=sigma, deadband=d)
+                assert _one(_tanh_df, a, 0.01, 0.01, sigma, d) == public
+        for offset in (0.0, 0.013, 0.05):
+            assert _one(_quantiser_df, a, 0.1, offset) == quantiser_df(a, step=0.1, offset=offset)
+        for bias in (0.0, 0.3, -0.9):
+            assert _one(_saturation_df, a, 1.0, bias) == saturation_df(a, limit=1.0, bias=bias)
+    for bad in (float("nan"), math.inf, 0.0, -1.0, 1e-320):  # refused as the public ones do
+        with pytest.raises(ParameterValueError, match=r"^amplitude must be positive finite"):
+            _one(_tanh_df, bad, 0.01, 0.01, 0.0, 0.0)
+
+
+def test_the_viscous_reaction_observer_gives_the_loop_of_the_checked_one():
+    """_with_viscous_reaction hands loop_matrices the changed matrices without a new
+    LinearObserver; the loop's matrices are those of the LinearObserver of the same
+    matrices, bit for bit, for the term on the measured velocity and on omega_hat."""
+    from hpdob import Environment, paper
+    from hpdob.analysis._describing import _with_viscous_reaction
+    from hpdob.analysis._linear_loop import LoopSpec, loop_matrices
+    from hpdob.controllers import ForceControl, controller_system
+    from hpdob.models import InContact
+    from hpdob.observers import LinearObserver, design_observer, reaction_torque_observer
+
+    dob = design_observer(paper.NOMINAL.discretize(paper.TS), order=1, bandwidth=150.0)
+    plant = InContact(paper.PLANT.replace(coulomb=0.0, environment=Environment(10.0)))
+    controller = controller_system(ForceControl(1000.0, kv=40.0), paper.NOMINAL, paper.TS)
+
+    def matrices(system, signal):
+        spec = LoopSpec(plant=plant.discretize(paper.TS), controller=controller, system=system,
+                        backward_difference=True, delay=1)  # fmt: skip
+        return loop_matrices(spec, measurement_gain=0.8, command_gain=0.9, signals=(signal,))
+
+    for extra in ({}, {"velocity_filter": 100.0}):
+        system = reaction_torque_observer(dob, friction=paper.PLANT, **extra).system
+        velocity = system.coulomb.velocity
+        signal = "omega_m" if velocity == "omega" else "omega_hat"
+        for gain in (1e-3, 0.37):
+            fast = _with_viscous_reaction(system, velocity, gain)
+            assert not (np.array_equal(fast.H, system.H) and np.array_equal(fast.E, system.E))
+            checked = LinearObserver(F=system.F, G=system.G, H=fast.H, E=fast.E, N=system.N,
+                                     Ts=system.Ts, measures=system.measures,
+                                     outputs=system.outputs, model=system.model)  # fmt: skip
+            for x, y in zip(matrices(fast, signal)[:4], matrices(checked, signal)[:4],
+                            strict=True):  # fmt: skip
+                assert np.array_equal(x, y)
+
+
+def _plain_deadband_mean(x, d, s):
+    """The dead-band DF's mean over the noise as plain expressions (the code before its
+    buffers and skipped half-lines): the reference the fast one must equal bit for bit."""
+    from hpdob.analysis._describing import _BAND_T, _BAND_W, _BAND_X
+
+    upper = np.clip((d - x) / s, -_BAND_T, _BAND_T)
+    lower = np.clip((-d - x) / s, -_BAND_T, _BAND_T)
+    total = np.zeros_like(x)
+    for lo, hi, shift in ((upper, np.full_like(x, _BAND_T), -d),
+                          (np.full_like(x, -_BAND_T), lower, d)):  # fmt: skip
+        half = 0.5 * (hi - lo)
+        t = (lo + half)[..., None] + half[..., None] * _BAND_X
+        pdf = np.exp(-0.5 * t**2) / np.sqrt(2.0 * np.pi)
+        total += half * ((np.tanh(x[..., None] + s * t + shift) * pdf) @ _BAND_W)
+    return total
+
+
+def test_the_dead_band_mean_is_its_plain_expressions_bit_for_bit():
+    """Where a half-line lies beyond the noise's truncation its integrand is skipped, the
+    rest computed in buffers: the same value to the last bit as the plain expressions, for
+    sinusoids inside (down to amplitudes whose phases all give one integrand), across and far
+    beyond the band (every row kept, some, none) and for an array of amplitudes."""
+    from hpdob.analysis._describing import _SIN, _deadband_mean
+
+    for s in (0.05, 0.58, 1.5, 3.5):
+        for d in (0.3, 2.0, 3.65):
+            for ratio in (1e-200, 1e-15, 1e-3, 0.5, 2.0, 4.0, 9.0, 30.0, 200.0, 1e6):
+                x = ratio * _SIN
+                assert np.array_equal(_deadband_mean(x, d, s), _plain_deadband_mean(x, d, s))
+            x = np.multiply.outer(np.geomspace(1e-2, 1e3, 7), _SIN)
+            assert np.array_equal(_deadband_mean(x, d, s), _plain_deadband_mean(x, d, s))
+            # a phase whose half-line just reaches the truncation (half = 1e-4 there: kept)
+            for edge in (d - s * (8.0 - 2e-4), s * (8.0 - 2e-4) - d):
+                if edge > 0.0:
+                    x = edge / _SIN[200] * _SIN
+                    assert np.array_equal(_deadband_mean(x, d, s), _plain_deadband_mean(x, d, s))
+
+
+def _plain_noisy_tanh_df(a, c, v, sigma):
+    """The noisy tanh DF (no dead band) as plain expressions, as the code before its tiny
+    amplitudes' shortcuts: the reference the fast one must equal bit for bit."""
+    from scipy.special import erf
+
+    from hpdob.analysis._describing import (
+        _HERMITE_W,
+        _HERMITE_X,
+        _PHI,
+        _TAIL_U,
+        _TAIL_W,
+        _W,
+    )
+
+    a = np.asarray(a, dtype=float)
+    ratio = np.minimum(a / v, 1e150)
+    x = np.multiply.outer(ratio, np.sin(_PHI))
+    if sigma <= v:
+        shift = np.sqrt(2.0) * sigma / v * _HERMITE_X
+        f = np.tanh(x[..., None] + shift) @ _HERMITE_W
+        small = ratio < 1e-6
+        if np.any(small):
+            f[small] = x[small] * (np.cosh(shift) ** -2.0 @ _HERMITE_W)
+    else:
+        s = sigma / v
+        xu = x[..., None]
+        gap = (1.0 - np.tanh(_TAIL_U)) * _TAIL_W
+        pdf = np.exp(-0.5 * ((_TAIL_U - xu) / s) ** 2) - np.exp(-0.5 * ((_TAIL_U + xu) / s) ** 2)
+        f = erf(x / (np.sqrt(2.0) * s)) - (pdf @ gap) / (s * np.sqrt(2 * np.pi))
+    return 4.0 * c / (np.pi * a) * (f @ (np.sin(_PHI) * _W))
+
+
+def test_the_noisy_tanh_df_at_tiny_amplitudes_is_its_plain_expressions_bit_for_bit():
+    """Below 1e-6 v the Gauss-Hermite branch's tanh sum is replaced by its linear term (so
+    it is not computed), and the erf branch's two exps are computed only where u - x and
+    u + x differ (elsewhere their difference is 0): the same values to the last bit, for
+    single amplitudes and arrays mixing tiny and large ones."""
+    c, v = 0.01, 0.01
+    amplitudes = [1e-300, 1e-200, 1e-40, 1e-18, 1e-12, 1e-9, 2e-8, 1e-4, 0.05, 3.0]
+    for sigma in (0.002, 0.01, 0.0101, 0.035, 0.5):  # Gauss-Hermite up to v, then erf
+        for a in amplitudes:
+            got = tanh_friction_df(a, coulomb=c, velocity=v, sigma=sigma)
+            assert got == float(_plain_noisy_tanh_df(a, c, v, sigma))
+        mixed = np.array(amplitudes)
+        assert np.array_equal(tanh_friction_df(mixed, coulomb=c, velocity=v, sigma=sigma),
+                              _plain_noisy_tanh_df(mixed, c, v, sigma))  # fmt: skip

@@ -74,6 +74,11 @@ _TAIL_U, _TAIL_W = (_TAIL_U + 1.0) * 10.0, _TAIL_W * 10.0
 # Gauss-Legendre on [-1, 1], mapped per phase onto the noise's half-lines beyond the dead band
 _BAND_X, _BAND_W = np.polynomial.legendre.leggauss(120)
 _BAND_T = 8.0  # the Gaussian noise truncated at 8 sigma (its tail beyond: 1e-15)
+# per-call constants of the tanh DF, computed once by the same expressions (the same bits)
+_SIN = np.sin(_PHI)
+_SIN_W = np.sin(_PHI) * _W
+_GAP = (1.0 - np.tanh(_TAIL_U)) * _TAIL_W  # sign - tanh on u > 0 (odd), weighted
+_SQRT_2PI = np.sqrt(2.0 * np.pi)
 
 
 #: Beyond this many quantisation steps of amplitude the quantiser's DF is 1: the exact sum
@@ -109,6 +114,19 @@ def _centre(value, name: str, what: str, half_width: float, *, closed: bool) -> 
 
 def _out(value: np.ndarray, amplitude):
     return float(value) if np.ndim(amplitude) == 0 else value
+
+
+_TINY = float(np.finfo(float).tiny)
+
+
+def _one(core, amplitude: float, *arguments) -> float:
+    """``core`` (a DF's computation after its checks) at one amplitude, a float: what the
+    public function gives for it, without checking the other, already checked, arguments
+    at each of the harmonic balance's thousands of calls. An amplitude the public
+    functions refuse is refused the same way."""
+    if not _TINY <= amplitude < math.inf:  # NaN too
+        _amplitude(amplitude)
+    return float(core(np.array(amplitude, dtype=float), *arguments))
 
 
 def relay_df(amplitude, *, level: float):
@@ -204,34 +222,54 @@ def tanh_friction_df(
     >>> round(tanh_friction_df(1e-6, coulomb=0.01, velocity=0.01), 6)   # the slope c/v
     1.0
     """
+    c, v, sigma, d = _tanh_arguments(coulomb, velocity, sigma, deadband)
+    a = _amplitude(amplitude)
+    return _out(_tanh_df(a, c, v, sigma, d), amplitude)
+
+
+def _tanh_arguments(coulomb, velocity, sigma, deadband) -> tuple[float, float, float, float]:
     c = nonnegative(coulomb, "coulomb", "a non-negative Coulomb torque [N m]")
     v = positive(velocity, "velocity", "a positive velocity scale [rad/s]")
     sigma = nonnegative(sigma, "sigma", "a non-negative noise standard deviation [rad/s]")
     d = nonnegative(deadband, "deadband", "a non-negative dead band [rad/s]")
-    a = _amplitude(amplitude)
+    return c, v, sigma, d
+
+
+def _tanh_df(a: np.ndarray, c: float, v: float, sigma: float, d: float) -> np.ndarray:
+    """:func:`tanh_friction_df` of validated arguments (``a`` as :func:`_amplitude` gives it):
+    the harmonic balance's inner loop calls it directly."""
     with np.errstate(over="ignore"):  # A/v beyond the float range: tanh is 1 long before
         ratio = np.minimum(a / v, _X_MAX)
-    x = np.multiply.outer(ratio, np.sin(_PHI))
+    x = np.multiply.outer(ratio, _SIN)
     if d > 0.0:
         f = _deadband_mean(x, d / v, sigma / v)
     elif sigma == 0.0:
         f = np.tanh(x)
     elif sigma <= v:  # E[tanh((x + n)/v)], n ~ N(0, sigma^2): smooth on the noise's scale
         shift = np.sqrt(2.0) * sigma / v * _HERMITE_X
-        f = np.tanh(x[..., None] + shift) @ _HERMITE_W
         small = ratio < 1e-6  # the nodes' mean of tanh(shift) is 0 only to rounding (~1e-17),
-        if np.any(small):  # nonsense over a tiny A: there its linear term (relative error x^2)
-            f[small] = x[small] * (np.cosh(shift) ** -2.0 @ _HERMITE_W)
+        if np.all(small):  # nonsense over a tiny A: there its linear term (relative error x^2)
+            f = x * (np.cosh(shift) ** -2.0 @ _HERMITE_W)  # (every row's, as below)
+        else:
+            f = np.tanh(x[..., None] + shift) @ _HERMITE_W
+            if np.any(small):
+                f[small] = x[small] * (np.cosh(shift) ** -2.0 @ _HERMITE_W)
     else:  # a step on the noise's scale: E[sign] = erf exactly, minus the smooth remainder
         from scipy.special import erf
 
         s = sigma / v  # in units of v: E[sign(x + n)] - E[sign(u) - tanh(u)] over u = x + n
         xu = x[..., None]
-        gap = (1.0 - np.tanh(_TAIL_U)) * _TAIL_W  # sign - tanh on u > 0 (odd), weighted
-        pdf = np.exp(-0.5 * ((_TAIL_U - xu) / s) ** 2) - np.exp(-0.5 * ((_TAIL_U + xu) / s) ** 2)
-        f = erf(x / (np.sqrt(2.0) * s)) - (pdf @ gap) / (s * np.sqrt(2 * np.pi))
-    n = 4.0 * c / (np.pi * a) * (f @ (np.sin(_PHI) * _W))
-    return _out(n, amplitude)
+        top = np.max(x)
+        if np.array_equal(_TAIL_U - top, _TAIL_U + top):
+            # u - x and u + x round to one number (u itself) at the largest x >= 0, so at
+            # every x (rounding is monotone): the tiny amplitudes the scan visits, where the
+            # two exps are one number and their difference 0
+            pdf = np.zeros(x.shape + _TAIL_U.shape)
+        else:  # one expression: numpy reuses its temporaries (named ones: twice the time)
+            pdf = (np.exp(-0.5 * ((_TAIL_U - xu) / s) ** 2)
+                   - np.exp(-0.5 * ((_TAIL_U + xu) / s) ** 2))  # fmt: skip
+        f = erf(x / (np.sqrt(2.0) * s)) - (pdf @ _GAP) / (s * np.sqrt(2 * np.pi))
+    return 4.0 * c / (np.pi * a) * (f @ _SIN_W)
 
 
 def _deadband_mean(x: np.ndarray, d: float, s: float) -> np.ndarray:
@@ -247,10 +285,49 @@ def _deadband_mean(x: np.ndarray, d: float, s: float) -> np.ndarray:
     for lo, hi, shift in ((upper, np.full_like(x, _BAND_T), -d),
                           (np.full_like(x, -_BAND_T), lower, d)):  # fmt: skip
         half = 0.5 * (hi - lo)
-        t = (lo + half)[..., None] + half[..., None] * _BAND_X
-        pdf = np.exp(-0.5 * t**2) / np.sqrt(2.0 * np.pi)
-        total += half * ((np.tanh(x[..., None] + s * t + shift) * pdf) @ _BAND_W)
+        # a half-line beyond the truncation (half = 0) adds 0 times its (finite) integral:
+        # nothing, so its integrand is left at 0 (the product's shape, and so each row's
+        # sum in the matrix product, unchanged)
+        keep = half != 0.0
+        if np.all(keep):
+            part = _band_integrand(x, lo, half, s, shift)
+        elif np.any(keep):
+            part = np.zeros(x.shape + _BAND_X.shape)
+            part[keep] = _band_integrand(x[keep], lo[keep], half[keep], s, shift)
+        else:
+            continue
+        total += half * (part @ _BAND_W)
     return total
+
+
+def _band_integrand(x, lo, half, s: float, shift: float) -> np.ndarray:
+    """``tanh(x + s t + shift)`` times the standard normal's density at the Gauss-Legendre
+    nodes ``t`` of ``[lo, lo + 2 half]``: the operations of ``t = (lo + half) + half x_k``,
+    ``exp(-0.5 t**2) / sqrt(2 pi)`` and ``tanh(x + s * t + shift) * pdf`` in that order."""
+    t = np.multiply(half[..., None], _BAND_X)
+    np.add((lo + half)[..., None], t, out=t)
+    y = np.multiply(s, t)
+    np.add(x[..., None], y, out=y)
+    # a sinusoid far inside the band (the tiny amplitudes the scan visits): if every phase's
+    # nodes and arguments round to the same numbers, so does its integrand (the first and
+    # last phases compared first: the cheap test that fails at any other amplitude)
+    if (x.ndim == 1 and np.array_equal(t[-1], t[0]) and np.array_equal(y[-1], y[0])
+            and np.all(t == t[0]) and np.all(y == y[0])):  # fmt: skip
+        out = np.empty_like(t)
+        out[:] = _band_product(t[0], y[0], shift)
+        return out
+    return _band_product(t, y, shift)
+
+
+def _band_product(t: np.ndarray, y: np.ndarray, shift: float) -> np.ndarray:
+    """``tanh(y + shift) * exp(-0.5 t**2) / sqrt(2 pi)``, in the buffers of ``t`` and ``y``."""
+    np.square(t, out=t)
+    np.multiply(-0.5, t, out=t)
+    np.exp(t, out=t)
+    np.divide(t, _SQRT_2PI, out=t)
+    np.add(y, shift, out=y)
+    np.tanh(y, out=y)
+    return np.multiply(y, t, out=y)
 
 
 def quantiser_df(amplitude, *, step: float, offset: float = 0.0):
@@ -297,14 +374,24 @@ def quantiser_df(amplitude, *, step: float, offset: float = 0.0):
     >>> round(quantiser_df(0.4, step=1.0, offset=0.5), 4)   # on a threshold: 2q/(pi A)
     1.5915
     """
+    q, x0 = _quantiser_arguments(step, offset)
+    a = _amplitude(amplitude)
+    return _out(_quantiser_df(a, q, x0), amplitude)
+
+
+def _quantiser_arguments(step, offset) -> tuple[float, float]:
     q = positive(step, "step", "a positive quantisation step [rad]")
     x0 = _centre(offset, "offset", "centre within half a step of a level [rad]", 0.5 * q,
                  closed=True)  # fmt: skip
-    a = _amplitude(amplitude)
+    return q, x0
+
+
+def _quantiser_df(a: np.ndarray, q: float, x0: float) -> np.ndarray:
+    """:func:`quantiser_df` of validated arguments."""
     with np.errstate(over="ignore"):
         large = a / q > QUANTISER_EXACT_STEPS  # N = 1 - O((q/A)^1.5): 1 to < 1e-9
     if np.all(large):
-        return _out(np.ones_like(a), amplitude)
+        return np.ones_like(a)
     exact = np.where(large, q, a)  # the exact sum's thresholds: those of the smaller amplitudes
     k_max = int(np.ceil(np.max(exact) / q)) + 1
     t = (np.arange(-k_max, k_max) + 0.5) * q - x0  # thresholds relative to the centre
@@ -313,7 +400,7 @@ def quantiser_df(amplitude, *, step: float, offset: float = 0.0):
     n = 2.0 * q / (np.pi * exact) * np.sqrt(r).sum(axis=0)
     if np.any(large):
         n = np.where(large, 1.0, n)
-    return _out(n, amplitude)
+    return n
 
 
 def _g(r: np.ndarray) -> np.ndarray:
@@ -363,12 +450,20 @@ def saturation_df(amplitude, *, limit: float, bias: float = 0.0):
     >>> round(saturation_df(2.0, limit=1.0), 4)   # (2/pi)(pi/6 + sqrt(3)/4)
     0.609
     """
-    L = positive(limit, "limit", "a positive torque limit [N m]")
-    x0 = _centre(bias, "bias", "centre inside the limits [N m]", L, closed=False)
+    L, x0 = _saturation_arguments(limit, bias)
     a = _amplitude(amplitude)
+    return _out(_saturation_df(a, L, x0), amplitude)
+
+
+def _saturation_arguments(limit, bias) -> tuple[float, float]:
+    L = positive(limit, "limit", "a positive torque limit [N m]")
+    return L, _centre(bias, "bias", "centre inside the limits [N m]", L, closed=False)
+
+
+def _saturation_df(a: np.ndarray, L: float, x0: float) -> np.ndarray:
+    """:func:`saturation_df` of validated arguments."""
     with np.errstate(over="ignore"):  # a tiny A: delta/A = inf, g = pi/2 (no clipping)
-        n = (_g((L - x0) / a) + _g((L + x0) / a)) / np.pi
-    return _out(n, amplitude)
+        return (_g((L - x0) / a) + _g((L + x0) / a)) / np.pi
 
 
 def _candidates(A: np.ndarray, min_angle: float, count: int):
@@ -755,14 +850,16 @@ def contact_limit_cycle(
     signals, gains, used = (), {}, []
     quantised = quantiser and sensor is not None and hasattr(sensor, "counts_per_rev")
     q = 2.0 * np.pi / sensor.counts_per_rev if quantised else 0.0
+    # the DFs' cores (each public function's own computation, its checks done once here)
     if friction and plant.coulomb > 0.0:
-        gains["omega"] = lambda a, amp, angle: tanh_friction_df(
-            a, coulomb=plant.coulomb, velocity=plant.coulomb_velocity)  # fmt: skip
+        c_p, v_p, _, _ = _tanh_arguments(plant.coulomb, plant.coulomb_velocity, 0.0, 0.0)
+        gains["omega"] = lambda a, amp, angle: _one(_tanh_df, a, c_p, v_p, 0.0, 0.0)
         used.append("friction")
     if coulomb is not None and coulomb.c > 0.0:
         source = "omega_m" if coulomb.velocity == "omega" else "omega_hat"
         signals = (source,)
         dither = _velocity_dither(system, source, Ts) if quantised and backward else 0.0
+        c_r, v_r, _, d_r = _tanh_arguments(coulomb.c, coulomb.v, 0.0, coulomb.deadband)
 
         def reaction_gain(a, amp, angle):
             # the encoder's count changes as noise on the term's velocity: crossings per
@@ -770,18 +867,21 @@ def contact_limit_cycle(
             # backward difference (white q^2/12 at one and more per sample)
             rate = 2.0 / np.pi * amp["theta"] / q * angle if dither else 0.0
             sigma = dither * q / Ts * math.sqrt(min(rate, 1.0 / 6.0))
-            return tanh_friction_df(a, coulomb=coulomb.c, velocity=coulomb.v, sigma=sigma,
-                                    deadband=coulomb.deadband)  # fmt: skip
+            if not 0.0 <= sigma < math.inf:
+                _tanh_arguments(c_r, v_r, sigma, d_r)  # refused as tanh_friction_df does
+            return _one(_tanh_df, a, c_r, v_r, float(sigma), d_r)
 
         gains[source] = reaction_gain
         used.append("reaction_friction")
     if quantised:
         centre = wall.position + tau_ref / k_e
         offset = centre - q * round(centre / q)
-        gains["theta"] = lambda a, amp, angle: quantiser_df(a, step=q, offset=offset)
+        step, x0 = _quantiser_arguments(q, offset)
+        gains["theta"] = lambda a, amp, angle: _one(_quantiser_df, a, step, x0)
         used.append("quantiser")
     if saturation and limit is not None:
-        gains["u"] = lambda a, amp, angle: saturation_df(a, limit=limit, bias=tau_ref)
+        L, bias = _saturation_arguments(limit, tau_ref)
+        gains["u"] = lambda a, amp, angle: _one(_saturation_df, a, L, bias)
         used.append("saturation")
     plants = {}
     delay = loop.actuator.delay_samples
@@ -850,10 +950,28 @@ def _velocity_dither(system: LinearObserver, source: str, Ts: float) -> float:
     return float(h2_gains(F, G[:, col : col + 1], H[w : w + 1], E[w : w + 1, col : col + 1])[0])
 
 
+@dataclass(frozen=True, eq=False)
+class _LoopObserver:
+    """What :func:`~hpdob.analysis._linear_loop.loop_matrices` reads of an observer: the
+    matrices of one already checked, with its ``tau_reac`` row changed (internal)."""
+
+    F: np.ndarray
+    G: np.ndarray
+    H: np.ndarray
+    E: np.ndarray
+    measures: tuple
+    outputs: tuple
+
+    @property
+    def n_states(self) -> int:
+        return self.F.shape[0]
+
+
 def _with_viscous_reaction(system: LinearObserver, velocity: str, gain: float):
     """The composed observer with its Coulomb term as the viscous ``gain`` [N m s/rad] on its
     velocity: ``tau_reac`` row minus ``gain`` times the velocity's row (measured or
-    ``omega_hat``)."""
+    ``omega_hat``). For the loop's matrices only: a LinearObserver of these matrices would
+    check them again at each of the harmonic balance's thousands of builds."""
     H, E = np.array(system.H), np.array(system.E)
     r = system.outputs.index("tau_reac")
     if velocity == "omega":
@@ -862,6 +980,5 @@ def _with_viscous_reaction(system: LinearObserver, velocity: str, gain: float):
         w = system.outputs.index("omega_hat")
         H[r] -= gain * H[w]
         E[r] -= gain * E[w]
-    return LinearObserver(F=system.F, G=system.G, H=H, E=E, N=system.N, Ts=system.Ts,
-                          measures=system.measures, outputs=system.outputs,
-                          model=system.model)  # fmt: skip
+    return _LoopObserver(F=system.F, G=system.G, H=H, E=E, measures=system.measures,
+                         outputs=system.outputs)  # fmt: skip
