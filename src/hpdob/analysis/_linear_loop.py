@@ -57,7 +57,9 @@ MAX_DELAY_SAMPLES = 1000
 class LoopSpec:
     """Validated ingredients of the linear loop (internal).
 
-    ``plant`` is the true plant's linear ZOH model (``A, B, D, C, state_names``).
+    ``plant`` is the true plant's linear ZOH model (``A, B, D, C, state_names``). ``system``
+    is a checked :class:`~hpdob.observers.LinearObserver`, or anything with its ``F, G, H, E,
+    measures, outputs, n_states`` (the describing-function scan's changed copies of one).
     """
 
     plant: object
