@@ -240,6 +240,35 @@ TARGETS = {
         ),
         "not example_prints and not plot_labels and not result_exports",
     ),
+    "identification.lean": Target(
+        # the kernels' own tests (block-wise filtfilt, gradient, decimation, Welch), then the
+        # regression and the solver that call them
+        "src/hpdob/identification/_lean.py",
+        (
+            "tests/identification/test_lean.py",
+            "tests/identification/test_regression.py",
+            "tests/identification/test_solve.py",
+        ),
+    ),
+    "identification.checks": Target(
+        # the log's checks (time steps, lengths, read-only arrays), then the readers' and
+        # identify's refusals that go through them
+        "src/hpdob/identification/_checks.py",
+        (
+            "tests/identification/test_log.py",
+            "tests/identification/test_log_file.py",
+            "tests/identification/test_stream.py",
+        ),
+    ),
+    "identification.readers": Target(
+        # the log files' readers (.mat, Parquet, CSV), then the streaming reader
+        "src/hpdob/identification/_readers.py",
+        (
+            "tests/identification/test_log_file.py",
+            "tests/identification/test_log.py",
+            "tests/identification/test_stream.py",
+        ),
+    ),
 }
 
 
