@@ -285,3 +285,24 @@ def test_uniform_time_rule_is_the_median_rule_at_every_step(where, deviation, ac
     else:
         with pytest.raises(ParameterValueError, match=rf"uniformly sampled.*t\[{where + 1}\]"):
             Log(t, zeros, zeros)
+
+
+def test_time_refusals_name_the_samples_and_decide_at_every_sampling_rate():
+    """The uniform-time rule's decisions with exact binary times (each step exactly 1 s, 2 s,
+    1.25 s: no rounding in the steps), and at 10 kHz: a step twice the others, or 1.5 times
+    them, is refused; a step exactly at the tolerance passes. The error for times that go back
+    names both samples and their values."""
+    q, u = np.zeros(12), np.zeros(12)
+    steps = np.ones(11)
+    with pytest.raises(ParameterValueError, match=r"t\[6\] = 4\.5 s is not after t\[5\] = 5\.0 s"):
+        Log(np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 4.5, 7.0, 8.0, 9.0, 10.0, 11.0]), q, u)
+    doubled = np.concatenate([[0.0], np.cumsum(np.where(np.arange(11) == 7, 2.0, steps))])
+    with pytest.raises(ParameterValueError, match=r"uniformly sampled: the step t\[8\] - t\[7\]"):
+        Log(doubled, q, u)
+    fast = np.concatenate([[0.0], np.cumsum(np.where(np.arange(11) == 4, 1.5e-4, 1e-4))])
+    with pytest.raises(ParameterValueError, match=r"uniformly sampled: the step t\[5\] - t\[4\]"):
+        Log(fast, q, u)
+    edge = np.concatenate([[0.0], np.cumsum(np.where(np.arange(11) == 3, 1.25, steps))])
+    assert Log(edge, q, u, time_tolerance=0.25).Ts == 11.25 / 11  # the mean step
+    with pytest.raises(ParameterValueError, match=r"uniformly sampled"):
+        Log(edge, q, u, time_tolerance=0.2)
