@@ -169,7 +169,7 @@ def check_time(t: np.ndarray, name: str = "t", tolerance: float = DEFAULT_TIME_T
     for lo in range(0, t.size - 1, STEP_BLOCK):
         steps = np.diff(t[lo : lo + STEP_BLOCK + 1])
         low, high = min(low, float(steps.min())), max(high, float(steps.max()))
-    if not (_within_half(low, high, tolerance) or uniform_steps(np.diff(t), tolerance)):
+    if not (_within_half(low, high, tolerance) or _uniform(np.diff(t), low, high, tolerance)):
         _time_error(t, name, tolerance)
     return float((t[-1] - t[0]) / (t.size - 1))
 
@@ -194,7 +194,12 @@ def uniform_steps(steps: np.ndarray, tolerance: float) -> bool:
     up again from the times when the error is raised. Steps that spread by less than half the
     tolerance pass without the median (the same answer, for a uniform log a tenth the time).
     """
-    low, high = float(steps.min()), float(steps.max())
+    return _uniform(steps, float(steps.min()), float(steps.max()), tolerance)
+
+
+def _uniform(steps: np.ndarray, low: float, high: float, tolerance: float) -> bool:
+    """:func:`uniform_steps` of ``steps`` whose smallest and largest are ``low`` and ``high``
+    (:func:`check_time` has found them block by block)."""
     if low <= 0.0:
         return False
     if _within_half(low, high, tolerance):
