@@ -76,7 +76,7 @@ _BAND_X, _BAND_W = np.polynomial.legendre.leggauss(120)
 _BAND_T = 8.0  # the Gaussian noise truncated at 8 sigma (its tail beyond: 1e-15)
 # per-call constants of the tanh DF, computed once by the same expressions (the same bits)
 _SIN = np.sin(_PHI)
-_SIN_W = np.sin(_PHI) * _W
+_SIN_W = _SIN * _W
 _GAP = (1.0 - np.tanh(_TAIL_U)) * _TAIL_W  # sign - tanh on u > 0 (odd), weighted
 _SQRT_2PI = np.sqrt(2.0 * np.pi)
 
@@ -248,12 +248,14 @@ def _tanh_df(a: np.ndarray, c: float, v: float, sigma: float, d: float) -> np.nd
     elif sigma <= v:  # E[tanh((x + n)/v)], n ~ N(0, sigma^2): smooth on the noise's scale
         shift = np.sqrt(2.0) * sigma / v * _HERMITE_X
         small = ratio < 1e-6  # the nodes' mean of tanh(shift) is 0 only to rounding (~1e-17),
-        if np.all(small):  # nonsense over a tiny A: there its linear term (relative error x^2)
-            f = x * (np.cosh(shift) ** -2.0 @ _HERMITE_W)  # (every row's, as below)
+        if np.any(small):  # nonsense over a tiny A: there its linear term (relative error x^2)
+            slope = np.cosh(shift) ** -2.0 @ _HERMITE_W
+        if np.all(small):  # every row's linear term: the tanh sum would be replaced whole
+            f = x * slope
         else:
             f = np.tanh(x[..., None] + shift) @ _HERMITE_W
             if np.any(small):
-                f[small] = x[small] * (np.cosh(shift) ** -2.0 @ _HERMITE_W)
+                f[small] = x[small] * slope
     else:  # a step on the noise's scale: E[sign] = erf exactly, minus the smooth remainder
         from scipy.special import erf
 
