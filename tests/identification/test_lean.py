@@ -5,6 +5,7 @@ the regression had before (written out below as the reference)."""
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 
 import numpy as np
@@ -192,7 +193,7 @@ def test_filtfilt_in_place_holds_no_array_of_the_signal(n):
         tracemalloc.stop()
     assert same_bits(mine, reference)
     assert in_place <= 16_384
-    block = _lean._block(n)
+    block = _lean.block_of(n)
     # the rows, the states of the blocks, a block read and its copy
     assert at <= 8 * samples.size + 80 * (n // block + 3) + 16 * block + 16_384
     assert same_bits(rows, signal.sosfiltfilt(sos, reference)[samples])
@@ -202,11 +203,11 @@ def test_default_blocks_are_short_for_short_signals(monkeypatch):
     """A sixteenth of the signal, from SHORT_BLOCK to BLOCK samples (read when called)."""
     from hpdob.identification import _lean
 
-    assert _lean._block(24_841) == _lean.SHORT_BLOCK
-    assert _lean._block(16 * 10_000) == 10_000
-    assert _lean._block(10**8) == _lean.BLOCK
+    assert _lean.block_of(24_841) == _lean.SHORT_BLOCK
+    assert _lean.block_of(16 * 10_000) == 10_000
+    assert _lean.block_of(10**8) == _lean.BLOCK
     monkeypatch.setattr(_lean, "BLOCK", 1000)
-    assert _lean._block(10**6) == 1000
+    assert _lean.block_of(10**6) == 1000
 
 
 @pytest.mark.parametrize("n", [2, 3, 5, 100, 4097])
@@ -217,6 +218,32 @@ def test_gradient_in_place_and_in_blocks_is_numpy_gradient(n, block):
     assert same_bits(gradient_inplace(x.copy(), 1e-3, block), reference)
     for lo, hi in ((0, n), (0, 1), (n - 1, n), (1, n - 1), (min(2, n - 1), n)):
         assert same_bits(gradient_block(x, lo, hi, 1e-3), reference[lo:hi])
+
+
+@pytest.mark.parametrize("n", [2, 3, 5, 100, 4097])
+def test_gradient_of_blocks_from_the_last_is_numpy_gradient(n):
+    """Blocks given from the last to the first, of every size from 1 to the whole signal."""
+    from hpdob.identification._lean import gradient_blocks
+
+    rng = np.random.default_rng(n)
+    x = np.cumsum(rng.standard_normal(n)) * 1e-3
+    reference = np.gradient(x, 1e-3)
+    for trial in range(20):
+        if trial == 0:
+            cuts = [0, n]
+        elif trial == 1:
+            cuts = list(range(n + 1))  # blocks of one sample
+        else:
+            inner = rng.choice(np.arange(1, n), min(n - 1, int(rng.integers(0, 12))), replace=False)
+            cuts = [0, *sorted(int(c) for c in inner), n]
+        pieces = [(lo, hi, x[lo:hi].copy()) for lo, hi in itertools.pairwise(cuts)]
+        got = np.full(n, np.nan)
+        order = []
+        for lo, hi, g in gradient_blocks(reversed(pieces), n, 1e-3):
+            got[lo:hi] = g
+            order.append(lo)
+        assert order == sorted(order, reverse=True)
+        assert same_bits(got, reference)
 
 
 @pytest.mark.parametrize("n", [5000, 100_000])
@@ -367,3 +394,57 @@ def test_differentiate_is_the_filtered_kinematics_bit_for_bit():
     got = differentiate(theta, 1e-3, cutoff=25.0)
     assert same_bits(got[0], velocity) and same_bits(got[1], acceleration)
     assert math.isfinite(float(got[1].sum()))
+
+
+@pytest.mark.parametrize("n", [500, 24_841])
+def test_band_error_with_its_scale_given_is_the_in_band_relative_error(n):
+    """The loop's band error with the filtered input taken block by block (its scale given,
+    computed before the simulation) is the straightforward one to the last bit."""
+    from hpdob.identification._identify import band_error, band_scale, in_band
+    from hpdob.identification._solve import relative_error
+
+    rng = np.random.default_rng(n)
+    t = np.arange(n) * 1e-3
+    u = np.sin(2 * np.pi * 0.7 * t) + 0.05 * rng.standard_normal(n)
+    simulated = u + 0.01 * np.cumsum(rng.standard_normal(n)) / np.sqrt(n)
+    settings = resolve_settings(1e-3, bandwidth=5.0)
+    reference = relative_error(*in_band((u, simulated), settings))
+    assert band_error(u, simulated.copy(), settings) == reference
+    mine = simulated.copy()
+    assert band_error(u, mine, settings, overwrite=True, scale=band_scale(u, settings)) == reference
+
+
+@pytest.mark.parametrize("n", [300, 1025, 24_841])
+def test_velocity_by_blocks_is_the_filtered_velocity(n):
+    from hpdob.identification._regression import filtered_velocity, velocity_blocks
+
+    theta = np.cumsum(np.random.default_rng(n).standard_normal(n)) * 1e-3
+    settings = resolve_settings(1e-3, bandwidth=5.0)
+    reference = filtered_velocity(theta, settings)
+    got = np.full(n, np.nan)
+    for lo, hi, v in velocity_blocks(theta, settings):
+        got[lo:hi] = v
+    assert same_bits(got, reference)
+
+
+def test_simulation_fit_without_traces_is_the_fit_with_them():
+    """keep=False (the log's velocity block by block beside the kept simulated position, the
+    difference over the simulated velocity) gives the numbers keep=True does."""
+    from hpdob.identification._simfit import simulate_fit
+
+    n, Ts = 6000, 1e-3
+    t = np.arange(n) * Ts
+    u = 0.02 * np.sin(2 * np.pi * 0.5 * t) + 0.01 * np.sin(2 * np.pi * 3.1 * t)
+    parameters = (1.2e-3, 2e-3, 0.003, 0.0)
+    theta = np.cumsum(np.cumsum(u)) * Ts * Ts / parameters[0]
+    settings = resolve_settings(Ts, bandwidth=5.0)
+    kept = {}
+
+    def keep(position, command):
+        kept["q"] = position
+        return True
+
+    both = simulate_fit(parameters, t, theta, u, None, settings, keep=True)
+    lean = simulate_fit(parameters, t, theta, u, None, settings, keep=False, simulated=keep)
+    assert (lean.position_fit, lean.velocity_fit) == (both.position_fit, both.velocity_fit)
+    assert same_bits(kept["q"], both.theta_simulated)

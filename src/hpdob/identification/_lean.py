@@ -24,10 +24,12 @@ __all__ = [
     "BLOCK",
     "GRADIENT_BLOCK",
     "SHORT_BLOCK",
+    "block_of",
     "decimated_at",
     "filtfilt",
     "filtfilt_blocks",
     "gradient_block",
+    "gradient_blocks",
     "gradient_inplace",
     "pad_length",
     "welch",
@@ -49,7 +51,7 @@ def pad_length(sos: np.ndarray) -> int:
     return 3 * ntaps
 
 
-def _block(n: int) -> int:
+def block_of(n: int) -> int:
     """The block of a signal of ``n`` samples: a sixteenth of it, from :data:`SHORT_BLOCK` to
     :data:`BLOCK` (read when called: the tests set ``BLOCK``)."""
     return min(BLOCK, max(SHORT_BLOCK, -(-n // 16)))
@@ -91,7 +93,7 @@ def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
     """
     from scipy import signal
 
-    block = _block(n) if block is None else block
+    block = block_of(n) if block is None else block
     left, right = _edges(sos, n, read)
     edge = left.size
     pieces = [(-edge, 0)] + [(lo, min(lo + block, n)) for lo in range(0, n, block)]
@@ -173,6 +175,45 @@ def gradient_inplace(f: np.ndarray, dx: float, block: int | None = None) -> np.n
     f[0] = first
     f[-1] = last
     return f
+
+
+def gradient_blocks(blocks, n: int, dx: float):
+    """``np.gradient(f, dx)`` of a signal of ``n`` samples (at least 2) given block by block
+    from its last block to its first as ``(lo, hi, f[lo:hi])`` (:func:`filtfilt_blocks`'
+    order, new arrays): yields ``(lo, hi, g)``, ``g = np.gradient(f, dx)[lo:hi]`` bit for bit
+    (the same two operations on each sample), in the same order, written over the block. A
+    block waits for the last sample of the one before it: two blocks and a copy of one are
+    held, never an array of the signal's length."""
+    twice = 2.0 * dx
+    pending = None  # (lo, hi, f[lo:hi], f[hi] or None): the block whose gradient waits
+    for lo, hi, f in blocks:
+        after = None
+        if pending is not None:
+            after = float(pending[2][0])  # before the block's gradient overwrites it
+            yield _gradient_piece(*pending, f[-1], n, dx, twice)
+        pending = (lo, hi, f, after)
+    if pending is not None:
+        yield _gradient_piece(*pending, None, n, dx, twice)
+
+
+def _gradient_piece(lo, hi, f, after, before, n, dx, twice):
+    """:func:`gradient_blocks`' block ``f = x[lo:hi]`` with its neighbours ``x[hi]`` (None at
+    the end) and ``x[lo - 1]`` (None at the start), as ``np.gradient``: central differences
+    over ``2 dx`` inside, one-sided over ``dx`` at the ends."""
+    m = hi - lo
+    ext = np.empty(m + 2)  # x[lo - 1 : hi + 1]
+    ext[0] = np.nan if before is None else before
+    ext[1 : m + 1] = f
+    ext[m + 1] = np.nan if after is None else after
+    a = 1 if lo == 0 else 0
+    b = m - 1 if hi == n else m
+    np.subtract(ext[a + 2 : b + 2], ext[a:b], out=f[a:b])
+    np.divide(f[a:b], twice, out=f[a:b])
+    if lo == 0:
+        f[0] = (ext[2] - ext[1]) / dx
+    if hi == n:
+        f[m - 1] = (ext[m] - ext[m - 1]) / dx
+    return lo, hi, f
 
 
 def gradient_block(f: np.ndarray, lo: int, hi: int, dx: float) -> np.ndarray:
