@@ -160,6 +160,15 @@ def test_filtfilt_in_place_and_by_default_blocks_is_sosfiltfilt_bit_for_bit(comp
             for lo, hi, y in _lean.filtfilt_blocks(sos, n, read, block):
                 got[lo:hi] = y
             assert same_bits(got, reference)
+    # a strided out (every other sample of a longer array) and one over a strided x
+    x = np.cumsum(rng.standard_normal(3000))
+    reference = signal.sosfiltfilt(FILTERS["cheby8"], x)
+    wide = np.zeros(2 * x.size)
+    assert filtfilt(FILTERS["cheby8"], x, out=wide[::2]) is not None
+    assert same_bits(wide[::2], reference) and not wide[1::2].any()
+    wide[::2] = x
+    filtfilt(FILTERS["cheby8"], wide[::2], out=wide[::2])
+    assert same_bits(wide[::2], reference)
     # what the block-wise filter reads is never written over: its views are copied first
     x = np.cumsum(rng.standard_normal(5000))
     x0 = x.copy()

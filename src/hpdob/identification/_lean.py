@@ -139,8 +139,10 @@ def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=No
 
     del block
     left, right = _edges(sos, x.size, lambda a, b: x[a:b])
-    if out is None:
-        out = np.array(x, dtype=float)
+    given = out
+    if out is None or not (out.dtype == np.float64 and out.flags.c_contiguous
+                           and out.flags.writeable):  # fmt: skip
+        out = np.array(x, dtype=float)  # a strided ``out`` is written at the end
     elif out is not x:
         out[...] = x
     zi = signal.sosfilt_zi(sos)
@@ -150,6 +152,9 @@ def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=No
     back = zi * right[-1:]
     run(sos, right, back, reverse=True)  # backward, from the padding's end
     run(sos, out, back, reverse=True)  # the left padding's backward pass is not kept
+    if given is not None and given is not out:
+        given[...] = out
+        return given
     return out
 
 
