@@ -144,3 +144,31 @@ def test_the_column_wise_writer_reports_rows_written_per_chunk(tmp_path):
     with pytest.raises(TypeError, match=r"^progress must be a callable .* got 'yes'"):
         columns_to_csv(columns, tmp_path / "c.csv", "yes")
     assert not (tmp_path / "c.csv").exists()
+
+
+@pytest.mark.parametrize("n", [2000, 6210, 40_000])
+def test_a_short_table_is_formatted_in_short_chunks_same_bytes_and_progress(tmp_path, n):
+    """A table shorter than 16 chunks goes in halves of CHUNK (at least SHORT_CHUNK rows): its
+    text is never held whole (the EMPS identification.csv's 6 000 rows were one chunk of 25
+    bytes a value, more than the log), the same bytes, progress still per CHUNK rows."""
+    import tracemalloc
+
+    from hpdob import _csv_floats
+
+    rng = np.random.default_rng(n)
+    columns = {name: rng.standard_normal(n) * 10.0 ** rng.integers(-9, 9, n)
+               for name in ("t", "u", "u_model", "residual")}  # fmt: skip
+    calls = []
+    columns_to_csv(columns, tmp_path / "warm.csv")  # compiled before it is traced
+    tracemalloc.start()
+    try:
+        got = columns_to_csv(columns, tmp_path / "a.csv", lambda *call: calls.append(call))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert got.read_bytes() == csv_module_text(columns, tmp_path / "reference.csv")
+    chunk = _csv_floats.CHUNK
+    assert calls == [(k, n) for k in range(chunk, n, chunk)] + [(n, n)]
+    whole = n * 4 * (8 + _csv_floats._WIDTH + 1)  # a chunk of all the rows: text and copy
+    if n >= 16 * _csv_floats.SHORT_CHUNK:
+        assert peak < whole / 2

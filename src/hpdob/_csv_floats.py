@@ -28,6 +28,8 @@ __all__ = ["RowWriter", "format_rows", "write_float_rows"]
 
 #: Rows per chunk: ~3 MB of text for five columns (a few chunks are held at a time).
 CHUNK = 1 << 15
+#: The shortest chunk of a short table (:func:`write_float_rows`) [rows].
+SHORT_CHUNK = 1 << 8
 #: Longest text of one value: ``-1.2345678901234567e-308``.
 _WIDTH = 24
 
@@ -358,11 +360,13 @@ class RowWriter:
         if self._progress is not None:  # rows written of ``rows`` (a chunk at a time)
             self._progress(self._written, self._rows)
 
-    def write(self, columns: list) -> None:
-        """Queue the rows of equal-length float64 ``columns`` (written in order)."""
+    def write(self, columns: list, *, chunk: int | None = None) -> None:
+        """Queue the rows of equal-length float64 ``columns`` (written in order), formatted
+        ``chunk`` rows at a time (None: :data:`CHUNK`)."""
         n = len(columns[0]) if columns else 0
-        for start in range(0, n, CHUNK):
-            stop = min(start + CHUNK, n)
+        chunk = CHUNK if chunk is None else chunk
+        for start in range(0, n, chunk):
+            stop = min(start + chunk, n)
             self._pending.append((self._pool.submit(format_rows, columns, start, stop),
                                   stop - start))  # fmt: skip
             if len(self._pending) > 2:
@@ -387,5 +391,19 @@ class RowWriter:
 def write_float_rows(handle, columns: list, progress=None) -> None:
     """Write the rows of equal-length float64 ``columns`` to the binary file ``handle``
     (``progress(rows written, rows)`` after each chunk, if given)."""
-    with RowWriter(handle, progress=progress, rows=len(columns[0]) if columns else 0) as writer:
-        writer.write(columns)
+    n = len(columns[0]) if columns else 0
+    # a table shorter than 16 chunks in shorter chunks, CHUNK's halves: its text (25 bytes a
+    # value at most) and copy are not held whole (the EMPS identification's 6 000 rows were
+    # one chunk: more than the log); the same bytes, and progress still every CHUNK rows
+    chunk = CHUNK
+    while chunk % 2 == 0 and chunk // 2 >= SHORT_CHUNK and 16 * chunk > n:
+        chunk //= 2
+    report = progress
+    if progress is not None and chunk < CHUNK:
+
+        def report(done: int, total: int) -> None:
+            if done % CHUNK == 0 or done == total:
+                progress(done, total)
+
+    with RowWriter(handle, progress=report, rows=n) as writer:
+        writer.write(columns, chunk=chunk)

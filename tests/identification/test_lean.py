@@ -4,6 +4,8 @@ the regression had before (written out below as the reference)."""
 
 from __future__ import annotations
 
+import functools
+import itertools
 import math
 
 import numpy as np
@@ -65,6 +67,158 @@ def test_filtfilt_in_blocks_is_sosfiltfilt_bit_for_bit(name, n, block):
                          reference[samples])  # fmt: skip
 
 
+def _slice(x, lo, hi):
+    return x[lo:hi]
+
+
+def _random_filter(rng):
+    """A random low-, high- or band-pass of order 1-10 by one of four designs, in sections."""
+    order = int(rng.integers(1, 11))
+    band = rng.choice(["lowpass", "highpass", "bandpass"])
+    wn = np.sort(rng.uniform(0.002, 0.95, 2)) if band == "bandpass" else rng.uniform(0.002, 0.95)
+    design = int(rng.integers(4))
+    if design == 0:
+        return signal.butter(order, wn, band, output="sos")
+    if design == 1:
+        return signal.cheby1(order, rng.uniform(0.01, 1.0), wn, band, output="sos")
+    if design == 2:
+        return signal.cheby2(order, rng.uniform(20, 60), wn, band, output="sos")
+    return signal.ellip(order, rng.uniform(0.01, 1.0), rng.uniform(20, 60), wn, band, output="sos")
+
+
+def _random_signal(rng, n):
+    kind = int(rng.integers(3))
+    x = rng.standard_normal(n)
+    if kind == 1:
+        x = np.cumsum(x)
+    elif kind == 2:  # quantised steps, as an encoder's position
+        x = np.round(np.cumsum(x) * 7.0) / 7.0
+    return x * 10.0 ** float(rng.integers(-6, 6))
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "scipy"])
+def test_in_place_sections_are_sosfilt_bit_for_bit(compiled, monkeypatch):
+    """``_sos_kernel.run`` (the compiled recurrence, or without numba scipy written back) is
+    ``scipy.signal.sosfilt`` with its state, forward and over the reversed signal, to the last
+    bit, over random filters, signals and states."""
+    from hpdob.identification import _sos_kernel
+
+    if not compiled:
+        monkeypatch.setattr(_sos_kernel, "sos_kernel", lambda: _sos_kernel._scipy_run)
+    rng = np.random.default_rng(25)
+    for _ in range(150 if compiled else 30):
+        sos = _random_filter(rng)
+        x = _random_signal(rng, int(rng.integers(1, 3000)))
+        zi = rng.standard_normal((sos.shape[0], 2)) * 10.0 ** float(rng.integers(-3, 3))
+        for reverse in (False, True):
+            y, zf = signal.sosfilt(sos, x[::-1] if reverse else x, zi=zi)
+            mine, state = x.copy(), zi.copy()
+            _sos_kernel.run(sos, mine, state, reverse=reverse)
+            assert same_bits(mine[::-1] if reverse else mine, y)
+            assert same_bits(state, zf)
+
+
+def test_in_place_sections_refuse_what_they_cannot_write():
+    from hpdob.identification import _sos_kernel
+
+    sos = FILTERS["butter4"]
+    zi = np.zeros((sos.shape[0], 2))
+    x = np.arange(10.0)
+    with pytest.raises(ValueError, match="x must be a writeable C-contiguous float64 array"):
+        _sos_kernel.run(sos, x[::2], zi)
+    x.flags.writeable = False
+    with pytest.raises(ValueError, match="read-only"):
+        _sos_kernel.run(sos, x, zi)
+    with pytest.raises(ValueError, match="zi must be"):
+        _sos_kernel.run(sos, np.arange(10.0), zi.astype(np.float32))
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "scipy"])
+def test_filtfilt_in_place_and_by_default_blocks_is_sosfiltfilt_bit_for_bit(compiled,
+                                                                          monkeypatch):  # fmt: skip
+    """Random filters and signals: ``filtfilt`` into a new array and over ``x`` itself,
+    ``filtfilt_blocks`` with its default blocks (a sixteenth of the signal, at least
+    ``SHORT_BLOCK``) and odd ones, all ``sosfiltfilt`` to the last bit."""
+    from hpdob.identification import _lean, _sos_kernel
+
+    if not compiled:
+        monkeypatch.setattr(_sos_kernel, "sos_kernel", lambda: _sos_kernel._scipy_run)
+    rng = np.random.default_rng(2025)
+    for trial in range(60 if compiled else 15):
+        sos = _random_filter(rng)
+        longest = 3 * _lean.SHORT_BLOCK if trial % 4 else 300
+        n = _lean.pad_length(sos) + int(rng.integers(1, longest))
+        x = _random_signal(rng, n)
+        reference = signal.sosfiltfilt(sos, x)
+        assert same_bits(filtfilt(sos, x), reference)
+        mine = x.copy()
+        assert filtfilt(sos, mine, out=mine) is mine
+        assert same_bits(mine, reference)
+        for block in (None, int(rng.integers(1, n + 2))):
+            got = np.full(n, np.nan)
+            read = functools.partial(_slice, x)
+            for lo, hi, y in _lean.filtfilt_blocks(sos, n, read, block):
+                got[lo:hi] = y
+            assert same_bits(got, reference)
+    # a strided out (every other sample of a longer array) and one over a strided x
+    x = np.cumsum(rng.standard_normal(3000))
+    reference = signal.sosfiltfilt(FILTERS["cheby8"], x)
+    wide = np.zeros(2 * x.size)
+    assert filtfilt(FILTERS["cheby8"], x, out=wide[::2]) is not None
+    assert same_bits(wide[::2], reference) and not wide[1::2].any()
+    wide[::2] = x
+    filtfilt(FILTERS["cheby8"], wide[::2], out=wide[::2])
+    assert same_bits(wide[::2], reference)
+    # what the block-wise filter reads is never written over: its views are copied first
+    x = np.cumsum(rng.standard_normal(5000))
+    x0 = x.copy()
+    list(_lean.filtfilt_blocks(FILTERS["cheby8"], x.size, lambda a, b: x[a:b], 512))
+    assert same_bits(x, x0)
+
+
+@pytest.mark.parametrize("n", [24_841, 200_000])
+def test_filtfilt_in_place_holds_no_array_of_the_signal(n):
+    """``filtfilt(sos, x, out=x)`` holds the padding and the states only (it held a forward
+    and a backward block, the whole signal up to BLOCK samples); into a new array, that
+    array; ``decimated_at`` a short block of each kind."""
+    import tracemalloc
+
+    from hpdob.identification import _lean
+
+    sos = FILTERS["cheby8"]
+    x = np.cumsum(np.random.default_rng(n).standard_normal(n))
+    reference = signal.sosfiltfilt(sos, x)
+    filtfilt(sos, x[:1000].copy())  # compiled before it is traced
+    samples = np.arange(0, n, 10)
+    tracemalloc.start()
+    try:
+        mine = filtfilt(sos, x, out=x)
+        in_place = tracemalloc.get_traced_memory()[1]
+        tracemalloc.reset_peak()
+        base = tracemalloc.get_traced_memory()[0]
+        rows = decimated_at(sos, n, lambda lo, hi: reference[lo:hi], samples)
+        at = tracemalloc.get_traced_memory()[1] - base
+    finally:
+        tracemalloc.stop()
+    assert same_bits(mine, reference)
+    assert in_place <= 16_384
+    block = _lean.block_of(n)
+    # the rows, the states of the blocks, a block read and its copy
+    assert at <= 8 * samples.size + 80 * (n // block + 3) + 16 * block + 16_384
+    assert same_bits(rows, signal.sosfiltfilt(sos, reference)[samples])
+
+
+def test_default_blocks_are_short_for_short_signals(monkeypatch):
+    """A sixteenth of the signal, from SHORT_BLOCK to BLOCK samples (read when called)."""
+    from hpdob.identification import _lean
+
+    assert _lean.block_of(24_841) == _lean.SHORT_BLOCK
+    assert _lean.block_of(16 * 10_000) == 10_000
+    assert _lean.block_of(10**8) == _lean.BLOCK
+    monkeypatch.setattr(_lean, "BLOCK", 1000)
+    assert _lean.block_of(10**6) == 1000
+
+
 @pytest.mark.parametrize("n", [2, 3, 5, 100, 4097])
 @pytest.mark.parametrize("block", [1, 7, 4096])
 def test_gradient_in_place_and_in_blocks_is_numpy_gradient(n, block):
@@ -73,6 +227,32 @@ def test_gradient_in_place_and_in_blocks_is_numpy_gradient(n, block):
     assert same_bits(gradient_inplace(x.copy(), 1e-3, block), reference)
     for lo, hi in ((0, n), (0, 1), (n - 1, n), (1, n - 1), (min(2, n - 1), n)):
         assert same_bits(gradient_block(x, lo, hi, 1e-3), reference[lo:hi])
+
+
+@pytest.mark.parametrize("n", [2, 3, 5, 100, 4097])
+def test_gradient_of_blocks_from_the_last_is_numpy_gradient(n):
+    """Blocks given from the last to the first, of every size from 1 to the whole signal."""
+    from hpdob.identification._lean import gradient_blocks
+
+    rng = np.random.default_rng(n)
+    x = np.cumsum(rng.standard_normal(n)) * 1e-3
+    reference = np.gradient(x, 1e-3)
+    for trial in range(20):
+        if trial == 0:
+            cuts = [0, n]
+        elif trial == 1:
+            cuts = list(range(n + 1))  # blocks of one sample
+        else:
+            inner = rng.choice(np.arange(1, n), min(n - 1, int(rng.integers(0, 12))), replace=False)
+            cuts = [0, *sorted(int(c) for c in inner), n]
+        pieces = [(lo, hi, x[lo:hi].copy()) for lo, hi in itertools.pairwise(cuts)]
+        got = np.full(n, np.nan)
+        order = []
+        for lo, hi, g in gradient_blocks(reversed(pieces), n, 1e-3):
+            got[lo:hi] = g
+            order.append(lo)
+        assert order == sorted(order, reverse=True)
+        assert same_bits(got, reference)
 
 
 @pytest.mark.parametrize("n", [5000, 100_000])
@@ -223,3 +403,57 @@ def test_differentiate_is_the_filtered_kinematics_bit_for_bit():
     got = differentiate(theta, 1e-3, cutoff=25.0)
     assert same_bits(got[0], velocity) and same_bits(got[1], acceleration)
     assert math.isfinite(float(got[1].sum()))
+
+
+@pytest.mark.parametrize("n", [500, 24_841])
+def test_band_error_with_its_scale_given_is_the_in_band_relative_error(n):
+    """The loop's band error with the filtered input taken block by block (its scale given,
+    computed before the simulation) is the straightforward one to the last bit."""
+    from hpdob.identification._identify import band_error, band_scale, in_band
+    from hpdob.identification._solve import relative_error
+
+    rng = np.random.default_rng(n)
+    t = np.arange(n) * 1e-3
+    u = np.sin(2 * np.pi * 0.7 * t) + 0.05 * rng.standard_normal(n)
+    simulated = u + 0.01 * np.cumsum(rng.standard_normal(n)) / np.sqrt(n)
+    settings = resolve_settings(1e-3, bandwidth=5.0)
+    reference = relative_error(*in_band((u, simulated), settings))
+    assert band_error(u, simulated.copy(), settings) == reference
+    mine = simulated.copy()
+    assert band_error(u, mine, settings, overwrite=True, scale=band_scale(u, settings)) == reference
+
+
+@pytest.mark.parametrize("n", [300, 1025, 24_841])
+def test_velocity_by_blocks_is_the_filtered_velocity(n):
+    from hpdob.identification._regression import filtered_velocity, velocity_blocks
+
+    theta = np.cumsum(np.random.default_rng(n).standard_normal(n)) * 1e-3
+    settings = resolve_settings(1e-3, bandwidth=5.0)
+    reference = filtered_velocity(theta, settings)
+    got = np.full(n, np.nan)
+    for lo, hi, v in velocity_blocks(theta, settings):
+        got[lo:hi] = v
+    assert same_bits(got, reference)
+
+
+def test_simulation_fit_without_traces_is_the_fit_with_them():
+    """keep=False (the log's velocity block by block beside the kept simulated position, the
+    difference over the simulated velocity) gives the numbers keep=True does."""
+    from hpdob.identification._simfit import simulate_fit
+
+    n, Ts = 6000, 1e-3
+    t = np.arange(n) * Ts
+    u = 0.02 * np.sin(2 * np.pi * 0.5 * t) + 0.01 * np.sin(2 * np.pi * 3.1 * t)
+    parameters = (1.2e-3, 2e-3, 0.003, 0.0)
+    theta = np.cumsum(np.cumsum(u)) * Ts * Ts / parameters[0]
+    settings = resolve_settings(Ts, bandwidth=5.0)
+    kept = {}
+
+    def keep(position, command):
+        kept["q"] = position
+        return True
+
+    both = simulate_fit(parameters, t, theta, u, None, settings, keep=True)
+    lean = simulate_fit(parameters, t, theta, u, None, settings, keep=False, simulated=keep)
+    assert (lean.position_fit, lean.velocity_fit) == (both.position_fit, both.velocity_fit)
+    assert same_bits(kept["q"], both.theta_simulated)

@@ -86,20 +86,42 @@ def in_band(signals, settings) -> list:
     return [signal.sosfiltfilt(sos, x) for x in signals]
 
 
-def band_error(u: np.ndarray, u_simulated: np.ndarray, settings, *, overwrite=False) -> float:
-    """``relative_error(*in_band((u, u_simulated), settings))`` bit for bit, holding two
-    filtered arrays instead of four (the filters in blocks, the difference in place), or one
-    with ``overwrite`` (the filtered ``u_simulated`` and the difference written over it)."""
+def _band_filter(settings):
+    """:func:`in_band`'s filter, in second-order sections."""
     from scipy import signal
 
+    return signal.butter(settings.order, settings.decimation_cutoff, fs=1.0 / settings.Ts,
+                         output="sos")  # fmt: skip
+
+
+def band_scale(u: np.ndarray, settings) -> float:
+    """``||in_band(u)||``, the scale of :func:`band_error` (computed before the simulation
+    that needs it: the filtered input then never lies beside its traces)."""
     from ._lean import filtfilt
 
-    sos = signal.butter(settings.order, settings.decimation_cutoff, fs=1.0 / settings.Ts,
-                        output="sos")  # fmt: skip
+    return float(np.linalg.norm(filtfilt(_band_filter(settings), u)))
+
+
+def band_error(u: np.ndarray, u_simulated: np.ndarray, settings, *, overwrite=False,
+               scale: float | None = None) -> float:  # fmt: skip
+    """``relative_error(*in_band((u, u_simulated), settings))`` bit for bit, holding two
+    filtered arrays instead of four (the filters in blocks, the difference in place), or one
+    with ``overwrite`` (the filtered ``u_simulated`` and the difference written over it).
+    Given ``scale`` (:func:`band_scale` of ``u``), the filtered ``u`` is taken block by block
+    (the same subtraction sample by sample), never whole."""
+    from ._lean import filtfilt, filtfilt_blocks
+
+    sos = _band_filter(settings)
     simulated = filtfilt(sos, u_simulated, out=u_simulated if overwrite else None)
-    measured = filtfilt(sos, u)
-    scale = float(np.linalg.norm(measured))
-    error = float(np.linalg.norm(np.subtract(measured, simulated, out=simulated)))
+    if scale is None:
+        measured = filtfilt(sos, u)
+        scale = float(np.linalg.norm(measured))
+        error = float(np.linalg.norm(np.subtract(measured, simulated, out=simulated)))
+    else:
+        for lo, hi, measured in filtfilt_blocks(sos, u.size, lambda a, b: u[a:b]):
+            np.subtract(measured, simulated[lo:hi], out=simulated[lo:hi])
+            del measured  # not beside the next block
+        error = float(np.linalg.norm(simulated))
     return 100.0 * error / scale if scale > 0 else (0.0 if error == 0 else math.inf)
 
 
@@ -429,8 +451,10 @@ def identify(
             continue
         progress("simulating", sum(simulated[:i]), sum(simulated))
         traced = i == 0 and run.loop is not None
+        # the band error's scale now, while no simulated trace is held
+        scale = band_scale(run.u, run.settings) if traced else None
 
-        def through_loop(position, command, run=run):
+        def through_loop(position, command, run=run, scale=scale):
             # the loop's errors from the simulated command, which the band error overwrites,
             # before the fit's velocities; the position kept for the result's traces
             nonlocal simulation, traces
@@ -438,7 +462,7 @@ def identify(
                 "position_error_percent": relative_error(run.theta, position),
                 "input_error_percent": relative_error(run.u, command),
                 "input_error_band_percent": band_error(run.u, command, run.settings,
-                                                       overwrite=True),
+                                                       overwrite=True, scale=scale),
                 "band_hz": run.settings.decimation_cutoff,
             }  # fmt: skip
             traces = (run.t, run.theta, readonly(position))  # the result shares them

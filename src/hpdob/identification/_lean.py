@@ -4,9 +4,12 @@
 pad length) block by block, holding a block and the filter's state at each block's start
 instead of the padded signal and two filtered copies of it: the forward pass runs once to
 record those states and again, block by block from the end, in front of the backward pass.
-Both passes are ``scipy.signal.sosfilt`` with its state carried from block to block, the
-same recursion on the same numbers, so the result is the same to the last bit
-(``tests/identification/test_lean.py`` compares it with ``sosfiltfilt`` and ``np.gradient``).
+Both passes are ``scipy.signal.sosfilt``'s recurrence, compiled and run in place
+(:mod:`._sos_kernel`), with its state carried from block to block: the same recursion on the
+same numbers, so the result is the same to the last bit (``tests/identification/test_lean.py``
+compares it with ``sosfiltfilt`` and ``np.gradient``). Compiled, a block costs no Python
+overhead, so short signals are cut into short blocks; :func:`filtfilt` of a signal held in
+memory needs no blocks at all: both passes run over it in place.
 
 This keeps :func:`hpdob.identify` within two copies of a log (docs/performance.md, issue 25).
 """
@@ -15,20 +18,27 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._sos_kernel import run
+
 __all__ = [
     "BLOCK",
     "GRADIENT_BLOCK",
+    "SHORT_BLOCK",
+    "block_of",
     "decimated_at",
     "filtfilt",
     "filtfilt_blocks",
     "gradient_block",
+    "gradient_blocks",
     "gradient_inplace",
     "pad_length",
     "welch",
 ]
 
-#: Samples per block (0.5 MB of float64); read when a function runs (None: this).
+#: The longest block [samples] (0.5 MB of float64); read when a function runs.
 BLOCK = 1 << 16
+#: The shortest block a signal is cut into by default [samples] (32 kB of float64).
+SHORT_BLOCK = 1 << 12
 #: The gradient's block [samples]: its few numpy calls a block cost nothing against the
 #: arithmetic at this size, and a short log's gradient holds no array of its length.
 GRADIENT_BLOCK = 1 << 13
@@ -41,12 +51,40 @@ def pad_length(sos: np.ndarray) -> int:
     return 3 * ntaps
 
 
+def block_of(n: int) -> int:
+    """The block of a signal of ``n`` samples: a sixteenth of it, from :data:`SHORT_BLOCK` to
+    :data:`BLOCK` (read when called: the tests set ``BLOCK``)."""
+    return min(BLOCK, max(SHORT_BLOCK, -(-n // 16)))
+
+
+def _edges(sos: np.ndarray, n: int, read):
+    """``sosfiltfilt``'s odd extension of the signal ``read`` gives at both ends (new arrays),
+    as ``scipy.signal._arraytools.odd_ext``.
+
+    Raises
+    ------
+    ValueError
+        As ``sosfiltfilt``, if ``n`` is not above the pad length.
+    """
+    edge = pad_length(sos)
+    if n <= edge:
+        raise ValueError(
+            f"The length of the input vector x must be greater than padlen, which is {edge}."
+        )
+    left = 2 * read(0, 1) - read(1, edge + 1)[::-1]
+    right = 2 * read(n - 1, n) - read(n - 1 - edge, n - 1)[::-1]
+    return np.ascontiguousarray(left, dtype=float), np.ascontiguousarray(right, dtype=float)
+
+
 def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
     """``scipy.signal.sosfiltfilt(sos, x)`` of a signal of ``n`` samples in blocks.
 
-    ``read(lo, hi)`` returns ``x[lo:hi]`` as float64 (it is called twice per block). Yields
-    ``(lo, hi, y)`` with ``y`` equal to ``sosfiltfilt(sos, x)[lo:hi]``, from the last block
-    to the first.
+    ``read(lo, hi)`` returns ``x[lo:hi]`` as float64 (it is called twice per block); a new
+    C-contiguous float64 array it returns that owns its data (not a view) is filtered in
+    place, anything else is copied first. Yields ``(lo, hi, y)`` with ``y`` equal to
+    ``sosfiltfilt(sos, x)[lo:hi]``, from the last block to the first. ``block`` None: a
+    sixteenth of the signal, from :data:`SHORT_BLOCK` to :data:`BLOCK` samples (the
+    compiled passes cost nothing per block).
 
     Raises
     ------
@@ -55,54 +93,68 @@ def filtfilt_blocks(sos: np.ndarray, n: int, read, block: int | None = None):
     """
     from scipy import signal
 
-    block = BLOCK if block is None else block
-    edge = pad_length(sos)
-    if n <= edge:
-        raise ValueError(
-            f"The length of the input vector x must be greater than padlen, which is {edge}."
-        )
-    # odd extension, as scipy.signal._arraytools.odd_ext
-    left = 2 * read(0, 1) - read(1, edge + 1)[::-1]
-    right = 2 * read(n - 1, n) - read(n - 1 - edge, n - 1)[::-1]
+    block = block_of(n) if block is None else block
+    left, right = _edges(sos, n, read)
+    edge = left.size
     pieces = [(-edge, 0)] + [(lo, min(lo + block, n)) for lo in range(0, n, block)]
     pieces.append((n, n + edge))
 
-    def get(lo, hi):
+    def get(lo, hi):  # a block of the padded signal that may be filtered in place
         if lo < 0:
-            return left
+            return left.copy()
         if lo >= n:
-            return right
-        return read(lo, hi)
+            return right.copy()
+        y = read(lo, hi)
+        mine = y.flags.owndata and y.flags.writeable and y.flags.c_contiguous
+        return y if mine and y.dtype == np.float64 else np.array(y, dtype=float)
 
     zi = signal.sosfilt_zi(sos)
     state = zi * left[:1]
     starts = []
-    # each block let go before the next is filtered (the few blocks held at once would
-    # otherwise be two of each kind); the callers let go of the yielded one
     for lo, hi in pieces:
-        starts.append(state)
-        y, state = signal.sosfilt(sos, get(lo, hi), zi=state)
+        starts.append(state.copy())
+        y = get(lo, hi)
+        run(sos, y, state)
         last = y[-1:].copy()
-        del y
+        del y  # not beside the next block
     back = zi * last
     for (lo, hi), start in zip(reversed(pieces), reversed(starts), strict=True):
-        y, _ = signal.sosfilt(sos, get(lo, hi), zi=start)  # the forward pass again
-        b, back = signal.sosfilt(sos, y[::-1], zi=back)
-        del y
+        y = get(lo, hi)
+        run(sos, y, start)  # the forward pass again
+        run(sos, y, back, reverse=True)
         if 0 <= lo < n:
-            yield lo, hi, b[::-1]
-        del b
+            yield lo, hi, y
+        del y  # the callers let go of the yielded one
 
 
 def filtfilt(sos: np.ndarray, x: np.ndarray, block: int | None = None, *, out=None):
     """``scipy.signal.sosfiltfilt(sos, x)`` of a 1-D float64 array, bit for bit, holding one
     new array of ``x``'s size (``sosfiltfilt`` holds three, of the padded size), or none with
-    ``out=x`` (written over ``x``: :func:`filtfilt_blocks` builds the padding first, and
-    yields a block only after its last read of it and of every block after it)."""
-    out = np.empty(x.size) if out is None else out
-    for lo, hi, y in filtfilt_blocks(sos, x.size, lambda a, b: x[a:b], block):
-        out[lo:hi] = y
-        del y  # not beside the next block
+    ``out=x`` (written over ``x``).
+
+    Both passes run in place over the whole signal, between the padding's two ends
+    (:func:`_edges`, built first); ``block`` is not needed for that (accepted as
+    :func:`filtfilt_blocks`'s)."""
+    from scipy import signal
+
+    del block
+    left, right = _edges(sos, x.size, lambda a, b: x[a:b])
+    given = out
+    if out is None or not (out.dtype == np.float64 and out.flags.c_contiguous
+                           and out.flags.writeable):  # fmt: skip
+        out = np.array(x, dtype=float)  # a strided ``out`` is written at the end
+    elif out is not x:
+        out[...] = x
+    zi = signal.sosfilt_zi(sos)
+    state = zi * left[:1]
+    for piece in (left, out, right):  # forward: sosfilt of the padded signal, piece by piece
+        run(sos, piece, state)
+    back = zi * right[-1:]
+    run(sos, right, back, reverse=True)  # backward, from the padding's end
+    run(sos, out, back, reverse=True)  # the left padding's backward pass is not kept
+    if given is not None and given is not out:
+        given[...] = out
+        return given
     return out
 
 
@@ -128,6 +180,45 @@ def gradient_inplace(f: np.ndarray, dx: float, block: int | None = None) -> np.n
     f[0] = first
     f[-1] = last
     return f
+
+
+def gradient_blocks(blocks, n: int, dx: float):
+    """``np.gradient(f, dx)`` of a signal of ``n`` samples (at least 2) given block by block
+    from its last block to its first as ``(lo, hi, f[lo:hi])`` (:func:`filtfilt_blocks`'
+    order, new arrays): yields ``(lo, hi, g)``, ``g = np.gradient(f, dx)[lo:hi]`` bit for bit
+    (the same two operations on each sample), in the same order, written over the block. A
+    block waits for the last sample of the one before it: two blocks and a copy of one are
+    held, never an array of the signal's length."""
+    twice = 2.0 * dx
+    pending = None  # (lo, hi, f[lo:hi], f[hi] or None): the block whose gradient waits
+    for lo, hi, f in blocks:
+        after = None
+        if pending is not None:
+            after = float(pending[2][0])  # before the block's gradient overwrites it
+            yield _gradient_piece(*pending, f[-1], n, dx, twice)
+        pending = (lo, hi, f, after)
+    if pending is not None:
+        yield _gradient_piece(*pending, None, n, dx, twice)
+
+
+def _gradient_piece(lo, hi, f, after, before, n, dx, twice):
+    """:func:`gradient_blocks`' block ``f = x[lo:hi]`` with its neighbours ``x[hi]`` (None at
+    the end) and ``x[lo - 1]`` (None at the start), as ``np.gradient``: central differences
+    over ``2 dx`` inside, one-sided over ``dx`` at the ends."""
+    m = hi - lo
+    ext = np.empty(m + 2)  # x[lo - 1 : hi + 1]
+    ext[0] = np.nan if before is None else before
+    ext[1 : m + 1] = f
+    ext[m + 1] = np.nan if after is None else after
+    a = 1 if lo == 0 else 0
+    b = m - 1 if hi == n else m
+    np.subtract(ext[a + 2 : b + 2], ext[a:b], out=f[a:b])
+    np.divide(f[a:b], twice, out=f[a:b])
+    if lo == 0:
+        f[0] = (ext[2] - ext[1]) / dx
+    if hi == n:
+        f[m - 1] = (ext[m] - ext[m - 1]) / dx
+    return lo, hi, f
 
 
 def gradient_block(f: np.ndarray, lo: int, hi: int, dx: float) -> np.ndarray:

@@ -29,7 +29,15 @@ import numpy as np
 
 from .._validation import ParameterValueError, as_int, nonnegative, positive
 from . import _lean
-from ._lean import decimated_at, filtfilt, gradient_block, gradient_inplace, welch
+from ._lean import (
+    decimated_at,
+    filtfilt,
+    filtfilt_blocks,
+    gradient_block,
+    gradient_blocks,
+    gradient_inplace,
+    welch,
+)
 
 __all__ = [
     "MIN_ROWS",
@@ -103,6 +111,19 @@ def _whitened_psd(theta: np.ndarray, Ts: float):
         return f[1:], psd[1:] / gain[1:]
 
 
+def _smallest_step(theta: np.ndarray) -> float:
+    """The smallest positive ``|step|`` between consecutive samples (0 if none), block by
+    block (a minimum is exact; its blocks let go before the spectrum is taken)."""
+    q = math.inf
+    block = _lean.block_of(theta.size)
+    for lo in range(0, theta.size - 1, block):
+        steps = np.abs(np.diff(theta[lo : lo + block + 1]))
+        steps = steps[steps > 0]
+        if steps.size:
+            q = min(q, float(steps.min()))
+    return 0.0 if q == math.inf else q
+
+
 def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
     """One-sided noise PSD [unit^2/Hz] of a logged position, and its quantisation step.
 
@@ -110,13 +131,7 @@ def noise_floor(theta: np.ndarray, Ts: float) -> tuple[float, float]:
     between consecutive samples; white noise of variance ``q^2/12`` over ``fs/2``) and the
     median PSD of the top quarter of the band, where a motion system's position is noise.
     """
-    q = math.inf  # the smallest positive |step|, block by block (a minimum is exact)
-    for lo in range(0, theta.size - 1, _lean.BLOCK):
-        steps = np.abs(np.diff(theta[lo : lo + _lean.BLOCK + 1]))
-        steps = steps[steps > 0]
-        if steps.size:
-            q = min(q, float(steps.min()))
-    q = 0.0 if q == math.inf else q
+    q = _smallest_step(theta)
     f, psd = _whitened_psd(theta, Ts)
     top = psd[f >= 0.375 / Ts]
     return max(q * q * Ts / 6.0, float(np.median(top)) if top.size else 0.0), q
@@ -224,6 +239,20 @@ def filtered_velocity(theta: np.ndarray, settings: Settings, *, overwrite: bool 
     return gradient_inplace(filtfilt(sos, theta, out=theta if overwrite else None), settings.Ts)
 
 
+#: The block [samples] of :func:`velocity_blocks` (8 kB of float64: it runs once a fit).
+VELOCITY_BLOCK = 1 << 10
+
+
+def velocity_blocks(theta: np.ndarray, settings: Settings):
+    """:func:`filtered_velocity` of ``theta`` block by block, from the last block to the first:
+    ``(lo, hi, v)`` with ``v`` equal to ``filtered_velocity(theta, settings)[lo:hi]``, bit
+    for bit, holding a few blocks of :data:`VELOCITY_BLOCK` samples, no array of the log's
+    length."""
+    sos, n = velocity_filter(settings), theta.size
+    blocks = filtfilt_blocks(sos, n, lambda lo, hi: theta[lo:hi], VELOCITY_BLOCK)
+    return gradient_blocks(blocks, n, settings.Ts)
+
+
 def _decimate_sos(factor: int) -> np.ndarray:
     """The parallel filter: MATLAB's and scipy's ``decimate`` default (Chebyshev type I,
     order 8, 0.05 dB ripple, cut-off 0.8/factor of Nyquist), in second-order sections."""
@@ -316,19 +345,24 @@ def instrument_rows(theta: np.ndarray, regression: Regression, settings: Setting
 
 def _largest_speed(velocity: np.ndarray) -> float:
     """``max(|velocity|)``, block by block (a maximum is exact in any order)."""
-    return max(float(np.max(np.abs(velocity[lo : lo + _lean.BLOCK])))
-               for lo in range(0, velocity.size, _lean.BLOCK))  # fmt: skip
+    block = _lean.block_of(velocity.size)
+    return max(float(np.max(np.abs(velocity[lo : lo + block])))
+               for lo in range(0, velocity.size, block))  # fmt: skip
 
 
 def near_slow(velocity: np.ndarray, index: np.ndarray, speed: float, half: int) -> np.ndarray:
     """Whether ``|velocity| < speed`` somewhere within ``half`` samples of each of ``index``
     (the decimation filter's main lobe around a row), counted block by block of rows."""
     n, out = velocity.size, np.zeros(index.size, dtype=bool)
-    for a in range(0, index.size, _lean.BLOCK):
-        rows = index[a : a + _lean.BLOCK]
+    # blocks of rows spanning about a block of samples (the counts are exact in any blocks)
+    step = max(1, _lean.block_of(n) * index.size // max(n, 1))
+    for a in range(0, index.size, step):
+        rows = index[a : a + step]
         lo, hi = max(int(rows[0]) - half, 0), min(int(rows[-1]) + half + 1, n)
         slow = np.abs(velocity[lo:hi]) < speed
-        count = np.concatenate([[0], np.cumsum(slow)])
+        count = np.zeros(slow.size + 1, dtype=np.int64)  # [0, cumsum(slow)]
+        np.cumsum(slow, out=count[1:])
+        del slow
         out[a : a + rows.size] = (
             count[np.minimum(rows + half + 1, n) - lo] - count[np.maximum(rows - half, 0) - lo]
         ) > 0
@@ -396,10 +430,9 @@ def rest_rows_mask(velocity: np.ndarray, index: np.ndarray, length: int, margin:
     n = velocity.size
     rest_speed = REST_SPEED_FRACTION * float(np.abs(velocity[index]).max()) if index.size else 0.0
     slow = np.empty(n, dtype=bool)
-    for lo in range(0, n, _lean.BLOCK):
-        np.less(
-            np.abs(velocity[lo : lo + _lean.BLOCK]), rest_speed, out=slow[lo : lo + _lean.BLOCK]
-        )
+    block = _lean.block_of(n)
+    for lo in range(0, n, block):
+        np.less(np.abs(velocity[lo : lo + block]), rest_speed, out=slow[lo : lo + block])
     # the edges of the stretches of consecutive slow samples: where [0, slow, 0] changes
     edges = np.flatnonzero(slow[1:] != slow[:-1]) + 1
     edges = np.concatenate([[0] if n and slow[0] else [], edges, [n] if n and slow[-1] else []])

@@ -21,7 +21,13 @@ import numpy as np
 from .._validation import ParameterValueError, as_real, require_instance
 from ._log import Log
 from ._loop import FeedbackLoop, run_simulation
-from ._regression import PARAMETERS, Settings, filtered_velocity, resolve_settings
+from ._regression import (
+    PARAMETERS,
+    Settings,
+    filtered_velocity,
+    resolve_settings,
+    velocity_blocks,
+)
 
 __all__ = ["MIN_FIT", "SimulationFit", "Validation", "nrmse_fit", "simulate_fit", "validate"]
 
@@ -39,7 +45,11 @@ def nrmse_fit(measured: np.ndarray, simulated: np.ndarray, *, spread=None, out=N
     numbers as numpy's temporary)."""
     if spread is None:
         spread = float(np.linalg.norm(measured - measured.mean()))
-    error = float(np.linalg.norm(np.subtract(measured, simulated, out=out)))
+    return _nrmse(float(np.linalg.norm(np.subtract(measured, simulated, out=out))), spread)
+
+
+def _nrmse(error: float, spread: float) -> float:
+    """:func:`nrmse_fit` of ``error = ||y - y_hat||`` and ``spread = ||y - mean(y)||``."""
     if spread == 0.0:
         return 100.0 if error == 0.0 else -math.inf
     return 100.0 * (1.0 - error / spread)
@@ -152,9 +162,14 @@ def _fit_numbers(parameters, t, theta, u, loop, settings, simulated) -> Simulati
     # the velocity of the simulated position, over it unless the caller keeps it
     velocity_simulated = filtered_velocity(position, settings, overwrite=not kept)
     del position
-    velocity = filtered_velocity(theta, settings)
-    velocity_fit = nrmse_fit(velocity, velocity_simulated, spread=velocity_spread,
-                             out=velocity_simulated)  # fmt: skip
+    # nrmse_fit(velocity, velocity_simulated) with the log's velocity taken block by block
+    # (not a third array of the log's length beside the kept position): the difference is
+    # written over the simulated velocity, sample by sample the same subtraction
+    error = velocity_simulated
+    for lo, hi, velocity in velocity_blocks(theta, settings):
+        np.subtract(velocity, error[lo:hi], out=error[lo:hi])
+        del velocity  # not beside the next block
+    velocity_fit = _nrmse(float(np.linalg.norm(error)), velocity_spread)
     return SimulationFit(t=t, theta=theta, theta_simulated=None, velocity=None,
                          velocity_simulated=None, u_simulated=None, closed_loop=closed,
                          position_fit=position_fit, velocity_fit=velocity_fit)  # fmt: skip
