@@ -105,3 +105,35 @@ def test_an_rtob_that_follows_the_plant_is_that_of_each_plants_loop():
     fixed = loop.replace(observer=dataclasses.replace(loop.design, follows_plant=False))
     other = spectral_radii(fixed, plants, [0, 1])
     assert (other[:, 0] == radii[:, 0]).all() and (other[:, 1:] != radii[:, 1:]).all()
+
+
+@pytest.mark.parametrize("index", range(4))
+def test_stacked_delayed_state_matrices_are_each_ones_bit_for_bit(index):
+    """A stack of one-sample matrices (tune's corners) delayed as one array."""
+    spec = loop_spec(list(_loops())[index])
+    ones = [dataclasses.replace(spec, plant=p.discretize(TS), delay=1) for p in PLANTS]
+    stack = np.stack([loop_matrices(one)[0] for one in ones])
+    state = NOMINAL.discretize(TS).A.shape[0] + int(spec.backward_difference)
+    for d in (1, 2, 5, 21):
+        got = delayed_state_matrix(stack, None, d, state=state)
+        for k, one in enumerate(ones):
+            expected = loop_matrices(dataclasses.replace(one, delay=d))[0]
+            assert np.array_equal(got[k].view(np.uint64), expected.view(np.uint64))
+
+
+@pytest.mark.parametrize("index", range(4))
+def test_a_radii_scan_asked_batch_by_batch_is_spectral_radii(index):
+    """tune's delay-margin scan: one RadiiScan asked delay by delay, in any order, gives
+    spectral_radii's figures bit for bit (rigid plants stacked; with a two-mass plant among
+    them the matrices differ in size and go one by one)."""
+    from hpdob.analysis import RadiiScan
+
+    loop = list(_loops())[index]
+    for plants in (PLANTS, [*PLANTS, TwoMassServo(1.4e-4, 1.4e-4, 20.0)]):
+        scan = RadiiScan(loop, plants)
+        whole = spectral_radii(loop, plants, DELAYS)
+        for i in (3, 0, 5, 1, 2, 4, 3):
+            got = scan.radii([DELAYS[i]])
+            assert np.array_equal(got[0].view(np.uint64), whole[i].view(np.uint64))
+    with pytest.raises(ParameterValueError, match="delay_samples must be integers"):
+        RadiiScan(loop, PLANTS).radii([1001])

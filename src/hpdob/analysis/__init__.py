@@ -22,6 +22,7 @@ bode_figure, noise_figure
     The figures of docs/analysis.md: estimation response and noise gains against bandwidth.
 """
 
+from ._closed_loop import RadiiScan as RadiiScan
 from ._closed_loop import closed_loop, closed_loop_poles, spectral_radii
 from ._comparison import DEFAULT_NOISE_GAIN as DEFAULT_NOISE_GAIN
 from ._comparison import Comparison, compare_observers

@@ -11,6 +11,7 @@ from ..simulation import ServoLoop, accepts_loop
 from ._linear_loop import (
     INPUTS,
     OUTPUTS,
+    delay_state,
     delayed_state_matrix,
     loop_matrices,
     loop_spec,
@@ -177,8 +178,11 @@ def spectral_radii(loop: ServoLoop, plants, delay_samples) -> np.ndarray:
     >>> radii.shape, bool((radii < 1).all())
     ((2, 2), True)
     """
-    import dataclasses
+    delays = _checked_delays(delay_samples)
+    return RadiiScan(loop, plants).radii(delays)
 
+
+def _checked_delays(delay_samples) -> list[int]:
     from .._validation import ParameterValueError
     from ._linear_loop import MAX_DELAY_SAMPLES
 
@@ -193,30 +197,67 @@ def spectral_radii(loop: ServoLoop, plants, delay_samples) -> np.ndarray:
                 f"delay_samples must be integers in 0..{MAX_DELAY_SAMPLES} [samples], got {d!r}"
             )
         delays.append(int(d))
-    spec = loop_spec(loop)
-    models = [_linear_model(plant, loop.Ts) for plant in plants]
-    if getattr(loop.design, "follows_plant", False):
-        # an RTOB whose friction model is the plant's (friction = "plant"): its observer is
-        # that of loop.replace(plant=...), one per plant
-        specs = [loop_spec(loop.replace(plant=plant)) for plant in plants]
-    else:
-        specs = [spec] * len(models)
-    ones = [dataclasses.replace(s, plant=model, delay=1)
-            for s, model in zip(specs, models, strict=True)]  # fmt: skip
-    templates = [loop_matrices(one)[0] for one in ones] if any(delays) else None
-    out = np.empty((len(delays), len(models)))
-    for i, d in enumerate(delays):
-        if d == 0:
-            A = [loop_matrices(dataclasses.replace(one, delay=0))[0] for one in ones]
-        else:  # bit for bit loop_matrices(...)[0] with d samples, without the assembly
-            A = [delayed_state_matrix(t, one, d) for t, one in zip(templates, ones, strict=True)]
-        sizes = {a.shape for a in A}
-        if len(sizes) == 1 and max(sizes)[0] < INTERRUPTIBLE_STATES:
-            # one stacked call: LAPACK's geev on each matrix, as one call per matrix would
-            out[i] = np.abs(np.linalg.eigvals(np.stack(A))).max(axis=-1) if A else []
+    return delays
+
+
+class RadiiScan:
+    """:func:`spectral_radii` of one loop over fixed plants, for delays asked batch by batch.
+
+    The loop is checked and the plants' one-sample state matrices are built once, not per
+    call: ``tune`` asks for the radii with its delays and then scans up to 20 more delays one
+    by one (its delay margin). ``RadiiScan(loop, plants).radii(delays)`` is
+    ``spectral_radii(loop, plants, delays)``, bit for bit (internal).
+    """
+
+    def __init__(self, loop: ServoLoop, plants):
+        import dataclasses
+
+        spec = loop_spec(loop)
+        models = [_linear_model(plant, loop.Ts) for plant in plants]
+        if getattr(loop.design, "follows_plant", False):
+            # an RTOB whose friction model is the plant's (friction = "plant"): its observer is
+            # that of loop.replace(plant=...), one per plant
+            specs = [loop_spec(loop.replace(plant=plant)) for plant in plants]
         else:
-            out[i] = [np.abs(_eigenvalues(a)).max() for a in A]
-    return out
+            specs = [spec] * len(models)
+        self._ones = [dataclasses.replace(s, plant=model, delay=1)
+                      for s, model in zip(specs, models, strict=True)]  # fmt: skip
+        self._templates = None  # the one-sample state matrices, built on first use
+        self._stack = None  # the same as one array, where they share their shape and layout
+
+    def _one_sample(self):
+        if self._templates is None:
+            self._templates = [loop_matrices(one)[0] for one in self._ones]
+            shapes = {t.shape for t in self._templates}
+            places = {delay_state(one) for one in self._ones}
+            if len(shapes) == 1 and len(places) == 1:
+                self._stack = (np.stack(self._templates), places.pop())
+        return self._templates
+
+    def radii(self, delay_samples) -> np.ndarray:
+        """``out[i, j]``: the spectral radius with ``delay_samples[i]`` and plant ``j``."""
+        import dataclasses
+
+        delays = _checked_delays(delay_samples)
+        out = np.empty((len(delays), len(self._ones)))
+        for i, d in enumerate(delays):
+            if d == 0:
+                A = [loop_matrices(dataclasses.replace(one, delay=0))[0] for one in self._ones]
+            else:  # bit for bit loop_matrices(...)[0] with d samples, without the assembly
+                templates = self._one_sample()
+                if self._stack is not None:  # the stacked matrices built as one array
+                    A = delayed_state_matrix(self._stack[0], None, d, state=self._stack[1])
+                else:
+                    A = [delayed_state_matrix(t, one, d)
+                         for t, one in zip(templates, self._ones, strict=True)]  # fmt: skip
+            sizes = {A.shape[1:]} if isinstance(A, np.ndarray) else {a.shape for a in A}
+            if len(sizes) == 1 and max(sizes)[0] < INTERRUPTIBLE_STATES:
+                # one stacked call: LAPACK's geev on each matrix, as one call per matrix would
+                stack = A if isinstance(A, np.ndarray) else np.stack(A)
+                out[i] = np.abs(np.linalg.eigvals(stack)).max(axis=-1)
+            else:
+                out[i] = [np.abs(_eigenvalues(a)).max() for a in A]
+        return out
 
 
 def _linear_model(plant, Ts: float):

@@ -35,6 +35,7 @@ __all__ = [
     "INPUTS",
     "OUTPUTS",
     "LoopSpec",
+    "delay_state",
     "delayed_state_matrix",
     "loop_matrices",
     "loop_spec",
@@ -251,29 +252,40 @@ def loop_matrices(
     )
 
 
-def delayed_state_matrix(template: np.ndarray, spec: LoopSpec, delay: int) -> np.ndarray:
+def delay_state(spec: LoopSpec) -> int:
+    """Index of the first delay-line state: after the plant's states and ``theta_prev``."""
+    return np.asarray(spec.plant.A).shape[0] + int(spec.backward_difference)
+
+
+def delayed_state_matrix(
+    template: np.ndarray, spec: LoopSpec | None, delay: int, *, state: int | None = None
+) -> np.ndarray:
     """The state matrix of ``loop_matrices(spec with delay)`` from the one with one sample.
 
-    ``template`` is ``loop_matrices(dataclasses.replace(spec, delay=1))[0]``. With ``d >= 1``
-    samples of delay the loop's rows are the one-sample rows with the ``d - 1`` extra
-    delay-line states inserted: the plant reads the oldest command (the template's delay
-    column), the newest is the template's delay row, and the line shifts by ones. The same
-    numbers at shifted places, so the result equals ``loop_matrices`` bit for bit
-    (``tests/analysis/test_closed_loop.py`` checks); building it this way costs a copy instead
-    of the whole assembly (``tune`` scans up to 20 delays per candidate and corner).
+    ``template`` is ``loop_matrices(dataclasses.replace(spec, delay=1))[0]``, or a stack of
+    such matrices (shape ``(k, n, n)``) whose delay state is at one index, given as ``state``
+    instead of ``spec``. With ``d >= 1`` samples of delay the loop's rows are the one-sample
+    rows with the ``d - 1`` extra delay-line states inserted: the plant reads the oldest
+    command (the template's delay column), the newest is the template's delay row, and the
+    line shifts by ones. The same numbers at shifted places, so the result equals
+    ``loop_matrices`` bit for bit (``tests/analysis/test_closed_loop_radii.py`` checks);
+    building it this way costs four block copies instead of the whole assembly (``tune``
+    scans up to 20 delays per candidate and corner).
     """
     if delay < 1:
         raise ValueError(f"delay must be at least 1 sample here, got {delay}")
-    i = np.asarray(spec.plant.A).shape[0] + int(spec.backward_difference)  # the delay state
+    i = delay_state(spec) if state is None else state
     extra = delay - 1
-    n = template.shape[0] + extra
-    out = np.zeros((n, n))
+    n = template.shape[-1] + extra
+    out = np.zeros((*template.shape[:-2], n, n))
     # old index j -> j before the delay state, j + extra after it; the delay state's row (the
     # newest command, u) moves to the end of the line, its column (the oldest) stays at i
-    old = np.arange(template.shape[0])
-    rows = np.where(old < i, old, old + extra)
-    cols = np.where(old <= i, old, old + extra)
-    out[np.ix_(rows, cols)] = template
+    top, low = slice(None, i), slice(i + extra, None)  # rows: before / from the delay state
+    left, right = slice(None, i + 1), slice(i + 1 + extra, None)  # columns: up to / after it
+    out[..., top, left] = template[..., :i, : i + 1]
+    out[..., top, right] = template[..., :i, i + 1 :]
+    out[..., low, left] = template[..., i:, : i + 1]
+    out[..., low, right] = template[..., i:, i + 1 :]
     line = np.arange(i, i + extra)
-    out[line, line + 1] = 1.0
+    out[..., line, line + 1] = 1.0
     return out

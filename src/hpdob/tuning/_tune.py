@@ -207,15 +207,13 @@ def _radius(loop) -> float:
     return float(np.abs(closed_loop_poles(loop)).max())
 
 
-def _delay_margin(base, corners, delay: int) -> int:
+def _delay_margin(scan, delay: int) -> int:
     """Largest d <= MAX_EXTRA_DELAY such that the loop is stable at every corner with every
     extra delay of 0..d samples (a robust candidate is known to be stable with 0 and 1); the
-    scan also stops where the linear loop's delay limit (MAX_DELAY_SAMPLES) does. ``corners``
-    are the corners' plants."""
-    from ..analysis import spectral_radii
-
+    scan also stops where the linear loop's delay limit (MAX_DELAY_SAMPLES) does. ``scan`` is
+    the candidate's :class:`~hpdob.analysis.RadiiScan` over the corners' plants."""
     for extra in range(2, min(MAX_EXTRA_DELAY, MAX_DELAY_SAMPLES - delay) + 1):
-        if (spectral_radii(base, corners, [delay + extra]) >= 1.0).any():
+        if (scan.radii([delay + extra]) >= 1.0).any():
             return extra - 1
     return MAX_EXTRA_DELAY
 
@@ -323,7 +321,7 @@ def tune(
     ...               disturbance_frequency=2.0, families=["position"])   # doctest: +SKIP
     >>> print(result.report())                                            # doctest: +SKIP
     """
-    from ..analysis import estimation_response, loop_margins, noise_gains, spectral_radii
+    from ..analysis import RadiiScan, estimation_response, loop_margins, noise_gains
     from ..simulation import ServoLoop, sample_count, sample_signals
 
     legacy = {"nominal": nominal, "Ts": Ts, "controller": controller, "sensor": sensor,
@@ -418,9 +416,9 @@ def tune(
         error = np.abs(estimation_response(design, frequencies, error=True))
         accuracy = float(np.sqrt(np.mean(error**2)))
         # the corners with the actuator's delay and with one more sample (margin_actuator's)
-        radius, radius_margin = (float(v) for v in spectral_radii(
-            base, corner_plants, [actuator.delay_samples, margin_actuator.delay_samples]
-        ).max(axis=1))  # fmt: skip
+        scan = RadiiScan(base, corner_plants)  # the loop checked once for both uses
+        radius, radius_margin = (float(v) for v in scan.radii(
+            [actuator.delay_samples, margin_actuator.delay_samples]).max(axis=1))  # fmt: skip
         tau_noise = u_noise = 0.0
         if sigma > 0.0 and radius < 1.0:
             try:
@@ -432,7 +430,7 @@ def tune(
             tau_noise = u_noise = math.inf
         robust = radius < 1.0 and radius_margin < 1.0
         if robust:
-            delay_margin = _delay_margin(base, corner_plants, actuator.delay_samples)
+            delay_margin = _delay_margin(scan, actuator.delay_samples)
         else:
             delay_margin = 0 if radius < 1.0 else -1
         rows.append({
