@@ -148,3 +148,42 @@ def test_tuning_result_shows_a_compact_table(tuned):
     text = result._repr_markdown_()
     assert text.startswith(f"**TuningResult: {result.recommendation['name']}**")
     assert f"| PD velocity | {result.controller.velocity} |" in text
+
+
+def test_every_centre_run_is_that_candidates_own_simulate(tuned):
+    """The centre runs start on two threads while the analysis of later candidates goes on:
+    each qualified row's figures are still simulate() of that candidate alone, bit for bit."""
+    result, _ = tuned
+    s = result.settings
+    nominal = ServoModel(s["nominal"]["J"], s["nominal"]["b"])
+    plant = ServoModel(0.5 * sum(s["J_range"]) * nominal.J, 0.5 * sum(s["b_range"]),
+                       coulomb=s["coulomb"])  # fmt: skip
+    rows = [r for r in result.rows if r["robust"] and r["within_noise"]]
+    assert len(rows) > 20
+    for r in rows:
+        metrics = simulate(plant=plant, nominal=nominal, Ts=s["Ts"], controller=r["_controller"],
+                           observer=r["_design"], sensor=Encoder(16384),
+                           **result.scenario).metrics()  # fmt: skip
+        position = max(metrics["rms_position_error_regulation"],
+                       metrics["rms_position_error_tracking"])  # fmt: skip
+        assert r["simulated_estimation"] == metrics["rms_estimation_error"]
+        assert r["simulated_position"] == position
+
+
+def test_an_error_during_the_analysis_leaves_no_simulation_thread():
+    """A progress callback that raises halfway through the analysis (as an interrupt would):
+    the error comes out of tune and the centre runs' threads are gone."""
+    import threading
+
+    class Stop(Exception):
+        pass
+
+    def progress(stage, done, total):
+        if stage == "analysis" and done == total // 2:
+            raise Stop
+
+    before = threading.active_count()
+    with pytest.raises(Stop):
+        tune(nominal=ServoModel(2.8e-4), Ts=TS, sensor=Encoder(16384), J_range=(0.9, 1.1),
+             families=["position", "state"], scenario=RUN, progress=progress)  # fmt: skip
+    assert threading.active_count() == before

@@ -1,4 +1,5 @@
-"""The verification runs of ``tune``: the scenario sampled once, the centre runs on two threads."""
+"""The verification runs of ``tune``: the scenario sampled once, the centre runs on two threads,
+started while the analysis of the later candidates goes on."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import numpy as np
 from ..models import ServoModel
 from ..simulation import ServoLoop, run_loop, sample_count, sample_signals
 
-__all__ = ["VerificationRuns"]
+__all__ = ["CentreRuns", "VerificationRuns"]
 
 
 class VerificationRuns:
@@ -44,20 +45,18 @@ class VerificationRuns:
             warnings.simplefilter("ignore", RuntimeWarning)
             return self._run(r, J_ratio, b)
 
-    def at(self, candidates, J_ratio, b, report):
-        """:meth:`simulate` of every candidate on one plant, in order, on two threads (the
-        compiled kernel releases the GIL; the next run starts while this one is collected);
-        ``report("simulation", done, total)`` before each, as a serial loop would call it."""
-        self.loop(candidates[0], J_ratio, b)  # sampled before the threads share it
-        # catch_warnings is process-wide: set once here, for both threads
-        with warnings.catch_warnings(), ThreadPoolExecutor(2) as pool:
-            warnings.simplefilter("ignore", RuntimeWarning)
-            runs = [pool.submit(self._run, candidates[0], J_ratio, b)]
-            for done in range(len(candidates)):
-                report("simulation", done, len(candidates))
-                if done + 1 < len(candidates):
-                    runs.append(pool.submit(self._run, candidates[done + 1], J_ratio, b))
-                yield runs[done].result()
+    def started(self, J_ratio, b) -> CentreRuns:
+        """A :class:`CentreRuns` on that plant: runs started as the candidates are found."""
+        return CentreRuns(self, J_ratio, b)
+
+    def _quiet_run(self, r, J_ratio, b):
+        """``(diverged, metrics, worst RMS position error)``: the figures only, so that the
+        finished runs waiting for the analysis do not hold their traces."""
+        # np.errstate is the thread's own (a context variable): numpy's warnings of a diverging
+        # run are silenced in this thread only, not in the caller's analysis meanwhile
+        with np.errstate(all="ignore"):
+            result, metrics, position = self._run(r, J_ratio, b)
+        return result.diverged, metrics, position
 
     def _run(self, r, J_ratio, b):
         result = run_loop(*self.loop(r, J_ratio, b), np.zeros(2))
@@ -65,3 +64,34 @@ class VerificationRuns:
         position = max(metrics["rms_position_error_regulation"],
                        metrics["rms_position_error_tracking"])  # fmt: skip
         return result, metrics, position
+
+
+class CentreRuns:
+    """:meth:`VerificationRuns.simulate` of candidates on one plant, each started on one of two
+    threads as soon as it is submitted (the compiled kernel releases the GIL, so the runs
+    overlap the caller's analysis of the next candidates); a context manager that cancels
+    what has not started when it exits. Each run is bit for bit the serial one."""
+
+    def __init__(self, runs: VerificationRuns, J_ratio, b):
+        self._runs, self._plant = runs, (J_ratio, b)
+        self._pool = ThreadPoolExecutor(2)
+        self._futures: list = []
+
+    def __enter__(self) -> CentreRuns:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def submit(self, r) -> None:
+        """Start candidate ``r``'s run."""
+        if not self._futures:  # the scenario sampled here, before the threads share it
+            self._runs.loop(r, *self._plant)
+        self._futures.append(self._pool.submit(self._runs._quiet_run, r, *self._plant))
+
+    def results(self, report):
+        """``(diverged, metrics, worst RMS position error)`` of each submitted run, in order;
+        ``report("simulation", done, total)`` before each, as a serial loop would call it."""
+        for done, future in enumerate(self._futures):
+            report("simulation", done, len(self._futures))
+            yield future.result()

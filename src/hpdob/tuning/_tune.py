@@ -404,10 +404,9 @@ def tune(
         return ServoModel(J_ratio * nominal.J, b)
 
     corner_plants = [plant(*c) for c in corners]
-    rows = []
-    for done, (family, m, parameter, value, design) in enumerate(candidates):
-        checkpoint("tune-candidate")  # a signal Python ignored ends the search here
-        report("analysis", done, len(candidates))
+
+    def analyse(family, m, parameter, value, design) -> dict:
+        """The candidate's analytic figures: its row of the table."""
         ctrl = controller
         if getattr(controller, "velocity", None) == "observer" and not design.system.has_velocity:
             ctrl = dataclasses.replace(controller, velocity="measured")
@@ -433,7 +432,7 @@ def tune(
             delay_margin = _delay_margin(scan, actuator.delay_samples)
         else:
             delay_margin = 0 if radius < 1.0 else -1
-        rows.append({
+        return {
             "family": family, "order": m, "name": design.system.name, "parameter": parameter,
             "value": value, "accuracy": accuracy, "tau_noise": tau_noise, "u_noise": u_noise,
             "radius": radius, "radius_margin": radius_margin, "delay_margin_samples": delay_margin,
@@ -441,32 +440,38 @@ def tune(
             "within_noise": noise_limit is None or tau_noise <= noise_limit,
             "pareto": False, "simulated": math.nan, "_design": design, "_controller": ctrl,
             "_base": base,
-        })  # fmt: skip
-    if not rows:
-        raise ParameterValueError("no candidate could be designed: " + "; ".join(notes[:3]))
-    qualified = [r for r in rows if r["robust"] and r["within_noise"]]
-    if not qualified:
-        robust = [r for r in rows if r["robust"]]
-        if not robust:
+        }  # fmt: skip
+
+    def qualified_rows(rows) -> list:
+        """The robust candidates within the noise limit (their Pareto front marked), or the
+        error saying which constraint rules everything out."""
+        if not rows:
+            raise ParameterValueError("no candidate could be designed: " + "; ".join(notes[:3]))
+        qualified = [r for r in rows if r["robust"] and r["within_noise"]]
+        if not qualified:
+            robust = [r for r in rows if r["robust"]]
+            if not robust:
+                smallest = min(max(r["radius"], r["radius_margin"]) for r in rows)
+                raise ParameterValueError(
+                    f"no candidate is stable over J/J_n in [{J_low:g}, {J_high:g}] and b in "
+                    f"[{b_low:g}, {b_high:g}] with {actuator.delay_samples} and with "
+                    f"{actuator.delay_samples} + 1 samples of delay (smallest worst-case spectral "
+                    f"radius {smallest:.4f}); narrow the uncertainty, lower the PD gains or "
+                    "reduce the delay"
+                )
+            quietest = min(r["tau_noise"] for r in robust)
             raise ParameterValueError(
-                f"no candidate is stable over J/J_n in [{J_low:g}, {J_high:g}] and b in "
-                f"[{b_low:g}, {b_high:g}] with {actuator.delay_samples} and with "
-                f"{actuator.delay_samples} + 1 samples of delay (smallest worst-case spectral "
-                f"radius {min(max(r['radius'], r['radius_margin']) for r in rows):.4f}); narrow "
-                "the uncertainty, lower the PD gains or reduce the delay"
+                f"no robustly stable candidate meets noise_limit={noise_limit!r} N m: the quietest "
+                f"makes {quietest:.3g} N m RMS of noise in the estimate; raise the limit or use a "
+                "finer encoder"
             )
-        quietest = min(r["tau_noise"] for r in robust)
-        raise ParameterValueError(
-            f"no robustly stable candidate meets noise_limit={noise_limit!r} N m: the quietest "
-            f"makes {quietest:.3g} N m RMS of noise in the estimate; raise the limit or use a "
-            "finer encoder"
-        )
-    # Pareto front of (accuracy, noise) among the qualified, then simulated at the centre.
-    best_noise = math.inf
-    for r in sorted(qualified, key=lambda r: (r["accuracy"], r["tau_noise"])):
-        if r["tau_noise"] < best_noise:
-            r["pareto"] = True
-            best_noise = r["tau_noise"]
+        # Pareto front of (accuracy, noise) among the qualified, then simulated at the centre.
+        best_noise = math.inf
+        for r in sorted(qualified, key=lambda r: (r["accuracy"], r["tau_noise"])):
+            if r["tau_noise"] < best_noise:
+                r["pareto"] = True
+                best_noise = r["tau_noise"]
+        return qualified
 
     def tracks(result) -> bool:  # RMS error below a loop that never moves (torque limit 1e-300)
         with np.errstate(all="ignore"):
@@ -477,13 +482,23 @@ def tune(
     runs = VerificationRuns(nominal=nominal, Ts=Ts, sensor=sensor, actuator=actuator,
                             coulomb=coulomb, run=run)  # fmt: skip
     simulate_at = runs.simulate
-    report("analysis", len(candidates), len(candidates))
-    for r, (result, metrics, position) in zip(qualified, runs.at(qualified, *centre, report),
-                                              strict=True):  # fmt: skip
-        r["simulated"] = math.inf if result.diverged else (
-            metrics["rms_estimation_error"] if objective == "estimation" else position)  # fmt: skip
-        r["simulated_estimation"] = metrics["rms_estimation_error"]
-        r["simulated_position"] = position
+    rows = []
+    # the centre runs start as their candidates qualify, while the analysis goes on
+    with runs.started(*centre) as centre_runs:
+        for done, candidate in enumerate(candidates):
+            checkpoint("tune-candidate")  # a signal Python ignored ends the search here
+            report("analysis", done, len(candidates))
+            rows.append(row := analyse(*candidate))
+            if row["robust"] and row["within_noise"]:
+                centre_runs.submit(row)
+        qualified = qualified_rows(rows)
+        report("analysis", len(candidates), len(candidates))
+        for r, (diverged, metrics, position) in zip(qualified, centre_runs.results(report),
+                                                    strict=True):  # fmt: skip
+            value = metrics["rms_estimation_error"] if objective == "estimation" else position
+            r["simulated"] = math.inf if diverged else value
+            r["simulated_estimation"] = metrics["rms_estimation_error"]
+            r["simulated_position"] = position
     report("simulation", len(qualified), len(qualified))
     verification = None
     for r in sorted(qualified, key=lambda r: r["simulated"]):
