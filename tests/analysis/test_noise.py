@@ -149,3 +149,28 @@ def test_pd_only_has_no_estimate_noise_and_unstable_loop_is_refused():
         ParameterValueError, match="noise must be one of 'velocity', 'position', 'encoder'"
     ):
         observer_noise_gain(observer(1), noise="acceleration")
+
+
+@pytest.mark.parametrize("velocity", ["exact", "backward-difference"])
+def test_one_channels_gains_are_noise_gains_bit_for_bit(velocity):
+    """tune asks for the position channel only (channel_noise_gains, one Lyapunov solve
+    instead of two): the same figures as noise_gains, bit for bit, and the same refusal."""
+    from hpdob import ServoLoop
+    from hpdob.analysis import channel_noise_gains
+    from hpdob.observers import design_kalman
+
+    kalman = design_kalman(NOMINAL.discretize(TS), order=1, position_noise_std=1e-4,
+                           process_noise_std=1e-2)  # fmt: skip
+    for design in (observer(0), observer(2, 40.0), kalman):
+        loop = ServoLoop(plant=PLANT, nominal=NOMINAL, Ts=TS, controller=PDC, observer=design,
+                         sensor=Encoder(16384, velocity=velocity))  # fmt: skip
+        g = noise_gains(loop)
+        for channel in ("position", "velocity"):
+            got = channel_noise_gains(loop, channel)
+            expected = [getattr(g, f"{name}_{channel}") for name in ("tau_hat", "u", "theta")]
+            assert got.tolist() == expected
+    unstable = loop.replace(plant=ServoModel(0.05 * NOMINAL.J))
+    with pytest.raises(ParameterValueError, match=r"asymptotically stable.*spectral radius"):
+        channel_noise_gains(unstable, "position")
+    with pytest.raises(ParameterValueError, match="channel must be one of"):
+        channel_noise_gains(loop, "encoder")

@@ -119,3 +119,22 @@ def test_kalman_process_noise_never_returns_an_unusable_value(kwargs, pattern):
     assert q > 0 and design_kalman(
         RIGID_MODEL, order=2, position_noise_std=1e-4, process_noise_std=q
     )
+
+
+def test_kalman_process_noise_designs_each_process_noise_once(monkeypatch):
+    """The bracket's ends are asked by the bracketing loops, the sign check and brentq: each
+    trial process noise is designed once (tune calls this six times), the result unchanged."""
+    import hpdob.observers._kalman as kalman
+
+    expected = kalman_process_noise(MODEL, bandwidth=300.0, position_noise_std=1e-4, order=1)
+    designed = []
+
+    def counting(*args, **kwargs):
+        designed.append(kwargs["process_noise_std"])
+        return design_kalman(*args, **kwargs)
+
+    monkeypatch.setattr(kalman, "design_kalman", counting)
+    q = kalman_process_noise(MODEL, bandwidth=300.0, position_noise_std=1e-4, order=1)
+    assert q == expected
+    # the final check designs q itself; every trial before it is new
+    assert len(set(designed[:-1])) == len(designed) - 1 >= 5

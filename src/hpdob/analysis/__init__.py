@@ -40,6 +40,7 @@ from ._figures import bode_figure, noise_figure
 from ._force_response import ForceResponse, force_response
 from ._linear_loop import MAX_DELAY_SAMPLES as MAX_DELAY_SAMPLES
 from ._noise import NoiseGains, noise_gains, observer_noise_gain
+from ._noise import channel_noise_gains as channel_noise_gains
 from ._robust import StabilityMap, robust_stability_map
 from ._sensitivity import GangOfFour, LoopMargins, gang_of_four, loop_margins, loop_transfer
 from ._tradeoff import NoiseTradeoff, noise_tradeoff

@@ -337,7 +337,14 @@ def kalman_process_noise(
             f"{0.5 * math.pi / model.Ts:.6g} rad/s, got {g!r}"
         )
 
+    seen: dict = {}  # the ends are asked up to three times each (the loops, the check, brentq)
+
     def mismatch(log_q: float) -> float:
+        if log_q not in seen:
+            seen[log_q] = _mismatch(log_q)
+        return seen[log_q]
+
+    def _mismatch(log_q: float) -> float:
         try:
             design = design_kalman(
                 model, order=m, position_noise_std=r, process_noise_std=10**log_q

@@ -321,7 +321,7 @@ def tune(
     ...               disturbance_frequency=2.0, families=["position"])   # doctest: +SKIP
     >>> print(result.report())                                            # doctest: +SKIP
     """
-    from ..analysis import RadiiScan, estimation_response, loop_margins, noise_gains
+    from ..analysis import RadiiScan, channel_noise_gains, estimation_response, loop_margins
     from ..simulation import ServoLoop, sample_count, sample_signals
 
     legacy = {"nominal": nominal, "Ts": Ts, "controller": controller, "sensor": sensor,
@@ -421,8 +421,8 @@ def tune(
         tau_noise = u_noise = 0.0
         if sigma > 0.0 and radius < 1.0:
             try:
-                gains = noise_gains(base)
-                tau_noise, u_noise = gains.tau_hat_position * sigma, gains.u_position * sigma
+                gains = channel_noise_gains(base, "position")  # noise_gains' figures
+                tau_noise, u_noise = float(gains[0]) * sigma, float(gains[1]) * sigma
             except ParameterValueError:
                 tau_noise = u_noise = math.inf
         elif radius >= 1.0:
