@@ -27,12 +27,21 @@ class VerificationRuns:
         self.devices = {"sensor": sensor, "actuator": actuator}
         self.n = sample_count(Ts, run["duration"])
         self.sampled: dict = {}
+        self.plants: dict = {}
+
+    def plant(self, J_ratio, b) -> ServoModel:
+        """The true plant ``(J_ratio J_n, b)`` with the Coulomb friction: one object per plant,
+        so that its runs share the sub-step matrices it keeps (``simulate`` makes the same)."""
+        key = repr((J_ratio, b))  # repr: -0.0 is not 0.0 here
+        if key not in self.plants:
+            self.plants[key] = ServoModel(J_ratio * self.nominal.J, b, coulomb=self.coulomb)
+        return self.plants[key]
 
     def loop(self, r, J_ratio, b):
         """Candidate ``r``'s loop on the true plant ``(J_ratio J_n, b)`` and its signals."""
-        loop = ServoLoop(plant=ServoModel(J_ratio * self.nominal.J, b, coulomb=self.coulomb),
-                         nominal=self.nominal, Ts=self.Ts, controller=r["_controller"],
-                         observer=r["_design"], **self.devices)  # fmt: skip
+        loop = ServoLoop(plant=self.plant(J_ratio, b), nominal=self.nominal, Ts=self.Ts,
+                         controller=r["_controller"], observer=r["_design"],
+                         **self.devices)  # fmt: skip
         S = loop.plant.substeps(self.Ts, None)
         if S not in self.sampled:
             self.sampled[S] = sample_signals(self.run["reference"], self.run.get("disturbance"),
