@@ -187,3 +187,36 @@ def test_an_error_during_the_analysis_leaves_no_simulation_thread():
         tune(nominal=ServoModel(2.8e-4), Ts=TS, sensor=Encoder(16384), J_range=(0.9, 1.1),
              families=["position", "state"], scenario=RUN, progress=progress)  # fmt: skip
     assert threading.active_count() == before
+
+
+def test_one_centre_run_at_a_time_while_the_analysis_goes_on(monkeypatch):
+    """While tune still analyses candidates, its centre runs take one core (one at a time);
+    two at a time once it waits for them."""
+    import threading
+    import time
+
+    from hpdob.tuning import _runs
+
+    lock, active, most = threading.Lock(), [0], {"analysis": 0, "simulation": 0}
+    stage = ["analysis"]
+    run = _runs.VerificationRuns._quiet_run
+
+    def counted(self, *args):
+        with lock:
+            active[0] += 1
+            most[stage[0]] = max(most[stage[0]], active[0])
+        time.sleep(0.003)  # widens the overlap a second run would have (no timing asserted)
+        try:
+            return run(self, *args)
+        finally:
+            with lock:
+                active[0] -= 1
+
+    def progress(name, done, total):
+        if name != "analysis" or done == total:  # the analysis is over: tune waits next
+            stage[0] = "simulation"
+
+    monkeypatch.setattr(_runs.VerificationRuns, "_quiet_run", counted)
+    tune(nominal=ServoModel(2.8e-4), Ts=TS, sensor=Encoder(16384), J_range=(0.9, 1.1),
+         families=["position", "state"], scenario=RUN, progress=progress)  # fmt: skip
+    assert most["analysis"] == 1

@@ -3,6 +3,7 @@ started while the analysis of the later candidates goes on."""
 
 from __future__ import annotations
 
+import threading
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 
@@ -76,31 +77,40 @@ class VerificationRuns:
 
 
 class CentreRuns:
-    """:meth:`VerificationRuns.simulate` of candidates on one plant, each started on one of two
-    threads as soon as it is submitted (the compiled kernel releases the GIL, so the runs
-    overlap the caller's analysis of the next candidates); a context manager that cancels
-    what has not started when it exits. Each run is bit for bit the serial one."""
+    """:meth:`VerificationRuns.simulate` of candidates on one plant, each started as soon as
+    it is submitted, so that the runs overlap the caller's analysis of the next candidates
+    (the compiled kernel releases the GIL). One run at a time while the caller works (a
+    second core is all that is free then), two once it waits in :meth:`results`. A context
+    manager that cancels what has not started when it exits. Each run is bit for bit the
+    serial one."""
 
     def __init__(self, runs: VerificationRuns, J_ratio, b):
         self._runs, self._plant = runs, (J_ratio, b)
         self._pool = ThreadPoolExecutor(2)
+        self._gate = threading.Semaphore(1)  # a second run once the caller waits
         self._futures: list = []
 
     def __enter__(self) -> CentreRuns:
         return self
 
     def __exit__(self, *exc) -> None:
+        self._gate.release()  # a run waiting at the gate is not cancelled: let it through
         self._pool.shutdown(wait=True, cancel_futures=True)
 
     def submit(self, r) -> None:
         """Start candidate ``r``'s run."""
         if not self._futures:  # the scenario sampled here, before the threads share it
             self._runs.loop(r, *self._plant)
-        self._futures.append(self._pool.submit(self._runs._quiet_run, r, *self._plant))
+        self._futures.append(self._pool.submit(self._gated, r))
+
+    def _gated(self, r):
+        with self._gate:
+            return self._runs._quiet_run(r, *self._plant)
 
     def results(self, report):
         """``(diverged, metrics, worst RMS position error)`` of each submitted run, in order;
         ``report("simulation", done, total)`` before each, as a serial loop would call it."""
+        self._gate.release()  # the caller waits from here on: two runs at a time
         for done, future in enumerate(self._futures):
             report("simulation", done, len(self._futures))
             yield future.result()
