@@ -36,7 +36,7 @@ from ._records import (
     SignalRecord,
     Work,
 )
-from ._result import SimulationResult, error_metrics, max_abs
+from ._result import SimulationResult
 from ._signal_table import midpoint_table
 
 __all__ = [
@@ -747,8 +747,10 @@ def run_metrics(loop: ServoLoop, signals: SampledSignals, x0, *, windows: dict, 
     estimation and the position error (``tau_hat - tau_dn`` and ``theta - r``: the same
     subtractions numpy performs on a result's traces, see
     :func:`~hpdob.simulation._kernel.loop_source`) into this thread's scratch arrays, and the
-    metrics are computed from them by the functions :class:`SimulationResult` uses, so they
-    are bit for bit ``run_loop(...).metrics(**windows)`` and its ``max_abs_position_error()``.
+    metrics are computed from them in one compiled call with the arithmetic of the functions
+    :class:`SimulationResult` uses (:func:`~hpdob.simulation._row_kernel.row_metrics`: numpy's
+    pairwise sum), so they are bit for bit ``run_loop(...).metrics(**windows)`` and its
+    ``max_abs_position_error()``.
 
     Parameters
     ----------
@@ -777,9 +779,9 @@ def run_metrics(loop: ServoLoop, signals: SampledSignals, x0, *, windows: dict, 
     records, work, _, midpoint = _run_inputs(loop, signals, x0, tau_mid=tau_mid)
     out = _scratch(n)
     done = _run_compiled(signals, records, out, work, midpoint, errors=True)
-    position_error = out.position_error[:done]
-    metrics = error_metrics(signals.t[:done], out.estimation_error[:done], position_error,
-                            increasing=True, **windows)  # fmt: skip
-    metrics["max_abs_position_error"] = max_abs(position_error)
+    from ._row_kernel import row_metrics  # one compiled pass: error_metrics' numbers
+
+    metrics = row_metrics(signals.t[:done], out.estimation_error[:done],
+                          out.position_error[:done], **windows)  # fmt: skip
     diverged = done < n
     return metrics, diverged, _diverged_message("", done, signals.Ts) if diverged else "ok"
