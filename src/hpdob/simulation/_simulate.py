@@ -21,7 +21,7 @@ from .._validation import (
 )
 from .._waveforms import Chirp, Noise, Sine
 from ..models import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, ExactSubsteps
-from ._derived import derived, plant_sampler, run_substeps
+from ._derived import derived, frozen, plant_sampler, run_substeps
 from ._loop import ServoLoop, accepts_loop, controller_sources
 from ._records import (
     SENSOR_ENCODER_DIFFERENCE,
@@ -507,8 +507,11 @@ def _loop_records(loop: ServoLoop) -> tuple:
     inputs of every run: computed once per loop)."""
     actuator = loop.actuator
     limit = math.inf if actuator.torque_limit is None else actuator.torque_limit
+    system = loop.system  # a design shared by many loops (a sweep's plants): its record once
+    observer = (derived(system, "record", lambda: _observer_record(system)) if frozen(system)
+                else _observer_record(system))  # fmt: skip
     return (_controller_record(loop), ActuatorRecord(limit, actuator.delay_samples),
-            _observer_record(loop.system))  # fmt: skip
+            observer)  # fmt: skip
 
 
 #: Plant steps between two calls of a run's ``progress`` (the chunk of samples run by one
@@ -548,7 +551,12 @@ def _run_inputs(loop: ServoLoop, signals: SampledSignals, x0, observer_state=Non
     records["sig"] = SignalRecord(*map(read_only_view, (
         signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample, tau_mid, noise, table,
     )))  # fmt: skip
-    state = observer_state if observer_state is not None else loop.initial_observer_state(x0)
+    state = observer_state
+    if state is None and frozen(loop.system):  # a pure function of the design and x0
+        key = ("initial state", np.asarray(x0, dtype=float).tobytes())
+        state = derived(loop.system, key, lambda: loop.initial_observer_state(x0))
+    elif state is None:
+        state = loop.initial_observer_state(x0)
     s = np.array(state if state is not None else (), dtype=float)
     c = np.array(loop.controller_system.python.reset(float(x0[0]), float(x0[1]), 0.0))
     work = Work(s, s.copy(), np.zeros(s.size + 3), c, c.copy(),

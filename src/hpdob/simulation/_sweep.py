@@ -169,8 +169,21 @@ def _metric_windows(windows) -> dict:
     return resolved
 
 
+#: The plain scalar types a key holds as ``(type name, value)`` (by exact type: a subclass,
+#: numpy's float64 included, takes the general path below).
+_SCALARS = frozenset((int, str, bool, type(None), complex))
+
+
 def _frozen(value):
     """``value`` as a hashable key (lists and arrays become tuples), or None if it is not."""
+    kind = type(value)
+    if kind is float:  # the common cases first, by exact type (a sweep asks twice a scenario)
+        return ("float", value.hex())
+    if kind in _SCALARS:
+        return (kind.__name__, value)
+    if kind is dict and all(type(k) is str for k in value):  # sorted by the keys themselves
+        items = tuple((k, _frozen(value[k])) for k in sorted(value))
+        return None if any(v is None for _, v in items) else items
     if isinstance(value, dict):
         items = tuple((k, _frozen(v)) for k, v in sorted(value.items(), key=lambda kv: str(kv[0])))
         return None if any(v is None for _, v in items) else items

@@ -1,0 +1,112 @@
+"""What a sweep scenario computes around its loop (issue 25): made once where it can be, the
+same values as before.
+
+A design shared by several scenarios (a sweep's plants) keeps its kernel record and its
+initial state per ``x0``; the sweep's cache keys take plain scalars and string-keyed dicts by
+a short path that must give the keys of the general one.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from hpdob import ServoLoop, SimulationDivergedWarning, paper, simulate, sweep
+from hpdob.simulation import _simulate
+from hpdob.simulation import _sweep as sweep_module
+
+METRICS = (
+    "rms_estimation_error",
+    "rms_position_error_regulation",
+    "rms_position_error_tracking",
+    "max_abs_position_error",
+)
+
+
+def _general_key(value):
+    """The sweep's key of ``value`` as it was computed before the short path (the reference)."""
+    if isinstance(value, dict):
+        items = tuple(
+            (k, _general_key(v)) for k, v in sorted(value.items(), key=lambda kv: str(kv[0]))
+        )
+        return None if any(v is None for _, v in items) else items
+    if isinstance(value, (list, tuple, np.ndarray)):
+        items = tuple(
+            _general_key(v) for v in (value.tolist() if isinstance(value, np.ndarray) else value)
+        )
+        return None if any(v is None for v in items) else items
+    if isinstance(value, float):
+        return ("float", value.hex())
+    try:
+        hash(value)
+    except TypeError:
+        return None
+    return (type(value).__name__, value)
+
+
+VALUES = [
+    0.0, -0.0, 1.5, math.inf, math.nan, np.float64(2.5), 3, True, False, None, "state", 1 + 2j,
+    np.int64(4), [1.0, -0.0], (1, "a"), np.array([0.5, -0.0]),
+    {"order": 1, "bandwidth": 100.0, "poles": None},
+    {"b": {"x": -0.0, "y": [1, 2]}, "a": "z"},
+    {1: 2.0, "k": 1.0},  # a key that is not a string: the general path
+    {"spec": {"order": 2}, "nominal": paper.scenario()["nominal"], "Ts": 1e-3},
+    {"unhashable": [set()]},
+    [{"a": 1.0}],
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("value", VALUES, ids=range(len(VALUES)))
+def test_short_key_path_gives_the_general_keys(value):
+    assert sweep_module._frozen(value) == _general_key(value)
+
+
+def test_signed_zeros_and_float_types_keep_their_keys():
+    key = sweep_module._frozen
+    assert key(0.0) != key(-0.0)
+    assert key({"b": 0.0}) != key({"b": -0.0})
+    assert key(np.float64(1.0)) == key(1.0)  # numpy's float64 is a float: the same scenario
+    assert key(1) != key(1.0) and key(True) != key(1)
+
+
+def _rows_loop(base: dict) -> ServoLoop:
+    return ServoLoop(**{k: base[k] for k in ("plant", "nominal", "Ts", "controller")},
+                     observer=base["observer"])  # fmt: skip
+
+
+def test_a_shared_design_keeps_its_record_and_initial_state(monkeypatch):
+    sweep_module.clear_kept_designs()
+    made = {"record": 0, "state": 0}
+    real_record, real_state = _simulate._observer_record, ServoLoop.initial_observer_state
+
+    def record(system):
+        made["record"] += 1
+        return real_record(system)
+
+    def state(self, x0):
+        made["state"] += 1
+        return real_state(self, x0)
+
+    monkeypatch.setattr(_simulate, "_observer_record", record)
+    monkeypatch.setattr(ServoLoop, "initial_observer_state", state)
+    base = {**paper.scenario(), "duration": 0.3, "observer": {"order": 1, "bandwidth": 123.0}}
+    grid = {"plant.J": [2.5e-4, 3e-4, 3.5e-4, 4e-4]}
+    rows = sweep(base, grid=grid, scheduler=1, progress=False)
+    assert made == {"record": 1, "state": 1}  # one design for the four plants
+    moved = sweep({**base, "x0": (0.01, 0.0)}, grid=grid, scheduler=1, progress=False)
+    assert made == {"record": 1, "state": 2}  # another x0: its own initial state
+    for frame, x0 in ((rows, (0.0, 0.0)), (moved, (0.01, 0.0))):
+        for J, (_, row) in zip(grid["plant.J"], frame.iterrows(), strict=True):
+            loop = _rows_loop({**base, "plant": base["plant"].replace(J=J)})
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", SimulationDivergedWarning)
+                result = simulate(loop, duration=0.3, reference=base["reference"],
+                                  disturbance=base["disturbance"], x0=x0)  # fmt: skip
+            expected = result.metrics()
+            expected["max_abs_position_error"] = result.max_abs_position_error()
+            for name in METRICS:
+                assert np.float64(row[name]).tobytes() == np.float64(expected[name]).tobytes()
+    assert not rows.equals(moved)  # the initial state is not shared across x0
