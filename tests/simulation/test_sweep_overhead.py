@@ -110,3 +110,30 @@ def test_a_shared_design_keeps_its_record_and_initial_state(monkeypatch):
             for name in METRICS:
                 assert np.float64(row[name]).tobytes() == np.float64(expected[name]).tobytes()
     assert not rows.equals(moved)  # the initial state is not shared across x0
+
+
+def test_scratch_views_are_kept_per_length_and_fresh_beyond_the_limit():
+    first = _simulate._scratch(1000)
+    assert _simulate._scratch(1000) is first  # the same views: no new objects per scenario
+    other = _simulate._scratch(500)
+    assert len(other.u) == 500 and np.shares_memory(other.u, first.u)
+    again = _simulate._scratch(1000)
+    assert len(again.estimation_error) == 1000 and np.shares_memory(again.u, first.u)
+    big = _simulate._scratch(_simulate.SCRATCH_SAMPLES + 1)  # not kept: the thread's stay
+    assert not np.shares_memory(big.u, first.u)
+    assert np.shares_memory(_simulate._scratch(1000).u, first.u)
+
+
+def test_force_run_kind_is_the_controllers_class():
+    from hpdob.controllers import PD, ForceControl, ImpedanceControl, PositionForceSwitch
+    from hpdob.simulation import _force_run
+
+    assert _force_run._kind(PD(50.0, 5.0)) is None
+    for controller, kind in ((ForceControl, "force"), (ImpedanceControl, "impedance"),
+                             (PositionForceSwitch, "position-force")):  # fmt: skip
+        assert _force_run._kind_of_type(controller) == kind
+
+        class Sub(controller):  # a subclass is of its base's kind, as isinstance says
+            pass
+
+        assert _force_run._kind_of_type(Sub) == kind

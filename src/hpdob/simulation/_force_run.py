@@ -3,6 +3,8 @@ tracking, as ``hpdob simulate`` reports them and as a sweep's rows hold them (on
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 __all__ = ["force_reference", "force_run_columns", "force_run_metrics"]
@@ -16,13 +18,19 @@ FORCE_KEYS = ("rms_reaction_error", "rms_force_error")
 
 def _kind(controller) -> str | None:
     """The force run kind of ``controller``: "force", "impedance", "position-force" or None."""
+    return _kind_of_type(type(controller))
+
+
+@functools.lru_cache(maxsize=64)
+def _kind_of_type(kind: type) -> str | None:
+    """:func:`_kind` of an instance of ``kind`` (a sweep asks it once per row: kept)."""
     from ..controllers import ForceControl, ImpedanceControl, PositionForceSwitch
 
-    if isinstance(controller, ForceControl):
+    if issubclass(kind, ForceControl):
         return "force"
-    if isinstance(controller, PositionForceSwitch):
+    if issubclass(kind, PositionForceSwitch):
         return "position-force"
-    return "impedance" if isinstance(controller, ImpedanceControl) else None
+    return "impedance" if issubclass(kind, ImpedanceControl) else None
 
 
 def force_reference(result, controller):

@@ -491,9 +491,13 @@ def _controller_record(loop) -> ControllerRecord:
     )  # fmt: skip
 
 
+#: The ideal sensor's record (immutable: one for every run without an encoder).
+_IDEAL_SENSOR = SensorRecord(SENSOR_IDEAL, 1.0)
+
+
 def _sensor_record(sensor, n: int) -> tuple[SensorRecord, np.ndarray]:
-    if sensor is None:
-        return SensorRecord(SENSOR_IDEAL, 1.0), np.zeros(0)
+    if sensor is None:  # no noise: the loop reads none (the shared read-only empty array)
+        return _IDEAL_SENSOR, _EMPTY
     mode = SENSOR_ENCODER_EXACT if sensor.velocity == "exact" else SENSOR_ENCODER_DIFFERENCE
     noise = np.zeros(0)  # no noise: the compiled loop reads none
     if sensor.noise_std > 0:
@@ -731,13 +735,20 @@ SCRATCH_SAMPLES = 1 << 18
 
 def _scratch(n: int) -> _ErrorOutputs:
     """Views of ``n`` entries of this thread's scratch arrays (grown when too small, up to
-    :data:`SCRATCH_SAMPLES`; beyond, new arrays not kept)."""
+    :data:`SCRATCH_SAMPLES`; beyond, new arrays not kept). The views of the last ``n`` are
+    kept with them: a sweep's scenarios of one grid ask for the same ``n`` every time."""
+    views = getattr(_SCRATCH, "views", None)
+    if views is not None and views[0] == n:
+        return views[1]
     arrays = getattr(_SCRATCH, "arrays", None)
     if arrays is None or arrays.shape[1] < n:
         arrays = np.empty((len(_ErrorOutputs._fields), n))
-        if n <= SCRATCH_SAMPLES:
-            _SCRATCH.arrays = arrays
-    return _ErrorOutputs(*(row[:n] for row in arrays))
+        if n > SCRATCH_SAMPLES:  # this run's own
+            return _ErrorOutputs(*(row[:n] for row in arrays))
+        _SCRATCH.arrays = arrays
+    outputs = _ErrorOutputs(*(row[:n] for row in arrays))
+    _SCRATCH.views = (n, outputs)
+    return outputs
 
 
 def error_run_applies(loop: ServoLoop, Ts: float, substeps: int) -> bool:
