@@ -137,3 +137,40 @@ def test_force_run_kind_is_the_controllers_class():
             pass
 
         assert _force_run._kind_of_type(Sub) == kind
+
+
+def test_a_batchs_loops_are_built_once_and_are_the_loops_run(monkeypatch):
+    built = []
+    real = sweep_module.scenario_loop
+
+    def counted(base, params, cache=None):
+        built.append(dict(params))
+        return real(base, params, cache)
+
+    monkeypatch.setattr(sweep_module, "scenario_loop", counted)
+    base = {**paper.scenario(), "duration": 0.2, "observer": {"order": 1, "bandwidth": 100.0}}
+    grid = {"observer.bandwidth": list(np.linspace(60.0, 240.0, 10)), "plant.J": [3e-4, 4e-4]}
+    rows = sweep(base, grid=grid, scheduler=1, progress=False)
+    assert len(built) == 1 + len(rows)  # the up-front check's loop, then one per scenario
+    assert getattr(sweep_module._PREPARED, "loops", {}) == {}  # nothing left behind
+    resolved = sweep_module._resolve_base(base)
+    resolved["metric_windows"] = sweep_module._metric_windows(None)
+    for (_, row), params in zip(rows.iterrows(), built[1:], strict=True):
+        alone = sweep_module.run_scenario(resolved, params)  # no batch: builds its own loop
+        for name in (*METRICS, "stable", "error"):
+            assert np.asarray(row[name]).tobytes() == np.asarray(alone[name]).tobytes()
+
+
+def test_a_refused_scenario_in_a_batch_keeps_its_message():
+    base = {**paper.scenario(), "duration": 0.2, "observer": {"order": 1, "bandwidth": 100.0}}
+    grid = {"plant.J": [3e-4, -1e-4, 4e-4], "observer.bandwidth": [80.0, -5.0]}
+    rows = sweep(base, grid=grid, scheduler=1, progress=False)
+    resolved = sweep_module._resolve_base(base)
+    resolved["metric_windows"] = sweep_module._metric_windows(None)
+    refused = 0
+    for _, row in rows.iterrows():
+        params = {path: row[path] for path in grid}
+        alone = sweep_module.run_scenario(resolved, params)
+        assert row["error"] == alone["error"] and row["stable"] == alone["stable"]
+        refused += bool(row["error"])
+    assert refused == 4  # a negative inertia or bandwidth: the row's message, not a failure
