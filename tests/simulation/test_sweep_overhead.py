@@ -139,7 +139,7 @@ def test_force_run_kind_is_the_controllers_class():
         assert _force_run._kind_of_type(Sub) == kind
 
 
-def test_a_batchs_loops_are_built_once_and_are_the_loops_run(monkeypatch):
+def test_a_batchs_runs_are_prepared_once_and_are_the_runs_made(monkeypatch):
     built = []
     real = sweep_module.scenario_loop
 
@@ -152,7 +152,7 @@ def test_a_batchs_loops_are_built_once_and_are_the_loops_run(monkeypatch):
     grid = {"observer.bandwidth": list(np.linspace(60.0, 240.0, 10)), "plant.J": [3e-4, 4e-4]}
     rows = sweep(base, grid=grid, scheduler=1, progress=False)
     assert len(built) == 1 + len(rows)  # the up-front check's loop, then one per scenario
-    assert getattr(sweep_module._PREPARED, "loops", {}) == {}  # nothing left behind
+    assert getattr(sweep_module._PREPARED, "runs", {}) == {}  # nothing left behind
     resolved = sweep_module._resolve_base(base)
     resolved["metric_windows"] = sweep_module._metric_windows(None)
     for (_, row), params in zip(rows.iterrows(), built[1:], strict=True):

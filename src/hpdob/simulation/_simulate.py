@@ -45,6 +45,7 @@ __all__ = [
     "MAX_PLANT_STEPS",
     "SimulationDivergedWarning",
     "default_substeps",
+    "metrics_run_inputs",
     "run_loop",
     "run_metrics",
     "simulate",
@@ -759,7 +760,16 @@ def error_run_applies(loop: ServoLoop, Ts: float, substeps: int) -> bool:
     return isinstance(sampler, ExactSubsteps) and sampler.environment is None
 
 
-def run_metrics(loop: ServoLoop, signals: SampledSignals, x0, *, windows: dict, tau_mid=None):
+def metrics_run_inputs(loop: ServoLoop, signals: SampledSignals, x0, *, tau_mid=None):
+    """The compiled loop's inputs of :func:`run_metrics` (records, work state, midpoint table),
+    made before the run (a sweep prepares a batch of scenarios' at a time); the arguments
+    as :func:`run_metrics` takes them."""
+    records, work, _, midpoint = _run_inputs(loop, signals, x0, tau_mid=tau_mid)
+    return records, work, midpoint
+
+
+def run_metrics(loop: ServoLoop, signals: SampledSignals, x0, *, windows: dict, tau_mid=None,
+                inputs=None):  # fmt: skip
     """The metrics of :func:`run_loop`'s result, computed without recording its traces.
 
     For a loop that :func:`error_run_applies` to. The compiled loop records only the
@@ -786,6 +796,9 @@ def run_metrics(loop: ServoLoop, signals: SampledSignals, x0, *, windows: dict, 
         it from ``signals.midpoint`` (:func:`~hpdob.simulation._kernel.midpoint_filler`, a
         sweep's one array per time grid); None: the loop evaluates the table, or reads
         ``signals.tau_mid``.
+    inputs : tuple, optional
+        :func:`metrics_run_inputs` of the same arguments, made earlier (then ``tau_mid`` is
+        the one given there); None: made here.
 
     Returns
     -------
@@ -795,7 +808,9 @@ def run_metrics(loop: ServoLoop, signals: SampledSignals, x0, *, windows: dict, 
         and :func:`run_loop`'s message (``"ok"``, or where it stopped).
     """
     n = signals.t.size
-    records, work, _, midpoint = _run_inputs(loop, signals, x0, tau_mid=tau_mid)
+    if inputs is None:
+        inputs = metrics_run_inputs(loop, signals, x0, tau_mid=tau_mid)
+    records, work, midpoint = inputs
     out = _scratch(n)
     done = _run_compiled(signals, records, out, work, midpoint, errors=True)
     from ._row_kernel import row_metrics  # one compiled pass: error_metrics' numbers

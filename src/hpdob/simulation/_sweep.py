@@ -43,6 +43,7 @@ from ._scenario import Scenario
 from ._simulate import (
     check_run_arguments,
     error_run_applies,
+    metrics_run_inputs,
     run_loop,
     run_metrics,
     sample_count,
@@ -374,6 +375,29 @@ def scenario_loop(base: dict, params: dict, cache: dict | None = None) -> ServoL
     return loop.replace(**changes) if changes else loop
 
 
+def _scenario_run(base: dict, params: dict, cache: dict | None):
+    """``(loop, signals, x0, inputs)``: what :func:`run_scenario` prepares before the run;
+    ``inputs`` the compiled loop's (:func:`~hpdob.simulation._simulate.metrics_run_inputs`)
+    where the row needs no trace, else None (a full run). Raises Parameter*Error on bad
+    values."""
+    loop = scenario_loop(base, params, cache)
+    S = run_substeps(loop.plant, loop.Ts, base["substeps"])
+    n = sample_count(loop.Ts, base["duration"])
+    x0 = np.array(base["x0"])  # checked once in _resolve_base
+    signals = _cached(
+        cache,
+        ("signals", loop.Ts, n, S),
+        lambda: sample_signals(base["reference"], base["disturbance"], Ts=loop.Ts, n=n, substeps=S),
+    )
+    scale = float(params.get("disturbance_scale", 1.0))
+    signals = signals.scaled(scale)
+    inputs = None
+    if error_run_applies(loop, loop.Ts, S):
+        tau_mid = _midpoints(signals, cache, ("midpoints", loop.Ts, n, S))
+        inputs = metrics_run_inputs(loop, signals, x0, tau_mid=tau_mid)
+    return loop, signals, x0, inputs
+
+
 def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
     """Simulate one scenario and return its row (metrics, ``stable``, ``error``).
 
@@ -383,25 +407,13 @@ def run_scenario(base: dict, params: dict, cache: dict | None = None) -> dict:
     """
     row = dict(params)
     try:
-        loop = getattr(_PREPARED, "loops", {}).pop(id(params), None)  # run_chunk's batch
-        if loop is None:
-            loop = scenario_loop(base, params, cache)
-        S = run_substeps(loop.plant, loop.Ts, base["substeps"])
-        n = sample_count(loop.Ts, base["duration"])
-        x0 = np.array(base["x0"])  # checked once in _resolve_base
-        signals = _cached(
-            cache,
-            ("signals", loop.Ts, n, S),
-            lambda: sample_signals(
-                base["reference"], base["disturbance"], Ts=loop.Ts, n=n, substeps=S
-            ),
-        )
-        scale = float(params.get("disturbance_scale", 1.0))
-        signals = signals.scaled(scale)
-        if error_run_applies(loop, loop.Ts, S):  # the row needs no trace: none is recorded
-            tau_mid = _midpoints(signals, cache, ("midpoints", loop.Ts, n, S))
+        prepared = getattr(_PREPARED, "runs", {}).pop(id(params), None)  # run_chunk's batch
+        if prepared is None:
+            prepared = _scenario_run(base, params, cache)
+        loop, signals, x0, inputs = prepared
+        if inputs is not None:  # the row needs no trace: none is recorded
             metrics, diverged, message = run_metrics(
-                loop, signals, x0, windows=base["metric_windows"], tau_mid=tau_mid
+                loop, signals, x0, windows=base["metric_windows"], inputs=inputs
             )
             result = None
         else:
@@ -471,9 +483,9 @@ def run_chunk(
     """
     cache = {} if cache is None else cache
     rows = []
-    for start in range(0, len(chunk), PREPARED_LOOPS):
-        batch = chunk[start : start + PREPARED_LOOPS]
-        _prepare_loops(base, batch, stop, cache)
+    for start in range(0, len(chunk), PREPARED_RUNS):
+        batch = chunk[start : start + PREPARED_RUNS]
+        _prepare_runs(base, batch, stop, cache)
         try:
             for index, params in batch:
                 if stop is not None and stop.is_set():
@@ -482,36 +494,36 @@ def run_chunk(
                     checkpoint("sweep-scenario")
                 rows.append({"scenario": index, **run_scenario(base, params, cache)})
         finally:
-            _PREPARED.loops = {}
+            _PREPARED.runs = {}
     return rows
 
 
-#: Scenarios whose loops :func:`run_chunk` builds one after another before running them: the
-#: Python of building them (cache keys, the designs looked up, the loop's checks) then runs
-#: with the interpreter's data in the processor's caches, not each after a loop's run has
-#: streamed its megabyte (~60 us of a 10 s scenario's ~200 us around the loop, measured on the
-#: canonical family). At most ~1 ms of holding the GIL at a time (another thread's scenario may
-#: wait for it that long).
-PREPARED_LOOPS = 16
+#: Scenarios whose runs :func:`run_chunk` prepares one after another before running them
+#: (:func:`_scenario_run`: the loop, the signals, the compiled loop's inputs): that Python (cache
+#: keys, the designs looked up, the loop's checks, the records) then runs with the
+#: interpreter's data in the processor's caches, not each after a loop's run has streamed its
+#: megabyte through them. At most ~1-2 ms of holding the GIL at a time (another thread's
+#: scenario may wait for it that long).
+PREPARED_RUNS = 16
 
-#: Per thread: ``{id(params): loop}`` of the batch being run (:func:`run_chunk`), taken by
-#: :func:`run_scenario` instead of building the loop again; empty between batches.
+#: Per thread: ``{id(params): run}`` of the batch being run (:func:`run_chunk`), taken by
+#: :func:`run_scenario` instead of preparing the run again; empty between batches.
 _PREPARED = threading.local()
 
 
-def _prepare_loops(base: dict, batch: list, stop, cache: dict) -> None:
-    """Build the loops of ``batch`` (``[(index, params)]``) for :func:`run_scenario` to take:
-    the same :func:`scenario_loop` calls it would make, earlier. A scenario whose loop is
-    refused is left out: its row gets the message from :func:`run_scenario`'s own call."""
-    loops = {}
+def _prepare_runs(base: dict, batch: list, stop, cache: dict) -> None:
+    """Prepare the runs of ``batch`` (``[(index, params)]``) for :func:`run_scenario` to take:
+    the same :func:`_scenario_run` calls it would make, earlier. A scenario refused there is
+    left out: its row gets the message from :func:`run_scenario`'s own call."""
+    runs = {}
     for _, params in batch:
         if stop is not None and stop.is_set():
             break
         try:
-            loops[id(params)] = scenario_loop(base, params, cache)
+            runs[id(params)] = _scenario_run(base, params, cache)
         except (ParameterValueError, ParameterTypeError):
             continue
-    _PREPARED.loops = loops
+    _PREPARED.runs = runs
 
 
 def _chunks(indexed: list, workers: int) -> list:
