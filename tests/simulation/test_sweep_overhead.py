@@ -79,8 +79,13 @@ def _rows_loop(base: dict) -> ServoLoop:
 
 def test_a_shared_design_keeps_its_record_and_initial_state(monkeypatch):
     sweep_module.clear_kept_designs()
-    made = {"record": 0, "state": 0}
+    made = {"record": 0, "state": 0, "controller": 0}
     real_record, real_state = _simulate._observer_record, ServoLoop.initial_observer_state
+    real_controller = _simulate._controller_record
+
+    def controller(loop):
+        made["controller"] += 1
+        return real_controller(loop)
 
     def record(system):
         made["record"] += 1
@@ -92,12 +97,19 @@ def test_a_shared_design_keeps_its_record_and_initial_state(monkeypatch):
 
     monkeypatch.setattr(_simulate, "_observer_record", record)
     monkeypatch.setattr(ServoLoop, "initial_observer_state", state)
+    monkeypatch.setattr(_simulate, "_controller_record", controller)
     base = {**paper.scenario(), "duration": 0.3, "observer": {"order": 1, "bandwidth": 123.0}}
     grid = {"plant.J": [2.5e-4, 3e-4, 3.5e-4, 4e-4]}
     rows = sweep(base, grid=grid, scheduler=1, progress=False)
-    assert made == {"record": 1, "state": 1}  # one design for the four plants
+    made["controller"] = 0  # the controller's design may hold records from earlier tests
+    rows = sweep(base, grid=grid, scheduler=1, progress=False)
+    assert made["record"] == 1 and made["state"] == 1  # one design for the four plants
+    assert made["controller"] <= 1
     moved = sweep({**base, "x0": (0.01, 0.0)}, grid=grid, scheduler=1, progress=False)
-    assert made == {"record": 1, "state": 2}  # another x0: its own initial state
+    assert made["record"] == 1 and made["state"] == 2  # another x0: its own initial state
+    assert made["controller"] <= 1
+    nominal = sweep(base, grid={"nominal.J": [2.6e-4, 2.7e-4]}, scheduler=1, progress=False)
+    assert made["controller"] >= 2 and nominal["stable"].all()  # records per nominal model
     for frame, x0 in ((rows, (0.0, 0.0)), (moved, (0.01, 0.0))):
         for J, (_, row) in zip(grid["plant.J"], frame.iterrows(), strict=True):
             loop = _rows_loop({**base, "plant": base["plant"].replace(J=J)})

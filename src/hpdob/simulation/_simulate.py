@@ -515,8 +515,15 @@ def _loop_records(loop: ServoLoop) -> tuple:
     system = loop.system  # a design shared by many loops (a sweep's plants): its record once
     observer = (derived(system, "record", lambda: _observer_record(system)) if frozen(system)
                 else _observer_record(system))  # fmt: skip
-    return (_controller_record(loop), ActuatorRecord(limit, actuator.delay_samples),
-            observer)  # fmt: skip
+    controller = loop.controller_system  # likewise, per nominal model and observer outputs
+    if frozen(controller):
+        nominal = loop.nominal
+        key = ("record", float(nominal.J).hex(), float(nominal.b).hex(),
+               controller_sources(system))  # fmt: skip
+        record = derived(controller, key, lambda: _controller_record(loop))
+    else:
+        record = _controller_record(loop)
+    return record, ActuatorRecord(limit, actuator.delay_samples), observer
 
 
 #: Plant steps between two calls of a run's ``progress`` (the chunk of samples run by one
