@@ -186,3 +186,17 @@ def test_a_refused_scenario_in_a_batch_keeps_its_message():
         assert row["error"] == alone["error"] and row["stable"] == alone["stable"]
         refused += bool(row["error"])
     assert refused == 4  # a negative inertia or bandwidth: the row's message, not a failure
+
+
+def test_run_chunk_pickles_by_value_when_wrapped(monkeypatch):
+    """A wrapped ``run_chunk`` (the module's name then holds the wrapper) is pickled by value
+    for a dask task: it must name nothing unpicklable, such as the prepared runs' store."""
+    cloudpickle = pytest.importorskip("cloudpickle")
+    real = sweep_module.run_chunk
+    monkeypatch.setattr(sweep_module, "run_chunk", lambda *args: real(*args))
+    again = cloudpickle.loads(cloudpickle.dumps(real))
+    base = {**paper.scenario(), "duration": 0.05, "observer": {"order": 1, "bandwidth": 100.0}}
+    resolved = sweep_module._resolve_base(base)
+    resolved["metric_windows"] = sweep_module._metric_windows(None)
+    rows = again(resolved, [(0, {"plant.J": 3e-4}), (1, {"plant.J": 4e-4})])
+    assert [row["scenario"] for row in rows] == [0, 1] and all(row["stable"] for row in rows)

@@ -507,7 +507,7 @@ def run_chunk(
                     checkpoint("sweep-scenario")
                 rows.append({"scenario": index, **run_scenario(base, params, cache)})
         finally:
-            _PREPARED.runs = {}
+            _forget_prepared()
     return rows
 
 
@@ -537,6 +537,13 @@ def _prepare_runs(base: dict, batch: list, stop, cache: dict) -> None:
         except (ParameterValueError, ParameterTypeError):
             continue
     _PREPARED.runs = runs
+
+
+def _forget_prepared() -> None:
+    """Drop this thread's prepared runs (:func:`run_chunk`, after each batch). A function, so
+    that ``run_chunk`` names no thread-local object: pickled by value (cloudpickle, when a test
+    or a user wraps it) it then needs none."""
+    _PREPARED.runs = {}
 
 
 def _chunks(indexed: list, workers: int) -> list:
