@@ -172,3 +172,15 @@ def test_a_short_table_is_formatted_in_short_chunks_same_bytes_and_progress(tmp_
     whole = n * 4 * (8 + _csv_floats._WIDTH + 1)  # a chunk of all the rows: text and copy
     if n >= 16 * _csv_floats.SHORT_CHUNK:
         assert peak < whole / 2
+
+
+@pytest.mark.parametrize("chunk", [0, -4, 2.5, True])
+def test_a_row_writer_refuses_a_chunk_that_is_not_a_positive_row_count(chunk, tmp_path):
+    from hpdob._csv_floats import RowWriter
+    from hpdob._validation import ParameterValueError
+
+    with open(tmp_path / "rows.csv", "wb") as handle, RowWriter(handle, rows=3) as writer:
+        with pytest.raises(ParameterValueError, match="chunk must be a positive number of rows"):
+            writer.write([np.arange(3.0)], chunk=chunk)
+        writer.write([np.arange(3.0)], chunk=2)
+    assert (tmp_path / "rows.csv").read_bytes() == b"0.0\r\n1.0\r\n2.0\r\n"  # csv's rows

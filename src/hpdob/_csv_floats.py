@@ -365,6 +365,10 @@ class RowWriter:
         ``chunk`` rows at a time (None: :data:`CHUNK`)."""
         n = len(columns[0]) if columns else 0
         chunk = CHUNK if chunk is None else chunk
+        if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
+            from ._validation import ParameterValueError
+
+            raise ParameterValueError(f"chunk must be a positive number of rows, got {chunk!r}")
         for start in range(0, n, chunk):
             stop = min(start + chunk, n)
             self._pending.append((self._pool.submit(format_rows, columns, start, stop),

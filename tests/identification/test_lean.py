@@ -131,6 +131,38 @@ def test_in_place_sections_refuse_what_they_cannot_write():
         _sos_kernel.run(sos, x, zi)
     with pytest.raises(ValueError, match="zi must be"):
         _sos_kernel.run(sos, np.arange(10.0), zi.astype(np.float32))
+    # shapes the compiled loop would read or write past (it has no bounds checks)
+    y = np.arange(10.0)
+    with pytest.raises(ValueError, match=r"zi must be an array of shape \(2, 2\).*\(1, 2\)"):
+        _sos_kernel.run(sos, y, np.zeros((1, 2)))
+    with pytest.raises(ValueError, match=r"sos must be an array of shape \(sections, 6\)"):
+        _sos_kernel.run(sos[:, :5], y, zi)
+    with pytest.raises(ValueError, match="x must be a 1-D array"):
+        _sos_kernel.run(sos, np.zeros((2, 5)), zi)
+    np.testing.assert_array_equal(y, np.arange(10.0))  # refused calls wrote nothing
+    np.testing.assert_array_equal(zi, 0.0)
+
+
+def test_the_compiled_sections_are_used_only_where_they_give_scipys_bits(monkeypatch):
+    """A kernel that differs from ``sosfilt`` (as a fused multiply-add would) is replaced by
+    scipy's own filter; the compiled one, which agrees here, is kept."""
+    pytest.importorskip("numba")
+    from hpdob.identification import _sos_kernel
+
+    def fused_like(sos, x, zi, reverse):
+        _sos_kernel._scipy_run(sos, x, zi, reverse)
+        x[0] = np.nextafter(x[0], np.inf)
+
+    assert not _sos_kernel._agrees(fused_like)
+    assert _sos_kernel._agrees(_sos_kernel._scipy_run)
+    _sos_kernel.sos_kernel.cache_clear()
+    try:
+        assert _sos_kernel.sos_kernel() is not _sos_kernel._scipy_run
+        monkeypatch.setattr(_sos_kernel, "_agrees", lambda kernel: False)
+        _sos_kernel.sos_kernel.cache_clear()
+        assert _sos_kernel.sos_kernel() is _sos_kernel._scipy_run
+    finally:
+        _sos_kernel.sos_kernel.cache_clear()
 
 
 @pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "scipy"])

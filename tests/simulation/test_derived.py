@@ -137,3 +137,44 @@ def test_a_pd_loop_without_observer_runs_twice_the_same():
     loop = canonical_loop(observer=None, controller=PD(50.0, 5.0))
     a, b = run(loop, 0.3), run(loop, 0.3)
     assert a.theta.tobytes() == b.theta.tobytes() and not a.tau_hat.any()
+
+
+def test_an_owner_keeps_at_most_limit_entries():
+    """Keys without a bound (a run's x0) cannot grow an owner's store past LIMIT."""
+    from hpdob.simulation import _derived
+
+    plant = ServoModel(2.8e-4)
+    for i in range(3 * _derived.LIMIT):
+        assert derived(plant, ("x0", i), lambda i=i: i) == i
+    store = plant.__dict__["_hpdob_derived"]
+    assert 0 < len(store) <= _derived.LIMIT
+    assert derived(plant, ("x0", 3 * _derived.LIMIT - 1), lambda: -1) == 3 * _derived.LIMIT - 1
+
+
+def test_runs_with_many_initial_states_keep_a_bounded_store_and_their_numbers():
+    from hpdob.simulation import _derived
+
+    loop = canonical_loop()
+    kw = paper.scenario()
+    runs = {}
+    for i in range(_derived.LIMIT + 5):
+        x0 = (1e-3 * i, 0.0)
+        runs[i] = simulate(loop, reference=kw["reference"], disturbance=kw["disturbance"],
+                           duration=0.05, x0=x0)  # fmt: skip
+    assert len(loop.system.__dict__["_hpdob_derived"]) <= _derived.LIMIT
+    again = simulate(canonical_loop(), reference=kw["reference"], disturbance=kw["disturbance"],
+                     duration=0.05, x0=(0.0, 0.0))  # fmt: skip
+    np.testing.assert_array_equal(again.tau_hat, runs[0].tau_hat)
+
+
+def test_pickled_designs_leave_the_simulations_values_behind():
+    import pickle
+
+    loop = canonical_loop()
+    first = run(loop, duration=0.05)
+    for design in (loop.system, loop.controller_system):
+        assert "_hpdob_derived" in design.__dict__
+        assert "_hpdob_derived" not in pickle.loads(pickle.dumps(design)).__dict__
+    copy = pickle.loads(pickle.dumps(loop.system))
+    again = run(canonical_loop(observer=copy), duration=0.05)
+    np.testing.assert_array_equal(again.tau_hat, first.tau_hat)

@@ -95,3 +95,16 @@ def test_bad_windows_are_refused_as_before():
     t = np.arange(10) * 0.1
     with pytest.raises(ValueError, match="regulation"):
         _row_kernel.row_metrics(t, t, t, regulation=(2.0, 1.0), tracking=(0.0, 1.0))
+
+
+def test_the_order_check_holds_here_and_its_failure_leaves_rows_to_numpy(monkeypatch):
+    """numpy's summation order is checked once: it holds on this machine (else every other
+    test of this file would fail too), and where it does not, the rows are numpy's own."""
+    assert _row_kernel.numpy_order()
+    rng = np.random.default_rng(5)
+    t = np.arange(3000) * 1e-3
+    est, pos = rng.standard_normal(3000), rng.standard_normal(3000) * 1e-3
+    monkeypatch.setattr(_row_kernel, "numpy_order", lambda: False)
+    monkeypatch.setattr(_row_kernel, "error_row", None)  # not called: numpy computes the row
+    _assert_same(t, est, pos)
+    _assert_same(t[:0], est[:0], pos[:0])

@@ -12,6 +12,7 @@ import math
 import warnings
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from hpdob import ServoLoop, SimulationDivergedWarning, paper, simulate, sweep
@@ -200,3 +201,26 @@ def test_run_chunk_pickles_by_value_when_wrapped(monkeypatch):
     resolved["metric_windows"] = sweep_module._metric_windows(None)
     rows = again(resolved, [(0, {"plant.J": 3e-4}), (1, {"plant.J": 4e-4})])
     assert [row["scenario"] for row in rows] == [0, 1] and all(row["stable"] for row in rows)
+
+
+def test_a_batch_prepares_no_more_sub_steps_than_its_budget(monkeypatch):
+    """Long scenarios are prepared one at a time (their scaled disturbances are their own);
+    the rows are those of a sweep that prepares every run."""
+    seen = []
+    real = sweep_module._prepare_runs
+
+    def spy(base, batch, stop, cache):
+        real(base, batch, stop, cache)
+        seen.append(len(sweep_module._PREPARED.runs))
+
+    monkeypatch.setattr(sweep_module, "_prepare_runs", spy)
+    base = {**paper.scenario(), "duration": 0.1, "observer": {"order": 1, "bandwidth": 100.0}}
+    grid = {"disturbance_scale": list(np.linspace(0.5, 2.0, 32))}  # chunks of 4 on 1 worker
+    everything = sweep(base, grid=grid, scheduler=1, progress=False)
+    assert seen == [4] * 8
+    samples = 100 * 8  # 0.1 s at 1 kHz, 8 sub-steps
+    monkeypatch.setattr(sweep_module, "PREPARED_SUBSTEPS", 2 * samples)
+    seen.clear()
+    budgeted = sweep(base, grid=grid, scheduler=1, progress=False)
+    assert seen == [2] * 8
+    pd.testing.assert_frame_equal(budgeted, everything, check_exact=True)

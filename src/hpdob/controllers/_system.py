@@ -253,6 +253,7 @@ class LinearController:
         state = dict(self.__dict__)
         state.pop("python", None)
         state.pop("kernel_arrays", None)
+        state.pop("_hpdob_derived", None)  # the simulation's values kept on it (_derived)
         return state
 
     def __setstate__(self, state: dict) -> None:

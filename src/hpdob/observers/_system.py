@@ -419,7 +419,8 @@ class LinearObserver:
     def __getstate__(self) -> dict:
         # generated code is rebuilt on demand, not pickled (e.g. for dask workers)
         state = dict(self.__dict__)
-        for derived in ("python", "checked_update", "kernel_arrays"):
+        # (and not the simulation's values kept on the design: hpdob.simulation._derived)
+        for derived in ("python", "checked_update", "kernel_arrays", "_hpdob_derived"):
             state.pop(derived, None)
         return state
 

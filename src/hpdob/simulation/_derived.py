@@ -13,8 +13,10 @@ from ..models import ExactSubsteps
 
 __all__ = ["derived", "frozen", "plant_sampler", "run_substeps"]
 
-_KEY = "_hpdob_derived"
+_KEY = "_hpdob_derived"  # the observer and controller designs leave it out of their pickles
 _NONE = object()
+#: Entries kept per owner; a full store is emptied (keys such as a run's ``x0`` are unbounded).
+LIMIT = 32
 
 
 def derived(owner, key, make):
@@ -33,6 +35,8 @@ def derived(owner, key, make):
     value = cache.get(key, _NONE)
     if value is _NONE:
         value = make()
+        if len(cache) >= LIMIT:
+            cache.clear()  # one call: safe against another thread's insertion
         cache[key] = value
     return value
 

@@ -14,14 +14,15 @@ loop (so numba is loaded already); never by ``import hpdob``.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numba
 import numpy as np
 
-from ._result import _rms, max_abs, metric_window
+from ._result import _rms, error_metrics, max_abs, metric_window
 
-__all__ = ["error_row", "pairwise_sum", "row_metrics"]
+__all__ = ["error_row", "numpy_order", "pairwise_sum", "row_metrics"]
 
 _jit = numba.njit(cache=True, nogil=True)
 
@@ -155,11 +156,31 @@ def error_row(t, estimation_error, position_error, n, bounds, out):
     return ranges
 
 
+#: Lengths the order check sums: short, one block, the first split, several levels.
+_CHECK_LENGTHS = (7, 100, 128, 129, 1000, 9001, 70_000)
+
+
+@functools.cache
+def numpy_order() -> bool:
+    """Whether :func:`pairwise_sum` gives ``np.add.reduce``'s bits here. numpy's summation
+    order is its own business and may change between releases; where it differs from the one
+    :func:`pairwise_sum` repeats, :func:`row_metrics` computes every row by numpy."""
+    values = np.random.default_rng(0).random(max(_CHECK_LENGTHS)) * 1e3
+    return all(
+        float(np.add.reduce(values[:n])) == float(pairwise_sum(values, 0, n))
+        for n in _CHECK_LENGTHS
+    )
+
+
 def row_metrics(t, estimation_error, position_error, *, regulation, tracking) -> dict:
     """``error_metrics(t, estimation_error, position_error, regulation=..., tracking=...,
     increasing=True)`` with ``max_abs_position_error`` (``max_abs(position_error)``), bit for
     bit, from one :func:`error_row` call: the arrays contiguous float64 of one length, ``t``
-    increasing. A range whose largest magnitude is NaN is computed by numpy instead."""
+    increasing. A range whose largest magnitude is NaN is computed by numpy instead, and every
+    range where numpy sums in another order (:func:`numpy_order`)."""
+    if not numpy_order():
+        return _numpy_row(t, estimation_error, position_error, regulation=regulation,
+                          tracking=tracking)  # fmt: skip
     bounds = np.array([*metric_window(regulation, "regulation"),
                        *metric_window(tracking, "tracking")])  # fmt: skip
     n = len(t)
@@ -186,3 +207,11 @@ def row_metrics(t, estimation_error, position_error, *, regulation, tracking) ->
             math.nan if not n else (max_abs(position_error) if peak != peak else peak)
         ),
     }
+
+
+def _numpy_row(t, estimation_error, position_error, *, regulation, tracking) -> dict:
+    """:func:`row_metrics` by numpy: ``error_metrics`` and ``max_abs``."""
+    row = error_metrics(t, estimation_error, position_error, regulation=regulation,
+                        tracking=tracking, increasing=True)  # fmt: skip
+    row["max_abs_position_error"] = max_abs(position_error)
+    return row

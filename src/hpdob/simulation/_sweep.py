@@ -518,6 +518,9 @@ def run_chunk(
 #: megabyte through them. At most ~1-2 ms of holding the GIL at a time (another thread's
 #: scenario may wait for it that long).
 PREPARED_RUNS = 16
+#: ... and at most this many sub-steps in all (``n * substeps`` per scenario): a scaled
+#: disturbance's arrays are the scenario's own, so long runs are prepared one at a time.
+PREPARED_SUBSTEPS = 1 << 21
 
 #: Per thread: ``{id(params): run}`` of the batch being run (:func:`run_chunk`), taken by
 #: :func:`run_scenario` instead of preparing the run again; empty between batches.
@@ -529,13 +532,16 @@ def _prepare_runs(base: dict, batch: list, stop, cache: dict) -> None:
     the same :func:`_scenario_run` calls it would make, earlier. A scenario refused there is
     left out: its row gets the message from :func:`run_scenario`'s own call."""
     runs = {}
+    held = 0
     for _, params in batch:
-        if stop is not None and stop.is_set():
-            break
+        if (stop is not None and stop.is_set()) or held >= PREPARED_SUBSTEPS:
+            break  # the rest are prepared by run_scenario as they run
         try:
-            runs[id(params)] = _scenario_run(base, params, cache)
+            run = _scenario_run(base, params, cache)
         except (ParameterValueError, ParameterTypeError):
             continue
+        runs[id(params)] = run
+        held += run[1].t.size * run[1].substeps
     _PREPARED.runs = runs
 
 
