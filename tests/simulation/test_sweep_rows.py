@@ -260,8 +260,16 @@ def test_the_error_loop_records_only_the_two_errors():
     for trace in ("theta", "omega", "theta_m", "omega_m", "tau_hat", "tau_dn", "states"):
         assert f"{trace}[k" not in text, trace
     assert "position_error[k] = th - r_in[k]" in text
-    # Eq. (3) at t_k^+, inline: tau_dn = u - b_n omega - J_n theta_ddot
-    assert "estimation_error[k] = est - (uk - b_n * om - J_n * (accel / J_motor))" in text
+    # Eq. (3) at t_k^+, inline: ground_truth's own expression (the Python plant path's), the
+    # motor's acceleration for its argument
+    import inspect
+
+    body = inspect.getsource(_kernel.ground_truth).strip().splitlines()[-1].strip()
+    assert body.startswith("return ")
+    inline = body.removeprefix("return ").replace("accel", "(accel / J_motor)")
+    assert inline == "uk - b_n * om - J_n * (accel / J_motor)"
+    assert f"estimation_error[k] = est - ({inline})" in text
+    assert f"tau_dn[k] = {inline}" in _kernel.loop_source(full)
     assert "applied = uk" in text and "u[k - delay]" not in text
     delayed = _kernel.loop_source((*full[:-1], True))
     assert "applied = u[k - delay] if k >= delay else 0.0" in delayed and "tau_dn[k] =" in delayed
