@@ -20,15 +20,17 @@ LIMIT = 32
 
 
 def derived(owner, key, make):
-    """``make()``, computed once per ``(owner, key)`` and kept in ``owner``'s ``__dict__``.
+    """``make()``, computed once per ``(owner, key)`` and kept in ``owner``'s ``__dict__``
+    where ``owner`` is immutable (a frozen dataclass, :func:`frozen`); any other owner gets
+    ``make()`` every time.
 
-    ``owner`` must be immutable (a frozen dataclass) and ``make()`` a pure function of it
-    (and of ``key``); an object without a ``__dict__`` gets ``make()`` every time. Threads may
-    race to fill an entry: both compute the same value, one is kept.
+    ``make()`` must be a pure function of ``owner`` (and of ``key``). At most :data:`LIMIT`
+    entries are kept per owner. Threads may race to fill an entry: both compute the same
+    value, one is kept.
     """
-    store = getattr(owner, "__dict__", None)
-    if store is None:
+    if not frozen(owner):
         return make()
+    store = owner.__dict__
     cache = store.get(_KEY)
     if cache is None:
         cache = store.setdefault(_KEY, {})
@@ -65,6 +67,6 @@ def plant_sampler(plant, Ts: float, substeps: int):
 def run_substeps(plant, Ts: float, substeps) -> int:
     """``plant.substeps(Ts, substeps)``; a frozen plant keeps its default (``substeps`` None)
     per ``Ts``."""
-    if substeps is not None or not frozen(plant):
+    if substeps is not None:
         return plant.substeps(Ts, substeps)
     return derived(plant, ("substeps", Ts), lambda: plant.substeps(Ts, None))

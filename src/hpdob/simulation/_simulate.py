@@ -21,7 +21,7 @@ from .._validation import (
 )
 from .._waveforms import Chirp, Noise, Sine
 from ..models import DEFAULT_SUBSTEPS, MAX_PLANT_STEPS, ExactSubsteps
-from ._derived import derived, frozen, plant_sampler, run_substeps
+from ._derived import derived, plant_sampler, run_substeps
 from ._loop import ServoLoop, accepts_loop, controller_sources
 from ._records import (
     SENSOR_ENCODER_DIFFERENCE,
@@ -513,16 +513,10 @@ def _loop_records(loop: ServoLoop) -> tuple:
     actuator = loop.actuator
     limit = math.inf if actuator.torque_limit is None else actuator.torque_limit
     system = loop.system  # a design shared by many loops (a sweep's plants): its record once
-    observer = (derived(system, "record", lambda: _observer_record(system)) if frozen(system)
-                else _observer_record(system))  # fmt: skip
-    controller = loop.controller_system  # likewise, per nominal model and observer outputs
-    if frozen(controller):
-        nominal = loop.nominal
-        key = ("record", float(nominal.J).hex(), float(nominal.b).hex(),
-               controller_sources(system))  # fmt: skip
-        record = derived(controller, key, lambda: _controller_record(loop))
-    else:
-        record = _controller_record(loop)
+    observer = derived(system, "record", lambda: _observer_record(system))
+    nominal = loop.nominal  # the controller's likewise, per nominal model and observer outputs
+    key = ("record", float(nominal.J).hex(), float(nominal.b).hex(), controller_sources(system))
+    record = derived(loop.controller_system, key, lambda: _controller_record(loop))
     return record, ActuatorRecord(limit, actuator.delay_samples), observer
 
 
@@ -564,11 +558,9 @@ def _run_inputs(loop: ServoLoop, signals: SampledSignals, x0, observer_state=Non
         signals.r, signals.r_dot, signals.r_ddot, signals.tau_sample, tau_mid, noise, table,
     )))  # fmt: skip
     state = observer_state
-    if state is None and frozen(loop.system):  # a pure function of the design and x0
+    if state is None:  # a pure function of the design and x0
         key = ("initial state", np.asarray(x0, dtype=float).tobytes())
         state = derived(loop.system, key, lambda: loop.initial_observer_state(x0))
-    elif state is None:
-        state = loop.initial_observer_state(x0)
     s = np.array(state if state is not None else (), dtype=float)
     c = np.array(loop.controller_system.python.reset(float(x0[0]), float(x0[1]), 0.0))
     work = Work(s, s.copy(), np.zeros(s.size + 3), c, c.copy(),

@@ -183,21 +183,8 @@ def _frozen(value):
     if kind in _SCALARS:
         return (kind.__name__, value)
     if kind is dict and all(type(k) is str for k in value):  # sorted by the keys themselves
-        items = []
-        for k in sorted(value):
-            v = value[k]
-            kind = type(v)
-            if kind is float:  # inline: a spec's values are mostly numbers
-                items.append((k, ("float", v.hex())))
-                continue
-            if kind in _SCALARS:
-                items.append((k, (kind.__name__, v)))
-                continue
-            v = _frozen(v)
-            if v is None:
-                return None
-            items.append((k, v))
-        return tuple(items)
+        items = tuple((k, _frozen(value[k])) for k in sorted(value))
+        return None if any(v is None for _, v in items) else items
     if isinstance(value, dict):
         items = tuple((k, _frozen(v)) for k, v in sorted(value.items(), key=lambda kv: str(kv[0])))
         return None if any(v is None for _, v in items) else items
