@@ -221,8 +221,10 @@ def checkpoint(name: str) -> None:
     if wanted != name or not path or name in _paused:
         return
     _paused.add(name)
-    with open(path, "w", encoding="utf-8") as flag:
+    partial = f"{path}.{os.getpid()}.partial"  # renamed: the test may read it once it exists
+    with open(partial, "w", encoding="utf-8") as flag:
         flag.write(f"{os.getpid()} {name}\n")
+    os.replace(partial, path)
     deadline = time.monotonic() + 60.0
     while time.monotonic() < deadline:
         time.sleep(0.01)  # a signal's handler runs here and raises

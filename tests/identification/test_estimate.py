@@ -187,3 +187,36 @@ def test_one_machine_code_for_read_only_and_writeable_logs():
         program_structure(system.program), system.n_states, _estimate_kernel.VELOCITY_GIVEN
     )
     assert len(kernel.signatures) == 1, kernel.signatures
+
+
+def test_time_and_differenced_velocity_are_derived_when_read():
+    """A state observer's differenced velocity and the time ``k Ts`` are not written by the
+    call (issue 25: a long log's call writes only what the caller did not give, and most read
+    only the estimate): with read-only columns, as a Log's, the call allocates the estimate
+    and nothing else of the log's length. Read later they are the loop's (the closed loop's
+    Encoder velocity and time grid), read-only, kept, and survive a pickle."""
+    import pickle
+    import tracemalloc
+
+    run = paper.run("virtual-experiment", duration=20.0)
+    theta, u = run.theta_measured.copy(), run.u.copy()
+    for x in (theta, u):
+        x.flags.writeable = False
+    observer = paper.observer("HPDOb-100")
+    estimate_disturbance(observer, theta=theta[:10], u=u[:10])  # compiled before tracing
+    tracemalloc.start()
+    try:
+        result = estimate_disturbance(observer, theta=theta, u=u)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    one = theta.nbytes
+    assert one <= peak < 1.5 * one, (peak, one)  # tau_hat alone (no omega_hat: HPDOb-100)
+    assert result.omega is result.omega and result.t is result.t  # computed once, kept
+    assert np.array_equal(result.omega, run.omega_measured)
+    assert np.array_equal(result.t, run.t)
+    assert not result.omega.flags.writeable and not result.t.flags.writeable
+    again = pickle.loads(pickle.dumps(estimate_disturbance(observer, theta=theta, u=u)))
+    assert np.array_equal(again.omega, run.omega_measured) and np.array_equal(again.t, run.t)
+    with pytest.raises(AttributeError):  # still frozen
+        result.t = run.t

@@ -47,9 +47,10 @@ def kernel_source(structure: tuple, n: int, velocity: int) -> str:
 
     The loop copies the inputs ``*_in`` into non-empty ``theta``, ``omega`` (or writes the
     backward difference there), ``u`` and ``t`` while it reads them (one pass over the log
-    instead of a copy and a run; an empty output is not written: the input is shared); with an
-    empty ``t_in`` it fills ``t`` with ``k * Ts`` (what ``np.arange(n) * Ts`` gives). At the end
-    ``s_init`` holds the state after the last sample (a next piece of the log starts there).
+    instead of a copy and a run; an empty output is not written: the input is shared, or the
+    array derived when it is read); with an empty ``t_in`` it fills a non-empty ``t`` with
+    ``k * Ts`` (what ``np.arange(n) * Ts`` gives). At the end ``s_init`` holds the state after
+    the last sample (a next piece of the log starts there).
     """
     update, output, _ = structure
     p = 1 if velocity == VELOCITY_NONE else 2
@@ -80,7 +81,7 @@ def kernel_source(structure: tuple, n: int, velocity: int) -> str:
         ]
     elif velocity == VELOCITY_DERIVED:  # 0 at k = 0: (theta[0] - theta[0]) / Ts
         lines += ["        v1 = (v0 - previous) / Ts", "        previous = v0",
-                  "        omega[k] = v1"]  # fmt: skip
+                  "        if write_omega:", "            omega[k] = v1"]  # fmt: skip
     lines.append(f"        tau_hat[k] = {output_rows[0]}")
     if len(output_rows) > 1:
         lines.append(f"        omega_hat[k] = {output_rows[1]}")
@@ -108,11 +109,12 @@ def run(system, s_init, theta, omega, u, t, velocity: int):
     -------
     tuple
         Arrays ``(theta, omega, u, tau_hat, omega_hat, t, state)``: the inputs, copied unless
-        they are immutable (:func:`~hpdob.identification._checks.immutable`: then shared; for
-        ``VELOCITY_DERIVED`` ``omega`` is the backward difference of ``theta``, 0 at the
-        first sample; None for ``VELOCITY_NONE``), the outputs (``omega_hat`` None where the
-        observer has none), the time (``t`` or a copy, or ``k Ts``) and the state after the
-        last sample.
+        they are immutable (:func:`~hpdob.identification._checks.immutable`: then shared;
+        ``omega`` None for ``VELOCITY_NONE`` and for ``VELOCITY_DERIVED``, whose backward
+        difference the loop computes but does not write: the caller derives it from ``theta``
+        when needed), the outputs (``omega_hat`` None where the observer has none), the time
+        (``t`` or a copy; None for ``k Ts``, not written either) and the state after the last
+        sample.
     """
     program = system.program
     kernel = offline_kernel(program_structure(program), system.n_states, velocity)
@@ -125,11 +127,11 @@ def run(system, s_init, theta, omega, u, t, velocity: int):
 
     out = {
         "theta": new(theta),
-        "omega": empty if velocity == VELOCITY_NONE else new(omega),
+        "omega": empty if velocity != VELOCITY_GIVEN else new(omega),
         "u": new(u),
         "tau_hat": np.empty(n),
         "omega_hat": np.empty(n) if system.has_velocity else empty,
-        "t": new(t),
+        "t": empty if t is None else new(t),
     }
     state = np.array(s_init, dtype=np.float64)  # the kernel leaves the final state in it
     inputs = [
