@@ -250,6 +250,27 @@ TARGETS = {
             "tests/identification/test_solve.py",
         ),
     ),
+    "identification.sos_kernel": Target(
+        # scipy's sosfilt recurrence compiled in place (issue 25): its bit-for-bit tests
+        # against sosfilt/sosfiltfilt and its shape refusals, then the filters that call it
+        "src/hpdob/identification/_sos_kernel.py",
+        ("tests/identification/test_lean.py", "tests/identification/test_regression.py"),
+    ),
+    "identification.estimate_kernel": Target(
+        # the offline loop's generator: the estimate against the runtime object and the
+        # closed loop, the streamed estimate, the program's rows written out
+        "src/hpdob/identification/_estimate_kernel.py",
+        (
+            "tests/identification/test_estimate.py",
+            "tests/identification/test_stream.py",
+            "tests/observers/test_program.py",
+        ),
+    ),
+    "simulation.row_kernel": Target(
+        # a sweep row's metrics in numpy's pairwise-sum order, then the sweep's rows
+        "src/hpdob/simulation/_row_kernel.py",
+        ("tests/simulation/test_row_kernel.py", "tests/simulation/test_sweep_rows.py"),
+    ),
     "identification.checks": Target(
         # the log's checks (time steps, lengths, read-only arrays), then the readers' and
         # identify's refusals that go through them
