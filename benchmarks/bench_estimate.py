@@ -3,7 +3,7 @@
 (a) ``hpdob.estimate_disturbance`` on a synthetic 1e7-sample log (random-walk position, random
 input; synthetic, not measured) for every family at orders 0-2, the whole call: checks, the
 compiled loop, the result's arrays. Two ways a log reaches it: writable ``theta`` and ``u``
-(copied into the result while the loop reads them; no ``t``) and read-only ``theta``, ``u``
+(copied on a second thread while the loop runs; no ``t``) and read-only ``theta``, ``u``
 and ``t`` (a ``Log``'s columns, as ``hpdob estimate`` passes them: shared, not copied). The
 time ``k Ts`` and a differenced velocity are derived when the result's field is first read,
 not by the call; the estimate (and ``omega_hat``) are written;

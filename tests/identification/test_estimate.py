@@ -11,6 +11,7 @@ from hpdob import (
     Encoder,
     LinearObserver,
     Observer,
+    ServoModel,
     design_observer,
     estimate_disturbance,
     paper,
@@ -220,3 +221,69 @@ def test_time_and_differenced_velocity_are_derived_when_read():
     assert np.array_equal(again.omega, run.omega_measured) and np.array_equal(again.t, run.t)
     with pytest.raises(AttributeError):  # still frozen
         result.t = run.t
+
+
+@pytest.mark.parametrize("n", [1_000, 300_000])  # the loop copies; a second thread copies
+@pytest.mark.parametrize("given", ["none", "omega", "t", "both"])
+def test_writable_inputs_are_copied_whichever_route(rng, n, given):
+    """Writable inputs are kept as copies (the caller may change its arrays afterwards),
+    written by the loop on short logs and by a second thread while the loop runs on long ones
+    (issue 25); either way the result holds the inputs' values and the estimate of shared,
+    read-only columns, bit for bit."""
+    model = ServoModel(2.8e-4).discretize(1e-3)
+    observer = design_observer(model, order=1, bandwidth=100.0)
+    if given == "none":  # the position-only form, which estimates the velocity too
+        observer = design_observer(model, order=1, bandwidth=100.0, measurement="position")
+    theta = np.cumsum(rng.normal(scale=1e-3, size=n))
+    u = rng.normal(scale=0.1, size=n)
+    kwargs = {"theta": theta, "u": u}
+    if given in ("omega", "both"):
+        kwargs["omega"] = rng.normal(size=n)
+    if given in ("t", "both"):
+        kwargs["t"] = np.arange(n) * 1e-3
+    frozen = {}
+    for name, x in kwargs.items():
+        frozen[name] = x.copy()
+        frozen[name].flags.writeable = False
+    values = {name: x.copy() for name, x in kwargs.items()}
+    copied = estimate_disturbance(observer, **kwargs)
+    shared = estimate_disturbance(observer, **frozen)
+    for x in kwargs.values():
+        x[:] = np.nan  # the caller reuses its buffers
+    for name, x in values.items():
+        kept = getattr(copied, name)
+        assert np.array_equal(kept, x), name
+        assert not np.shares_memory(kept, kwargs[name]) and not kept.flags.writeable, name
+        assert getattr(shared, name) is frozen[name] or np.shares_memory(
+            getattr(shared, name), frozen[name]
+        ), name
+    assert copied.tau_hat.tobytes() == shared.tau_hat.tobytes()
+    if copied.omega_hat is not None:
+        assert copied.omega_hat.tobytes() == shared.omega_hat.tobytes()
+    assert np.array_equal(copied.state, shared.state)
+
+
+@pytest.mark.parametrize("n", [1_000, 300_000])  # checked before the loop; while it runs
+@pytest.mark.parametrize(
+    ("fault", "pattern"),
+    [
+        ("step", r"t must advance by the observer's sampling period Ts = 0.001 s, got a step"),
+        ("back", r"t must increase strictly \(time \[s\]\), but t\[500\] = "),
+        ("jitter", r"t must be uniformly sampled: the step t\[(150000|500)\] - t\[(149999|499)\]"),
+    ],
+)
+def test_bad_times_are_named_on_short_and_long_logs(n, fault, pattern):
+    """The time check gives its error whether it runs before the loop or beside it, and the
+    caller's arrays are left as they were."""
+    t = np.arange(n) * 1e-3
+    if fault == "step":
+        t = t * 2.0
+    elif fault == "back":
+        t[500] = t[498]
+    else:
+        t[n // 2 :] += 0.5e-3
+    theta, u = np.zeros(n), np.zeros(n)
+    before = [x.copy() for x in (theta, u, t)]
+    with pytest.raises(ValueError, match=pattern):
+        estimate_disturbance(paper.observer("DOb-100"), theta=theta, u=u, t=t)
+    assert all(np.array_equal(x, y) for x, y in zip((theta, u, t), before, strict=True))

@@ -2,6 +2,7 @@ r"""Offline estimation: any observer run over a logged run, compiled."""
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -343,16 +344,12 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
         signals["omega"] = sample_view(omega, "omega", "measured velocities [rad/s or m/s]")
     n = check_lengths(signals)
     Ts = system.Ts
+    check = None
     if t is not None:
         t = sample_view(t, "t", "sampling instants [s]")
         check_lengths({**signals, "t": t})
-        if n > 1:
-            step = check_time(t, "t", 1e-3)
-            if not math.isclose(step, Ts, rel_tol=1e-6):
-                raise ParameterValueError(
-                    f"t must advance by the observer's sampling period Ts = {float(Ts)!r} s, got a "
-                    f"step of {float(step)!r} s"
-                )
+        if n > 1:  # made while a long log's loop runs (an error is raised instead of a result)
+            check = functools.partial(_check_steps, t, Ts)
     tau0 = as_real(tau0, "tau0", "a finite initial disturbance [N m or N]")
     if state is not None:
         state = as_real_vector(state, "state", f"the observer's {system.n_states} finite states",
@@ -374,7 +371,7 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
         omega0 = float(signals["omega"][0]) if mode == kernel.VELOCITY_GIVEN else 0.0
         s0 = start_state(system, float(theta[0]), omega0, tau0)
     theta, velocity, u, tau_hat, omega_hat, t, final = kernel.run(
-        system, s0, theta, signals.get("omega"), u, t, mode
+        system, s0, theta, signals.get("omega"), u, t, mode, check=check
     )
     theta = readonly(theta)
     if velocity is not None:
@@ -392,6 +389,16 @@ def estimate_disturbance(observer, *, theta, u, omega=None, t=None, tau0: float 
         label=label,
         state=readonly(final),
     )
+
+
+def _check_steps(t, Ts) -> None:
+    """That the times ``t`` advance uniformly by ``Ts`` [s]."""
+    step = check_time(t, "t", 1e-3)
+    if not math.isclose(step, Ts, rel_tol=1e-6):
+        raise ParameterValueError(
+            f"t must advance by the observer's sampling period Ts = {float(Ts)!r} s, got a "
+            f"step of {float(step)!r} s"
+        )
 
 
 def observer_label(observer, system) -> str:

@@ -19,6 +19,7 @@ run a structure compiles it. This module is imported on the first offline estima
 from __future__ import annotations
 
 import functools
+import threading
 
 import numpy as np
 
@@ -34,6 +35,13 @@ __all__ = [
     "run",
     "run_block",
 ]
+
+#: From this many samples on, :func:`run`'s check and the copies of the inputs it keeps are
+#: made on a second thread while the loop runs (the loop is ``nogil``; numpy's steps and
+#: copies release the GIL), instead of before it and by the loop: the time check and the
+#: copies' fresh memory then take the other core. Below it a thread's start is not worth it
+#: (~0.1 ms against ~0.4 ms of copies at this size).
+PARALLEL_SAMPLES = 1 << 18
 
 #: Where the observer's second measured signal comes from: none (position-only observer), the
 #: log's velocity, or the backward difference of the position computed in the loop.
@@ -101,20 +109,25 @@ def offline_kernel(structure: tuple, n: int, velocity: int):
     )
 
 
-def run(system, s_init, theta, omega, u, t, velocity: int):
+def run(system, s_init, theta, omega, u, t, velocity: int, *, check=None):
     """Run ``system`` over the samples (finite float64 vectors of one length; ``omega`` None
     unless ``velocity`` is ``VELOCITY_GIVEN``, ``t`` None for ``k Ts``).
+
+    ``check``, if given, is called without arguments before the result is returned (on a long
+    log while the loop runs, which only reads the inputs and writes new arrays): an error it
+    raises is raised instead of a result.
 
     Returns
     -------
     tuple
         Arrays ``(theta, omega, u, tau_hat, omega_hat, t, state)``: the inputs, copied unless
-        they are immutable (:func:`~hpdob.identification._checks.immutable`: then shared;
-        ``omega`` None for ``VELOCITY_NONE`` and for ``VELOCITY_DERIVED``, whose backward
-        difference the loop computes but does not write: the caller derives it from ``theta``
-        when needed), the outputs (``omega_hat`` None where the observer has none), the time
-        (``t`` or a copy; None for ``k Ts``, not written either) and the state after the last
-        sample.
+        they are immutable (:func:`~hpdob.identification._checks.immutable`: then shared; the
+        copies are made by the loop, or from :data:`PARALLEL_SAMPLES` samples on by a
+        second thread while the loop runs), ``omega`` None for ``VELOCITY_NONE`` and for
+        ``VELOCITY_DERIVED``, whose backward difference the loop computes but does not write
+        (the caller derives it from ``theta`` when needed), the outputs (``omega_hat`` None
+        where the observer has none), the time (``t`` or a copy; None for ``k Ts``, not
+        written either) and the state after the last sample.
     """
     program = system.program
     kernel = offline_kernel(program_structure(program), system.n_states, velocity)
@@ -134,17 +147,46 @@ def run(system, s_init, theta, omega, u, t, velocity: int):
         "t": empty if t is None else new(t),
     }
     state = np.array(s_init, dtype=np.float64)  # the kernel leaves the final state in it
+    given = {"theta": theta, "omega": omega, "u": u, "tau_hat": None, "omega_hat": None, "t": t}
     inputs = [
         read_only_view(x)
         for x in (theta, empty if omega is None else omega, u, empty if t is None else t)
     ]  # one signature (read_only_view)
-    kernel(coefficients, state, *inputs, *out.values(), float(system.Ts))
-    given = {"theta": theta, "omega": omega, "u": u, "tau_hat": None, "omega_hat": None, "t": t}
+    copies = [(out[name], given[name]) for name in ("theta", "omega", "u", "t")
+              if out[name].shape[0] > 0]  # fmt: skip
+    if n >= PARALLEL_SAMPLES and (copies or check is not None):
+        loop_outputs = {**out, "theta": empty, "omega": empty, "u": empty, "t": empty}
+        failed: list = []
+        worker = threading.Thread(
+            target=_alongside, args=(check, copies, failed), name="hpdob-estimate-copy"
+        )
+        worker.start()
+        try:
+            kernel(coefficients, state, *inputs, *loop_outputs.values(), float(system.Ts))
+        finally:
+            worker.join()
+        if failed:  # the check's error (a copy of arrays of one length and dtype cannot fail)
+            raise failed[0]
+    else:
+        if check is not None:
+            check()
+        kernel(coefficients, state, *inputs, *out.values(), float(system.Ts))
     return (*(
         given[name] if array is empty and given[name] is not None
         else None if array is empty else array
         for name, array in out.items()
     ), state)  # fmt: skip
+
+
+def _alongside(check, pairs, failed: list) -> None:
+    """The work of :func:`run`'s second thread: the check, then the copies."""
+    try:
+        if check is not None:
+            check()
+        for destination, source in pairs:
+            np.copyto(destination, source)
+    except BaseException as error:  # re-raised by the caller's thread
+        failed.append(error)
 
 
 def run_block(system, state, theta, omega, u, tau_hat, omega_hat) -> None:
