@@ -62,7 +62,14 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``hpdob`` parser with every command, or with ``command`` alone (``main`` passes
+    the first argument: a run of one command needs no other's parser, which would hold
+    about 0.2 MB and import every command's module; the command's help, usage and errors are
+    the same)."""
+    modules = _COMMANDS
+    if command is not None and "_" + command.replace("-", "_") in _COMMANDS:
+        modules = ("_" + command.replace("-", "_"),)
     parser = _Parser(
         prog="hpdob",
         description="Discrete-time disturbance observers "
@@ -73,7 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     import importlib
 
-    for name in _COMMANDS:
+    for name in modules:
         importlib.import_module(f"{__name__}.{name}").register(sub)
     return parser
 
@@ -117,8 +124,9 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 checkpoint("startup")  # a test hook (hpdob._interrupts); no-op otherwise
                 load_plugins()  # HPDOB_PLUGINS and hpdob.families: their families' options
-                parser = build_parser()
-                args = parser.parse_args(argv)
+                argv = sys.argv[1:] if argv is None else list(argv)
+                first = argv[0] if argv and isinstance(argv[0], str) else None
+                args = build_parser(first).parse_args(argv)
                 command = f"hpdob {args.command}"
                 _check_outputs(args)
                 code = int(args.handler(args) or 0)
