@@ -70,3 +70,23 @@ def test_a_plugin_that_cannot_be_imported_is_one_line(tmp_path):
         "hpdob: error: HPDOB_PLUGINS names the module 'no_such_lab_module', which cannot be "
         "imported: ModuleNotFoundError: No module named 'no_such_lab_module'"
     )
+
+
+def test_the_entry_points_are_read_once_per_process(monkeypatch):
+    """Every command of a process calls load_plugins; the installed distributions are
+    scanned on the first call only (a scan costs milliseconds and leaves cyclic garbage)."""
+    import importlib.metadata
+
+    from hpdob import _plugins
+
+    scans = []
+
+    def entry_points(**kwargs):
+        scans.append(kwargs)
+        return []
+
+    monkeypatch.setattr(_plugins, "_ENTRY_POINTS", None)
+    monkeypatch.setattr(importlib.metadata, "entry_points", entry_points)
+    assert _plugins.load_plugins({}) == ()
+    assert _plugins.load_plugins({}) == ()
+    assert scans == [{"group": _plugins.ENTRY_POINT_GROUP}]

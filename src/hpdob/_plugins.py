@@ -24,6 +24,9 @@ ENVIRONMENT_VARIABLE = "HPDOB_PLUGINS"
 ENTRY_POINT_GROUP = "hpdob.families"
 
 _LOADED: set[str] = set()  # the entry points and modules loaded already (once per process)
+#: The group's entry points, read on the first call: a scan of every installed distribution
+#: costs about 4 ms and leaves some 40 kB of cyclic garbage, at every command of a process.
+_ENTRY_POINTS: list | None = None
 
 
 def _import(module: str, where: str):
@@ -51,7 +54,8 @@ def load_plugins(environ=None) -> tuple:
     Returns
     -------
     tuple of str
-        The modules and entry points loaded by this call (each is loaded once per process).
+        The modules and entry points loaded by this call (each is loaded once per process;
+        the entry points are those installed when the process first called it).
 
     Raises
     ------
@@ -66,9 +70,12 @@ def load_plugins(environ=None) -> tuple:
             _import(name, ENVIRONMENT_VARIABLE)
             _LOADED.add(name)
             loaded.append(name)
-    import importlib.metadata
+    global _ENTRY_POINTS
+    if _ENTRY_POINTS is None:
+        import importlib.metadata
 
-    for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+        _ENTRY_POINTS = list(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP))
+    for entry in _ENTRY_POINTS:
         if entry.value in _LOADED:
             continue
         where = f"the entry point {entry.name!r} of {ENTRY_POINT_GROUP}"

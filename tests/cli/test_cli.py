@@ -258,3 +258,45 @@ def test_every_command_is_listed_and_a_non_command_builds_them_all():
     with contextlib.redirect_stderr(io.StringIO()) as err, pytest.raises(SystemExit):
         build_parser("design").parse_args(["identify", "--emps"])  # only design is built
     assert "invalid choice: 'identify'" in err.getvalue()
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["design", "--order", "1"], ["design", "--frobnicate"]],
+    ids=["a run", "a rejected argument"],
+)
+def test_the_parser_is_freed_when_main_lets_go_of_it(monkeypatch, argv):
+    """main takes its parser apart once parsed: no reference cycle keeps the command's parser
+    and its actions (tens of kB) until the next full collection, through the command's run
+    or after an error."""
+    import argparse
+    import gc
+    import weakref
+
+    import hpdob.cli
+
+    made = []
+
+    def recorded(command=None):
+        parser = build_parser(command)
+        parsers = [parser]
+        while parsers:  # every parser and action, through the subparsers
+            p = parsers.pop()
+            made.append(weakref.ref(p))
+            for action in p._actions:
+                made.append(weakref.ref(action))
+                if isinstance(action, argparse._SubParsersAction):
+                    parsers.extend(action.choices.values())
+        return parser
+
+    monkeypatch.setattr(hpdob.cli, "build_parser", recorded)
+    gc.collect()
+    gc.disable()
+    try:
+        quiet = contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO())
+        with quiet[0], quiet[1], contextlib.suppress(SystemExit):
+            main(argv)
+        alive = [ref() for ref in made if ref() is not None]
+        assert len(made) > 20 and alive == []
+    finally:
+        gc.enable()

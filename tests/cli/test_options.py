@@ -90,7 +90,7 @@ def test_compare_runs_the_loop_of_that_controller(capsys, tmp_path):
     argv = ["compare", "--controller", "filtered-pd", "--time-constant", "0.002", "--sensor",
             "ideal", "--no-plot", "--out", str(tmp_path)]  # fmt: skip
     code, _, err = run(capsys, *argv)
-    assert code == 0 and err == ""
+    assert code == 0 and err == "", err
     rows = json.loads((tmp_path / "comparison.json").read_text())["rows"]
     # the filtered derivative changes every loop figure from the PD's default comparison
     code, _, _ = run(capsys, "compare", "--sensor", "ideal", "--no-plot", "--out",
@@ -105,7 +105,7 @@ def test_tune_writes_the_controller_into_its_scenario(capsys, tmp_path):
             "--J-range", "0.9,1.1", "--counts-per-rev", "16384", "--no-plot", "--no-progress",
             "--out", str(tmp_path)]  # fmt: skip
     code, _, err = run(capsys, *argv)
-    assert code == 0 and err == ""
+    assert code == 0 and err == "", err
     table = tomllib.loads((tmp_path / "scenario.toml").read_text())["controller"]
     # the position-only observers estimate the velocity: tune's PID takes it
     assert table == {"type": "pid", "kp": 50.0, "ki": 100.0, "kd": 5.0, "velocity": "observer"}

@@ -75,6 +75,34 @@ def test_the_loop_input_error_is_measured_in_the_band_identified():
     assert "(the band identified)" in line and "quantisation" in line
 
 
+def test_the_loop_errors_are_those_of_the_simulated_traces_bit_for_bit():
+    """identify computes the loop's errors in two arrays of the log's length (the command
+    simulated twice): they are the formulas' numbers on the traces of one simulation through
+    the loop (simulate_fit with keep=True), bit for bit, and the fit's position is its."""
+    import dataclasses
+
+    from hpdob.identification._identify import in_band
+    from hpdob.identification._regression import Settings
+    from hpdob.identification._simfit import simulate_fit
+
+    s = synthetic_log(kind="pd", counts=4096, Ts=5e-4, coulomb=0.03, seed=1)
+    fit = s.log.identify(loop=s.loop)
+    settings = Settings(**{f.name: fit.settings[f.name] for f in dataclasses.fields(Settings)})
+    log = s.log
+    traces = simulate_fit((fit.J, fit.b, fit.coulomb, fit.offset), log.t, log.theta, log.u,
+                          s.loop, settings, keep=True)  # fmt: skip
+
+    def relative(measured, simulated):
+        return 100.0 * float(np.linalg.norm(measured - simulated)) / float(np.linalg.norm(measured))
+
+    assert np.array_equal(fit.theta_simulated, traces.theta_simulated)
+    assert fit.simulation["position_error_percent"] == relative(log.theta, traces.theta_simulated)
+    assert fit.simulation["input_error_percent"] == relative(log.u, traces.u_simulated)
+    band = in_band((log.u, traces.u_simulated), settings)
+    assert fit.simulation["input_error_band_percent"] == relative(*band)
+    assert fit.fits[0]["position_fit_percent"] == traces.position_fit
+
+
 def test_in_band_keeps_the_band_and_removes_what_is_above():
     """A 2 Hz sine plus a 200 Hz one, band 17 Hz: the 2 Hz sine is what is left (to 1e-3)."""
     from hpdob.identification._identify import in_band

@@ -383,9 +383,11 @@ def reference_regression(theta, u, settings):
         )
         rest_rows = int(np.count_nonzero(resting & kept))
         kept &= ~resting
+    at_rows = velocity[index[kept]]
     return {
         "X": X[inside][kept], "y": y[inside][kept], "index": index[kept],
-        "velocity": velocity[index[kept]], "kept": kept, "rest_speed": rest_speed,
+        "forward": float(at_rows[at_rows > 0].sum()),
+        "backward": float(-at_rows[at_rows < 0].sum()), "kept": kept, "rest_speed": rest_speed,
         "rest_rows": rest_rows, "velocity0": float(velocity[0]),
         "max_speed": float(np.max(np.abs(velocity))),
     }  # fmt: skip
@@ -469,9 +471,12 @@ def test_velocity_by_blocks_is_the_filtered_velocity(n):
     assert same_bits(got, reference)
 
 
-def test_simulation_fit_without_traces_is_the_fit_with_them():
+@pytest.mark.parametrize("closed", [False, True], ids=["open loop", "through a loop"])
+def test_simulation_fit_without_traces_is_the_fit_with_them(closed):
     """keep=False (the log's velocity block by block beside the kept simulated position, the
-    difference over the simulated velocity) gives the numbers keep=True does."""
+    difference over the simulated velocity or the spent command) gives the numbers keep=True
+    does; its callback's again() writes the same simulation into both arrays anew."""
+    from hpdob.identification import FeedbackLoop
     from hpdob.identification._simfit import simulate_fit
 
     n, Ts = 6000, 1e-3
@@ -480,13 +485,27 @@ def test_simulation_fit_without_traces_is_the_fit_with_them():
     parameters = (1.2e-3, 2e-3, 0.003, 0.0)
     theta = np.cumsum(np.cumsum(u)) * Ts * Ts / parameters[0]
     settings = resolve_settings(Ts, bandwidth=5.0)
+    loop = FeedbackLoop(theta, kp=0.05, kd=0.002) if closed else None
     kept = {}
 
-    def keep(position, command):
+    def keep(position, command, again):
         kept["q"] = position
+        if closed:
+            command[:] = np.nan  # spent (the band error overwrites it)
+            position_bits = position.copy()
+            again()
+            kept["u"] = command.copy()
+            assert same_bits(position, position_bits)  # rewritten with the same numbers
+        else:
+            assert command is None
         return True
 
-    both = simulate_fit(parameters, t, theta, u, None, settings, keep=True)
-    lean = simulate_fit(parameters, t, theta, u, None, settings, keep=False, simulated=keep)
+    both = simulate_fit(parameters, t, theta, u, loop, settings, keep=True)
+    lean = simulate_fit(parameters, t, theta, u, loop, settings, keep=False, simulated=keep)
     assert (lean.position_fit, lean.velocity_fit) == (both.position_fit, both.velocity_fit)
     assert same_bits(kept["q"], both.theta_simulated)
+    if closed:
+        assert same_bits(kept["u"], both.u_simulated)
+    # without a callback: the same numbers (through a loop, the difference over the command)
+    alone = simulate_fit(parameters, t, theta, u, loop, settings, keep=False)
+    assert (alone.position_fit, alone.velocity_fit) == (both.position_fit, both.velocity_fit)

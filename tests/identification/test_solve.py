@@ -120,6 +120,33 @@ def test_relative_error_is_the_norm_of_the_difference_in_percent():
     assert relative_error(np.array([0.0, 0.0]), np.ones(2)) == np.inf
 
 
+def test_relative_error_into_a_given_array_is_the_same_number():
+    """out= takes the difference (numpy's temporary otherwise): the same number, bit for bit."""
+    from hpdob.identification._solve import relative_error
+
+    rng = np.random.default_rng(11)
+    measured, simulated = rng.standard_normal(30_001), rng.standard_normal(30_001)
+    out = np.empty_like(measured)
+    assert relative_error(measured, simulated, out=out) == relative_error(measured, simulated)
+    assert np.array_equal(out, measured - simulated)
+
+
+@pytest.mark.parametrize("n", [1, 4095, 4096, 4097, 30_001])
+def test_the_loop_mismatch_by_blocks_is_the_relative_error_to_rounding(n):
+    """The check's difference block by block (MISMATCH_BLOCK samples): relative_error's number
+    to rounding, and its cases at 0."""
+    from hpdob.identification._solve import mismatch, relative_error
+
+    rng = np.random.default_rng(n)
+    measured, simulated = rng.standard_normal(n), rng.standard_normal(n)
+    assert mismatch(measured, simulated) == pytest.approx(
+        relative_error(measured, simulated), rel=1e-13
+    )
+    assert mismatch(np.zeros(n), np.zeros(n)) == 0.0
+    assert mismatch(np.zeros(n), np.ones(n)) == np.inf
+    assert mismatch(measured, measured) == 0.0
+
+
 def test_the_input_loop_is_a_slow_pd_on_the_low_passed_position():
     """Bandwidth INPUT_LOOP_FRACTION x the decimation cut-off: its PD gains J w^2 and 2 J w,
     its reference the position through a 2nd-order Butterworth filter at that bandwidth,

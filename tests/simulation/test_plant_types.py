@@ -204,3 +204,22 @@ def test_a_mujoco_servo_scenario(tmp_path, monkeypatch):
     path.write_text(MUJOCO_SCENARIO.replace("b = 5e-5", "b = 5e-5\nstiffness = 1.0"))
     with pytest.raises(ParameterValueError, match=re.escape("unknown key plant.stiffness")):
         load_scenario(path)
+
+
+def test_the_entry_points_are_read_once_per_process(monkeypatch):
+    """Every scenario looks its plant type up; the installed distributions are scanned on the
+    first lookup only (a scan costs milliseconds and leaves cyclic garbage)."""
+    import importlib.metadata
+
+    from hpdob.simulation import _plant_types, plant_types
+
+    scans = []
+
+    def entry_points(**kwargs):
+        scans.append(kwargs)
+        return []
+
+    monkeypatch.setattr(_plant_types, "_ENTRY_POINTS", None)
+    monkeypatch.setattr(importlib.metadata, "entry_points", entry_points)
+    assert plant_types() == plant_types()
+    assert scans == [{"group": _plant_types.ENTRY_POINT_GROUP}]

@@ -175,12 +175,24 @@ def variance_inflation(columns: np.ndarray) -> np.ndarray:
         return np.full(columns.shape[1], math.inf)
 
 
+#: Rows per block of :func:`_triangular`: fewer than :data:`ROWS` (32 kB at four columns), as
+#: each QR holds its stacked input and numpy's copy of it at once.
+QR_ROWS = 1024
+
+
 def _triangular(X: np.ndarray, norms: np.ndarray) -> np.ndarray:
-    """``R`` of the QR decomposition of ``X / norms``, block by block of :data:`ROWS` rows:
-    ``X / norms`` has ``R``'s singular values (to some eps x its condition number)."""
-    R = np.empty((0, X.shape[1]))
-    for lo, hi in _blocks(X.shape[0]):
-        R = np.linalg.qr(np.vstack([R, X[lo:hi] / norms]), mode="r")
+    """``R`` of the QR decomposition of ``X / norms``, block by block of :data:`QR_ROWS` rows
+    stacked under the ``R`` so far: ``X / norms`` has ``R``'s singular values (to some eps x
+    its condition number)."""
+    n = X.shape[1]
+    stack = np.empty((n + QR_ROWS, n))
+    R = np.empty((0, n))
+    for lo in range(0, X.shape[0], QR_ROWS):
+        block = X[lo : lo + QR_ROWS]
+        k, rows = R.shape[0], block.shape[0]
+        stack[:k] = R
+        np.divide(block, norms, out=stack[k : k + rows])
+        R = np.linalg.qr(stack[: k + rows], mode="r")
     return R
 
 
@@ -213,8 +225,7 @@ ONE_WAY_TRAVEL = 0.01
 def directions(run) -> tuple[float, float]:
     """+1 or -1 if the log moves one way (all but :data:`ONE_WAY_TRAVEL` of its travel over
     the regression rows in that direction), else 0; and the fraction of the travel that way."""
-    velocity = run.regression.velocity  # at the regression's rows
-    forward, backward = float(velocity[velocity > 0].sum()), float(-velocity[velocity < 0].sum())
+    forward, backward = run.regression.forward, run.regression.backward
     total = forward + backward
     if total == 0.0:
         return 0.0, 0.0

@@ -50,6 +50,7 @@ from ._runs import as_runs, prepare, resolve
 from ._sensitivity import (
     ADAPTIVE_FACTORS,
     SENSITIVITY_FACTOR,
+    allowances,
     sensitivity,
     sensitivity_warnings,
 )
@@ -440,6 +441,8 @@ def identify(
         moves = sensitivity(runs, layout, method, own_sign, solution, border is not None,
                             max_iterations, tolerance,
                             lambda k, n: progress("sensitivity", k, n))  # fmt: skip
+        # the allowances read the whole input and position: not beside the kept traces either
+        allowed = allowances(solution, layout, runs)
     fits, simulation, traces = [], None, None
     simulated = [
         per_run[i][0] > 0.0 and (diagnostics or (i == 0 and run.loop is not None))
@@ -454,17 +457,21 @@ def identify(
         # the band error's scale now, while no simulated trace is held
         scale = band_scale(run.u, run.settings) if traced else None
 
-        def through_loop(position, command, run=run, scale=scale):
-            # the loop's errors from the simulated command, which the band error overwrites,
-            # before the fit's velocities; the position kept for the result's traces
+        def through_loop(position, command, again, run=run, scale=scale):
+            # the loop's errors before the fit's velocities, in two arrays of the log's
+            # length: the band error overwrites the command, which then takes the position's
+            # difference; simulated again (the same numbers), it gives the input error over
+            # itself. The position kept for the result's traces
             nonlocal simulation, traces
+            band = band_error(run.u, command, run.settings, overwrite=True, scale=scale)
+            position_error = relative_error(run.theta, position, out=command)
+            again()
             simulation = {
-                "position_error_percent": relative_error(run.theta, position),
-                "input_error_percent": relative_error(run.u, command),
-                "input_error_band_percent": band_error(run.u, command, run.settings,
-                                                       overwrite=True, scale=scale),
+                "position_error_percent": position_error,
+                "input_error_percent": relative_error(run.u, command, out=command),
+                "input_error_band_percent": band,
                 "band_hz": run.settings.decimation_cutoff,
-            }  # fmt: skip
+            }
             traces = (run.t, run.theta, readonly(position))  # the result shares them
             return True
 
@@ -509,7 +516,7 @@ def identify(
         names = [PARAMETERS[j] for j in layout.free] + (
             ["offset"] if layout.n_offsets == 1 else [f"offset of {r.name}" for r in runs]
         )[: layout.n_offsets]
-        caught.extend(sensitivity_warnings(moves, solution, layout, runs, adaptive, names))
+        caught.extend(sensitivity_warnings(moves, solution, allowed, runs, adaptive, names))
         for factor, which in ((1.0 / SENSITIVITY_FACTOR, "halved"), (SENSITIVITY_FACTOR,
                                                                      "doubled")):  # fmt: skip
             if factor not in moves and (factor in ADAPTIVE_FACTORS or not adaptive):

@@ -430,14 +430,15 @@ def simulate_loop(
 
 def run_simulation(loop, parameters, *, Ts, theta0=0.0, velocity0=0.0, command=True,
                    reference=None, feedforward=None, reference_velocity=None,
-                   out=None):  # fmt: skip
+                   out=None, command_out=None):  # fmt: skip
     """:func:`simulate_loop` (checked as there); ``command=False`` does not record the command
     (returned as None), and ``reference``/``feedforward``/``reference_velocity`` replace the
     loop's (``loop`` may then be a length ``n``: an open-loop run, the logged input applied as
     it is, needs no :class:`FeedbackLoop` and no array of zeros). A missing input is one 0,
     not an array of the log's length: the same simulation in less memory. ``out``: a float64
     array of ``n`` samples to write the position into, which may be one of the inputs (the
-    kernel reads sample ``k`` of each before it writes sample ``k``, and never again)."""
+    kernel reads sample ``k`` of each before it writes sample ``k``, and never again);
+    ``command_out``: one to write the command into (with ``command=True``), not ``out``."""
     if len(parameters) != 4:
         raise ParameterTypeError(f"parameters must be (J, b, coulomb, offset), got {parameters!r}")
     J, b, coulomb, offset = (as_real(p, "parameters", "a finite number") for p in parameters)
@@ -460,7 +461,8 @@ def run_simulation(loop, parameters, *, Ts, theta0=0.0, velocity0=0.0, command=T
     zero = np.zeros(1)  # a missing input: one 0 (the kernel's stride 0)
     c = np.array((1.0, -1.0) if exact else c)
     limit = math.inf if limit is None else limit
-    theta, u = np.empty(n) if out is None else out, np.empty(n if command else 1)
+    theta = np.empty(n) if out is None else out
+    u = np.empty(n if command else 1) if command_out is None else command_out
     state, source, signal_rows, update_rows = _program(
         controller, Ts, float(theta0), float(velocity0)
     )

@@ -313,7 +313,8 @@ class Regression:
     X: np.ndarray  # observation matrix, one row per kept decimated sample
     y: np.ndarray  # decimated input [N m or N]
     index: np.ndarray  # raw sample index of each row
-    velocity: np.ndarray  # filtered velocity at the rows [rad/s or m/s]
+    forward: float  # the travel over the rows forward: the positive filtered velocities' sum
+    backward: float  # and backward: minus the negative ones' sum [rad/s or m/s]
     kept: np.ndarray  # mask over the decimated samples inside the border: row kept?
     rest_speed: float  # speed below which the log rests [rad/s or m/s] (rests only, else 0)
     rest_rows: int  # rows dropped as rests
@@ -396,7 +397,10 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
     # X and y (inside = index // decimation), without them
     index = index[kept]
     X = decimated_rows(velocity, settings.Ts, settings.decimation, index)
+    # the travel each way over the rows (all directions() needs of them)
     at_rows, velocity0, max_speed = velocity[index], float(velocity[0]), _largest_speed(velocity)
+    forward, backward = float(at_rows[at_rows > 0].sum()), float(-at_rows[at_rows < 0].sum())
+    del at_rows
     del velocity  # not beside the input's rows
     # y: with zoh, the input held over each sample: the second central difference of the
     # position at k sees (u_(k-1) + u_k) / 2, exactly for an inertia (ZOH of 1/s^2 is
@@ -406,7 +410,8 @@ def build_regression(theta: np.ndarray, u: np.ndarray, settings: Settings) -> Re
         X=X,
         y=y,
         index=index,
-        velocity=at_rows,
+        forward=forward,
+        backward=backward,
         kept=kept,
         rest_speed=rest_speed,
         rest_rows=rest_rows,

@@ -98,11 +98,10 @@ def allowances(solution, layout, runs) -> dict:
     }
 
 
-def sensitivity_warnings(moves, solution, layout, runs, adaptive, names) -> list:
+def sensitivity_warnings(moves, solution, allowed, runs, adaptive, names) -> list:
     """The parameters that the filters move by more than :data:`SENSITIVITY_STD` standard
-    deviations and more than their target's allowance (:func:`allowances`)."""
+    deviations and more than their target's allowance (``allowed``, :func:`allowances`)."""
     std = np.sqrt(np.diag(solution.covariance))
-    allowed = allowances(solution, layout, runs)
     out = []
     for factor, move in moves.items():
         if adaptive and factor not in ADAPTIVE_FACTORS:

@@ -13,6 +13,7 @@ with the log's by the normalised root-mean-square fit of MATLAB's ``compare``,
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -98,10 +99,11 @@ def simulate_fit(
     Negative friction is simulated as 0.
 
     With ``keep=False`` no trace is kept (None; the fits are the same numbers) and the run
-    holds at most two arrays of the log's length at a time beside its result (three through
-    a loop): the simulated position and command are handed to ``simulated(position,
-    command)`` if given (the command None in open loop), which may overwrite the command and
-    keep the position (then not overwritten), before the velocities are computed."""
+    holds at most two arrays of the log's length at a time beside its result: the simulated
+    position and command are handed to ``simulated(position, command, again)`` if given (the
+    command None in open loop), which may overwrite the command, call ``again()`` to have the
+    same simulation written into both arrays anew, and keep the position (returning True;
+    then not overwritten), before the velocities are computed."""
     J, b, coulomb, offset = (float(p) for p in parameters)
     closed = loop is not None
     if not keep:
@@ -145,19 +147,20 @@ def _fit_numbers(parameters, t, theta, u, loop, settings, simulated) -> Simulati
     velocity_spread = float(np.linalg.norm(velocity - velocity.mean()))
     del velocity
     position_spread = float(np.linalg.norm(theta - theta.mean()))
-    position, command = run_simulation(
-        loop if closed else u.size,
-        (J, max(b, 0.0), max(coulomb, 0.0), offset),
-        Ts=settings.Ts,
-        theta0=float(theta[0]),
-        velocity0=velocity0,
-        feedforward=None if closed else u,
-        command=closed,
-    )
-    position_fit = nrmse_fit(theta, position, spread=position_spread)
+    run = {"Ts": settings.Ts, "theta0": float(theta[0]), "velocity0": velocity0,
+           "feedforward": None if closed else u, "command": closed}  # fmt: skip
+    simulation = (loop if closed else u.size, (J, max(b, 0.0), max(coulomb, 0.0), offset))
+    position, command = run_simulation(*simulation, **run)
     kept = False
     if simulated is not None:
-        kept = bool(simulated(position, command))
+        # the same simulation again, into the same arrays (the same numbers: a caller that
+        # has overwritten the command gets it back without a third array)
+        again = functools.partial(run_simulation, *simulation, **run, out=position,
+                                  command_out=command)  # fmt: skip
+        kept = bool(simulated(position, command, again))
+        del again  # not holding the arrays
+    # the position's difference over the command, which is no longer needed
+    position_fit = nrmse_fit(theta, position, spread=position_spread, out=command)
     del command
     # the velocity of the simulated position, over it unless the caller keeps it
     velocity_simulated = filtered_velocity(position, settings, overwrite=not kept)

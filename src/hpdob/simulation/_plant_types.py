@@ -138,10 +138,16 @@ def unregister_plant_type(name: str) -> None:
 
 
 _LOADED: set[str] = set()  # the entry points loaded already (each once per process)
+#: The group's entry points, read on the first lookup: a scan of every installed distribution
+#: costs about 4 ms and leaves some 40 kB of cyclic garbage, at every scenario loaded.
+_ENTRY_POINTS: list | None = None
 
 
 def _load_plugins() -> None:
-    for entry in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+    global _ENTRY_POINTS
+    if _ENTRY_POINTS is None:
+        _ENTRY_POINTS = list(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP))
+    for entry in _ENTRY_POINTS:
         if entry.value in _LOADED:
             continue
         _LOADED.add(entry.value)
