@@ -10,6 +10,8 @@ are in ``_waveforms.py``.
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,6 +85,12 @@ class Signal:
         """
         raise NotImplementedError
 
+    def _silent_before(self, n: int) -> float:
+        """A time [s] before which ``derivative(t, n)`` is exactly 0 (of either sign) and
+        raises nothing, for a valid ``n``; ``-inf`` if none is known (the default: a
+        subclass that does not say is always evaluated). :class:`Sum` skips such terms."""
+        return -math.inf
+
     def __add__(self, other):
         if not isinstance(other, Signal):
             return NotImplemented
@@ -137,10 +145,33 @@ class Sum(Signal):
 
     def derivative(self, t, n: int = 0) -> np.ndarray:
         t = _times(t)
+        n = _check_derivative(n)
         total = np.zeros_like(t)
+        # a term that is 0 over every t is skipped: total starts at +0 and never becomes -0
+        # (x + y is -0 only if both are), so total + weight * (+-0) is total, bit for bit
+        last = float(t.max()) if t.size else -math.inf
         for weight, signal in self.terms:
+            if last < _silent_before(signal, n):
+                continue
             total = total + weight * signal.derivative(t, n)
         return total
+
+    def _silent_before(self, n: int) -> float:
+        return min((_silent_before(signal, n) for _, signal in self.terms), default=math.inf)
+
+
+@functools.cache
+def _says_where_silent(cls: type) -> bool:
+    """Whether the class that gives ``cls`` its ``derivative`` also gives its
+    ``_silent_before`` (a subclass that changes the one without the other is evaluated)."""
+    for klass in cls.__mro__:
+        if "derivative" in vars(klass):
+            return "_silent_before" in vars(klass)
+    return False
+
+
+def _silent_before(signal: Signal, n: int) -> float:
+    return signal._silent_before(n) if _says_where_silent(type(signal)) else -math.inf
 
 
 @dataclass(frozen=True)
@@ -161,6 +192,9 @@ class Constant(Signal):
     def derivative(self, t, n: int = 0) -> np.ndarray:
         t = _times(t)
         return np.full_like(t, self.value if _check_derivative(n) == 0 else 0.0)
+
+    def _silent_before(self, n: int) -> float:
+        return math.inf if n > 0 or self.value == 0.0 else -math.inf
 
 
 @dataclass(frozen=True)
@@ -187,6 +221,9 @@ class Step(Signal):
         if _check_derivative(n) > 0:
             return np.zeros_like(t)
         return np.where(t >= self.time, self.amplitude, 0.0)
+
+    def _silent_before(self, n: int) -> float:
+        return math.inf if n > 0 else self.time
 
 
 @dataclass(frozen=True)
@@ -217,6 +254,9 @@ class Ramp(Signal):
         if n == 1:
             return np.where(on, self.slope, 0.0)
         return np.zeros_like(t)
+
+    def _silent_before(self, n: int) -> float:
+        return math.inf if n > 1 else self.start
 
 
 @dataclass(frozen=True)
@@ -269,6 +309,9 @@ class SmoothStep(Signal):
         else:
             value = np.zeros_like(t)
         return np.where(inside, self.amplitude * value, 0.0)
+
+    def _silent_before(self, n: int) -> float:
+        return self.start  # s = 0 there: amplitude * 0 for the value, 0.0 for a derivative
 
 
 class _Trajectory:

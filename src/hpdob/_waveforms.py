@@ -87,6 +87,13 @@ class Sine(Signal):
         np.copyto(out, 0.0, where=t < self.start)
         return out
 
+    def _silent_before(self, n: int) -> float:
+        try:  # a derivative whose gain overflows raises: never skipped
+            gain = self.amplitude * (2.0 * math.pi * self.frequency) ** n
+        except OverflowError:
+            return -math.inf
+        return self.start if math.isfinite(gain) else -math.inf
+
 
 @dataclass(frozen=True)
 class Chirp(Signal):
@@ -148,6 +155,9 @@ class Chirp(Signal):
         else:
             raise ParameterValueError(f"Chirp provides derivatives up to n=2, got n={n}")
         return np.where((t >= self.start) & (t < self.stop), self.amplitude * value, 0.0)
+
+    def _silent_before(self, n: int) -> float:
+        return self.start if n <= 2 else -math.inf  # above n = 2 it raises
 
 
 @dataclass(frozen=True)
@@ -225,3 +235,6 @@ class Noise(Signal):
         inside = (t >= self.start) & (t < self.stop) & (position < self._samples.size)
         index = np.floor(np.where(inside, position, 0.0)).astype(np.int64)  # no NaN/huge casts
         return np.where(inside, self._samples[index], 0.0)
+
+    def _silent_before(self, n: int) -> float:
+        return self.start if n == 0 else -math.inf  # a derivative raises

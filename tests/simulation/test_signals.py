@@ -158,3 +158,67 @@ def test_scalar_times_give_the_array_values(signal, n):
 def test_noise_at_a_scalar_time():
     noise = Noise(0.1, 0.01, 2.0, seed=1)
     assert float(noise(0.7)) == noise(np.array([0.7]))[0]
+
+
+def _bits(x: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=np.float64).view(np.int64)
+
+
+#: Terms that start late, early or mid-grid, of either sign (a -0 of each kind).
+TERMS = [
+    (1.0, SmoothStep(0.2, 1.2, 1.0)),
+    (-2.0, SmoothStep(0.5, 0.9, -0.3)),
+    (1.0, Sine(-0.5, 0.5, start=4.0, phase=math.pi / 2, offset=0.5)),
+    (-0.7, Sine(0.02, 2.0, start=0.6)),
+    (1.0, Step(1.5005, 0.05)),
+    (-1.0, Step(0.3, -0.2)),
+    (0.5, Ramp(0.7, -0.4)),
+    (1.0, Chirp(0.5, 0.5, 3.0, start=2.0, stop=5.0)),
+    (3.0, Constant(0.0)),
+    (1.0, Constant(-1.5)),
+]
+
+
+@pytest.mark.parametrize("last", [0.1, 0.55, 1.0, 1.6, 10.0])
+@pytest.mark.parametrize("n", [0, 1, 2])
+def test_a_sum_skips_silent_terms_with_the_bits_of_every_term_added(last, n):
+    """Terms that are 0 over the whole grid (they start after it, or their derivative is 0)
+    are not evaluated; the sum is the one of every term added in order, bit for bit (signed
+    zeros included), on grids ending before, inside and after the terms' starts."""
+    rng = np.random.default_rng(round(100 * last) + n)
+    for trial in range(20):
+        chosen = [TERMS[i] for i in rng.choice(len(TERMS), size=rng.integers(1, 5))]
+        t = np.sort(rng.uniform(-0.5, last, size=rng.integers(1, 300)))
+        t[-1] = last
+        total = np.zeros_like(t)
+        for weight, signal in chosen:
+            total = total + weight * signal.derivative(t, n)
+        got = Sum(tuple(chosen)).derivative(t, n)
+        assert np.array_equal(_bits(got), _bits(total)), (trial, chosen)
+
+
+def test_a_sum_of_silent_terms_still_refuses_what_a_term_would():
+    """Skipping a term loses none of its errors: a bad order, a Sine derivative beyond the
+    float range and a Chirp beyond n = 2 raise although the grid ends before they start."""
+    early = np.linspace(0.0, 1.0, 11)
+    with pytest.raises(ValueError, match="n must be"):
+        Sum(((1.0, Step(5.0, 1.0)),)).derivative(early, -1)
+    with pytest.raises(ValueError, match="exceeds the float range"):
+        Sum(((1.0, Sine(1.0, 1e300, start=5.0)),)).derivative(early, 2)
+    with pytest.raises(ValueError, match="up to n=2"):
+        Sum(((1.0, Chirp(1.0, 1.0, 2.0, start=5.0, stop=6.0)),)).derivative(early, 3)
+    with pytest.raises(ValueError, match="no derivative"):
+        Sum(((1.0, Noise(1.0, 0.01, start=5.0, stop=6.0)),)).derivative(early, 1)
+
+
+def test_a_subclass_that_changes_the_derivative_is_always_evaluated():
+    """A user's subclass of a built-in signal that overrides derivative (not where it is
+    silent) is evaluated even before the parent's start: its own values count."""
+
+    class Shifted(Sine):
+        def derivative(self, t, n=0):
+            return super().derivative(t, n) + 1.0
+
+    t = np.linspace(0.0, 1.0, 5)
+    signal = Shifted(1.0, 1.0, start=5.0)
+    assert np.array_equal(Sum(((2.0, signal),)).derivative(t), 2.0 * signal.derivative(t))
