@@ -10,7 +10,6 @@ are in ``_waveforms.py``.
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 
@@ -145,22 +144,34 @@ class Sum(Signal):
 
     def derivative(self, t, n: int = 0) -> np.ndarray:
         t = _times(t)
-        n = _check_derivative(n)
         total = np.zeros_like(t)
         # a term that is 0 over every t is skipped: total starts at +0 and never becomes -0
-        # (x + y is -0 only if both are), so total + weight * (+-0) is total, bit for bit
-        last = float(t.max()) if t.size else -math.inf
+        # (x + y is -0 only if both are), so total + weight * (+-0) is total, bit for bit;
+        # only for a valid order (any other n goes to the terms, which say what is wrong)
+        order = _order_or_none(n)
+        last = float(t.max()) if t.size and order is not None else -math.inf
+        added = False
         for weight, signal in self.terms:
-            if last < _silent_before(signal, n):
+            if last < _silent_before(signal, order):
                 continue
             total = total + weight * signal.derivative(t, n)
+            added = True
+        if self.terms and not added and t.ndim == 0:
+            return total[()]  # the numpy scalar that adding a term gives
         return total
 
     def _silent_before(self, n: int) -> float:
         return min((_silent_before(signal, n) for _, signal in self.terms), default=math.inf)
 
 
-@functools.cache
+def _order_or_none(n):
+    """``n`` as a derivative order, or None if it is not one."""
+    try:
+        return _check_derivative(n)
+    except (TypeError, ValueError):
+        return None
+
+
 def _says_where_silent(cls: type) -> bool:
     """Whether the class that gives ``cls`` its ``derivative`` also gives its
     ``_silent_before`` (a subclass that changes the one without the other is evaluated)."""
@@ -170,8 +181,11 @@ def _says_where_silent(cls: type) -> bool:
     return False
 
 
-def _silent_before(signal: Signal, n: int) -> float:
-    return signal._silent_before(n) if _says_where_silent(type(signal)) else -math.inf
+def _silent_before(signal: Signal, n) -> float:
+    """``signal._silent_before(n)`` if ``signal`` says it and ``n`` is an order, else -inf."""
+    if n is None or not _says_where_silent(type(signal)):
+        return -math.inf
+    return signal._silent_before(n)
 
 
 @dataclass(frozen=True)

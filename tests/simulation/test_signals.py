@@ -222,3 +222,22 @@ def test_a_subclass_that_changes_the_derivative_is_always_evaluated():
     t = np.linspace(0.0, 1.0, 5)
     signal = Shifted(1.0, 1.0, start=5.0)
     assert np.array_equal(Sum(((2.0, signal),)).derivative(t), 2.0 * signal.derivative(t))
+
+
+def test_a_sum_of_silent_terms_gives_the_type_and_orders_of_every_term_added():
+    """What skipping must not change besides the bits: a scalar time gives a numpy scalar
+    (as adding a term does: JSON- and hash-able), an empty sum its zeros, and an order the
+    sum does not know (a user's term that takes n = -1) still goes to the terms."""
+    late = Step(1.0, 2.0) + Sine(0.5, 1.0, start=1.0)
+    value = late(0.0)
+    assert isinstance(value, float) and value == 0.0 and not np.signbit(value)
+    assert np.array_equal(late(np.array([0.0, 0.5])), [0.0, 0.0])
+    assert Sum(()).derivative(0.0, -1) == 0.0
+
+    class Integral(Sine):
+        def derivative(self, t, n=0):
+            t = np.asarray(t, dtype=float)
+            return t if n == -1 else super().derivative(t, n)
+
+    assert np.array_equal(Sum(((1.0, Integral(1.0, 1.0, start=5.0)),)).derivative([2.0], -1),
+                          [2.0])  # fmt: skip

@@ -97,9 +97,12 @@ def _parse(parser: argparse.ArgumentParser, argv: list) -> argparse.Namespace:
 
 def _dismantle(parser: argparse.ArgumentParser) -> None:
     """Empty ``parser``, its subparsers, their groups and actions (no cycle is left)."""
-    parsers = [parser]
+    parsers, seen = [parser], set()
     while parsers:
         p = parsers.pop()
+        if id(p) in seen:  # a subparser's aliases name it again
+            continue
+        seen.add(id(p))
         for action in p._actions:
             if isinstance(action, argparse._SubParsersAction):
                 parsers.extend(action.choices.values())
