@@ -11,13 +11,13 @@ the Kronecker solve of :func:`scipy.linalg.solve_discrete_lyapunov` is accurate 
 (quasi-)triangular Schur form where, on the companion form, it loses up to 3 digits for
 ``m = 3`` and bandwidths below ~10 rad/s (measured against frequency-domain quadrature in
 ``tests/analysis/test_noise.py``). scipy's condition warning refers to the Kronecker matrix's
-norm-wise condition number, which is pessimistic for this triangular system and is therefore
-silenced.
+norm-wise condition number, which is pessimistic for this triangular system: the solve
+(:func:`discrete_lyapunov`, scipy's numbers bit for bit) does not estimate it, so nothing
+needs silencing (a thread-safe matter: ``tune()`` analyses while its runs compile).
 """
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -37,12 +37,51 @@ CHANNELS = ("position", "velocity")
 OBSERVER_CHANNELS = ("velocity", "position", "encoder")
 
 
+#: Below this size :func:`scipy.linalg.solve_discrete_lyapunov` solves the Kronecker system
+#: directly (its ``method=None``); from it on, by its bilinear method.
+DIRECT_LYAPUNOV = 10
+
+
+def discrete_lyapunov(a: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """:func:`scipy.linalg.solve_discrete_lyapunov` ``(a, q)``, bit for bit, without its
+    condition warning.
+
+    Below :data:`DIRECT_LYAPUNOV` states it solves ``(I - kron(a, a)) vec(X) = vec(q)`` by
+    LAPACK's ``getrf``/``getrs``, the routines ``scipy.linalg.solve`` runs for it, without the
+    condition estimate that warns (:class:`scipy.linalg.LinAlgWarning`): that estimate is the
+    Kronecker matrix's, pessimistic on a Schur form (module docstring), and silencing it with
+    :func:`warnings.catch_warnings` is not thread-safe: ``tune()`` analyses while its runs
+    compile in another thread, whose own ``catch_warnings`` (numba's) could drop or keep the
+    filter for the whole process. From :data:`DIRECT_LYAPUNOV` on, scipy's bilinear method
+    (which does not warn) as it is.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        If the Kronecker matrix is exactly singular (as ``scipy.linalg.solve``).
+    """
+    from scipy.linalg import LinAlgError, get_lapack_funcs, solve_discrete_lyapunov
+
+    a, q = np.asarray(a, dtype=float), np.asarray(q, dtype=float)
+    if a.shape[0] >= DIRECT_LYAPUNOV:
+        return solve_discrete_lyapunov(a, q)
+    lhs = np.eye(a.shape[0] ** 2) - np.kron(a, a.conj())
+    if not (np.all(np.isfinite(lhs)) and np.all(np.isfinite(q))):
+        raise ValueError("array must not contain infs or NaNs")
+    getrf, getrs = get_lapack_funcs(("getrf", "getrs"), (lhs,))
+    lu, pivots, info = getrf(lhs)
+    if info > 0:
+        raise LinAlgError("A singular matrix detected.")
+    x, info = getrs(lu, pivots, q.flatten())
+    return np.reshape(x, q.shape)
+
+
 def h2_gains(A, B, C, D) -> np.ndarray:
     """RMS of each output per unit-variance white noise on the (single) input column of ``B``.
 
     ``A`` must be asymptotically stable (checked by the callers).
     """
-    from scipy.linalg import LinAlgWarning, matrix_balance, schur, solve_discrete_lyapunov
+    from scipy.linalg import matrix_balance, schur
 
     # Diagonal balancing first: a state in physical units (the ESO's [theta, omega, f, f', ...]
     # spans ~1e11) makes C X C^T a difference of huge terms that cancel to garbage or a
@@ -53,11 +92,7 @@ def h2_gains(A, B, C, D) -> np.ndarray:
     C = C * scale[None, :]
     T, U = schur(A, output="real")
     Bs = U.T @ B
-    with warnings.catch_warnings():
-        # The rcond estimate is for the Kronecker matrix; on the Schur form the solve is a
-        # back substitution and accurate (see the module docstring).
-        warnings.simplefilter("ignore", LinAlgWarning)
-        X = solve_discrete_lyapunov(T, Bs @ Bs.T)
+    X = discrete_lyapunov(T, Bs @ Bs.T)
     Cs = C @ U
     variance = np.einsum("ij,jk,ik->i", Cs, X, Cs) + np.einsum("ij,ij->i", D, D)
     # A variance below zero is a failed solve, not a noiseless output: never report it as 0.
