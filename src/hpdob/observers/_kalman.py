@@ -26,7 +26,6 @@ like the DOb's.
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -200,9 +199,10 @@ def design_kalman(
     A_s = d[:, None] * A / d[None, :]
     G_s = d * G
     try:
-        with warnings.catch_warnings(), np.errstate(all="ignore"):
+        with np.errstate(all="ignore"):
             # scipy's balancing casts NaN for hopeless noise ratios: judged by the result below
-            warnings.simplefilter("ignore", RuntimeWarning)
+            # (numpy's floating-point warnings, the thread's own to silence: not
+            # warnings.catch_warnings, whose filters a sweep's other threads share)
             P_s = solve_discrete_are(A_s.T, C.T, (q * q) * np.outer(G_s, G_s), np.array([[r * r]]))
         if not np.all(np.isfinite(P_s)):
             raise ValueError("the solution is not finite")
