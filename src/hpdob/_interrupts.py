@@ -109,14 +109,25 @@ def handling_signals():
     previous = {}
     try:
         for signum in SIGNALS:
-            if signal.getsignal(signum) is signal.SIG_IGN:
+            old = signal.getsignal(signum)
+            if old is signal.SIG_IGN:
                 continue
-            previous[signum] = signal.signal(signum, _handler)
+            previous[signum] = old  # first: a signal as its handler goes in still restores it
+            signal.signal(signum, _handler)
         yield
     finally:
+        # every handler restored, also when a signal comes meanwhile (then raised after)
+        pending = None
         for signum, old in previous.items():
-            signal.signal(signum, old)
+            while True:
+                try:
+                    signal.signal(signum, old)
+                    break
+                except KeyboardInterrupt as err:
+                    pending = err
         _received.clear()
+        if pending is not None:
+            raise pending
 
 
 @contextlib.contextmanager
