@@ -149,16 +149,13 @@ class Sum(Signal):
         # (x + y is -0 only if both are), so total + weight * (+-0) is total, bit for bit;
         # only for a valid order (any other n goes to the terms, which say what is wrong)
         order = _order_or_none(n)
-        last = float(t.max()) if t.size and order is not None else -math.inf
-        added = False
+        last = float(t.max()) if t.size else -math.inf
         for weight, signal in self.terms:
             if last < _silent_before(signal, order):
                 continue
             total = total + weight * signal.derivative(t, n)
-            added = True
-        if self.terms and not added and t.ndim == 0:
-            return total[()]  # the numpy scalar that adding a term gives
-        return total
+        # at a scalar time adding a term gives a numpy scalar: so does a sum of skipped terms
+        return total[()] if self.terms and t.ndim == 0 else total
 
     def _silent_before(self, n: int) -> float:
         return min((_silent_before(signal, n) for _, signal in self.terms), default=math.inf)
