@@ -94,6 +94,35 @@ def _handler(signum, frame):
 
 
 @contextlib.contextmanager
+def _handled_by(handler, *, keep_ignored: bool):
+    """``handler`` for :data:`SIGNALS` inside the block (not for a signal ignored with
+    ``SIG_IGN`` if ``keep_ignored``), the previous handlers restored on leaving: every one of
+    them, also when a signal comes while they change (each old handler is recorded before its
+    replacement goes in; a ``KeyboardInterrupt`` during the restoring is raised once all are
+    back)."""
+    previous = {}
+    try:
+        for signum in SIGNALS:
+            old = signal.getsignal(signum)
+            if keep_ignored and old is signal.SIG_IGN:
+                continue
+            previous[signum] = old
+            signal.signal(signum, handler)
+        yield
+    finally:
+        pending = None
+        for signum, old in previous.items():
+            while True:
+                try:
+                    signal.signal(signum, old)
+                    break
+                except KeyboardInterrupt as err:
+                    pending = err
+        if pending is not None:
+            raise pending
+
+
+@contextlib.contextmanager
 def handling_signals():
     """Handle SIGINT, SIGTERM and SIGHUP by raising :class:`Interrupted` inside the block.
 
@@ -106,28 +135,11 @@ def handling_signals():
         yield
         return
     _received.clear()
-    previous = {}
     try:
-        for signum in SIGNALS:
-            old = signal.getsignal(signum)
-            if old is signal.SIG_IGN:
-                continue
-            previous[signum] = old  # first: a signal as its handler goes in still restores it
-            signal.signal(signum, _handler)
-        yield
+        with _handled_by(_handler, keep_ignored=True):
+            yield
     finally:
-        # every handler restored, also when a signal comes meanwhile (then raised after)
-        pending = None
-        for signum, old in previous.items():
-            while True:
-                try:
-                    signal.signal(signum, old)
-                    break
-                except KeyboardInterrupt as err:
-                    pending = err
         _received.clear()
-        if pending is not None:
-            raise pending
 
 
 @contextlib.contextmanager
@@ -140,14 +152,10 @@ def interrupts_deferred():
         yield
         return
     held = []
-    previous = {}
     try:
-        for signum in SIGNALS:
-            previous[signum] = signal.signal(signum, lambda s, frame: held.append(s))
-        yield
+        with _handled_by(lambda s, frame: held.append(s), keep_ignored=False):
+            yield
     finally:
-        for signum, old in previous.items():
-            signal.signal(signum, old)
         if held:
             signal.raise_signal(held[0])  # now handled as it would have been
 

@@ -403,3 +403,26 @@ def test_a_signal_while_the_handlers_change_is_one_line_and_restores_them(monkey
     assert restored is original
     assert fired and code == 130
     assert err in ("hpdob: interrupted\n", "hpdob design: interrupted\n")
+
+
+def test_held_back_signals_restore_every_handler_when_one_comes_while_they_change(monkeypatch):
+    """interrupts_deferred (a commit's renames) shares handling_signals' handler swap: a signal
+    while the handlers are restored still leaves every one as it was, and is raised after."""
+    from hpdob import _interrupts
+
+    real = signal.signal
+    before = {signum: signal.getsignal(signum) for signum in _interrupts.SIGNALS}
+    fired = []
+
+    def restoring(signum, handler):
+        if handler is before[signum] and not fired:  # the first restore: a signal comes
+            fired.append(signum)
+            raise _interrupts.Interrupted(signal.SIGINT)
+        return real(signum, handler)
+
+    monkeypatch.setattr(signal, "signal", restoring)
+    with pytest.raises(_interrupts.Interrupted), _interrupts.interrupts_deferred():
+        pass
+    monkeypatch.undo()
+    assert fired
+    assert {signum: signal.getsignal(signum) for signum in before} == before
