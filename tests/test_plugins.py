@@ -85,8 +85,11 @@ def test_the_entry_points_are_read_once_per_process(monkeypatch):
         scans.append(kwargs)
         return []
 
-    monkeypatch.setattr(_plugins, "_ENTRY_POINTS", None)
     monkeypatch.setattr(importlib.metadata, "entry_points", entry_points)
-    assert _plugins.load_plugins({}) == ()
-    assert _plugins.load_plugins({}) == ()
+    _plugins.installed_entry_points.cache_clear()
+    try:
+        assert _plugins.load_plugins({}) == ()
+        assert _plugins.load_plugins({}) == ()
+    finally:  # the real entry points for the next caller
+        _plugins.installed_entry_points.cache_clear()
     assert scans == [{"group": _plugins.ENTRY_POINT_GROUP}]

@@ -16,17 +16,26 @@ Plant types of scenario files have their own group, ``hpdob.plant_types`` (hpdob
 
 from __future__ import annotations
 
+import functools
 import os
 
-__all__ = ["ENTRY_POINT_GROUP", "ENVIRONMENT_VARIABLE", "load_plugins"]
+__all__ = ["ENTRY_POINT_GROUP", "ENVIRONMENT_VARIABLE", "installed_entry_points", "load_plugins"]
 
 ENVIRONMENT_VARIABLE = "HPDOB_PLUGINS"
 ENTRY_POINT_GROUP = "hpdob.families"
 
 _LOADED: set[str] = set()  # the entry points and modules loaded already (once per process)
-#: The group's entry points, read on the first call: a scan of every installed distribution
-#: costs about 4 ms and leaves some 40 kB of cyclic garbage, at every command of a process.
-_ENTRY_POINTS: list | None = None
+
+
+@functools.cache
+def installed_entry_points(group: str) -> tuple:
+    """The entry points of ``group`` installed when the process first asks for them: a scan
+    of every installed distribution costs about 4 ms and leaves some 40 kB of cyclic
+    garbage, once per process rather than at every command or scenario (a package installed
+    meanwhile is seen by the next process)."""
+    import importlib.metadata
+
+    return tuple(importlib.metadata.entry_points(group=group))
 
 
 def _import(module: str, where: str):
@@ -70,12 +79,7 @@ def load_plugins(environ=None) -> tuple:
             _import(name, ENVIRONMENT_VARIABLE)
             _LOADED.add(name)
             loaded.append(name)
-    global _ENTRY_POINTS
-    if _ENTRY_POINTS is None:
-        import importlib.metadata
-
-        _ENTRY_POINTS = list(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP))
-    for entry in _ENTRY_POINTS:
+    for entry in installed_entry_points(ENTRY_POINT_GROUP):
         if entry.value in _LOADED:
             continue
         where = f"the entry point {entry.name!r} of {ENTRY_POINT_GROUP}"

@@ -211,6 +211,7 @@ def test_the_entry_points_are_read_once_per_process(monkeypatch):
     first lookup only (a scan costs milliseconds and leaves cyclic garbage)."""
     import importlib.metadata
 
+    from hpdob._plugins import installed_entry_points
     from hpdob.simulation import _plant_types, plant_types
 
     scans = []
@@ -219,7 +220,10 @@ def test_the_entry_points_are_read_once_per_process(monkeypatch):
         scans.append(kwargs)
         return []
 
-    monkeypatch.setattr(_plant_types, "_ENTRY_POINTS", None)
     monkeypatch.setattr(importlib.metadata, "entry_points", entry_points)
-    assert plant_types() == plant_types()
+    installed_entry_points.cache_clear()
+    try:
+        assert plant_types() == plant_types()
+    finally:  # the real entry points for the next caller
+        installed_entry_points.cache_clear()
     assert scans == [{"group": _plant_types.ENTRY_POINT_GROUP}]

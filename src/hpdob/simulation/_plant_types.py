@@ -14,10 +14,10 @@ names no package above it, so the dependency order of the subpackages holds.
 
 from __future__ import annotations
 
-import importlib.metadata
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from .._plugins import installed_entry_points
 from .._validation import ParameterTypeError, ParameterValueError
 
 __all__ = [
@@ -138,16 +138,10 @@ def unregister_plant_type(name: str) -> None:
 
 
 _LOADED: set[str] = set()  # the entry points loaded already (each once per process)
-#: The group's entry points, read on the first lookup: a scan of every installed distribution
-#: costs about 4 ms and leaves some 40 kB of cyclic garbage, at every scenario loaded.
-_ENTRY_POINTS: list | None = None
 
 
 def _load_plugins() -> None:
-    global _ENTRY_POINTS
-    if _ENTRY_POINTS is None:
-        _ENTRY_POINTS = list(importlib.metadata.entry_points(group=ENTRY_POINT_GROUP))
-    for entry in _ENTRY_POINTS:
+    for entry in installed_entry_points(ENTRY_POINT_GROUP):
         if entry.value in _LOADED:
             continue
         _LOADED.add(entry.value)
