@@ -55,7 +55,7 @@ from ._sensitivity import (
     sensitivity_warnings,
 )
 from ._simfit import MIN_FIT, simulate_fit
-from ._solve import relative_error, solve
+from ._solve import percent, relative_error, solve
 
 __all__ = ["FRICTION_MODELS", "METHODS", "OFFSETS", "IdentificationWarning", "identify"]
 
@@ -123,7 +123,7 @@ def band_error(u: np.ndarray, u_simulated: np.ndarray, settings, *, overwrite=Fa
             np.subtract(measured, simulated[lo:hi], out=simulated[lo:hi])
             del measured  # not beside the next block
         error = float(np.linalg.norm(simulated))
-    return 100.0 * error / scale if scale > 0 else (0.0 if error == 0 else math.inf)
+    return percent(error, scale)
 
 
 def simulated_parameters(parameters: np.ndarray, run, layout) -> np.ndarray:

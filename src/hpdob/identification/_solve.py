@@ -29,6 +29,8 @@ __all__ = [
     "input_loop",
     "input_simulation",
     "long_run_covariance",
+    "mismatch",
+    "percent",
     "relative_error",
     "simulable",
     "solve",
@@ -48,7 +50,11 @@ def relative_error(measured: np.ndarray, simulated: np.ndarray, *, out=None) -> 
     """``100 ||measured - simulated|| / ||measured||`` [%]; ``out``: an array of their size
     the difference may be written to (the same numbers as numpy's temporary)."""
     scale = float(np.linalg.norm(measured))
-    error = float(np.linalg.norm(np.subtract(measured, simulated, out=out)))
+    return percent(float(np.linalg.norm(np.subtract(measured, simulated, out=out))), scale)
+
+
+def percent(error: float, scale: float) -> float:
+    """``100 error / scale`` [%]: 0 for no error of nothing, inf for an error of nothing."""
     return 100.0 * error / scale if scale > 0 else (0.0 if error == 0 else math.inf)
 
 
@@ -64,8 +70,7 @@ def mismatch(measured: np.ndarray, simulated: np.ndarray) -> float:
     for lo in range(0, measured.size, MISMATCH_BLOCK):
         difference = measured[lo : lo + MISMATCH_BLOCK] - simulated[lo : lo + MISMATCH_BLOCK]
         squares += float(difference @ difference)
-    scale, error = float(np.linalg.norm(measured)), math.sqrt(squares)
-    return 100.0 * error / scale if scale > 0 else (0.0 if error == 0 else math.inf)
+    return percent(math.sqrt(squares), float(np.linalg.norm(measured)))
 
 
 def simulable(parameters: np.ndarray, iteration: int, name: str = "") -> np.ndarray:
