@@ -426,3 +426,20 @@ def test_held_back_signals_restore_every_handler_when_one_comes_while_they_chang
     monkeypatch.undo()
     assert fired
     assert {signum: signal.getsignal(signum) for signum in before} == before
+
+
+def test_a_signal_while_an_error_is_reported_is_the_interrupt(monkeypatch, capsys):
+    """A Ctrl-C while main reports a rejected argument: exit 130 with the one line (the
+    handlers restored), not a traceback."""
+    import hpdob.cli
+    from hpdob import _interrupts
+
+    def reporting(command, err):
+        raise _interrupts.Interrupted(signal.SIGINT)
+
+    original = signal.getsignal(signal.SIGINT)
+    monkeypatch.setattr(hpdob.cli, "_failed", reporting)
+    code = hpdob.cli.main(["design", "--order", "-1"])
+    _, err = capsys.readouterr()
+    assert code == 130 and err == "hpdob design: interrupted\n"
+    assert signal.getsignal(signal.SIGINT) is original

@@ -149,27 +149,26 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with handling_signals():
             try:
-                try:
-                    checkpoint("startup")  # a test hook (hpdob._interrupts); no-op otherwise
-                    load_plugins()  # HPDOB_PLUGINS and hpdob.families: their families' options
-                    argv = sys.argv[1:] if argv is None else list(argv)
-                    first = argv[0] if argv and isinstance(argv[0], str) else None
-                    args = _parse(build_parser(first), argv)
-                    command = f"hpdob {args.command}"
-                    _check_outputs(args)
-                    code = int(args.handler(args) or 0)
-                    check()  # a signal whose KeyboardInterrupt Python ignored (in a __del__)
-                    return code
-                except KeyboardInterrupt as err:
-                    return _interrupted(command, err)
-                except Exception as err:
-                    if received() is not None:  # the signal's exception, turned into another
-                        # by C code it interrupted (an import: SyntaxError "can't load unicodedata")
-                        return _interrupted(command, Interrupted(received()))
-                    return _failed(command, err)
-            except KeyboardInterrupt as err:  # a second signal while reporting the first
+                checkpoint("startup")  # a test hook (hpdob._interrupts); no-op otherwise
+                load_plugins()  # HPDOB_PLUGINS and hpdob.families: their families' options
+                argv = sys.argv[1:] if argv is None else list(argv)
+                first = argv[0] if argv and isinstance(argv[0], str) else None
+                args = _parse(build_parser(first), argv)
+                command = f"hpdob {args.command}"
+                _check_outputs(args)
+                code = int(args.handler(args) or 0)
+                check()  # a signal whose KeyboardInterrupt Python ignored (in a __del__)
+                return code
+            except KeyboardInterrupt as err:
                 return _interrupted(command, err)
-    except KeyboardInterrupt as err:  # a signal while the handlers go in or come out
+            except Exception as err:
+                if received() is not None:  # the signal's exception, turned into another
+                    # by C code it interrupted (an import: SyntaxError "can't load unicodedata")
+                    return _interrupted(command, Interrupted(received()))
+                return _failed(command, err)
+    # a signal while the handlers go in or come out, or a second one while the first (or an
+    # error) is reported
+    except KeyboardInterrupt as err:
         return _interrupted(command, err)
 
 
