@@ -148,8 +148,9 @@ def make_layout(friction, fixed, offsets, n_runs) -> Layout:
 ROWS = 4096
 
 
-def _blocks(n: int):
-    return ((lo, min(lo + ROWS, n)) for lo in range(0, n, ROWS))
+def _blocks(n: int, rows: int | None = None):
+    rows = ROWS if rows is None else rows
+    return ((lo, min(lo + rows, n)) for lo in range(0, n, rows))
 
 
 def variance_inflation(columns: np.ndarray) -> np.ndarray:
@@ -187,11 +188,10 @@ def _triangular(X: np.ndarray, norms: np.ndarray) -> np.ndarray:
     n = X.shape[1]
     stack = np.empty((n + QR_ROWS, n))
     R = np.empty((0, n))
-    for lo in range(0, X.shape[0], QR_ROWS):
-        block = X[lo : lo + QR_ROWS]
-        k, rows = R.shape[0], block.shape[0]
+    for lo, hi in _blocks(X.shape[0], QR_ROWS):
+        k, rows = R.shape[0], hi - lo
         stack[:k] = R
-        np.divide(block, norms, out=stack[k : k + rows])
+        np.divide(X[lo:hi], norms, out=stack[k : k + rows])
         R = np.linalg.qr(stack[: k + rows], mode="r")
     return R
 
