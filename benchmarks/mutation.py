@@ -207,6 +207,17 @@ TARGETS = {
         "src/hpdob/simulation/_signal_table.py",
         ("tests/simulation/test_signal_table.py", "tests/simulation/test_kernel.py"),
     ),
+    "signals": Target(
+        # the built-in signals and their sums (a Sum skips terms silent over the grid: the
+        # bit-for-bit comparison with every term added catches a wrong silence)
+        "src/hpdob/_signals.py",
+        ("tests/simulation/test_signals.py", "tests/simulation/test_signal_table.py"),
+    ),
+    "analysis.noise": Target(
+        # the noise gains' Lyapunov solve (scipy's numbers bit for bit) and the gains
+        "src/hpdob/analysis/_noise.py",
+        ("tests/analysis/test_noise.py",),
+    ),
     "identification.regression": Target(
         "src/hpdob/identification/_regression.py",
         (

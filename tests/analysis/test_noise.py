@@ -215,3 +215,17 @@ def test_the_lyapunov_solve_is_scipys_bit_for_bit_and_never_warns():
         got = discrete_lyapunov(T, Q)  # filterwarnings = error: any warning fails
         assert np.array_equal(got.view(np.int64), reference.view(np.int64))
     assert warned > 0  # the cases scipy warns on are among them
+
+
+@pytest.mark.parametrize("where", ["a", "q"])
+def test_the_lyapunov_solve_refuses_non_finite_input_as_scipy_does(where):
+    """A NaN or inf in either matrix: scipy.linalg.solve's ValueError, not a solve of it."""
+    from scipy.linalg import solve_discrete_lyapunov
+
+    from hpdob.analysis._noise import discrete_lyapunov
+
+    a, q = np.array([[0.5, 0.1], [0.0, 0.3]]), np.eye(2)
+    (a if where == "a" else q)[0, 1] = np.nan
+    for solver in (solve_discrete_lyapunov, discrete_lyapunov):
+        with pytest.raises(ValueError, match="infs or NaNs"):
+            solver(a, q)
